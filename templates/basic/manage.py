@@ -1,0 +1,45 @@
+#!/usr/bin/env python3
+"""Drive, record and train this car: camera, controller, PWM drivetrain, tub writer, pilot.
+
+    python manage.py drive                            # drive from the web page or gamepad, record tubs
+    python manage.py drive --model models/pilot.pt    # let a trained pilot drive
+    python manage.py train --tubs data --model models/pilot.pt
+
+Settings live in myconfig.py (overrides of the defaults; see docs/config.md); set CAMERA_TYPE and
+DRIVE_TRAIN_TYPE to "MOCK" to run on the bench without hardware. To add a part of your own,
+insert a V.add(...) between two helper calls in drive().
+"""
+
+from pathlib import Path
+
+from vehicle import Vehicle, assembly, car
+
+
+def drive(cfg, args):
+    """Assemble the car and drive it until Ctrl-C (or --max-loops)."""
+    V = Vehicle()
+    assembly.add_camera(V, cfg)  # -> cam/image_array, cam/timestamp, cam/ok
+    assembly.add_controller(V, cfg)  # web page (and gamepad) -> user/angle, user/throttle, user/mode
+    assembly.add_behavior(V, cfg)  # -> behavior/state, behavior/label, behavior/one_hot_state_array
+    if args.model:
+        assembly.add_pilot(V, cfg, args.model)  # cam/image_array -> pilot/angle, pilot/throttle
+    assembly.add_drive_mode(V, cfg)  # user/* or pilot/* -> angle, throttle
+    assembly.add_throttle_filter(V, cfg)  # ESC reverse double-tap
+    assembly.add_drivetrain(V, cfg)  # angle, throttle -> PCA9685 pulses
+    assembly.add_recording_rules(V, cfg)  # auto-record on throttle, no recording in autopilot
+    assembly.add_tub_writer(V, cfg)  # records every loop while `recording` is on
+    return car.run(V, cfg, args.max_loops)
+
+
+def main(argv=None):
+    parser = car.command_parser(__doc__)
+    d = car.add_command(parser, "drive", drive, "drive the car and record tubs")
+    d.add_argument("--model", help="trained pilot to drive with (a models/*.pt file)")
+    d.add_argument("--max-loops", type=int, metavar="N", help="stop after N loops")
+    t = car.add_command(parser, "train", assembly.train, "train a pilot from this car's tubs")
+    assembly.add_train_arguments(t)
+    return car.main(parser, Path(__file__).resolve().parent, argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,52 @@
+#!/usr/bin/env python3
+"""Drive, record and train this car in the built-in simulator.
+
+    python manage.py drive                            # drive from the web page, record tubs
+    python manage.py drive --model models/pilot.pt    # let a trained pilot drive
+    python manage.py drive --expert --record-records 3000 --tracks 1,2,3
+                                                      # record demonstrations, no human needed
+    python manage.py train --tubs data --model models/pilot.pt
+
+Settings live in myconfig.py (overrides of the defaults; see docs/config.md). To add a part of
+your own, insert a V.add(...) between two helper calls in drive().
+"""
+
+from pathlib import Path
+
+from vehicle import Vehicle, assembly, car
+
+
+def drive(cfg, args):
+    """Assemble the simulated car and drive it until Ctrl-C (or --max-loops / --record-records)."""
+    if args.tracks:
+        cfg = cfg.replace(SIM_TRACK_SEEDS=args.tracks)
+    V = Vehicle()
+    sim = assembly.add_simulator(V, cfg, realtime=not args.expert)  # angle, throttle -> camera, sim/*
+    if args.expert:
+        assembly.add_expert(V, cfg, sim)  # the expert drives and labels its own demonstrations
+    else:
+        assembly.add_controller(V, cfg)  # web page (and gamepad) -> user/angle, user/throttle, user/mode
+    if args.model:
+        assembly.add_pilot(V, cfg, args.model)  # cam/image_array -> pilot/angle, pilot/throttle
+    assembly.add_drive_mode(V, cfg)  # user/* or pilot/* -> angle, throttle
+    assembly.add_tub_writer(V, cfg)  # records every loop while `recording` is on
+    if args.record_records:
+        car.stop_after(V, "tub/num_records", args.record_records)
+    return car.run(V, cfg, args.max_loops)
+
+
+def main(argv=None):
+    parser = car.command_parser(__doc__)
+    d = car.add_command(parser, "drive", drive, "drive the simulated car and record tubs")
+    d.add_argument("--model", help="trained pilot to drive with (a models/*.pt file)")
+    d.add_argument("--expert", action="store_true", help="let the built-in expert drive (simulated time)")
+    d.add_argument("--record-records", type=int, metavar="N", help="stop after recording N records")
+    d.add_argument("--tracks", type=car.int_list, metavar="SEEDS", help="track seeds, e.g. 1,2,3")
+    d.add_argument("--max-loops", type=int, metavar="N", help="stop after N loops")
+    t = car.add_command(parser, "train", assembly.train, "train a pilot from this car's tubs")
+    assembly.add_train_arguments(t)
+    return car.main(parser, Path(__file__).resolve().parent, argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,20 @@
+"""Settings of this simulated car: only what differs from the defaults (docs/config.md lists all).
+
+Uncomment and edit a line to override a default. Loading checks every name and type: a typo is
+reported with the closest valid name.
+"""
+
+# -- loop and camera
+# DRIVE_LOOP_HZ = 20
+# IMAGE_W = 160
+# IMAGE_H = 120
+
+# -- simulator
+# SIM_TRACK_SEEDS = [1]          # tracks to drive; `vehicle sim track --seed N --png t.png` draws one
+
+# -- driving with a pilot
+# AI_THROTTLE_MULT = 1.0
+# DEFAULT_MODEL_TYPE = "linear"
+
+# -- web page
+# WEB_CONTROL_PORT = 8887

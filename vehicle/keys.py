@@ -1,0 +1,61 @@
+"""The standard memory keys: one place that names every value parts exchange.
+
+Names follow DonkeyCar where it has one, so tubs and parts interoperate. New keys get a
+namespace (``sim/...``, ``web/...``). Each entry is ``KEY: (type, meaning)``; parts may still use
+any other string key, these are the ones the library itself produces or consumes.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+
+class KeyInfo(NamedTuple):
+    """What a memory key holds."""
+
+    type: str
+    meaning: str
+
+
+STANDARD_KEYS: dict[str, KeyInfo] = {
+    # -- camera
+    "cam/image_array": KeyInfo("ndarray HxWx3 uint8 RGB", "latest camera frame"),
+    "cam/timestamp": KeyInfo("float", "capture time of cam/image_array, seconds (time.time())"),
+    "cam/frame_id": KeyInfo("int", "counter of frames delivered by the camera"),
+    "cam/ok": KeyInfo("bool", "False when the camera stopped delivering frames"),
+    # -- human input
+    "user/angle": KeyInfo("float in [-1, 1]", "steering from the human controller, -1 = full left"),
+    "user/throttle": KeyInfo("float in [-1, 1]", "throttle from the human controller, negative = reverse"),
+    "user/mode": KeyInfo("str: user | local_angle | local", "who drives: human, pilot steers, pilot drives"),
+    "recording": KeyInfo("bool", "whether the tub writer records this loop"),
+    "estop": KeyInfo("bool", "emergency stop latched: throttle forced to 0"),
+    # -- pilot
+    "pilot/angle": KeyInfo("float in [-1, 1]", "steering from the pilot"),
+    "pilot/throttle": KeyInfo("float in [-1, 1]", "throttle from the pilot"),
+    "run_pilot": KeyInfo("bool", "True when the pilot must run this loop (mode is not user)"),
+    # -- final commands
+    "angle": KeyInfo("float in [-1, 1]", "steering command sent to the drivetrain"),
+    "throttle": KeyInfo("float in [-1, 1]", "throttle command sent to the drivetrain"),
+    # -- behaviour
+    "behavior/state": KeyInfo("int", "index of the active behaviour"),
+    "behavior/label": KeyInfo("str", "name of the active behaviour, e.g. Left_Lane"),
+    "behavior/one_hot_state_array": KeyInfo("list[float]", "one-hot encoding of behavior/state"),
+    # -- recording
+    "tub/num_records": KeyInfo("int", "records in the current tub"),
+    # -- simulator
+    "sim/cte": KeyInfo("float, m", "signed cross-track error, positive = right of the centre line"),
+    "sim/heading_error": KeyInfo("float, rad", "car heading minus track heading"),
+    "sim/speed": KeyInfo("float, m/s", "speed of the simulated car"),
+    "sim/progress": KeyInfo("float in [0, 1)", "fraction of the current lap driven"),
+    "sim/lap": KeyInfo("int", "laps completed"),
+    "sim/lap_time": KeyInfo("float, s", "duration of the last completed lap"),
+    "sim/off_track": KeyInfo("bool", "True while the car is off the road"),
+    "sim/pos": KeyInfo("tuple[float, float], m", "car position in track coordinates"),
+    # -- speed
+    "enc/speed": KeyInfo("float, m/s", "measured speed (encoder or simulator)"),
+}
+
+
+def describe(key: str) -> KeyInfo | None:
+    """Return what ``key`` holds, or None for a key outside the standard list."""
+    return STANDARD_KEYS.get(key)

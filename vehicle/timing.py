@@ -1,0 +1,64 @@
+"""Per-part timing in bounded memory: a ring of recent samples plus all-time count and max."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+class TimingRing:
+    """Durations (seconds) of the last ``size`` calls, the all-time maximum and call count."""
+
+    def __init__(self, size: int = 2048) -> None:
+        self.samples = np.zeros(size, dtype=np.float64)
+        self.count = 0
+        self.max = 0.0
+
+    def add(self, seconds: float) -> None:
+        """Record one duration."""
+        self.samples[self.count % len(self.samples)] = seconds
+        self.count += 1
+        if seconds > self.max:
+            self.max = seconds
+
+    def recent(self) -> np.ndarray:
+        """The samples still in the ring (most recent ``size`` at most)."""
+        return self.samples[: min(self.count, len(self.samples))]
+
+    def percentile(self, q: float) -> float:
+        """The q-th percentile (0-100) of the recent samples, 0.0 when empty."""
+        recent = self.recent()
+        return float(np.percentile(recent, q)) if len(recent) else 0.0
+
+
+@dataclass(frozen=True)
+class PartTiming:
+    """Summary of one part's run time, in milliseconds."""
+
+    name: str
+    calls: int
+    p50_ms: float
+    p99_ms: float
+    max_ms: float
+
+
+@dataclass(frozen=True)
+class LoopSummary:
+    """What the vehicle reports when it stops."""
+
+    loops: int
+    elapsed_s: float
+    target_hz: float
+    achieved_hz: float
+    overruns: int
+    parts: tuple[PartTiming, ...]
+
+    def format(self) -> str:
+        """A small table for the log."""
+        rows = [f"{self.loops} loops in {self.elapsed_s:.2f} s: {self.achieved_hz:.2f} Hz "
+                f"(target {self.target_hz:g} Hz), {self.overruns} overruns",
+                f"{'part':<28}{'calls':>8}{'p50 ms':>10}{'p99 ms':>10}{'max ms':>10}"]
+        rows += [f"{p.name:<28}{p.calls:>8}{p.p50_ms:>10.3f}{p.p99_ms:>10.3f}{p.max_ms:>10.3f}"
+                 for p in self.parts]
+        return "\n".join(rows)

@@ -1,0 +1,338 @@
+"""The Vehicle: runs registered parts in order at a fixed rate over a shared Memory.
+
+Every way of stopping (a part's exception, Ctrl-C, SIGTERM, SIGHUP, ``max_loop_count``,
+``stop()``) takes the same safe path: actuators' ``neutral()`` first, then every part's
+``shutdown()`` in reverse order, each error logged, then the original exception is re-raised.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import difflib
+import logging
+import signal
+import threading
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from time import perf_counter as _perf_counter
+from typing import Any
+
+from vehicle.clock import Clock, MonotonicClock, RateKeeper
+from vehicle.errors import PartError, VehicleStopped, WiringError
+from vehicle.memory import Memory
+from vehicle.part import Lambda, ThreadedPart, is_actuator, part_name
+from vehicle.timing import LoopSummary, PartTiming, TimingRing
+
+logger = logging.getLogger(__name__)
+
+#: keys the vehicle itself writes every loop
+LOOP_KEYS = ("loop/rate_hz", "loop/overruns", "loop/count")
+_STOP_SIGNALS = tuple(s for s in (getattr(signal, "SIGTERM", None), getattr(signal, "SIGHUP", None)) if s)
+
+
+@dataclass
+class _Entry:
+    part: Any
+    name: str
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    threaded: bool
+    run_condition: str | None
+    call: Any = None  # bound run or run_threaded
+    timing: TimingRing = field(default_factory=TimingRing)
+    thread: threading.Thread | None = None
+
+
+class ShutdownError(RuntimeError):
+    """One or more parts failed to shut down (each failure was logged)."""
+
+
+class Vehicle:
+    """A fixed-rate loop over parts that share a named memory.
+
+    Args:
+        mem: the memory to share (a new one by default); keys set in it before ``start`` count as
+            seeded inputs.
+        clock: the time source; ``SimulatedClock()`` runs the loop as fast as the CPU allows.
+    """
+
+    def __init__(self, mem: Memory | None = None, clock: Clock | None = None) -> None:
+        self.mem = mem if mem is not None else Memory()
+        self.clock: Clock = clock if clock is not None else MonotonicClock()
+        self.parts: list[_Entry] = []
+        self.on = False
+        self.summary: LoopSummary | None = None
+        self._stop_requested = threading.Event()
+        self._shut_down = False
+        self._last_loop_start = 0.0
+
+    # -- building ---------------------------------------------------------------------------------
+    def add(self, part: Any, inputs: Sequence[str] = (), outputs: Sequence[str] = (),
+            threaded: bool = False, run_condition: str | None = None) -> None:
+        """Register a part; parts run in the order added.
+
+        Args:
+            part: an object with ``run(*inputs)`` (and ``update()`` + ``run_threaded()`` if threaded),
+                or a plain function, which is wrapped in :class:`vehicle.part.Lambda`.
+            inputs: memory keys passed to the part, in order.
+            outputs: memory keys that receive the part's return value(s).
+            threaded: run ``part.update()`` in its own thread; the loop calls ``run_threaded()``.
+            run_condition: a memory key; the part runs only in loops where that value is truthy.
+
+        Raises:
+            TypeError: an argument has the wrong type or the part lacks a required method.
+            ValueError: an output key is listed twice.
+        """
+        if not threaded and not hasattr(part, "run") and callable(part):
+            part = Lambda(part)
+        name = self._unique_name(part_name(part))
+        keys = {}
+        for label, value in (("inputs", inputs), ("outputs", outputs)):
+            if isinstance(value, str) or not isinstance(value, list | tuple):
+                raise TypeError(f"part {name!r}: {label} must be a list of memory keys, "
+                                f"got {type(value).__name__} {value!r}")
+            bad = [k for k in value if not isinstance(k, str) or not k]
+            if bad:
+                raise TypeError(f"part {name!r}: {label} must be non-empty strings, got {bad!r}")
+            keys[label] = tuple(value)
+        if not isinstance(threaded, bool):
+            raise TypeError(f"part {name!r}: threaded must be True or False, got {threaded!r}")
+        if run_condition is not None and (not isinstance(run_condition, str) or not run_condition):
+            raise TypeError(f"part {name!r}: run_condition must be a memory key (str) or None, "
+                            f"got {run_condition!r}")
+        dupes = sorted({k for k in keys["outputs"] if keys["outputs"].count(k) > 1})
+        if dupes:
+            raise ValueError(f"part {name!r}: output keys listed more than once: {dupes}")
+        needed = ("update", "run_threaded") if threaded else ("run",)
+        missing = [m for m in needed if not callable(getattr(part, m, None))]
+        if missing:
+            how = "threaded=True needs update() and run_threaded()" if threaded else "a part needs run()"
+            raise TypeError(f"part {name!r} ({type(part).__name__}) has no {', '.join(missing)}(): {how}")
+        entry = _Entry(part, name, keys["inputs"], keys["outputs"], threaded, run_condition)
+        entry.call = part.run_threaded if threaded else part.run
+        self.parts.append(entry)
+
+    def _unique_name(self, base: str) -> str:
+        taken = {e.name for e in self.parts}
+        if base not in taken:
+            return base
+        n = 2
+        while f"{base}#{n}" in taken:
+            n += 1
+        return f"{base}#{n}"
+
+    def check_wiring(self) -> None:
+        """Raise WiringError if a part reads a key that no part produces and nobody seeded."""
+        available = set(self.mem.keys()) | set(LOOP_KEYS)
+        for e in self.parts:
+            available.update(e.outputs)
+        problems = []
+        for e in self.parts:
+            wanted = list(e.inputs) + ([e.run_condition] if e.run_condition else [])
+            for key in wanted:
+                if key not in available:
+                    close = difflib.get_close_matches(key, sorted(available), n=1)
+                    hint = f" (did you mean {close[0]!r}?)" if close else ""
+                    role = "run_condition" if key == e.run_condition else "input"
+                    problems.append(f"part {e.name!r} {role} {key!r} is produced by no part "
+                                    f"and not seeded in memory{hint}")
+        if problems:
+            raise WiringError("; ".join(problems))
+
+    def describe(self) -> str:
+        """The part graph as text, one line per part in run order."""
+        lines = []
+        for i, e in enumerate(self.parts):
+            extra = (" [threaded]" if e.threaded else "") + (
+                f" [if {e.run_condition}]" if e.run_condition else "")
+            lines.append(f"{i:2d} {e.name}{extra}: {list(e.inputs)} -> {list(e.outputs)}")
+        return "\n".join(lines)
+
+    # -- running ----------------------------------------------------------------------------------
+    def start(self, rate_hz: float = 10, max_loop_count: int | None = None,
+              verbose: bool = False) -> tuple[int, float]:
+        """Run the loop until stopped or ``max_loop_count`` loops; returns (loops, seconds).
+
+        Raises:
+            WiringError: before anything starts, if the wiring is wrong.
+            PartError: a part raised (after the safe stop); the original is its ``__cause__``.
+            VehicleStopped: SIGTERM or SIGHUP arrived (after the safe stop).
+            KeyboardInterrupt: Ctrl-C (after the safe stop).
+        """
+        if rate_hz <= 0:
+            raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
+        if max_loop_count is not None and max_loop_count < 1:
+            raise ValueError(f"max_loop_count must be >= 1 or None, got {max_loop_count}")
+        self.check_wiring()
+        previous = self._install_signal_handlers()
+        loops, t0 = 0, self.clock.now()
+        self._last_loop_start = t0
+        rk = RateKeeper(rate_hz, self.clock)
+        failure: BaseException | None = None
+        self.on = True
+        try:
+            self._start_threads()
+            rate_window_start, rate_window_loops = t0, 0
+            while not self._stop_requested.is_set():
+                self._last_loop_start = self.clock.now()
+                self._run_once()
+                loops += 1
+                rate_window_loops += 1
+                now = self.clock.now()
+                if now - rate_window_start >= 1.0:  # achieved rate over ~1 s windows
+                    self.mem.d["loop/rate_hz"] = rate_window_loops / (now - rate_window_start)
+                    rate_window_start, rate_window_loops = now, 0
+                self.mem.d["loop/count"] = loops
+                self.mem.d["loop/overruns"] = rk.overruns
+                if max_loop_count is not None and loops >= max_loop_count:
+                    break
+                rk.wait()
+                if verbose and loops % 200 == 0:
+                    logger.info("\n%s", self._summarize(loops, t0, rate_hz, rk.overruns).format())
+        except BaseException as exc:
+            failure = exc
+            raise
+        finally:
+            self.on = False
+            elapsed = self.clock.now() - t0
+            self.summary = self._summarize(loops, t0, rate_hz, rk.overruns)
+            try:
+                self._safe_stop(failure)
+            finally:
+                self._restore_signal_handlers(previous)
+            logger.info("vehicle stopped\n%s", self.summary.format())
+        return loops, elapsed
+
+    def _run_once(self) -> None:
+        d = self.mem.d
+        perf = _perf_counter
+        for e in self.parts:
+            if e.run_condition is not None and not d.get(e.run_condition):
+                continue
+            args = [d.get(k) for k in e.inputs]
+            t = perf()
+            try:
+                result = e.call(*args)
+            except (KeyboardInterrupt, VehicleStopped):
+                raise
+            except Exception as exc:
+                raise PartError(e.name, "run_threaded" if e.threaded else "run", exc) from exc
+            e.timing.add(perf() - t)
+            if e.threaded and isinstance(e.part, ThreadedPart) and e.part.error is not None:
+                raise PartError(e.name, "update", e.part.error) from e.part.error
+            n = len(e.outputs)
+            if n == 1:
+                d[e.outputs[0]] = result
+            elif n:
+                if result is None:
+                    for k in e.outputs:
+                        d[k] = None
+                elif isinstance(result, list | tuple) and len(result) == n:
+                    for k, v in zip(e.outputs, result, strict=True):
+                        d[k] = v
+                else:
+                    got = f"{len(result)} values" if isinstance(result, list | tuple) else \
+                        f"a single {type(result).__name__}"
+                    raise PartError(e.name, "run", ValueError(
+                        f"returned {got} for {n} outputs {list(e.outputs)}"))
+
+    def stop(self) -> None:
+        """Ask the loop to stop after the current iteration; shuts down at once if not running."""
+        self._stop_requested.set()
+        if not self.on and not self._shut_down:
+            self._safe_stop(None)
+
+    def _start_threads(self) -> None:
+        for e in self.parts:
+            if not e.threaded:
+                continue
+            if isinstance(e.part, ThreadedPart):
+                e.part.start()
+            else:
+                e.thread = threading.Thread(target=e.part.update, name=e.name, daemon=True)
+                e.thread.start()
+
+    def _safe_stop(self, failure: BaseException | None) -> None:
+        """Neutral to actuators, then shutdown() in reverse order; no error is swallowed."""
+        if self._shut_down:
+            return
+        self._shut_down = True
+        with _ignoring_interrupts():
+            self._neutral_and_shutdown(failure)
+
+    def _neutral_and_shutdown(self, failure: BaseException | None) -> None:
+        errors: list[str] = []
+        for e in self.parts:
+            if is_actuator(e.part):
+                try:
+                    e.part.neutral()
+                except Exception:
+                    logger.exception("part %r failed to go neutral", e.name)
+                    errors.append(f"{e.name}.neutral()")
+        for e in reversed(self.parts):
+            shutdown = getattr(e.part, "shutdown", None)
+            if callable(shutdown):
+                try:
+                    shutdown()
+                except Exception:
+                    logger.exception("part %r failed to shut down", e.name)
+                    errors.append(f"{e.name}.shutdown()")
+        for e in self.parts:
+            if e.thread is not None:
+                e.thread.join(timeout=2.0)
+                if e.thread.is_alive():
+                    logger.warning("part %r: update() thread still running after shutdown()", e.name)
+        if errors:
+            message = "failed while stopping: " + ", ".join(errors) + " (see log)"
+            if failure is not None:
+                failure.add_note(message)
+            else:
+                raise ShutdownError(message)
+
+    def _summarize(self, loops: int, t0: float, rate_hz: float, overruns: int) -> LoopSummary:
+        elapsed = self.clock.now() - t0
+        parts = tuple(PartTiming(e.name, e.timing.count, e.timing.percentile(50) * 1e3,
+                                 e.timing.percentile(99) * 1e3, e.timing.max * 1e3) for e in self.parts)
+        # rate between loop starts, so a run that ends right after its last loop is not flattered
+        span = self._last_loop_start - t0
+        achieved = (loops - 1) / span if loops > 1 and span > 0 else 0.0
+        return LoopSummary(loops, elapsed, rate_hz, achieved, overruns, parts)
+
+    # -- signals ----------------------------------------------------------------------------------
+    def _install_signal_handlers(self) -> dict[int, Any]:
+        """SIGTERM/SIGHUP raise VehicleStopped in the loop thread (main thread only)."""
+        if threading.current_thread() is not threading.main_thread():
+            return {}
+        previous = {}
+        for sig in _STOP_SIGNALS:
+            previous[sig] = signal.signal(sig, _raise_stopped)
+        return previous
+
+    def _restore_signal_handlers(self, previous: dict[int, Any]) -> None:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+@contextlib.contextmanager
+def _ignoring_interrupts() -> Iterator[None]:
+    """A second Ctrl-C or SIGTERM while stopping is logged, not allowed to cut the safe path short."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    def note(signum: int, _frame: Any) -> None:
+        logger.warning("%s ignored: the vehicle is already stopping", signal.Signals(signum).name)
+    previous = {sig: signal.signal(sig, note) for sig in (signal.SIGINT, *_STOP_SIGNALS)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def _raise_stopped(signum: int, _frame: Any) -> None:
+    # Further stop signals while the safe path runs must not interrupt it.
+    for sig in _STOP_SIGNALS:
+        signal.signal(sig, signal.SIG_IGN)
+    raise VehicleStopped(signum, signal.Signals(signum).name)
+
+
