@@ -8,23 +8,28 @@ import numpy as np
 
 
 class TimingRing:
-    """Durations (seconds) of the last ``size`` calls, the all-time maximum and call count."""
+    """Durations (seconds) of the last ``size`` calls, the all-time maximum and call count.
+
+    A plain list as the ring: on the loop's hot path a list store costs a fraction of a numpy
+    scalar store; numpy is used only when a summary is asked for.
+    """
 
     def __init__(self, size: int = 2048) -> None:
-        self.samples = np.zeros(size, dtype=np.float64)
+        self.size = size
+        self.samples: list[float] = [0.0] * size
         self.count = 0
         self.max = 0.0
 
     def add(self, seconds: float) -> None:
         """Record one duration."""
-        self.samples[self.count % len(self.samples)] = seconds
+        self.samples[self.count % self.size] = seconds
         self.count += 1
         if seconds > self.max:
             self.max = seconds
 
     def recent(self) -> np.ndarray:
         """The samples still in the ring (most recent ``size`` at most)."""
-        return self.samples[: min(self.count, len(self.samples))]
+        return np.asarray(self.samples[: min(self.count, self.size)])
 
     def percentile(self, q: float) -> float:
         """The q-th percentile (0-100) of the recent samples, 0.0 when empty."""

@@ -209,32 +209,36 @@ class Vehicle:
         for e in self.parts:
             if e.run_condition is not None and not d.get(e.run_condition):
                 continue
-            args = [d.get(k) for k in e.inputs]
             t = perf()
             try:
-                result = e.call(*args)
+                result = e.call(*[d.get(k) for k in e.inputs])
             except (KeyboardInterrupt, VehicleStopped):
                 raise
             except Exception as exc:
                 raise PartError(e.name, "run_threaded" if e.threaded else "run", exc) from exc
             e.timing.add(perf() - t)
-            if e.threaded and isinstance(e.part, ThreadedPart) and e.part.error is not None:
-                raise PartError(e.name, "update", e.part.error) from e.part.error
-            n = len(e.outputs)
-            if n == 1:
-                d[e.outputs[0]] = result
-            elif n:
-                if result is None:
-                    for k in e.outputs:
-                        d[k] = None
-                elif isinstance(result, list | tuple) and len(result) == n:
-                    for k, v in zip(e.outputs, result, strict=True):
-                        d[k] = v
-                else:
-                    got = f"{len(result)} values" if isinstance(result, list | tuple) else \
-                        f"a single {type(result).__name__}"
-                    raise PartError(e.name, "run", ValueError(
-                        f"returned {got} for {n} outputs {list(e.outputs)}"))
+            if e.threaded:
+                error = getattr(e.part, "error", None) if isinstance(e.part, ThreadedPart) else None
+                if error is not None:
+                    raise PartError(e.name, "update", error) from error
+            outputs = e.outputs
+            if len(outputs) == 1:
+                d[outputs[0]] = result
+            elif outputs:
+                self._store_many(e, result)
+
+    def _store_many(self, e: _Entry, result: Any) -> None:
+        d = self.mem.d
+        n = len(e.outputs)
+        if result is None:
+            for k in e.outputs:
+                d[k] = None
+        elif isinstance(result, list | tuple) and len(result) == n:
+            for k, v in zip(e.outputs, result, strict=True):
+                d[k] = v
+        else:
+            got = f"{len(result)} values" if isinstance(result, list | tuple) else f"a single {type(result).__name__}"
+            raise PartError(e.name, "run", ValueError(f"returned {got} for {n} outputs {list(e.outputs)}"))
 
     def stop(self) -> None:
         """Ask the loop to stop after the current iteration; shuts down at once if not running."""
