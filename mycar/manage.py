@@ -13,34 +13,41 @@ your own, insert a V.add(...) between two helper calls in drive().
 
 from pathlib import Path
 
+from parts.sim.record import record_expert
 from vehicle import Vehicle, assembly, car
+from vehicle.clock import SimulatedClock
+from vehicle.errors import UserError
 
 
 def drive(cfg, args):
-    """Assemble the simulated car and drive it until Ctrl-C (or --max-loops / --record-records)."""
-    if args.tracks:
-        cfg = cfg.replace(SIM_TRACK_SEEDS=args.tracks)
-    V = Vehicle()
-    sim = assembly.add_simulator(V, cfg, realtime=not args.expert)  # angle, throttle -> camera, sim/*
+    """Assemble the simulated car and drive it until Ctrl-C (or --max-loops)."""
     if args.expert:
-        assembly.add_expert(V, cfg, sim)  # the expert drives and labels its own demonstrations
-    else:
-        assembly.add_controller(V, cfg)  # web page (and gamepad) -> user/angle, user/throttle, user/mode
+        return record_demonstrations(cfg, args)
+    V = Vehicle(clock=None if cfg.SIM_REALTIME else SimulatedClock())  # simulated time: as fast as the CPU allows
+    assembly.add_simulator(V, cfg, seeds=args.tracks)  # angle, throttle -> cam/image_array, sim/*
+    assembly.add_controller(V, cfg)  # web page (and gamepad) -> user/angle, user/throttle, user/mode
     if args.model:
         assembly.add_pilot(V, cfg, args.model)  # cam/image_array -> pilot/angle, pilot/throttle
     assembly.add_drive_mode(V, cfg)  # user/* or pilot/* -> angle, throttle
     assembly.add_tub_writer(V, cfg)  # records every loop while `recording` is on
-    if args.record_records:
-        car.stop_after(V, "tub/num_records", args.record_records)
     return car.run(V, cfg, args.max_loops)
+
+
+def record_demonstrations(cfg, args):
+    """Let the built-in expert drive in simulated time and record --record-records N records."""
+    if not args.record_records:
+        raise UserError("--expert records demonstrations: add --record-records N (e.g. 3000)")
+    tub = record_expert(cfg, args.tracks, args.record_records)
+    print(f"recorded {args.record_records} expert records into {tub}")
+    return 0
 
 
 def main(argv=None):
     parser = car.command_parser(__doc__)
     d = car.add_command(parser, "drive", drive, "drive the simulated car and record tubs")
     d.add_argument("--model", help="trained pilot to drive with (a models/*.pt file)")
-    d.add_argument("--expert", action="store_true", help="let the built-in expert drive (simulated time)")
-    d.add_argument("--record-records", type=int, metavar="N", help="stop after recording N records")
+    d.add_argument("--expert", action="store_true", help="let the built-in expert drive and record (simulated time)")
+    d.add_argument("--record-records", type=int, metavar="N", help="with --expert: records to write")
     d.add_argument("--tracks", type=car.int_list, metavar="SEEDS", help="track seeds, e.g. 1,2,3")
     d.add_argument("--max-loops", type=int, metavar="N", help="stop after N loops")
     t = car.add_command(parser, "train", assembly.train, "train a pilot from this car's tubs")

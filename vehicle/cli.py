@@ -16,6 +16,12 @@ logger = logging.getLogger(__name__)
 COMMAND_MODULES: tuple[str, ...] = (
     "vehicle.commands.createcar",
     "parts.pilots.cli_models",
+    "parts.pilots.demo",
+    "parts.pilots.cli_train",
+    "vehicle.commands.calibrate",
+    "vehicle.commands.createjs",
+    "parts.sim.cli",
+    "parts.tub.cli",
 )
 
 

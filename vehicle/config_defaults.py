@@ -45,6 +45,38 @@ IMAGE_H: int = 120
 IMAGE_DEPTH: int = 3
 # Frames per second asked of the camera; follows the loop rate unless set.
 CAMERA_FRAMERATE: int = DRIVE_LOOP_HZ
+# Camera driver: "PICAM" (Raspberry Pi camera via picamera2), "CVCAM" or "WEBCAM" (USB camera via
+# OpenCV/V4L2), "CSIC" (Jetson CSI camera via GStreamer), "VIDEO" (replays CAMERA_VIDEO_PATH),
+# "IMAGE_LIST" (replays CAMERA_IMAGE_PATH: a folder of images or a tub), "MOCK" (a generated moving
+# pattern: no hardware).
+CAMERA_TYPE: Literal["PICAM", "CVCAM", "WEBCAM", "CSIC", "VIDEO", "IMAGE_LIST", "MOCK"] = "PICAM"
+# Which camera: N of /dev/videoN (CVCAM, WEBCAM), the sensor id (CSIC) or camera number (PICAM).
+CAMERA_INDEX: int = 0
+# Flip the image upside down (a camera mounted the other way round).
+CAMERA_VFLIP: bool = False
+# Mirror the image left-right.
+CAMERA_HFLIP: bool = False
+# No new frame for this many seconds: cam/ok goes False, an error is logged and a driving pilot is
+# disengaged (user mode, throttle 0). A few frame periods; USB cameras stall for ~0.3 s at times.
+CAMERA_TIMEOUT_S: float = 1.0
+# CVCAM/WEBCAM: pixel format asked of the camera ("MJPG" gives full frame rates over USB 2;
+# "YUYV" for cameras without MJPG); None = the driver's default.
+CAMERA_FOURCC: str | None = "MJPG"
+# CSIC: width of the sensor mode captured before the GPU scales it to IMAGE_W x IMAGE_H (IMX219:
+# 1280x720 at 60, 1640x1232 at 30 frames per second).
+CSIC_CAPTURE_WIDTH: int = 1280
+# CSIC: height of the captured sensor mode.
+CSIC_CAPTURE_HEIGHT: int = 720
+# CSIC: frame rate of the captured sensor mode (must be one the sensor offers at that size).
+CSIC_CAPTURE_FPS: int = 60
+# VIDEO: video file replayed as the camera, paced at CAMERA_FRAMERATE (relative to CAR_PATH).
+CAMERA_VIDEO_PATH: str | None = None
+# IMAGE_LIST: folder of images, or a tub, replayed as the camera in natural name order (relative to
+# CAR_PATH).
+CAMERA_IMAGE_PATH: str | None = None
+# VIDEO / IMAGE_LIST: start again after the last frame (False: the camera stops and cam/ok goes
+# False after CAMERA_TIMEOUT_S).
+CAMERA_REPLAY_LOOP: bool = True
 
 # == Drive modes ==
 
@@ -58,7 +90,113 @@ AI_THROTTLE_MULT: float = 1.0
 # Model type used when training without --type.
 DEFAULT_MODEL_TYPE: str = "linear"
 # Optional function record -> bool choosing which tub records are trained on (None = all).
+# It receives the record's catalog fields (dict: user/angle, user/throttle, user/mode, ...).
 TRAIN_FILTER: Callable[[dict[str, Any]], bool] | None = None
+# Train only on records whose user/mode is listed (records driven by a pilot teach nothing new).
+TRAIN_MODES: list[str] = ["user"]
+# Samples per training step.
+BATCH_SIZE: int = 128
+# Fraction of the records used for training; the rest validates. The split takes whole sessions or
+# contiguous blocks, never random frames (neighbouring frames are near copies and would leak).
+TRAIN_TEST_SPLIT: float = 0.8
+# "session": validate on whole recording sessions when the data has at least 2; "block": on
+# contiguous blocks of TRAIN_SPLIT_BLOCK records of every tub.
+TRAIN_SPLIT_BY: Literal["session", "block"] = "block"
+# Length of one block of the block split, in records (100 = 5 s at 20 Hz).
+TRAIN_SPLIT_BLOCK: int = 100
+# Seed of the split, balancing, shuffling and augmentations (same seed, same run).
+TRAIN_SEED: int = 42
+# Most epochs to train (one epoch = every training sample once).
+MAX_EPOCHS: int = 100
+# Stop training when the validation loss stops improving (see the next two settings).
+USE_EARLY_STOP: bool = True
+# Epochs without an improvement of the validation loss before training stops.
+EARLY_STOP_PATIENCE: int = 5
+# Smallest decrease of the validation loss that counts as an improvement.
+MIN_DELTA: float = 0.0005
+# Adam learning rate.
+LEARNING_RATE: float = 0.001
+# Adam weight decay (L2 penalty on the weights), 0 = off.
+TRAIN_WEIGHT_DECAY: float = 0.0
+# Where to train: "auto" = the GPU when there is one (cuda), else cpu; or "cpu", "cuda", "cuda:1".
+TRAIN_DEVICE: str = "auto"
+# DataLoader worker processes (0 = load in the training process; cheap thanks to the frame cache).
+TRAIN_NUM_WORKERS: int = 0
+# Keep the decoded frames (uint8, as recorded) in memory so that JPEGs are decoded only once.
+TRAIN_CACHE_IMAGES: bool = True
+# Largest frame cache in MB; with more frames than fit, frames are decoded every epoch instead.
+TRAIN_CACHE_MAX_MB: int = 4096
+# Write the loss curve as a PNG next to the model.
+SHOW_PLOT: bool = True
+# Log the model's layers and parameter count before training.
+PRINT_MODEL_SUMMARY: bool = False
+# Balance the training set by steering: cut the range into TRAIN_BALANCE_BINS bins and keep at most
+# TRAIN_BALANCE_MAX_PER_BIN random records per bin (straight driving otherwise dominates).
+TRAIN_BALANCE: bool = False
+# Number of equal-width steering bins for balancing (the trainer seed's num_bins).
+TRAIN_BALANCE_BINS: int = 25
+# Most training records kept per steering bin (the trainer seed's max_samples_per_bin).
+TRAIN_BALANCE_MAX_PER_BIN: int = 400
+# Udacity-style side cameras: image key -> steering offset added to the label of that camera's frame
+# (e.g. {"cam/left_image_array": 0.15, "cam/right_image_array": -0.15}: the left camera sees the road
+# as if the car were left of centre, so it must steer right). Empty = centre camera only.
+TRAIN_SIDE_CAMERAS: dict[str, float] = {}
+# Frames (rnn, 3d) or previous commands (memory) a sequence model sees.
+SEQUENCE_LENGTH: int = 3
+# Throttle range of the categorical model's throttle bins: [0, this].
+MODEL_CATEGORICAL_MAX_THROTTLE_RANGE: float = 0.8
+
+# Preprocessing (stored in the model file, identical when driving): pixels cropped off the top of
+# the camera frame (sky).
+ROI_CROP_TOP: int = 0
+# Pixels cropped off the bottom of the frame (bonnet).
+ROI_CROP_BOTTOM: int = 0
+# Pixels cropped off the left edge of the frame.
+ROI_CROP_LEFT: int = 0
+# Pixels cropped off the right edge of the frame.
+ROI_CROP_RIGHT: int = 0
+# (height, width) the cropped frame is resized to; None = the model type's default (pilotnet:
+# (66, 200), others: the cropped size).
+PREPROCESS_RESIZE: tuple[int, int] | None = None
+# Colour space fed to the model; None = the model type's default (pilotnet: yuv, others: rgb).
+PREPROCESS_COLOR: Literal["rgb", "yuv", "hsv", "gray"] | None = None
+# Pixel scaling: "unit" = [0, 1], "symmetric" = [-1, 1]; None = the model type's default.
+PREPROCESS_NORMALIZE: Literal["unit", "symmetric"] | None = None
+
+# Training-only augmentations, each applied with its probability AUG_<NAME>_P: flip (mirror,
+# steering negated), brightness (and contrast), shadow, shift (pan with steering correction),
+# zoom, blur. `vehicle train preview-aug` shows them.
+AUGMENTATIONS: list[Literal["flip", "brightness", "shadow", "shift", "zoom", "blur"]] = [
+    "flip", "brightness", "shadow", "shift"]
+# Probability of mirroring a training frame (and negating its steering).
+AUG_FLIP_P: float = 0.5
+# Probability of a brightness/contrast change.
+AUG_BRIGHTNESS_P: float = 0.5
+# Largest brightness change, fraction of full scale (0.2 = +-20 %).
+AUG_BRIGHTNESS_RANGE: float = 0.2
+# Largest contrast change (0.2 = x0.8..1.2 around mid-grey).
+AUG_CONTRAST_RANGE: float = 0.2
+# Probability of a shadow (one side of a random line from top to bottom darkened).
+AUG_SHADOW_P: float = 0.3
+# Darkest a shadow gets: pixel values multiplied by down to this factor.
+AUG_SHADOW_DARKNESS: float = 0.5
+# Probability of a shift (pan) of the frame, with steering correction.
+AUG_SHIFT_P: float = 0.5
+# Largest horizontal shift, fraction of the frame width.
+AUG_SHIFT_X: float = 0.1
+# Largest vertical shift, fraction of the frame height (no steering correction).
+AUG_SHIFT_Y: float = 0.05
+# Steering added per full frame width of horizontal shift (a frame shifted right looks as if the car
+# were left of its path, so it must steer right).
+AUG_SHIFT_STEERING: float = 1.0
+# Probability of a centred zoom in.
+AUG_ZOOM_P: float = 0.3
+# Largest zoom in, as a fraction (0.3 = up to 130 %), centred.
+AUG_ZOOM_RANGE: float = 0.3
+# Probability of a Gaussian blur.
+AUG_BLUR_P: float = 0.2
+# Gaussian blur sigma range in pixels.
+AUG_BLUR_RANGE: tuple[float, float] = (0.5, 1.5)
 
 # == Simulator ==
 
@@ -68,7 +206,7 @@ SIM_TRACK_SEEDS: list[int] = [1]
 # Held-out tracks `vehicle sim eval` drives when --tracks is not given (keep them out of training).
 SIM_EVAL_TRACK_SEEDS: list[int] = [101, 102, 103]
 # Rough size of a generated track in metres (mean diameter of the loop); a 1:10 car at 2 m/s
-# needs about 15 s for a lap of the default size.
+# needs about 14 s for a lap of the default size.
 SIM_TRACK_SIZE: float = 8.0
 # Tightest turn radius of the centre line in metres (the car's own turning circle is ~0.55 m).
 SIM_TRACK_MIN_RADIUS: float = 1.2
@@ -88,13 +226,13 @@ SIM_LIGHTING_VARIATION: float = 0.25
 # time, as fast as the CPU allows (recording and evaluation always use simulated time). The car
 # always advances 1 / DRIVE_LOOP_HZ per loop, so a run is deterministic either way.
 SIM_REALTIME: bool = True
-# Put the car back on the road when it leaves it (|cte| > SIM_OFF_TRACK_CTE).
+# Put the car back on the road when it leaves it (cross-track error beyond SIM_OFF_TRACK_CTE).
 SIM_RESET_OFF_TRACK: bool = True
 # Where a reset puts the car: "start" (start line, lap restarts) or "nearest" (on the centre line
 # next to where it left the road, like a person re-centring it).
 SIM_RESET_TO: Literal["start", "nearest"] = "start"
-# |cross-track error| in metres beyond which the car counts as off the road (default: the car's
-# centre crosses the road edge).
+# Absolute cross-track error in metres beyond which the car counts as off the road (default: the
+# car's centre crosses the road edge).
 SIM_OFF_TRACK_CTE: float = SIM_ROAD_WIDTH / 2
 # Camera height above the ground in metres.
 SIM_CAMERA_HEIGHT: float = 0.2
@@ -104,9 +242,10 @@ SIM_CAMERA_PITCH: float = 20.0
 SIM_CAMERA_FOV: float = 100.0
 # Camera position ahead of the rear axle in metres.
 SIM_CAMERA_FORWARD: float = 0.2
-# Size of the rendered image in pixels; follows the camera settings unless set (e.g. 320x160
-# like the Udacity simulator).
+# Width of the rendered image in pixels; follows IMAGE_W unless set (e.g. 320 like the Udacity
+# simulator).
 SIM_CAMERA_W: int = IMAGE_W
+# Height of the rendered image in pixels; follows IMAGE_H unless set (e.g. 160).
 SIM_CAMERA_H: int = IMAGE_H
 # Standard deviation of per-pixel Gaussian noise on the image (0-255 units; 0 = off).
 SIM_IMAGE_NOISE: float = 0.0
@@ -124,30 +263,35 @@ SIM_MAX_STEER_DEG: float = 25.0
 SIM_STEER_RATE_DEG: float = 400.0
 # Acceleration at full throttle from standstill, m/s^2.
 SIM_MAX_ACCEL: float = 4.0
-# Drag: deceleration per unit speed, 1/s (with SIM_MAX_ACCEL it sets the free top speed, 5 m/s).
+# Drag: deceleration per unit speed, 1/s (with SIM_MAX_ACCEL and SIM_ROLLING_DECEL it sets the
+# free top speed, (4 - 0.3) / 0.8 = 4.6 m/s, above SIM_MAX_SPEED).
 SIM_DRAG: float = 0.8
 # Rolling resistance, m/s^2: a coasting car stops.
 SIM_ROLLING_DECEL: float = 0.3
 # Deceleration at full brake (negative throttle while moving forward), m/s^2.
 SIM_BRAKE_DECEL: float = 6.0
-# Speed limits forward and in reverse, m/s.
+# Speed limit forward, m/s.
 SIM_MAX_SPEED: float = 4.0
+# Speed limit in reverse, m/s.
 SIM_MAX_REVERSE_SPEED: float = 1.0
 # Expert driver (pure pursuit). Highest target speed in m/s; curves lower it.
 SIM_EXPERT_SPEED: float = 2.0
 # Lateral acceleration the expert allows in curves, m/s^2 (target speed = sqrt(a / curvature)).
 SIM_EXPERT_LAT_ACCEL: float = 2.5
-# Pure-pursuit look-ahead distance: base in metres plus this many seconds at the current speed.
+# Pure-pursuit look-ahead distance at standstill, metres.
 SIM_EXPERT_LOOKAHEAD: float = 0.5
+# Extra look-ahead per m/s of speed, seconds (look-ahead = base + this x speed).
 SIM_EXPERT_LOOKAHEAD_TIME: float = 0.25
 # Which line the expert follows: "auto" (centre on one lane, right lane on two), "center",
 # "left" or "right".
 SIM_EXPERT_LANE: Literal["auto", "center", "left", "right"] = "auto"
 # Noise injection: amplitude of the steering perturbation added to the executed command while
-# the expert's clean label is recorded, so demonstrations contain recoveries (0 = off).
-SIM_EXPERT_NOISE: float = 0.0
-# Mean time between perturbations and the length of one, seconds.
+# the expert's clean label is recorded, so demonstrations contain recoveries (0 = off). Used when
+# the expert drives (manage.py drive --expert, vehicle sim record), never in evaluation.
+SIM_EXPERT_NOISE: float = 0.3
+# Mean time between noise-injection perturbations, seconds.
 SIM_EXPERT_NOISE_EVERY: float = 3.0
+# Length of one perturbation, seconds.
 SIM_EXPERT_NOISE_DURATION: float = 0.8
 # Laps per track in `vehicle sim eval` when --laps is not given.
 SIM_EVAL_LAPS: int = 2
@@ -156,3 +300,231 @@ SIM_INTERVENTION_PENALTY: float = 6.0
 # Longest simulated time of one evaluation episode in seconds (None: 60 s per lap), so a pilot
 # that stands still cannot hang the evaluation.
 SIM_EVAL_MAX_TIME: float | None = None
+
+# == Pilot ==
+
+# Runtime that drives a .pt model: "auto" runs NAME.onnx next to it when onnxruntime is installed
+# and that export was made from this very .pt (same SHA-256; `vehicle models export NAME`), else
+# PyTorch; "torch", "onnx" and "torchscript" force one (a missing or stale export is an error).
+PILOT_BACKEND: Literal["auto", "torch", "onnx", "torchscript"] = "auto"
+# ONNX Runtime intra-op threads for the pilot. 1: batch-1 inference gains little from more, and
+# the drive loop's other parts need the other cores.
+PILOT_ONNX_THREADS: int = 1
+# Speed control that replaces the model's throttle while a speed limit is set: "off", "pi" (PI
+# controller with the limit as target speed, the Udacity seed) or "limit" (throttle =
+# 1 - speed / limit, the trainer seed).
+PILOT_SPEED_CONTROL: Literal["off", "pi", "limit"] = "off"
+# Speed limit (target) in m/s while the web page sets none (`user/speed_limit` is None); None =
+# no limit, the model's throttle drives.
+PILOT_SPEED_LIMIT: float | None = None
+# Memory key of the measured speed in m/s; None = sim/speed when the simulator is in the vehicle,
+# else enc/speed.
+PILOT_SPEED_KEY: str | None = None
+# PI gains: throttle per m/s of speed error, and throttle per m/s of error per second.
+PILOT_SPEED_KP: float = 0.3
+PILOT_SPEED_KI: float = 0.6
+# Highest throttle the speed controller commands (lower it for a first run on a real car).
+PILOT_SPEED_MAX_THROTTLE: float = 1.0
+
+# == Drivetrain (PCA9685) ==
+
+# What drives the wheels: "PWM_STEERING_THROTTLE" = steering servo and ESC on a PCA9685 board;
+# "MOCK" = the same driver code on a simulated PCA9685 (bench tests without a car).
+DRIVE_TRAIN_TYPE: Literal["PWM_STEERING_THROTTLE", "MOCK"] = "PWM_STEERING_THROTTLE"
+# 7-bit I2C address of the PCA9685 (0x40 with no address jumpers bridged; `i2cdetect -y 1`).
+PCA9685_I2C_ADDR: int = 0x40
+# I2C bus number (/dev/i2c-N). None = bus 1, the header pins 3/5 on a Raspberry Pi and a Jetson Nano.
+PCA9685_I2C_BUSNUM: int | None = None
+# Oscillator of the PCA9685 in Hz. Boards run a few % off 25 MHz; set a measured value to get exact
+# pulse widths (calibrated tick values stay valid only at the same setting).
+PCA9685_OSC_HZ: int = 25_000_000
+# PWM frequency in Hz. The *_PWM values below are ticks (1/4096 of a period) at this frequency;
+# DonkeyCar calibrations assume 60 Hz (prescale 101, 59.84 Hz, 4.08 µs per tick).
+PWM_FREQ: int = 60
+# PCA9685 channel of the steering servo (DonkeyCar: 1).
+STEERING_CHANNEL: int = 1
+# PCA9685 channel of the ESC (DonkeyCar: 0).
+THROTTLE_CHANNEL: int = 0
+# Steering pulse in ticks at full left (angle -1); the centre is the midpoint of LEFT and RIGHT.
+STEERING_LEFT_PWM: int = 460
+# Steering pulse in ticks at full right (angle +1).
+STEERING_RIGHT_PWM: int = 290
+# Throttle pulse in ticks at full forward (+1).
+THROTTLE_FORWARD_PWM: int = 500
+# Throttle pulse in ticks that stops the motor (0, the ESC's neutral; it beeps when armed).
+THROTTLE_STOPPED_PWM: int = 370
+# Throttle pulse in ticks at full reverse (-1).
+THROTTLE_REVERSE_PWM: int = 220
+# Added to every steering command (steering units, -0.5..0.5) to make the car run straight without
+# recalibrating; positive moves the centre to the right.
+STEERING_TRIM: float = 0.0
+# Swap left and right (a servo mounted the other way round).
+STEERING_INVERT: bool = False
+# Swap forward and reverse (a motor wired the other way round).
+THROTTLE_INVERT: bool = False
+# Largest forward throttle the drivetrain passes on (fraction of full, 0..1), for every driver,
+# human or pilot.
+THROTTLE_FORWARD_LIMIT: float = 1.0
+# Largest reverse throttle the drivetrain passes on (fraction of full, 0..1).
+THROTTLE_REVERSE_LIMIT: float = 1.0
+# Fastest growth of the throttle in full-scale units per second (None = no limit). Releasing the
+# throttle is never delayed. 4.0 = full throttle reached in 0.25 s.
+THROTTLE_SLEW_RATE: float | None = None
+# Seconds of neutral sent to the ESC at start so it arms (beeps); throttle commands pass only after
+# this and after the throttle has been at neutral once.
+ESC_ARM_TIME_S: float = 1.5
+# How a negative throttle reaches the ESC: "direct" passes it on (crawler ESCs, or when the drive
+# logic's throttle filter already does the double-tap); "double_tap" sends brake, neutral, then
+# reverse, as forward/brake/reverse car ESCs need to back up.
+ESC_REVERSE_MODE: Literal["direct", "double_tap"] = "direct"
+# double_tap: seconds of the first (braking) reverse pulse.
+ESC_REVERSE_BRAKE_S: float = 0.1
+# double_tap: seconds of neutral after braking, before the reverse pulses that back the car up.
+ESC_REVERSE_NEUTRAL_S: float = 0.1
+# Command watchdog: no fresh drive command for this many seconds -> neutral (None = off). Throttle
+# then stays neutral until a command at neutral arrives.
+ACTUATOR_WATCHDOG_S: float | None = 0.5
+# Seconds neutral is held on shutdown before the bus is released (at least two PWM periods).
+PWM_SHUTDOWN_HOLD_S: float = 0.1
+# After that hold, switch both channels off (no pulses: most ESCs stop, the servo goes limp).
+PWM_FULL_OFF_ON_SHUTDOWN: bool = False
+# MOCK drivetrain: append every output change of the simulated board to this file
+# ("<time> <channel> <ticks|off|on>" per line; relative to CAR_PATH). None = keep it in memory.
+PCA9685_MOCK_TRACE: str | None = None
+
+# == Gamepad ==
+
+# Gamepad layout (which stick steers, which button does what): "ps3", "ps4", "xbox" (Xbox One/360/
+# Series pad over USB, or Bluetooth with xpadneo), "xbox_bt" (Xbox One over Bluetooth with
+# hid-generic), "f710" (Logitech F710 in X mode), "generic" (any pad: the left stick steers and
+# drives), "pygame" (any pad SDL knows, read through pygame), or "custom" (the mapping file
+# JOYSTICK_MAPPING_PATH written by `vehicle createjs`).
+CONTROLLER_TYPE: Literal["ps3", "ps4", "xbox", "xbox_bt", "f710", "generic", "pygame", "custom"] = "xbox"
+# Drive with the gamepad by default (True) rather than only the web page.
+USE_JOYSTICK_AS_DEFAULT: bool = False
+# Linux joystick device read for every CONTROLLER_TYPE but "pygame". A FIFO, or a file of recorded
+# 8-byte js_event records (replayed at their recorded pace), works too: bench cars and tests drive
+# that way without a pad.
+JOYSTICK_DEVICE_FILE: str = "/dev/input/js0"
+# "pygame": index of the pad (0 = the first SDL finds).
+JOYSTICK_INDEX: int = 0
+# CONTROLLER_TYPE "custom": mapping file written by `vehicle createjs` (relative to CAR_PATH).
+JOYSTICK_MAPPING_PATH: str = "joystick_mapping.json"
+# Throttle at full stick (fraction of full throttle); the throttle up/down buttons change it while
+# driving.
+JOYSTICK_MAX_THROTTLE: float = 0.5
+# Change of JOYSTICK_MAX_THROTTLE per press of a throttle up/down button.
+JOYSTICK_THROTTLE_STEP: float = 0.05
+# Steering = stick position x this (below 1 for gentler steering).
+JOYSTICK_STEERING_SCALE: float = 1.0
+# -1.0: pushing the throttle stick up (negative on Linux) drives forward; 1.0 swaps it.
+JOYSTICK_THROTTLE_DIR: float = -1.0
+# Stick travel (fraction of full) read as zero; also the throttle above which AUTO_RECORD_ON_THROTTLE
+# records.
+JOYSTICK_DEADZONE: float = 0.01
+# With the throttle off zero, no gamepad event for this many seconds means the link is dead (a
+# Bluetooth drop that the driver does not report): throttle 0 and user mode until the pad talks
+# again and its throttle is released. Constant throttle also stops after this long without any
+# input (a dead-man rule). None = off.
+JOYSTICK_SILENCE_TIMEOUT_S: float | None = 2.0
+# Seconds between attempts to open a missing or lost gamepad.
+JOYSTICK_RETRY_S: float = 3.0
+# Change the layout's bindings: action -> control name, e.g. {"estop": "circle"}; "" unbinds an
+# action. Actions: steering, throttle, throttle_forward, throttle_reverse (triggers), mode_toggle,
+# record_toggle, erase_records, estop, throttle_up, throttle_down, constant_throttle,
+# behavior_next, behavior_prev. Control names are in docs/controllers.md.
+JOYSTICK_BINDINGS: dict[str, str] = {}
+# Records deleted per press of the erase button (the tub wiper acts on each tub/erase rising edge).
+ERASE_LAST_N_RECORDS: int = 100
+
+# == Drive logic ==
+
+# Record while the throttle is off zero (beyond JOYSTICK_DEADZONE) and stop when it is released, so
+# tubs hold no standing still; the record button is then ignored.
+AUTO_RECORD_ON_THROTTLE: bool = True
+# Keep recording while a pilot drives (local_angle, local). Off by default: a pilot's own driving
+# teaches the next pilot its mistakes.
+RECORD_DURING_AI: bool = False
+# DonkeyCar's ThrottleFilter on the final throttle: a held reverse becomes reverse, 0, reverse so a
+# car ESC brakes, then backs up. Off for crawler ESCs; skipped when the drivetrain's
+# ESC_REVERSE_MODE = "double_tap" does the same.
+USE_THROTTLE_FILTER: bool = True
+
+# == Behaviour ==
+
+# Drive with behaviour states (e.g. which lane to keep): adds behavior/state, behavior/label and
+# behavior/one_hot_state_array to the memory (record them by adding them to TUB_INPUTS with the
+# types int, str, vector); the gamepad's behaviour buttons step through BEHAVIOR_LIST.
+TRAIN_BEHAVIORS: bool = False
+# Names of the behaviours in order; the one-hot array has one entry per name.
+BEHAVIOR_LIST: list[str] = ["Left_Lane", "Right_Lane"]
+# Behaviour active at start (index into BEHAVIOR_LIST).
+BEHAVIOR_INITIAL: int = 0
+
+# == Web controller ==
+
+# Serve the web controller page (camera view, joystick, keyboard, modes, recording, e-stop). With
+# USE_JOYSTICK_AS_DEFAULT both drive, arbitrated by CONTROLLER_PRIORITY.
+USE_WEB_CONTROLLER: bool = True
+# TCP port of the page (DonkeyCar's name and default): http://localhost:8887/
+WEB_CONTROL_PORT: int = 8887
+# Interface the page listens on. "127.0.0.1" = this machine only; "0.0.0.0" = every network
+# interface (a phone on the car's Wi-Fi), which then requires the pairing token.
+WEB_HOST: str = "127.0.0.1"
+# Pairing token browsers must present (in the page URL, ?token=...). None: none on localhost, a
+# random one per start when WEB_HOST is a network interface (printed with the URL at start).
+# At least 8 characters; when set it is required even on localhost.
+WEB_TOKEN: str | None = None
+# Dead-man time in seconds: when the driving page sends no control message for this long while
+# the throttle is non-zero (or a pilot mode is on), throttle goes to 0 and the mode to user.
+WEB_DEADMAN_S: float = 0.5
+# Drive mode the page starts in.
+WEB_INIT_MODE: Literal["user", "local_angle", "local"] = "user"
+# Initial maximum throttle of the page, [0, 1]: the page's full stick gives this throttle; it can be
+# changed on the page and is also the constant-throttle value.
+WEB_MAX_THROTTLE: float = 0.5
+# Largest speed limit the page's slider offers, m/s (sent as user/speed_limit).
+WEB_MAX_SPEED_LIMIT: float = 5.0
+# State updates (gauges, counts, loop health) sent to each page per second.
+WEB_TELEMETRY_HZ: float = 20.0
+# JPEG quality of the camera view, 1-100 (80: ~3 KB for a 160x120 frame).
+WEB_JPEG_QUALITY: int = 80
+# Who drives when both the web page and the gamepad give commands: "gamepad" (the gamepad whenever
+# its stick is off centre), "web" (the page whenever its command is off centre) or "latest" (the
+# source that moved last). Mode and recording: the latest change from either wins; an emergency
+# stop from either holds.
+CONTROLLER_PRIORITY: Literal["gamepad", "web", "latest"] = "gamepad"
+
+# == Recording ==
+
+# Start a new tub folder DATA_PATH/tub_<N>_<YY-MM-DD> at each drive (True), or append every drive
+# to the one tub DATA_PATH (False, DonkeyCar's default). One tub per drive makes a bad drive easy
+# to throw away; training reads a tub or a folder of tubs either way.
+AUTO_CREATE_NEW_TUB: bool = True
+# Memory keys recorded into the tub and their tub types (float, int, str, boolean, nparray, list,
+# vector, image_array). With RECORD_DURING_AI, pilot/angle and pilot/throttle are added. The
+# camera's cam/timestamp, when some part produces it, becomes each record's _timestamp_ms.
+TUB_INPUTS: list[str] = ["cam/image_array", "user/angle", "user/throttle", "user/mode"]
+# Tub type of each TUB_INPUTS key, in the same order.
+TUB_TYPES: list[str] = ["image_array", "float", "float", "str"]
+# User metadata stored in the tub's manifest, "key:value" items (DonkeyCar's --meta), e.g.
+# ["driver:ann", "track:garage"].
+METADATA: list[str] = []
+# Records per catalog file (DonkeyCar's max_catalog_len).
+TUB_MAX_CATALOG_LEN: int = 1000
+# Durability window: records are made durable (images fsynced, then their catalog lines appended
+# and fsynced, then the manifest replaced atomically) every TUB_FSYNC_RECORDS records or when the
+# oldest unsaved record is TUB_FSYNC_MS milliseconds old, whichever comes first. A crash or power
+# loss loses at most the records of one window plus those still queued (see TUB_QUEUE_SIZE).
+TUB_FSYNC_RECORDS: int = 20
+# Age in milliseconds of the oldest unsaved record that triggers a commit (see TUB_FSYNC_RECORDS).
+TUB_FSYNC_MS: int = 500
+# fsync at each commit (protects against power loss). False: commits still happen per window, but
+# only a crash of the process (not a power cut) is survived; faster on slow SD cards.
+TUB_FSYNC: bool = True
+# Records waiting for the writer thread; when full, new records are dropped, counted and a warning
+# is logged (the loop never waits for the disk). 100 records = 5 s at 20 Hz.
+TUB_QUEUE_SIZE: int = 100
+# JPEG quality of recorded images, 1-100. 75 is DonkeyCar's (PIL's default): ~4-5 KB per 160x120
+# frame.
+TUB_JPEG_QUALITY: int = 75

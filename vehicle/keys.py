@@ -29,6 +29,19 @@ STANDARD_KEYS: dict[str, KeyInfo] = {
     "user/mode": KeyInfo("str: user | local_angle | local", "who drives: human, pilot steers, pilot drives"),
     "recording": KeyInfo("bool", "whether the tub writer records this loop"),
     "estop": KeyInfo("bool", "emergency stop latched: throttle forced to 0"),
+    "user/speed_limit": KeyInfo("float, m/s, or None", "target speed for the speed controller (web page)"),
+    "pilot/model_request": KeyInfo("str path or None", "model file the web picker asks the pilot to load"),
+    "controller/active": KeyInfo("str: gamepad | web", "which controller's stick drives (arbitration)"),
+    "web/angle": KeyInfo("float in [-1, 1]", "steering from the web page, before arbitration"),
+    "web/throttle": KeyInfo("float in [-1, 1]", "throttle from the web page, before arbitration"),
+    "web/mode": KeyInfo("str", "drive mode chosen on the web page, before arbitration"),
+    "web/recording": KeyInfo("bool", "record toggle of the web page, before arbitration"),
+    "web/estop": KeyInfo("bool", "emergency stop latched on the web page"),
+    "js/angle": KeyInfo("float in [-1, 1]", "gamepad steering, before arbitration with the web page"),
+    "js/throttle": KeyInfo("float in [-1, 1]", "gamepad throttle, before arbitration"),
+    "js/mode": KeyInfo("str", "gamepad drive mode, before arbitration"),
+    "js/recording": KeyInfo("bool", "gamepad record toggle, before arbitration"),
+    "js/estop": KeyInfo("bool", "emergency stop latched on the gamepad"),
     # -- pilot
     "pilot/angle": KeyInfo("float in [-1, 1]", "steering from the pilot"),
     "pilot/throttle": KeyInfo("float in [-1, 1]", "throttle from the pilot"),
@@ -40,8 +53,10 @@ STANDARD_KEYS: dict[str, KeyInfo] = {
     "behavior/state": KeyInfo("int", "index of the active behaviour"),
     "behavior/label": KeyInfo("str", "name of the active behaviour, e.g. Left_Lane"),
     "behavior/one_hot_state_array": KeyInfo("list[float]", "one-hot encoding of behavior/state"),
+    "behavior/step": KeyInfo("int", "+1 / -1 for one loop: select the next / previous behaviour"),
     # -- recording
     "tub/num_records": KeyInfo("int", "records in the current tub"),
+    "tub/erase": KeyInfo("bool", "rising edge: delete the last ERASE_LAST_N_RECORDS records"),
     # -- simulator
     "sim/cte": KeyInfo("float, m", "signed cross-track error, positive = right of the centre line"),
     "sim/heading_error": KeyInfo("float, rad", "car heading minus track heading"),
@@ -51,6 +66,8 @@ STANDARD_KEYS: dict[str, KeyInfo] = {
     "sim/lap_time": KeyInfo("float, s", "duration of the last completed lap"),
     "sim/off_track": KeyInfo("bool", "True while the car is off the road"),
     "sim/pos": KeyInfo("tuple[float, float], m", "car position in track coordinates"),
+    "sim/track": KeyInfo("int", "seed of the track the simulated car is on"),
+    "sim/reset": KeyInfo("bool", "rising edge puts the simulated car back on its start line"),
     # -- speed
     "enc/speed": KeyInfo("float, m/s", "measured speed (encoder or simulator)"),
 }

@@ -20,6 +20,7 @@ def drive(cfg, args):
     V = Vehicle()
     assembly.add_camera(V, cfg)  # -> cam/image_array, cam/timestamp, cam/ok
     assembly.add_controller(V, cfg)  # web page (and gamepad) -> user/angle, user/throttle, user/mode
+    assembly.add_camera_watchdog(V, cfg)  # camera stalled -> user mode, throttle 0: no pilot without frames
     assembly.add_behavior(V, cfg)  # -> behavior/state, behavior/label, behavior/one_hot_state_array
     if args.model:
         assembly.add_pilot(V, cfg, args.model)  # cam/image_array -> pilot/angle, pilot/throttle

@@ -1,0 +1,207 @@
+"""Tub write/read throughput and bytes per record: ours vs DonkeyCar 5.3 in the same run.
+
+    .venv/bin/python bench/tub.py [--records 2000] [--runs 5] [--donkey-python .bench/donkey-venv/bin/python]
+
+Write: records/s through the recording part (ours: TubWriter.run() for every record, then
+shutdown() which waits until all is on disk; DonkeyCar: TubWriter.run()). Read: records/s of
+"training reads" (catalog records + decoded 160x120 RGB image; ours: reader.load_records +
+iter_images with 2 threads, and one thread for reference; DonkeyCar: Tub iteration + its
+pipeline TubRecord.image()). Images: a rendered gradient with noise and a moving shape, so
+JPEG sizes are realistic. Prints medians over --runs runs and the ratios. DonkeyCar runs in its own
+venv (bench/setup_donkey_venv.sh); without it only our figures are printed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+INPUTS = ["cam/image_array", "user/angle", "user/throttle", "user/mode"]
+TYPES = ["image_array", "float", "float", "str"]
+
+DONKEY_SCRIPT = r"""
+import contextlib, io, json, sys, time, os
+import numpy as np
+with contextlib.redirect_stdout(io.StringIO()):
+    import donkeycar
+import logging
+logging.disable(logging.CRITICAL)
+from donkeycar.parts.tub_v2 import Tub, TubWriter
+from donkeycar.pipeline.types import TubRecord
+from donkeycar.config import Config
+frames = np.load(sys.argv[1])
+path = sys.argv[2]
+n = int(sys.argv[3])
+mode = sys.argv[4]
+out = {}
+if mode in ("write", "both"):
+    t0 = time.perf_counter()
+    w = TubWriter(path, inputs=json.loads(sys.argv[5]), types=json.loads(sys.argv[6]))
+    for i in range(n):
+        w.run(frames[i % len(frames)], (i % 200) / 100 - 1, 0.3, "user")
+    w.shutdown()
+    out["write_s"] = time.perf_counter() - t0
+if mode in ("read", "both"):
+    cfg = Config()
+    cfg.IMAGE_W, cfg.IMAGE_H, cfg.IMAGE_DEPTH, cfg.CACHE_POLICY = 160, 120, 3, "NOCACHE"
+    t0 = time.perf_counter()
+    tub = Tub(path, read_only=True)
+    count, total = 0, 0
+    for rec in tub:
+        img = TubRecord(cfg, tub.base_path, rec).image()
+        count += 1
+        total += int(img[0, 0, 0])
+    out["read_s"] = time.perf_counter() - t0
+    out["read_n"] = count
+    out["first"] = next(iter(Tub(path, read_only=True)))
+print(json.dumps(out))
+"""
+
+
+def make_frames(n: int = 200, h: int = 120, w: int = 160) -> np.ndarray:
+    """Camera-like frames: gradients, noise and a moving blob (realistic JPEG sizes)."""
+    rng = np.random.default_rng(0)
+    y, x = np.mgrid[0:h, 0:w].astype(np.float32)
+    frames = np.empty((n, h, w, 3), np.uint8)
+    for i in range(n):
+        cx, cy = (i * 3) % w, h * 0.6 + 10 * np.sin(i / 10)
+        blob = 120 * np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / 300)
+        base = np.stack([x * 255 / w, y * 255 / h * 0.8 + 30, 255 - x * 200 / w], -1) + blob[..., None]
+        frames[i] = np.clip(base + rng.normal(0, 6, base.shape), 0, 255).astype(np.uint8)
+    return frames
+
+
+def dir_bytes(path: Path) -> int:
+    return sum(f.stat().st_size for f in path.rglob("*") if f.is_file())
+
+
+def ours_write(frames: np.ndarray, path: Path, n: int, fsync: bool) -> float:
+    from parts.tub.writer import TubWriter
+
+    t0 = time.perf_counter()
+    w = TubWriter(path, INPUTS, TYPES, queue_size=n + 1, fsync=fsync)
+    for i in range(n):
+        w.run(frames[i % len(frames)], (i % 200) / 100 - 1, 0.3, "user")
+    w.shutdown()
+    assert w.stats.written == n and w.stats.dropped == 0
+    return time.perf_counter() - t0
+
+
+def ours_read(path: Path, workers: int) -> tuple[float, int]:
+    from parts.tub.reader import iter_images, load_records
+
+    t0 = time.perf_counter()
+    count = 0
+    if workers > 1:
+        for _rec, img in iter_images(load_records(path), workers=workers):
+            count += int(img[0, 0, 0] >= 0)
+    else:
+        for rec in load_records(path):
+            count += int(rec.image()[0, 0, 0] >= 0)
+    return time.perf_counter() - t0, count
+
+
+def donkey(python: str, frames_file: Path, path: Path, n: int, mode: str) -> dict:
+    res = subprocess.run([python, "-c", DONKEY_SCRIPT, str(frames_file), str(path), str(n), mode,
+                          json.dumps(INPUTS), json.dumps(TYPES)],
+                         capture_output=True, text=True, check=False)
+    if res.returncode != 0:
+        raise RuntimeError(f"DonkeyCar run failed:\n{res.stderr[-3000:]}")
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--records", type=int, default=2000)
+    ap.add_argument("--runs", type=int, default=5)
+    ap.add_argument("--donkey-python", default=str(ROOT / ".bench/donkey-venv/bin/python"))
+    ap.add_argument("--workdir", default=str(ROOT / ".bench"), help="where temporary tubs go (same disk)")
+    args = ap.parse_args()
+    n = args.records
+    have_donkey = Path(args.donkey_python).exists()
+    if not have_donkey:
+        print(f"DonkeyCar venv not found at {args.donkey_python}: run bench/setup_donkey_venv.sh "
+              "for the comparison", file=sys.stderr)
+    Path(args.workdir).mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(prefix="tubbench-", dir=args.workdir))
+    results: dict[str, list[float]] = {}
+
+    def add(key: str, value: float) -> None:
+        results.setdefault(key, []).append(value)
+
+    try:
+        frames = make_frames()
+        frames_file = work / "frames.npy"
+        np.save(frames_file, frames)
+        for run in range(args.runs):
+            if have_donkey:
+                dk = work / f"donkey_{run}"
+                r = donkey(args.donkey_python, frames_file, dk, n, "both")
+                assert r["read_n"] == n
+                add("donkey write", n / r["write_s"])
+                add("donkey read", n / r["read_s"])
+                add("donkey bytes/record", dir_bytes(dk) / n)
+            ours = work / f"ours_{run}"
+            add("ours write (fsync window 20 rec/500 ms)", n / ours_write(frames, ours, n, True))
+            nosync = work / f"nosync_{run}"
+            add("ours write (no fsync, like DonkeyCar)", n / ours_write(frames, nosync, n, False))
+            add("ours bytes/record", dir_bytes(ours) / n)
+            t, count = ours_read(ours, workers=2)
+            assert count == n
+            add("ours read (2 decode threads)", n / t)
+            t, _ = ours_read(ours, workers=1)
+            add("ours read (1 thread)", n / t)
+            if have_donkey and run == 0:
+                # compatibility both ways: DonkeyCar reads our tub, we read DonkeyCar's
+                theirs = donkey(args.donkey_python, frames_file, ours, n, "read")
+                from parts.tub.reader import load_records
+
+                mine = load_records(dk)
+                assert theirs["read_n"] == n and len(mine) == n
+                first = load_records(ours)[0].data
+                assert theirs["first"] == first, (theirs["first"], first)
+                print("compatibility: DonkeyCar read all our records; we read all of DonkeyCar's")
+            for p in work.glob("*_*"):
+                shutil.rmtree(p, ignore_errors=True)
+            print(f"run {run + 1}/{args.runs} done", file=sys.stderr)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+    if have_donkey:  # ratios within each run first: the machine's load drifts between runs
+        for k in list(results):
+            base = "donkey write" if k.startswith("ours write") else "donkey read" if k.startswith("ours read") \
+                else None
+            if base:
+                results[f"ratio {k}"] = [a / b for a, b in zip(results[k], results[base], strict=True)]
+    med = {k: statistics.median(v) for k, v in results.items()}
+    print(f"\n{n} records of 160x120 RGB per run, median of {args.runs} runs, cpus={os.cpu_count()}")
+    for k, v in med.items():
+        if k.startswith("ratio "):
+            continue
+        spread = f"(min {min(results[k]):,.0f}, max {max(results[k]):,.0f})"
+        print(f"  {k:42s} {v:10,.0f} {spread}")
+    if have_donkey:
+        print("ratios vs DonkeyCar 5.3 (median of the per-run ratios):")
+        for k in med:
+            if k.startswith("ratio "):
+                r = results[k]
+                print(f"  {k[6:]:42s} {med[k]:.2f}x (min {min(r):.2f}, max {max(r):.2f})")
+        print(f"  {'bytes/record ours / DonkeyCar':42s} {med['ours bytes/record'] / med['donkey bytes/record']:.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

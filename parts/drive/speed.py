@@ -1,0 +1,159 @@
+"""Speed control for pilots: the two controllers of the seeds, as loop parts.
+
+- :class:`PIController` – the Udacity behavioural-cloning seed's ``SimplePIController`` (a PI
+  controller that drives the measured speed to a set point), with a time step, output limits and
+  anti-windup so that a long stall cannot wind the integral up.
+- :func:`limit_throttle` – the trainer/driver seed's rule ``throttle = 1 - speed / limit``: full
+  throttle at standstill, falling linearly to 0 at the limit.
+
+:class:`SpeedControl` wraps either as a part. It takes the pilot's throttle, the measured speed
+(``sim/speed`` or ``enc/speed``, m/s) and the target/limit (``user/speed_limit``, m/s) and returns
+the throttle to drive with. With no limit (None, and no default limit) the pilot's own throttle
+passes through.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from typing import Literal
+
+logger = logging.getLogger(__name__)
+
+SpeedControlMode = Literal["off", "pi", "limit"]
+SPEED_CONTROL_MODES: tuple[str, ...] = ("off", "pi", "limit")
+
+
+def _finite(value: float | None) -> bool:
+    return value is not None and isinstance(value, int | float) and math.isfinite(value)
+
+
+class PIController:
+    """Proportional-integral controller to a set point, output clamped to ``[out_min, out_max]``.
+
+    Args:
+        kp: proportional gain, output units per unit of error (throttle per m/s).
+        ki: integral gain, output units per unit of error per second (throttle per m/s per s).
+        out_min, out_max: output limits; the integral stops growing while the output is held at a
+            limit in the direction of the error (conditional integration, so no wind-up).
+    """
+
+    def __init__(self, kp: float, ki: float, out_min: float = 0.0, out_max: float = 1.0) -> None:
+        for name, value in (("kp", kp), ("ki", ki), ("out_min", out_min), ("out_max", out_max)):
+            if not _finite(value):
+                raise ValueError(f"PIController: {name} must be a finite number, got {value!r}")
+        if kp < 0 or ki < 0:
+            raise ValueError(f"PIController: gains must be >= 0, got kp={kp}, ki={ki}")
+        if out_min >= out_max:
+            raise ValueError(f"PIController: out_min ({out_min}) must be below out_max ({out_max})")
+        self.kp = float(kp)
+        self.ki = float(ki)
+        self.out_min = float(out_min)
+        self.out_max = float(out_max)
+        self.set_point = 0.0
+        self.integral = 0.0  # integral of the error, error units x seconds
+
+    def set_desired(self, desired: float) -> None:
+        """Change the set point (the seed's name for it)."""
+        self.set_point = float(desired)
+
+    def reset(self) -> None:
+        """Forget the accumulated integral (after a stop, a mode change ...)."""
+        self.integral = 0.0
+
+    def update(self, measurement: float, dt: float) -> float:
+        """One control step: the output for ``measurement`` after ``dt`` seconds."""
+        if dt <= 0:
+            raise ValueError(f"PIController.update: dt must be > 0 seconds, got {dt}")
+        error = self.set_point - measurement
+        integral = self.integral + error * dt
+        out = self.kp * error + self.ki * integral
+        # Anti-windup: while the output saturates in the direction the error pushes it, let the
+        # integral grow only up to the value that just reaches the limit (never shrink it here),
+        # else a long stall would wind it up and the car would overshoot once it moves.
+        if self.ki > 0:
+            if out > self.out_max and error > 0:
+                integral = min(integral, max(self.integral, (self.out_max - self.kp * error) / self.ki))
+            elif out < self.out_min and error < 0:
+                integral = max(integral, min(self.integral, (self.out_min - self.kp * error) / self.ki))
+        self.integral = integral
+        out = self.kp * error + self.ki * integral
+        return min(self.out_max, max(self.out_min, out))
+
+
+def limit_throttle(speed: float, limit: float, max_throttle: float = 1.0) -> float:
+    """The trainer seed's rule ``throttle = 1 - speed / limit``, clamped to ``[0, max_throttle]``.
+
+    Args:
+        speed: measured speed, m/s.
+        limit: speed limit, m/s (> 0).
+        max_throttle: the throttle at standstill (1.0 in the seed).
+    """
+    if limit <= 0:
+        raise ValueError(f"limit_throttle: the speed limit must be > 0 m/s, got {limit}")
+    return min(max_throttle, max(0.0, max_throttle * (1.0 - speed / limit)))
+
+
+class SpeedControl:
+    """Part: replace the pilot's throttle by a speed controller while a speed limit is set.
+
+    ``run(throttle, speed, speed_limit) -> throttle``. ``speed_limit`` (m/s) is the PI
+    controller's target in mode "pi" and the limit of ``1 - speed/limit`` in mode "limit"; while it
+    is None, ``default_limit`` applies. No limit at all (or mode "off") passes ``throttle``
+    through; a limit <= 0 means stop (throttle 0). An
+    unknown or non-finite speed gives throttle 0: without a measurement the car cannot be held under
+    the limit.
+
+    Args:
+        mode: "pi", "limit" or "off".
+        dt: seconds between two runs (the drive loop period, 1 / DRIVE_LOOP_HZ).
+        kp, ki: PI gains (throttle per m/s, throttle per m/s per s).
+        max_throttle: upper bound of the controlled throttle.
+        default_limit: the limit (m/s) while the ``speed_limit`` input is None; None = no limit.
+    """
+
+    warn_interval_s = 5.0  # at most one warning about a missing speed per this many seconds
+
+    def __init__(self, mode: SpeedControlMode = "pi", *, dt: float = 0.05, kp: float = 0.3,
+                 ki: float = 0.6, max_throttle: float = 1.0, default_limit: float | None = None) -> None:
+        if mode not in SPEED_CONTROL_MODES:
+            raise ValueError(f"SpeedControl: mode must be one of {SPEED_CONTROL_MODES}, got {mode!r}")
+        if not _finite(dt) or dt <= 0:
+            raise ValueError(f"SpeedControl: dt must be a positive number of seconds, got {dt!r}")
+        if not _finite(max_throttle) or not 0 < max_throttle <= 1:
+            raise ValueError(f"SpeedControl: max_throttle must be in (0, 1], got {max_throttle!r}")
+        if default_limit is not None and (not _finite(default_limit) or default_limit <= 0):
+            raise ValueError(f"SpeedControl: default_limit must be > 0 m/s or None, got {default_limit!r}")
+        self.mode = mode
+        self.default_limit = default_limit
+        self.dt = float(dt)
+        self.max_throttle = float(max_throttle)
+        self.pi = PIController(kp, ki, 0.0, max_throttle)
+        self._last_warning = -math.inf
+
+    def run(self, throttle: float | None, speed: float | None, speed_limit: float | None) -> float | None:
+        """The throttle to drive with (see the class docstring)."""
+        if speed_limit is None:
+            speed_limit = self.default_limit
+        if self.mode == "off" or speed_limit is None:
+            self.pi.reset()
+            return throttle
+        if not _finite(speed_limit) or speed_limit <= 0:
+            self.pi.reset()
+            return 0.0
+        if not _finite(speed):
+            self._warn(f"no valid speed measurement ({speed!r}): throttle 0 until there is one")
+            self.pi.reset()
+            return 0.0
+        measured = float(speed)  # type: ignore[arg-type]  # _finite() checked it
+        if self.mode == "limit":
+            return limit_throttle(measured, float(speed_limit), self.max_throttle)
+        self.pi.set_desired(float(speed_limit))
+        return self.pi.update(measured, self.dt)
+
+    def _warn(self, message: str) -> None:
+        now = time.monotonic()
+        if now - self._last_warning >= self.warn_interval_s:
+            self._last_warning = now
+            logger.warning("SpeedControl: %s", message)

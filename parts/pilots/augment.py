@@ -1,0 +1,185 @@
+"""Training-only image augmentations, each applied with its own probability.
+
+An :class:`Augmenter` draws the operations for one sample (:meth:`Augmenter.draw`), then applies
+the same draw to every frame of that sample (sequence models see one consistent clip) and
+corrects the steering label (flip negates it, a horizontal shift adds a correction). Images are
+uint8 HxWx3 RGB camera frames, before preprocessing. Validation and driving never augment.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import cv2
+import numpy as np
+
+AUGMENTATION_NAMES = ("flip", "brightness", "shadow", "shift", "zoom", "blur")
+
+
+@dataclass(frozen=True)
+class AugmentSettings:
+    """Which augmentations run, their probabilities and ranges (see AUG_* in the config)."""
+
+    names: tuple[str, ...] = ("flip", "brightness", "shadow", "shift")
+    flip_p: float = 0.5
+    brightness_p: float = 0.5
+    brightness_range: float = 0.2
+    contrast_range: float = 0.2
+    shadow_p: float = 0.3
+    shadow_darkness: float = 0.5
+    shift_p: float = 0.5
+    shift_x: float = 0.1
+    shift_y: float = 0.05
+    shift_steering: float = 1.0
+    zoom_p: float = 0.3
+    zoom_range: float = 0.3
+    blur_p: float = 0.2
+    blur_range: tuple[float, float] = (0.5, 1.5)
+
+    def __post_init__(self) -> None:
+        names = tuple(str(n).lower() for n in self.names)
+        unknown = [n for n in names if n not in AUGMENTATION_NAMES]
+        if unknown:
+            raise ValueError(f"unknown augmentation(s) {unknown}; choose from {AUGMENTATION_NAMES}")
+        object.__setattr__(self, "names", names)
+        for name in AUGMENTATION_NAMES:
+            p = getattr(self, f"{name}_p")
+            if not 0.0 <= p <= 1.0:
+                raise ValueError(f"AUG_{name.upper()}_P = {p} must be a probability in [0, 1]")
+        if not 0.0 <= self.shadow_darkness <= 1.0:
+            raise ValueError(f"AUG_SHADOW_DARKNESS = {self.shadow_darkness} must be in [0, 1]")
+        lo, hi = self.blur_range
+        if not 0.0 < lo <= hi:
+            raise ValueError(f"AUG_BLUR_RANGE = {self.blur_range} must be (low, high) sigmas, "
+                             "0 < low <= high")
+
+    @classmethod
+    def from_config(cls, cfg: Any, names: list[str] | tuple[str, ...] | None = None) -> AugmentSettings:
+        """Settings from the car's AUGMENTATIONS and AUG_* values (``names`` overrides the list)."""
+        return cls(names=tuple(cfg.AUGMENTATIONS if names is None else names),
+                   flip_p=cfg.AUG_FLIP_P, brightness_p=cfg.AUG_BRIGHTNESS_P,
+                   brightness_range=cfg.AUG_BRIGHTNESS_RANGE, contrast_range=cfg.AUG_CONTRAST_RANGE,
+                   shadow_p=cfg.AUG_SHADOW_P, shadow_darkness=cfg.AUG_SHADOW_DARKNESS,
+                   shift_p=cfg.AUG_SHIFT_P, shift_x=cfg.AUG_SHIFT_X, shift_y=cfg.AUG_SHIFT_Y,
+                   shift_steering=cfg.AUG_SHIFT_STEERING, zoom_p=cfg.AUG_ZOOM_P,
+                   zoom_range=cfg.AUG_ZOOM_RANGE, blur_p=cfg.AUG_BLUR_P,
+                   blur_range=tuple(cfg.AUG_BLUR_RANGE))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain values (stored in the model file's training config)."""
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in self.__dict__.items()}
+
+
+Draw = list[tuple[str, dict[str, float]]]
+_SHORT = {"flip": "flip", "brightness": "bright", "shadow": "shadow", "shift": "shift", "zoom": "zoom",
+          "blur": "blur"}
+
+
+class Augmenter:
+    """Random augmentations of training frames with steering correction."""
+
+    # Fixed application order: geometry first, then photometric, blur last.
+    _ORDER = ("flip", "shift", "zoom", "brightness", "shadow", "blur")
+
+    def __init__(self, settings: AugmentSettings) -> None:
+        self.settings = settings
+
+    def draw(self, rng: np.random.Generator) -> Draw:
+        """Choose the operations and their parameters for one sample."""
+        s = self.settings
+        ops: Draw = []
+        for name in self._ORDER:
+            if name not in s.names or rng.random() >= getattr(s, f"{name}_p"):
+                continue
+            if name == "flip":
+                ops.append((name, {}))
+            elif name == "shift":
+                ops.append((name, {"dx": rng.uniform(-s.shift_x, s.shift_x),
+                                   "dy": rng.uniform(-s.shift_y, s.shift_y)}))
+            elif name == "zoom":
+                ops.append((name, {"scale": 1.0 + rng.uniform(0.0, s.zoom_range)}))
+            elif name == "brightness":
+                ops.append((name, {"beta": rng.uniform(-s.brightness_range, s.brightness_range) * 255.0,
+                                   "alpha": 1.0 + rng.uniform(-s.contrast_range, s.contrast_range)}))
+            elif name == "shadow":
+                # A band from the top edge to the bottom edge, darkening one side of it.
+                ops.append((name, {"top": rng.uniform(0, 1), "bottom": rng.uniform(0, 1),
+                                   "side": float(rng.integers(0, 2)),
+                                   "factor": rng.uniform(s.shadow_darkness, 1.0)}))
+            else:
+                ops.append((name, {"sigma": rng.uniform(*s.blur_range)}))
+        return ops
+
+    def steering(self, angle: float, ops: Draw) -> float:
+        """The label for the augmented frame: negated when flipped, corrected for a shift, in [-1, 1]."""
+        for name, p in ops:
+            if name == "flip":
+                angle = -angle
+            elif name == "shift":
+                angle += self.settings.shift_steering * p["dx"]
+        return float(np.clip(angle, -1.0, 1.0))
+
+    @staticmethod
+    def flipped(ops: Draw) -> bool:
+        """Whether the draw mirrors the frame (a memory model's previous angles flip too)."""
+        return any(name == "flip" for name, _ in ops)
+
+    def apply(self, image: np.ndarray, ops: Draw) -> np.ndarray:
+        """Apply a draw to one uint8 HxWx3 frame; returns a new array (the input is never changed)."""
+        h, w = image.shape[:2]
+        out = image
+        for name, p in ops:
+            if name == "flip":
+                out = cv2.flip(out, 1)
+            elif name == "shift":
+                m = np.float32([[1, 0, p["dx"] * w], [0, 1, p["dy"] * h]])
+                out = cv2.warpAffine(out, m, (w, h), borderMode=cv2.BORDER_REPLICATE)
+            elif name == "zoom":
+                m = cv2.getRotationMatrix2D((w / 2.0, h / 2.0), 0.0, p["scale"])
+                out = cv2.warpAffine(out, m, (w, h), borderMode=cv2.BORDER_REPLICATE)
+            elif name == "brightness":
+                # Contrast around mid-grey, then brightness; a lookup table is exact and fast on uint8.
+                lut = (np.arange(256, dtype=np.float32) - 128.0) * p["alpha"] + 128.0 + p["beta"]
+                out = cv2.LUT(out, np.clip(np.rint(lut), 0, 255).astype(np.uint8))
+            elif name == "shadow":
+                ys = np.arange(h, dtype=np.float32)[:, None] / max(h - 1, 1)
+                edge = (p["top"] + (p["bottom"] - p["top"]) * ys) * w
+                xs = np.arange(w, dtype=np.float32)[None, :]
+                mask = (xs < edge) if p["side"] < 0.5 else (xs >= edge)
+                scale = np.where(mask, np.float32(p["factor"]), np.float32(1.0))[:, :, None]
+                out = np.rint(out.astype(np.float32) * scale).astype(np.uint8)
+            elif name == "blur":
+                out = cv2.GaussianBlur(out, (0, 0), p["sigma"])
+        return out if out is not image else image.copy()
+
+    def __call__(self, image: np.ndarray, angle: float, rng: np.random.Generator) -> tuple[np.ndarray, float]:
+        """Augment one frame and its steering label."""
+        ops = self.draw(rng)
+        return self.apply(image, ops), self.steering(angle, ops)
+
+
+def preview_grid(frames: list[np.ndarray], angles: list[float], augmenter: Augmenter,
+                 variants: int = 5, seed: int = 0, scale: int = 2) -> np.ndarray:
+    """A uint8 RGB image: one row per frame, the original then ``variants`` augmented copies, each
+    labelled with its steering and the operations applied."""
+    if not frames:
+        raise ValueError("preview_grid needs at least one frame")
+    rng = np.random.default_rng(seed)
+    h, w = frames[0].shape[:2]
+    cell_h, cell_w = h * scale, w * scale
+    grid = np.zeros((len(frames) * cell_h, (variants + 1) * cell_w, 3), np.uint8)
+    for r, (frame, angle) in enumerate(zip(frames, angles, strict=True)):
+        if frame.shape[:2] != (h, w):
+            frame = cv2.resize(frame, (w, h), interpolation=cv2.INTER_AREA)
+        for c in range(variants + 1):
+            ops = [] if c == 0 else augmenter.draw(rng)
+            img = augmenter.apply(frame, ops) if ops else frame.copy()
+            label = f"{augmenter.steering(angle, ops):+.2f}"
+            names = ",".join(_SHORT[n] for n, _ in ops) if c else "orig"
+            cell = cv2.resize(img, (cell_w, cell_h), interpolation=cv2.INTER_NEAREST)
+            for text, y in ((label, 14), (names, cell_h - 6)):
+                cv2.putText(cell, text, (4, y), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 3, cv2.LINE_AA)
+                cv2.putText(cell, text, (4, y), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 255, 0), 1, cv2.LINE_AA)
+            grid[r * cell_h:(r + 1) * cell_h, c * cell_w:(c + 1) * cell_w] = cell
+    return grid

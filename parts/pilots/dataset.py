@@ -1,0 +1,235 @@
+"""Tub records -> training samples: filters, labels, continuity, side cameras, and the torch Dataset.
+
+Flow (see :func:`parts.pilots.train.prepare_data`)::
+
+    load_records(paths) -> read_drive_data (filter modes + TRAIN_FILTER, labels, continuity)
+        -> split_train_val (sessions / blocks) -> balance (train only) -> build_samples
+        (side cameras, sequence/memory history) -> FrameCache (decoded uint8 frames)
+        -> PilotDataset (augment -> Preprocess.frame -> uint8 tensors)
+
+The trainer turns the uint8 batch into floats on the training device with
+``Preprocess.normalize_batch``, the same function the pilot uses when driving.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch.utils.data import Dataset
+
+from parts.pilots.augment import Augmenter
+from parts.pilots.framecache import FrameCache
+from parts.pilots.preprocess import Preprocess
+
+logger = logging.getLogger(__name__)
+
+IMAGE_KEY = "cam/image_array"
+ANGLE_KEYS = ("user/angle", "user/steering")
+THROTTLE_KEY = "user/throttle"
+
+
+@dataclass
+class DriveData:
+    """Filtered records of many tubs with their labels and continuity.
+
+    ``segments[i]`` numbers the (tub, session) of record ``i``; ``prev[i]`` is the position of the
+    record recorded just before it in the same tub and session (consecutive index), else -1.
+    """
+
+    records: list[Any]
+    angles: np.ndarray
+    throttles: np.ndarray
+    segments: np.ndarray
+    prev: np.ndarray
+    tubs: list[str]
+
+    def __len__(self) -> int:
+        return len(self.records)
+
+
+def _angle(data: dict[str, Any]) -> Any:
+    for key in ANGLE_KEYS:
+        if key in data:
+            return data[key]
+    return None
+
+
+def read_drive_data(paths: Sequence[str | os.PathLike[str]], *, modes: Iterable[str] | None = ("user",),
+                    record_filter: Callable[[dict[str, Any]], bool] | None = None,
+                    records: list[Any] | None = None) -> DriveData:
+    """Records of ``paths`` (tubs or folders of tubs) kept for training.
+
+    Args:
+        modes: keep records whose ``user/mode`` is in this list (records without a mode are kept);
+            None keeps all.
+        record_filter: the car's TRAIN_FILTER, called with each record's fields.
+        records: already loaded records (skips ``load_records``; for tests and tools).
+    """
+    if records is None:
+        from parts.tub.reader import load_records
+
+        missing = [str(p) for p in paths if not Path(p).exists()]
+        if missing:
+            raise ValueError(f"no such tub or folder: {', '.join(missing)}; pass existing tubs with --tubs")
+        records = list(load_records([str(p) for p in paths]))
+    modes = set(modes) if modes is not None else None
+    kept: list[Any] = []
+    angles: list[float] = []
+    throttles: list[float] = []
+    dropped = {"mode": 0, "filter": 0, "label": 0}
+    for rec in records:
+        data = rec.data
+        if modes is not None and data.get("user/mode", "user") not in modes:
+            dropped["mode"] += 1
+            continue
+        if record_filter is not None and not record_filter(data):
+            dropped["filter"] += 1
+            continue
+        angle, throttle = _angle(data), data.get(THROTTLE_KEY)
+        try:
+            a, t = float(angle), float(throttle)
+        except (TypeError, ValueError):
+            dropped["label"] += 1
+            continue
+        if not (np.isfinite(a) and np.isfinite(t)):
+            dropped["label"] += 1
+            continue
+        kept.append(rec)
+        angles.append(float(np.clip(a, -1.0, 1.0)))
+        throttles.append(float(np.clip(t, -1.0, 1.0)))
+    if any(dropped.values()):
+        logger.info("kept %d records; skipped %d not in modes %s, %d by TRAIN_FILTER, %d without labels",
+                    len(kept), dropped["mode"], sorted(modes or []), dropped["filter"], dropped["label"])
+    if not kept:
+        raise ValueError(f"no training records in {', '.join(map(str, paths)) or 'the given records'} "
+                         f"(skipped: {dropped}); record some driving in user mode first")
+    seg_ids: dict[tuple[str, Any], int] = {}
+    segments = np.empty(len(kept), np.int64)
+    prev = np.full(len(kept), -1, np.int64)
+    for i, rec in enumerate(kept):
+        key = (str(rec.tub), rec.data.get("_session_id"))
+        segments[i] = seg_ids.setdefault(key, len(seg_ids))
+        if i and segments[i] == segments[i - 1] and int(rec.index) == int(kept[i - 1].index) + 1:
+            prev[i] = i - 1
+    tubs = sorted({str(rec.tub) for rec in kept})
+    return DriveData(kept, np.asarray(angles, np.float32), np.asarray(throttles, np.float32), segments,
+                     prev, tubs)
+
+
+@dataclass
+class Samples:
+    """Training samples: record position, camera key index and the chain of earlier positions
+    (``chain[:, 0]`` is the sample's own record, ``chain[:, k]`` the one k steps earlier)."""
+
+    chain: np.ndarray
+    key_index: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.chain)
+
+    def positions(self) -> np.ndarray:
+        """Every record position any sample reads (its own and its history)."""
+        return np.unique(self.chain)
+
+    def subset(self, mask: np.ndarray) -> Samples:
+        return Samples(self.chain[mask], self.key_index[mask])
+
+
+def build_samples(data: DriveData, positions: np.ndarray, n_keys: int = 1, depth: int = 0) -> Samples:
+    """Samples for ``positions`` x camera keys, each with ``depth`` earlier consecutive records.
+
+    Records with fewer than ``depth`` consecutive predecessors (start of a session, after a deleted
+    record) are left out: a sequence or memory model needs the full history.
+    """
+    positions = np.asarray(positions, np.int64)
+    chain = np.empty((len(positions), depth + 1), np.int64)
+    chain[:, 0] = positions
+    for k in range(1, depth + 1):
+        before = chain[:, k - 1]
+        chain[:, k] = np.where(before >= 0, data.prev[np.maximum(before, 0)], -1)
+    ok = (chain >= 0).all(axis=1)
+    chain = chain[ok]
+    return Samples(np.repeat(chain, n_keys, axis=0), np.tile(np.arange(n_keys), len(chain)))
+
+
+class PilotDataset(Dataset):
+    """Samples as ``(images, extra, target)`` tensors.
+
+    ``images``: uint8 (C, H, W), or (T, C, H, W) oldest first when ``frames > 1``; ``extra``: float32
+    (E,) (previous commands or behaviour one-hot; (0,) when the model takes none); ``target``: float32
+    (angle, throttle). With an ``augmenter`` (training only) every sample gets a fresh random draw,
+    reproducible from (seed, epoch, index).
+    """
+
+    def __init__(self, data: DriveData, samples: Samples, cache: FrameCache, preprocess: Preprocess, *,
+                 key_offsets: Sequence[float] = (0.0,), frames: int = 1, command_history: int = 0,
+                 extra_key: str | None = None, extra_size: int = 0, augmenter: Augmenter | None = None,
+                 seed: int = 0) -> None:
+        if samples.chain.shape[1] < max(frames, command_history + 1):
+            raise ValueError("samples were built with too short a history for this model")
+        self.data = data
+        self.samples = samples
+        self.cache = cache
+        self.preprocess = preprocess
+        self.key_offsets = np.asarray(key_offsets, np.float32)
+        self.frames = frames
+        self.command_history = command_history
+        self.extra_key = extra_key
+        self.extra_size = extra_size
+        self.augmenter = augmenter
+        self.seed = seed
+        self.epoch = 0
+
+    def set_epoch(self, epoch: int) -> None:
+        """Change the augmentation draws for a new epoch."""
+        self.epoch = int(epoch)
+
+    def __len__(self) -> int:
+        return len(self.samples)
+
+    def _extra(self, chain: np.ndarray, flip: bool) -> np.ndarray:
+        if self.command_history:
+            earlier = chain[self.command_history:0:-1]  # oldest first, excluding the sample's own record
+            pairs = np.stack([self.data.angles[earlier], self.data.throttles[earlier]], axis=1)
+            if flip:
+                pairs[:, 0] *= -1
+            return pairs.reshape(-1).astype(np.float32)
+        if self.extra_key is not None:
+            raw = self.data.records[chain[0]].data.get(self.extra_key)
+            values = np.asarray(raw if raw is not None else [], np.float32).reshape(-1)
+            if values.size != self.extra_size:
+                rec = self.data.records[chain[0]]
+                raise ValueError(f"record {rec.index} of {rec.tub}: {self.extra_key} has {values.size} "
+                                 f"values, the model expects {self.extra_size}")
+            return values
+        return np.zeros(0, np.float32)
+
+    def __getitem__(self, i: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        chain = self.samples.chain[i]
+        key = int(self.samples.key_index[i])
+        pos = int(chain[0])
+        angle = float(self.data.angles[pos] + self.key_offsets[key])
+        throttle = float(self.data.throttles[pos])
+        ops: list = []
+        if self.augmenter is not None:
+            rng = np.random.default_rng((self.seed, self.epoch, i))
+            ops = self.augmenter.draw(rng)
+            angle = self.augmenter.steering(angle, ops)
+        else:
+            angle = float(np.clip(angle, -1.0, 1.0))
+        images = []
+        for k in range(self.frames - 1, -1, -1):  # oldest first
+            frame = self.cache.get(int(chain[k]), key)
+            if ops:
+                frame = self.augmenter.apply(frame, ops)
+            images.append(Preprocess.to_chw(self.preprocess.frame(frame)))
+        x = images[0] if self.frames == 1 else torch.stack(images)
+        extra = torch.from_numpy(self._extra(chain, Augmenter.flipped(ops)))
+        return x, extra, torch.tensor([angle, throttle], dtype=torch.float32)

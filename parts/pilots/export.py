@@ -1,0 +1,160 @@
+"""Export a model file to TorchScript (``.ts``) or ONNX (``.onnx``) for faster inference.
+
+Both exports compute the *controls* (angle, throttle) — the model's forward followed by its
+``controls()`` decoding — from the preprocessed input, so every runtime needs only the shared
+preprocessing (:mod:`parts.pilots.preprocess`) in front. Inputs: ``images`` ``(1, C, H, W)``
+(``(1, T, C, H, W)`` for sequence models) and, for models with an extra input, ``extra``
+``(1, E)``. Output: ``controls`` ``(1, 2)``.
+
+Each export carries the source model file's metadata (JSON) and the SHA-256 of the source file,
+so an export is self-contained (``load_pilot("x.onnx")`` works without the .pt) and a stale export
+(the .pt was retrained since) is detected: :func:`export_matches`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import warnings
+from pathlib import Path
+from typing import Any, Literal
+
+import torch
+from torch import nn
+
+from parts.pilots.modelfile import load_model
+
+logger = logging.getLogger(__name__)
+
+ExportFormat = Literal["onnx", "torchscript"]
+SUFFIXES: dict[str, str] = {"onnx": ".onnx", "torchscript": ".ts"}
+META_KEY = "vehicle_meta"  # JSON of the source model file's metadata
+SOURCE_KEY = "source_sha256"  # SHA-256 of the source model file
+ONNX_OPSET = 17
+
+
+def file_sha256(path: str | os.PathLike[str]) -> str:
+    """Hex SHA-256 of a file (1 MiB chunks)."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+class ControlsModule(nn.Module):
+    """``images -> controls``: the model's forward then its output decoding, for export."""
+
+    def __init__(self, model: nn.Module) -> None:
+        super().__init__()
+        self.model = model
+
+    def forward(self, images: torch.Tensor) -> torch.Tensor:
+        return self.model.controls(self.model(images))
+
+
+class ControlsWithExtraModule(ControlsModule):
+    """``(images, extra) -> controls`` for models with an extra input (memory, behaviour)."""
+
+    def forward(self, images: torch.Tensor, extra: torch.Tensor) -> torch.Tensor:  # type: ignore[override]
+        return self.model.controls(self.model(images, extra))
+
+
+def example_inputs(desc: dict[str, Any]) -> tuple[torch.Tensor, ...]:
+    """Zero inputs of batch 1 shaped as the model described by ``meta["model"]`` expects."""
+    shape = [int(v) for v in desc["input_shape"]]
+    frames = int(desc.get("frames", 1))
+    images = torch.zeros(1, frames, *shape) if frames > 1 else torch.zeros(1, *shape)
+    extra_size = int(desc.get("extra_size", 0))
+    return (images, torch.zeros(1, extra_size)) if extra_size else (images,)
+
+
+def controls_module(model: nn.Module, desc: dict[str, Any]) -> ControlsModule:
+    """The export wrapper that fits the model's inputs."""
+    wrapper = ControlsWithExtraModule(model) if int(desc.get("extra_size", 0)) else ControlsModule(model)
+    return wrapper.eval()
+
+
+def default_output(source: Path, fmt: str) -> Path:
+    """Where an export goes by default: next to the model file, suffix .onnx or .ts."""
+    return source.with_suffix(SUFFIXES[fmt])
+
+
+def export_model(source: str | os.PathLike[str], fmt: ExportFormat | str = "onnx",
+                 out: str | os.PathLike[str] | None = None) -> Path:
+    """Export the model file ``source`` to ``fmt`` ("onnx" or "torchscript"); returns the file.
+
+    Raises:
+        ValueError: unknown format.
+        ImportError: ONNX export without the ``onnx`` package (``pip install vehicle-rc[export]``).
+        parts.pilots.modelfile.ModelFileError: the source is not a valid model file.
+    """
+    if fmt not in SUFFIXES:
+        raise ValueError(f"unknown export format {fmt!r}: use one of {', '.join(SUFFIXES)}")
+    source = Path(source)
+    model, meta = load_model(source, map_location="cpu")
+    out_path = Path(out) if out is not None else default_output(source, fmt)
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    desc = meta["model"]
+    wrapper = controls_module(model, desc)
+    inputs = example_inputs(desc)
+    props = {META_KEY: json.dumps(meta, sort_keys=True), SOURCE_KEY: file_sha256(source)}
+    tmp = out_path.with_name(f".{out_path.name}.tmp{os.getpid()}")
+    try:
+        if fmt == "onnx":
+            _export_onnx(wrapper, inputs, tmp, props)
+        else:
+            _export_torchscript(wrapper, inputs, tmp, props)
+        os.replace(tmp, out_path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    logger.info("exported %s to %s", source, out_path)
+    return out_path
+
+
+def _export_onnx(wrapper: nn.Module, inputs: tuple[torch.Tensor, ...], out: Path,
+                 props: dict[str, str]) -> None:
+    try:
+        import onnx
+    except ImportError as exc:
+        raise ImportError("ONNX export needs the onnx package: pip install 'vehicle-rc[export]'") from exc
+    names = ["images", "extra"][:len(inputs)]
+    with torch.no_grad(), warnings.catch_warnings():
+        # The TorchScript-based exporter: the torch.export-based one needs onnxscript, which is not
+        # a dependency, and these small CNNs export identically with either.
+        warnings.simplefilter("ignore")
+        torch.onnx.export(wrapper, inputs, str(out), dynamo=False, input_names=names,
+                          output_names=["controls"], opset_version=ONNX_OPSET)
+    proto = onnx.load(str(out))
+    for key, value in props.items():
+        entry = proto.metadata_props.add()
+        entry.key, entry.value = key, value
+    onnx.save(proto, str(out))
+
+
+def _export_torchscript(wrapper: nn.Module, inputs: tuple[torch.Tensor, ...], out: Path,
+                        props: dict[str, str]) -> None:
+    with torch.no_grad(), warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # torch.jit is deprecated in favour of torch.export; still works
+        traced = torch.jit.trace(wrapper, inputs, check_trace=False)
+        torch.jit.save(traced, str(out), _extra_files={f"{k}.txt": v for k, v in props.items()})
+
+
+def read_torchscript(path: str | os.PathLike[str]) -> tuple[Any, dict[str, str]]:
+    """Load a TorchScript export; returns ``(scripted module, {META_KEY: ..., SOURCE_KEY: ...})``."""
+    extra = {f"{k}.txt": "" for k in (META_KEY, SOURCE_KEY)}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        module = torch.jit.load(str(path), map_location="cpu", _extra_files=extra)
+    props = {k[:-4]: (v.decode() if isinstance(v, bytes) else v) for k, v in extra.items()}
+    if not props.get(META_KEY):
+        raise ValueError(f"{path}: not a TorchScript export of a pilot model (no {META_KEY}); "
+                         "export one with `vehicle models export MODEL --format torchscript`")
+    return module.eval(), props
+
+
+def export_matches(source: str | os.PathLike[str], export_sha256: str | None) -> bool:
+    """Whether an export made from a file with hash ``export_sha256`` is of ``source`` as it is now."""
+    return bool(export_sha256) and Path(source).is_file() and file_sha256(source) == export_sha256

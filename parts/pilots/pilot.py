@@ -1,0 +1,272 @@
+"""The Pilot part: drives with a trained model file.
+
+``Pilot(path).run(image, *extra_inputs) -> (angle, throttle)``. The model file says what the model
+needs (``pilot.inputs``: ``cam/image_array`` first, then e.g. ``behavior/one_hot_state_array``);
+previous commands (``memory`` models) and the last N frames (sequence models) are kept inside the
+part. Frames go through the same preprocessing code as training. Outputs are clamped to [-1, 1];
+a NaN or infinite prediction becomes angle 0, throttle 0 with a rate-limited warning.
+
+Optional speed control (:class:`parts.drive.speed.SpeedControl`) replaces the model's throttle
+while ``user/speed_limit`` is set; its two inputs (speed key, ``user/speed_limit``) are then
+appended to ``inputs``.
+
+Hot switch: :meth:`Pilot.request_model` loads another file in a background thread and swaps it in
+with one reference assignment; the loop never waits for a load, and a file that fails to load
+leaves the current model driving. :class:`ModelSwitch` is the loop part that watches
+``pilot/model_request`` and outputs ``pilot/model``.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from collections import deque
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from parts.pilots.runners import Backend, Runner, open_runner
+
+logger = logging.getLogger(__name__)
+
+IMAGE_KEY = "cam/image_array"
+SPEED_LIMIT_KEY = "user/speed_limit"
+
+
+class _RateLimitedLog:
+    """Log a warning at most once per ``interval`` seconds, counting the ones held back."""
+
+    def __init__(self, interval: float = 5.0) -> None:
+        self.interval = interval
+        self._last = -math.inf
+        self._held = 0
+
+    def warning(self, message: str, *args: Any) -> None:
+        now = time.monotonic()
+        if now - self._last < self.interval:
+            self._held += 1
+            return
+        if self._held:
+            message += f" ({self._held} more since the last warning)"
+        self._last, self._held = now, 0
+        logger.warning(message, *args)
+
+
+class _Active:
+    """A runner plus the state that belongs to it (frame buffer, command history): swapped as one."""
+
+    def __init__(self, runner: Runner) -> None:
+        self.runner = runner
+        self.frames: deque[np.ndarray] = deque(maxlen=max(1, runner.frames))
+        # Previous (angle, throttle) commands, oldest first; zeros before the first prediction, as
+        # at the start of a recording (the car stands still).
+        self.history: deque[tuple[float, float]] = deque(
+            [(0.0, 0.0)] * runner.command_history, maxlen=max(1, runner.command_history))
+
+
+class Pilot:
+    """Part: a trained model driving (see the module docstring).
+
+    Args:
+        model: path of a model file (.pt), or an export (.onnx, .ts).
+        backend: "auto" (a matching sibling .onnx when onnxruntime is installed, else PyTorch),
+            "torch", "onnx" or "torchscript".
+        speed_control: a :class:`parts.drive.speed.SpeedControl`, or None for the model's throttle.
+        speed_key: memory key of the measured speed (m/s) fed to ``speed_control``.
+        onnx_threads: ONNX Runtime intra-op threads (1: the loop has other parts to run).
+        models_dir: folder where relative paths of :meth:`request_model` are looked up too.
+    """
+
+    def __init__(self, model: str | Path, *, backend: Backend | str = "auto", speed_control: Any = None,
+                 speed_key: str = "sim/speed", onnx_threads: int = 1,
+                 models_dir: str | Path | None = None) -> None:
+        self.backend = backend
+        self.onnx_threads = onnx_threads
+        self.speed_control = speed_control
+        self.speed_key = speed_key
+        self.models_dir = Path(models_dir) if models_dir is not None else None
+        self._active = _Active(open_runner(model, backend, onnx_threads))
+        self._log = _RateLimitedLog()
+        self._load_lock = threading.Lock()
+        self._loader: threading.Thread | None = None
+        self._requested: Path | None = None
+        self.load_error: str | None = None  # why the last requested model was not loaded
+        #: refuse hot switches to a model with other inputs (set once the part is wired in a
+        #: vehicle, whose input list cannot change while it runs)
+        self.lock_inputs = False
+        self.nonfinite_count = 0  # predictions that were NaN or infinite
+        runner = self._active.runner
+        logger.info("pilot: %s (%s, %s backend)", runner.name, runner.model_type, runner.backend)
+
+    # -- description ----------------------------------------------------------------------------
+    @property
+    def runner(self) -> Runner:
+        """The runner driving now."""
+        return self._active.runner
+
+    @property
+    def model_name(self) -> str:
+        """File name of the model driving now (``pilot/model``)."""
+        return self._active.runner.name
+
+    @property
+    def meta(self) -> dict[str, Any]:
+        """Metadata of the model driving now."""
+        return self._active.runner.meta
+
+    @property
+    def inputs(self) -> list[str]:
+        """Memory keys ``run`` takes, in order: the image, the model's extra inputs, then (with
+        speed control) the speed and the speed limit."""
+        keys = [IMAGE_KEY, *self._active.runner.extra_inputs]
+        if self.speed_control is not None:
+            keys += [self.speed_key, SPEED_LIMIT_KEY]
+        return keys
+
+    outputs: tuple[str, str] = ("pilot/angle", "pilot/throttle")
+
+    # -- the loop -------------------------------------------------------------------------------
+    def run(self, image: np.ndarray | None, *rest: Any) -> tuple[float, float]:
+        """``(angle, throttle)`` for the current frame (and extra inputs, see :attr:`inputs`)."""
+        active = self._active  # one read: a swap during this call does not mix two models
+        runner = active.runner
+        n_extra = len(runner.extra_inputs)
+        expected = 1 + n_extra + (2 if self.speed_control is not None else 0)
+        if len(rest) + 1 != expected:
+            raise TypeError(f"Pilot.run takes {expected} inputs {self.inputs}, got {len(rest) + 1}; "
+                            "wire the part with inputs=pilot.inputs")
+        if image is None:  # no frame yet (camera starting): stand still, wheels straight
+            angle, throttle = 0.0, 0.0
+        else:
+            angle, throttle = self._predict(active, image, rest[:n_extra])
+        if self.speed_control is not None:
+            speed, limit = rest[n_extra], rest[n_extra + 1]
+            throttle = self.speed_control.run(throttle, speed, limit)
+            if throttle is None or not math.isfinite(throttle):
+                throttle = 0.0
+            throttle = min(1.0, max(-1.0, float(throttle)))
+        if runner.command_history:
+            active.history.append((angle, throttle))
+        return angle, throttle
+
+    def _predict(self, active: _Active, image: np.ndarray,
+                 extra_values: tuple[Any, ...]) -> tuple[float, float]:
+        runner = active.runner
+        x = runner.preprocess(image)
+        if runner.frames > 1:
+            if not active.frames:  # first frame: the past is unknown, repeat it
+                active.frames.extend([x] * runner.frames)
+            else:
+                active.frames.append(x)
+            images = np.stack(active.frames)[None]
+        else:
+            images = x[None]
+        extra = self._extra(active, extra_values)
+        angle, throttle = runner.predict(images, extra)
+        if not (math.isfinite(angle) and math.isfinite(throttle)):
+            self.nonfinite_count += 1
+            self._log.warning("pilot %s predicted a non-finite command (angle=%r, throttle=%r): "
+                              "driving angle 0, throttle 0", runner.name, angle, throttle)
+            return 0.0, 0.0
+        return min(1.0, max(-1.0, angle)), min(1.0, max(-1.0, throttle))
+
+    def _extra(self, active: _Active, values: tuple[Any, ...]) -> np.ndarray | None:
+        runner = active.runner
+        if not runner.extra_size:
+            return None
+        parts: list[np.ndarray] = []
+        if runner.command_history:
+            parts.append(np.asarray(active.history, dtype=np.float32).reshape(-1))
+        for key, value in zip(runner.extra_inputs, values, strict=True):
+            if value is None:
+                self._log.warning("pilot input %s is None: using zeros", key)
+                size = runner.extra_size - sum(p.size for p in parts)
+                parts.append(np.zeros(size, dtype=np.float32))
+            else:
+                parts.append(np.asarray(value, dtype=np.float32).reshape(-1))
+        extra = np.concatenate(parts) if len(parts) > 1 else parts[0]
+        if extra.size != runner.extra_size:
+            raise ValueError(f"pilot {runner.name}: extra inputs {list(runner.extra_inputs)} give "
+                             f"{extra.size} values, the model was trained with {runner.extra_size} "
+                             "(e.g. a different number of behaviours: check BEHAVIOR_LIST)")
+        return np.ascontiguousarray(extra[None], dtype=np.float32)
+
+    # -- hot switch -----------------------------------------------------------------------------
+    def resolve(self, path: str | Path) -> Path:
+        """``path`` as given if it exists, else inside ``models_dir``."""
+        candidate = Path(path)
+        if not candidate.exists() and not candidate.is_absolute() and self.models_dir is not None:
+            inside = self.models_dir / candidate
+            if inside.exists():
+                return inside
+        return candidate
+
+    def request_model(self, path: str | Path) -> bool:
+        """Start loading ``path`` in the background; it drives from the first loop after it loaded.
+
+        Returns False (and does nothing) while another load is still running; the caller asks again.
+        """
+        with self._load_lock:
+            if self._loader is not None and self._loader.is_alive():
+                return False
+            target = self.resolve(path)
+            self._requested = target
+            self._loader = threading.Thread(target=self._load, args=(target,), name="PilotModelLoader",
+                                            daemon=True)
+            self._loader.start()
+            return True
+
+    def _load(self, path: Path) -> None:
+        try:
+            runner = open_runner(path, self.backend, self.onnx_threads)
+        except Exception as exc:  # any failure keeps the current model driving
+            self.load_error = f"{path}: {exc}"
+            logger.error("pilot: cannot switch to %s, keeping %s: %s", path, self.model_name, exc)
+            return
+        old = self._active
+        if self.lock_inputs and runner.extra_inputs != old.runner.extra_inputs:
+            self.load_error = (f"{path}: the model needs inputs {[IMAGE_KEY, *runner.extra_inputs]} but the "
+                               f"pilot was wired with {[IMAGE_KEY, *old.runner.extra_inputs]}; restart "
+                               "the car with this model instead")
+            logger.error("pilot: cannot switch to %s, keeping %s: %s", path, old.runner.name, self.load_error)
+            runner.close()
+            return
+        self._active = _Active(runner)  # the swap: one reference assignment, atomic for the loop
+        self.load_error = None
+        logger.info("pilot: switched from %s to %s (%s, %s backend)", old.runner.name, runner.name,
+                    runner.model_type, runner.backend)
+        old.runner.close()
+
+    def wait_loaded(self, timeout: float | None = None) -> bool:
+        """Block until a pending load finished (for tests and scripts; the loop never calls it)."""
+        loader = self._loader
+        if loader is not None:
+            loader.join(timeout)
+            return not loader.is_alive()
+        return True
+
+    def shutdown(self) -> None:
+        """Wait briefly for a pending load, then release the model."""
+        self.wait_loaded(timeout=5.0)
+        self._active.runner.close()
+
+
+class ModelSwitch:
+    """Part: watch ``pilot/model_request`` and hot-switch the pilot; outputs ``pilot/model``.
+
+    Runs every loop (no run_condition), so a model chosen while a human drives is loaded before
+    the pilot takes over. A request that equals the last one is ignored; a request made while a
+    load is running is retried on the next loops.
+    """
+
+    def __init__(self, pilot: Pilot) -> None:
+        self.pilot = pilot
+        self._last: str | None = None
+
+    def run(self, request: str | None) -> str:
+        if request and request != self._last and self.pilot.request_model(request):
+            self._last = request
+        return self.pilot.model_name

@@ -1,0 +1,159 @@
+"""The one preprocessing path shared by training and driving: crop, resize, colour space, normalise.
+
+Two stages so that training stays fast and both paths stay identical:
+
+1. :meth:`Preprocess.frame`: uint8 HxWx3 RGB camera frame -> uint8 H'xW'xC (crop, resize, colour).
+   Training runs it per sample on the CPU after the augmentations.
+2. :meth:`Preprocess.normalize`: uint8 tensor ``(..., C, H', W')`` -> float32. Training runs it per
+   batch on the training device; driving runs it on the one frame.
+
+``Preprocess(...)(frame)`` does both for one frame (the pilot part's path). The settings are stored
+in the model file (``meta["preprocess"]`` = :meth:`Preprocess.to_dict`), so a model always drives
+with the preprocessing it was trained with.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import cv2
+import numpy as np
+import torch
+
+COLORS = ("rgb", "yuv", "hsv", "gray")
+NORMALIZATIONS = ("unit", "symmetric")
+_CV2_COLOR = {"yuv": cv2.COLOR_RGB2YUV, "hsv": cv2.COLOR_RGB2HSV, "gray": cv2.COLOR_RGB2GRAY}
+
+
+@dataclass(frozen=True)
+class Preprocess:
+    """Preprocessing settings; all sizes in pixels.
+
+    Attributes:
+        crop: pixels removed at (top, bottom, left, right) of the camera frame (sky, bonnet).
+        resize: (height, width) after cropping, or None to keep the cropped size.
+        color: colour space fed to the model: rgb, yuv (DAVE-2), hsv or gray (1 channel).
+        normalize: "unit" maps 0..255 to [0, 1]; "symmetric" to [-1, 1] (x / 127.5 - 1).
+        image_shape: (height, width, channels) of the camera frames the model was trained on, or
+            None to accept any size (checked so a camera of another size fails clearly).
+    """
+
+    crop: tuple[int, int, int, int] = (0, 0, 0, 0)
+    resize: tuple[int, int] | None = None
+    color: str = "rgb"
+    normalize: str = "unit"
+    image_shape: tuple[int, int, int] | None = field(default=None)
+
+    def __post_init__(self) -> None:
+        crop = tuple(int(v) for v in self.crop)
+        if len(crop) != 4 or min(crop) < 0:
+            raise ValueError(f"crop must be 4 pixel counts >= 0 (top, bottom, left, right), "
+                             f"got {self.crop!r}")
+        object.__setattr__(self, "crop", crop)
+        if self.resize is not None:
+            resize = tuple(int(v) for v in self.resize)
+            if len(resize) != 2 or min(resize) < 1:
+                raise ValueError(f"resize must be (height, width) >= 1 or None, got {self.resize!r}")
+            object.__setattr__(self, "resize", resize)
+        if self.color not in COLORS:
+            raise ValueError(f"color must be one of {COLORS}, got {self.color!r}")
+        if self.normalize not in NORMALIZATIONS:
+            raise ValueError(f"normalize must be one of {NORMALIZATIONS}, got {self.normalize!r}")
+        if self.image_shape is not None:
+            shape = tuple(int(v) for v in self.image_shape)
+            if len(shape) != 3:
+                raise ValueError(f"image_shape must be (height, width, channels), got {self.image_shape!r}")
+            object.__setattr__(self, "image_shape", shape)
+            self.output_shape(shape)  # validates the crop against the frame size
+
+    # -- shapes
+    def output_shape(self, image_shape: tuple[int, ...]) -> tuple[int, int, int]:
+        """(C, H, W) of the model input for camera frames of ``image_shape`` (H, W[, C])."""
+        h, w = int(image_shape[0]), int(image_shape[1])
+        top, bottom, left, right = self.crop
+        ch, cw = h - top - bottom, w - left - right
+        if ch < 1 or cw < 1:
+            raise ValueError(f"crop {self.crop} (top, bottom, left, right) leaves nothing of a "
+                             f"{h}x{w} frame; "
+                             "lower ROI_CROP_* settings")
+        if self.resize is not None:
+            ch, cw = self.resize
+        return (1 if self.color == "gray" else 3, ch, cw)
+
+    # -- stage 1: per frame, uint8
+    def frame(self, image: np.ndarray) -> np.ndarray:
+        """Crop, resize and convert one uint8 HxWx3 RGB frame; returns uint8 H'xW'xC."""
+        if not isinstance(image, np.ndarray) or image.ndim != 3 or image.shape[2] != 3 \
+                or image.dtype != np.uint8:
+            kind = getattr(image, "dtype", type(image).__name__)
+            raise ValueError(f"expected a uint8 HxWx3 RGB frame, got {kind} of shape "
+                             f"{getattr(image, 'shape', '?')}")
+        if self.image_shape is not None and image.shape != self.image_shape:
+            got = "x".join(map(str, image.shape))
+            want = "x".join(map(str, self.image_shape))
+            raise ValueError(f"frame is {got} but the model was trained on {want} frames; set "
+                             "IMAGE_W/IMAGE_H to the training size or re-train")
+        top, bottom, left, right = self.crop
+        h, w = image.shape[:2]
+        if top + bottom >= h or left + right >= w:
+            raise ValueError(f"crop {self.crop} leaves nothing of a {h}x{w} frame; lower ROI_CROP_* settings")
+        out = image[top:h - bottom, left:w - right]
+        if self.resize is not None and out.shape[:2] != self.resize:
+            # INTER_AREA averages when shrinking (no aliasing), like a camera at a lower resolution.
+            out = cv2.resize(out, (self.resize[1], self.resize[0]), interpolation=cv2.INTER_AREA)
+        if self.color != "rgb":
+            out = cv2.cvtColor(np.ascontiguousarray(out), _CV2_COLOR[self.color])
+        if out.ndim == 2:
+            out = out[:, :, None]
+        return np.ascontiguousarray(out)
+
+    @staticmethod
+    def to_chw(frame: np.ndarray) -> torch.Tensor:
+        """uint8 HxWxC array -> uint8 tensor CxHxW (no copy of the values' meaning)."""
+        return torch.from_numpy(np.ascontiguousarray(frame.transpose(2, 0, 1)))
+
+    # -- stage 2: per batch, float
+    def normalize_batch(self, x: torch.Tensor) -> torch.Tensor:
+        """uint8 (or float 0..255) tensor ``(..., C, H, W)`` -> float32 model input."""
+        # One new tensor, scaled in place: a batch is tens of MB and fresh allocations cost page faults.
+        x = x.to(torch.float32, copy=True)
+        if self.normalize == "unit":
+            return x.mul_(1.0 / 255.0)
+        return x.mul_(1.0 / 127.5).sub_(1.0)
+
+    def __call__(self, image: np.ndarray) -> torch.Tensor:
+        """The inference path: one RGB uint8 frame -> float32 tensor (C, H', W')."""
+        return self.normalize_batch(self.to_chw(self.frame(image)))
+
+    # -- storage
+    def to_dict(self) -> dict[str, Any]:
+        """Plain values for the model file."""
+        d = asdict(self)
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in d.items()}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Preprocess:
+        """Inverse of :meth:`to_dict`; unknown keys are refused."""
+        unknown = set(d) - {"crop", "resize", "color", "normalize", "image_shape"}
+        if unknown:
+            raise ValueError(f"unknown preprocessing setting(s) {sorted(unknown)}")
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+
+
+def preprocess_from_config(cfg: Any, model_type: str,
+                           image_shape: tuple[int, int, int] | None = None) -> Preprocess:
+    """The car's preprocessing for ``model_type``: ROI_CROP_* and PREPROCESS_* settings; where a
+    PREPROCESS_* setting is None the model type's default applies (pilotnet: 66x200, YUV, [-1, 1])."""
+    from parts.pilots.models import model_type as lookup
+
+    defaults: dict[str, Any] = {"resize": None, "color": "rgb", "normalize": "unit"}
+    defaults.update(getattr(lookup(model_type), "preprocess_defaults", {}))
+    resize = cfg.PREPROCESS_RESIZE if cfg.PREPROCESS_RESIZE is not None else defaults["resize"]
+    return Preprocess(
+        crop=(cfg.ROI_CROP_TOP, cfg.ROI_CROP_BOTTOM, cfg.ROI_CROP_LEFT, cfg.ROI_CROP_RIGHT),
+        resize=tuple(resize) if resize is not None else None,
+        color=cfg.PREPROCESS_COLOR or defaults["color"],
+        normalize=cfg.PREPROCESS_NORMALIZE or defaults["normalize"],
+        image_shape=image_shape,
+    )

@@ -1,0 +1,172 @@
+"""The training loop: Adam, early stopping on the validation loss, best-model callback, progress bar."""
+
+from __future__ import annotations
+
+import logging
+import math
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import torch
+from torch import nn
+from torch.utils.data import DataLoader
+
+from parts.pilots.distributed import DistInfo, all_sum
+from parts.pilots.models import PilotModel
+from parts.pilots.prefetch import Prefetcher
+from parts.pilots.preprocess import Preprocess
+
+logger = logging.getLogger(__name__)
+
+_SINGLE = DistInfo()  # one process, rank 0
+
+
+class TrainingDiverged(RuntimeError):
+    """The loss became NaN or infinite."""
+
+
+@dataclass
+class FitSettings:
+    """Optimiser and stopping settings (LEARNING_RATE, MAX_EPOCHS, EARLY_STOP_PATIENCE, MIN_DELTA)."""
+
+    epochs: int = 100
+    learning_rate: float = 1e-3
+    weight_decay: float = 0.0
+    patience: int | None = 5  # None: never stop early
+    min_delta: float = 0.0005
+    progress: bool | None = None  # None: a bar only when stderr is a terminal
+    prefetch: int = 2  # batches read ahead in a background thread (0 = read in the training loop)
+
+
+@dataclass
+class History:
+    """Per-epoch figures; ``best_epoch`` is 1-based (0 = none yet)."""
+
+    train_loss: list[float] = field(default_factory=list)
+    val_loss: list[float] = field(default_factory=list)
+    seconds: list[float] = field(default_factory=list)
+    samples_per_s: list[float] = field(default_factory=list)
+    samples: list[int] = field(default_factory=list)  # training samples per epoch, all processes
+    best_epoch: int = 0
+    best_loss: float = math.inf
+    stopped_early: bool = False
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"train_loss": self.train_loss, "val_loss": self.val_loss, "epoch_seconds": self.seconds,
+                "train_samples_per_s": self.samples_per_s, "epoch_samples": self.samples,
+                "best_epoch": self.best_epoch,
+                "best_loss": self.best_loss if math.isfinite(self.best_loss) else None,
+                "epochs": len(self.train_loss), "stopped_early": self.stopped_early}
+
+
+def _set_epoch(loader: DataLoader, epoch: int) -> None:
+    for obj in (loader.sampler, getattr(loader, "batch_sampler", None), loader.dataset):
+        if obj is not None and hasattr(obj, "set_epoch"):
+            obj.set_epoch(epoch)
+
+
+def _batches(loader: DataLoader, device: torch.device, pre: Preprocess, needs_extra: bool):
+    non_blocking = device.type == "cuda"
+    for x, extra, y in loader:
+        x = pre.normalize_batch(x.to(device, non_blocking=non_blocking))
+        e = extra.to(device, non_blocking=non_blocking) if needs_extra else None
+        yield x, e, y.to(device, non_blocking=non_blocking)
+
+
+def evaluate(model: PilotModel, loader: DataLoader, pre: Preprocess, device: torch.device,
+             info: DistInfo = _SINGLE) -> float:
+    """Mean loss of ``model`` over ``loader`` (summed over every process when distributed)."""
+    model.eval()
+    total, count = 0.0, 0
+    with torch.no_grad():
+        for x, e, y in _batches(loader, device, pre, model.extra_size > 0):
+            loss = model.loss(model(x, e), y)
+            total += float(loss) * len(y)
+            count += len(y)
+    total, count = all_sum([total, float(count)], info, device)
+    return total / count if count else math.nan
+
+
+def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | None, pre: Preprocess,
+        device: torch.device, settings: FitSettings, info: DistInfo = _SINGLE,
+        on_best: Callable[[int, History], None] | None = None,
+        optimizer: torch.optim.Optimizer | None = None) -> History:
+    """Train ``model`` (a PilotModel, or DDP around one) and return the history.
+
+    Each epoch trains on ``train_loader`` then measures ``val_loader`` (the training loss stands in
+    when there is no validation data). ``on_best(epoch, history)`` runs on every process whenever
+    the monitored loss improves by more than ``min_delta``; training stops after ``patience`` epochs
+    without improvement.
+    """
+    core: PilotModel = model.module if isinstance(model, nn.parallel.DistributedDataParallel) else model
+    needs_extra = core.extra_size > 0
+    if optimizer is None:
+        optimizer = torch.optim.Adam(model.parameters(), lr=settings.learning_rate,
+                                     weight_decay=settings.weight_decay)
+    show = settings.progress if settings.progress is not None else sys.stderr.isatty()
+    show = bool(show and info.is_main)
+    history = History()
+    waited = 0
+    for epoch in range(1, settings.epochs + 1):
+        _set_epoch(train_loader, epoch)
+        model.train()
+        total, count = 0.0, 0
+        start = time.perf_counter()
+        bar = None
+        if show:
+            from tqdm import tqdm
+
+            bar = tqdm(total=len(train_loader), desc=f"epoch {epoch}/{settings.epochs}", unit="batch",
+                       leave=False, dynamic_ncols=True)
+        batches = _batches(train_loader, device, pre, needs_extra)
+        source = Prefetcher(batches, settings.prefetch) if settings.prefetch > 0 else None
+        try:
+            for x, e, y in source if source is not None else batches:
+                loss = core.loss(model(x, e), y)
+                value = float(loss.detach())
+                if not math.isfinite(value):
+                    raise TrainingDiverged(f"the training loss became {value} in epoch {epoch}; lower "
+                                           f"LEARNING_RATE (now {settings.learning_rate}) or check the labels")
+                optimizer.zero_grad(set_to_none=True)
+                loss.backward()
+                optimizer.step()
+                total += value * len(y)
+                count += len(y)
+                if bar is not None:
+                    bar.update(1)
+                    bar.set_postfix(loss=f"{total / count:.4f}")
+        finally:
+            if source is not None:
+                source.close()
+            if bar is not None:
+                bar.close()
+        seconds = time.perf_counter() - start
+        total, count = all_sum([total, float(count)], info, device)
+        train_loss = total / max(count, 1.0)
+        val_loss = evaluate(core, val_loader, pre, device, info) if val_loader is not None else math.nan
+        history.train_loss.append(train_loss)
+        history.val_loss.append(val_loss)
+        history.seconds.append(seconds)
+        history.samples_per_s.append(count / seconds if seconds > 0 else 0.0)
+        history.samples.append(int(count))
+        monitored = val_loss if math.isfinite(val_loss) else train_loss
+        improved = monitored < history.best_loss - settings.min_delta
+        if info.is_main:
+            logger.info("epoch %d/%d: loss %.5f, val_loss %.5f, %.0f samples/s%s", epoch, settings.epochs,
+                        train_loss, val_loss, history.samples_per_s[-1], " (best)" if improved else "")
+        if improved:
+            history.best_loss, history.best_epoch, waited = monitored, epoch, 0
+            if on_best is not None:
+                on_best(epoch, history)
+        else:
+            waited += 1
+            if settings.patience is not None and waited >= settings.patience:
+                history.stopped_early = True
+                if info.is_main:
+                    logger.info("early stop: no improvement of val_loss by %g for %d epochs",
+                                settings.min_delta, waited)
+                break
+    return history

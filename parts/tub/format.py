@@ -1,0 +1,151 @@
+"""The tub v2 on-disk format shared with DonkeyCar 5.x: names, record encoding, file helpers.
+
+Layout (see docs/data-format.md)::
+
+    <tub>/manifest.json                      five JSON lines (inputs, types, metadata, sessions, catalogs)
+    <tub>/catalog_<n>.catalog                one JSON record per line, keys sorted
+    <tub>/catalog_<n>.catalog_manifest       {"created_at", "line_lengths", "path", "start_index"}
+    <tub>/images/<index>_<key, "/"->"_">_.jpg
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import time
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from parts.tub.errors import TubSchemaError
+
+MANIFEST = "manifest.json"
+IMAGES = "images"
+CATALOG_RE = re.compile(r"^catalog_(\d+)\.catalog$")
+
+# Declared types DonkeyCar writes; "gray16_array" is stored as a 16-bit PNG (broken in DonkeyCar).
+SCALAR_TYPES = frozenset({"float", "int", "str", "boolean"})
+LIST_TYPES = frozenset({"nparray", "list", "vector"})
+IMAGE_TYPES = frozenset({"image_array", "gray16_array"})
+ALL_TYPES = SCALAR_TYPES | LIST_TYPES | IMAGE_TYPES
+
+# Private fields every record carries (DonkeyCar's names).
+INDEX = "_index"
+TIMESTAMP = "_timestamp_ms"
+SESSION = "_session_id"
+
+
+def catalog_name(n: int) -> str:
+    """File name of the n-th catalog (``catalog_<n>.catalog``)."""
+    return f"catalog_{n}.catalog"
+
+
+def catalog_manifest_name(catalog: str) -> str:
+    """``catalog_0.catalog`` -> ``catalog_0.catalog_manifest``."""
+    return f"{Path(catalog).stem}.catalog_manifest"
+
+
+def image_file_name(index: int, key: str, extension: str = ".jpg") -> str:
+    """DonkeyCar's image name: ``<index>_<key with / -> _>_<ext>``, e.g. ``0_cam_image_array_.jpg``."""
+    return f"{index}_{key.replace('/', '_')}_{extension}"
+
+
+def session_full_id(number: int, when: float | None = None) -> str:
+    """``YY-MM-DD_<number>``, DonkeyCar's session id (local date)."""
+    return f"{time.strftime('%y-%m-%d', time.localtime(when))}_{number}"
+
+
+def session_number(full_id: Any) -> int | None:
+    """The trailing number of a session id, or None if it has none."""
+    if isinstance(full_id, str):
+        tail = full_id.rsplit("_", 1)[-1]
+        if tail.isdigit():
+            return int(tail)
+    return None
+
+
+def check_schema(inputs: list[str], types: list[str]) -> None:
+    """Raise TubSchemaError unless inputs and types are parallel lists of names and known types."""
+    if len(inputs) != len(types):
+        raise TubSchemaError(f"inputs ({len(inputs)}: {inputs}) and types ({len(types)}: {types}) "
+                             "must have the same length: give one type per input")
+    if len(set(inputs)) != len(inputs):
+        raise TubSchemaError(f"inputs contain duplicates: {inputs}")
+    for key, tp in zip(inputs, types, strict=True):
+        if not isinstance(key, str) or not key or key.startswith("_"):
+            raise TubSchemaError(f"input name {key!r} is invalid: use a non-empty string not starting "
+                                 "with '_' (names starting with '_' are the tub's private fields)")
+        if tp not in ALL_TYPES:
+            raise TubSchemaError(f"input {key!r} has unknown type {tp!r}; use one of {sorted(ALL_TYPES)}")
+
+
+def encode_value(key: str, tp: str, value: Any) -> Any:
+    """Convert a scalar/list value to what the catalog stores for declared type ``tp``."""
+    try:
+        if tp == "float":
+            out = float(value)
+            if not math.isfinite(out):
+                raise ValueError("NaN and infinity cannot be stored (the format is strict JSON)")
+            return out
+        if tp == "int":
+            return int(value)
+        if tp == "str":
+            return str(value)
+        if tp == "boolean":
+            return bool(value)
+        if tp == "nparray":
+            return np.asarray(value).tolist()
+        if tp in ("list", "vector"):
+            return np.asarray(value).tolist() if isinstance(value, np.ndarray) else list(value)
+    except (TypeError, ValueError) as exc:
+        raise TubSchemaError(f"value {value!r} of {key!r} does not fit its type {tp!r}: {exc}") from exc
+    raise TubSchemaError(f"{key!r}: type {tp!r} is not a catalog value type")
+
+
+def dumps_record(record: Mapping[str, Any]) -> str:
+    """One catalog line (without newline): ASCII JSON, keys sorted, NaN rejected (DonkeyCar's)."""
+    return json.dumps(record, allow_nan=False, sort_keys=True)
+
+
+# -- file helpers --------------------------------------------------------------------------------
+
+def fsync_dir(path: str | os.PathLike[str]) -> None:
+    """fsync a directory so that new, renamed or removed entries in it survive a power loss."""
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def atomic_write(path: Path, data: str | bytes, *, durable: bool = True) -> None:
+    """Replace ``path`` with ``data`` atomically: temp file, fsync, rename, fsync of the folder.
+
+    A crash at any instant leaves either the old or the new content, never a mix or a truncation
+    (with ``durable=False`` the fsyncs are skipped: still atomic for a process crash).
+    """
+    raw = data.encode() if isinstance(data, str) else data
+    tmp = path.with_name(f".{path.name}.tmp")
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+    try:
+        view = memoryview(raw)
+        while view:
+            view = view[os.write(fd, view):]
+        if durable:
+            os.fsync(fd)
+    finally:
+        os.close(fd)
+    os.replace(tmp, path)
+    if durable:
+        fsync_dir(path.parent)
+
+
+def write_all(fd: int, data: bytes) -> None:
+    """os.write until every byte is written."""
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view):]

@@ -1,0 +1,74 @@
+"""JPEG/PNG encoding and decoding with OpenCV (imported on first use, not at import time)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+_cv2: Any = None
+
+
+def cv2() -> Any:
+    """The cv2 module, imported once on first use."""
+    global _cv2
+    if _cv2 is None:
+        import cv2 as module
+
+        _cv2 = module
+    return _cv2
+
+
+def encode_image(array: Any, tp: str, quality: int) -> tuple[bytes, str]:
+    """Encode an image value -> (file bytes, extension).
+
+    ``image_array``: HxWx3 RGB (or HxW / HxWx1 gray) uint8 -> JPEG; bytes given are taken as an
+    already encoded JPEG and kept as they are. ``gray16_array``: HxW uint16 -> 16-bit PNG.
+    """
+    if isinstance(array, bytes | bytearray | memoryview):
+        return bytes(array), ".png" if tp == "gray16_array" else ".jpg"
+    cv = cv2()
+    arr = np.asarray(array)
+    if tp == "gray16_array":
+        ok, buf = cv.imencode(".png", arr.astype(np.uint16, copy=False))
+        ext = ".png"
+    else:
+        if arr.dtype != np.uint8:
+            arr = np.clip(arr, 0, 255).astype(np.uint8)
+        if arr.ndim == 3 and arr.shape[2] == 3:
+            arr = cv.cvtColor(arr, cv.COLOR_RGB2BGR)  # OpenCV writes BGR
+        elif not (arr.ndim == 2 or (arr.ndim == 3 and arr.shape[2] == 1)):
+            raise ValueError(f"image of shape {arr.shape} cannot be stored: expected HxWx3 RGB or HxW gray")
+        ok, buf = cv.imencode(".jpg", arr, [cv.IMWRITE_JPEG_QUALITY, int(quality)])
+        ext = ".jpg"
+    if not ok:
+        raise ValueError(f"OpenCV could not encode an image of shape {arr.shape}")
+    return buf.tobytes(), ext
+
+
+_RGB_FLAG: int | None = None
+
+
+def decode_image(data: bytes | np.ndarray) -> np.ndarray | None:
+    """Decode JPEG/PNG bytes -> HxWx3 uint8 RGB (16-bit PNG -> HxW uint16); None when undecodable."""
+    global _RGB_FLAG
+    cv = cv2()
+    buf = np.frombuffer(data, np.uint8) if not isinstance(data, np.ndarray) else data
+    if buf.size == 0:
+        return None
+    if _RGB_FLAG is None:
+        _RGB_FLAG = getattr(cv, "IMREAD_COLOR_RGB", -1)
+    if buf.size > 8 and bytes(buf[:8]) == b"\x89PNG\r\n\x1a\n":
+        img = cv.imdecode(buf, cv.IMREAD_UNCHANGED)
+        if img is not None and img.dtype == np.uint8 and img.ndim == 3:
+            img = cv.cvtColor(img, cv.COLOR_BGR2RGB)
+        return img
+    if _RGB_FLAG >= 0:
+        return cv.imdecode(buf, _RGB_FLAG)
+    img = cv.imdecode(buf, cv.IMREAD_COLOR)
+    return None if img is None else cv.cvtColor(img, cv.COLOR_BGR2RGB)
+
+
+def looks_whole_jpeg(data: bytes) -> bool:
+    """Cheap check: JPEG start marker and end-of-image marker present (catches torn/0-byte files)."""
+    return len(data) > 4 and data[:2] == b"\xff\xd8" and data.rstrip(b"\x00")[-2:] == b"\xff\xd9"

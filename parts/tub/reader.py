@@ -1,0 +1,258 @@
+"""Reading tubs for training: records across many tubs, deleted ones skipped, bad ones reported.
+
+>>> records = load_records(["data"])          # a tub, or a folder of tubs
+>>> img = records[0].image()                 # HxWx3 uint8 RGB
+>>> for rec, img in iter_images(records): ...  # decoded in parallel threads
+
+A bad record (unparsable catalog line, missing or empty image file) is reported with tub, index and
+file, then skipped (``on_error="skip"``) or raised as :class:`CorruptRecord` (``on_error="raise"``).
+An image that exists but does not decode raises CorruptRecord from ``TubRecord.image()``.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from collections import deque
+from collections.abc import Iterable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from parts.tub.errors import CorruptRecord, TubError
+from parts.tub.format import CATALOG_RE, IMAGE_TYPES, IMAGES, MANIFEST
+from parts.tub.imaging import decode_image
+from parts.tub.tub import Tub
+
+logger = logging.getLogger(__name__)
+
+OnError = Literal["skip", "raise"]
+IMAGE_KEY = "cam/image_array"
+ANGLE_KEYS = ("user/angle", "user/steering")  # DonkeyCar renamed user/angle for a while (#1103)
+
+
+class TubRecord:
+    """One record of a tub: ``tub`` (folder), ``index`` (``_index``), ``data`` (catalog fields)."""
+
+    __slots__ = ("tub", "index", "data")
+
+    def __init__(self, tub: Path, index: int, data: dict[str, Any]) -> None:
+        self.tub = tub
+        self.index = index
+        self.data = data
+
+    def __repr__(self) -> str:
+        return f"TubRecord({str(self.tub)!r}, {self.index})"
+
+    def __getitem__(self, key: str) -> Any:
+        return self.data[key]
+
+    def get(self, key: str, default: Any = None) -> Any:
+        return self.data.get(key, default)
+
+    @property
+    def angle(self) -> float | None:
+        """Steering label: ``user/angle``, or ``user/steering`` in tubs of DonkeyCar 4.x/5.0."""
+        for key in ANGLE_KEYS:
+            if key in self.data:
+                return self.data[key]
+        return None
+
+    @property
+    def throttle(self) -> float | None:
+        return self.data.get("user/throttle")
+
+    @property
+    def timestamp_ms(self) -> int | None:
+        return self.data.get("_timestamp_ms")
+
+    def image_path(self, key: str = IMAGE_KEY) -> Path:
+        """The image file of ``key``; CorruptRecord if the record has no such image."""
+        name = self.data.get(key)
+        if not isinstance(name, str) or not name:
+            raise CorruptRecord(self.tub, self.index, self.tub / IMAGES, f"record has no image {key!r}")
+        return self.tub / IMAGES / name
+
+    def image_bytes(self, key: str = IMAGE_KEY) -> bytes:
+        """The image file's bytes; CorruptRecord if missing or empty."""
+        name = self.data.get(key)
+        if not isinstance(name, str) or not name:
+            self.image_path(key)  # raises the "no image" error
+        path = os.path.join(self.tub, IMAGES, name)  # str join: this runs once per training sample
+        try:
+            with open(path, "rb") as f:
+                data = f.read()
+        except OSError as exc:
+            raise CorruptRecord(self.tub, self.index, path, f"cannot read image ({exc.strerror})") from exc
+        if not data:
+            raise CorruptRecord(self.tub, self.index, path, "image file is empty (0 bytes)")
+        return data
+
+    def image(self, key: str = IMAGE_KEY) -> np.ndarray:
+        """The decoded image, HxWx3 uint8 RGB; CorruptRecord naming tub, index and file if bad."""
+        data = self.image_bytes(key)
+        img = decode_image(data)
+        if img is None:
+            raise CorruptRecord(self.tub, self.index, self.image_path(key), "image does not decode")
+        return img
+
+
+def is_tub(path: Path) -> bool:
+    """Whether a folder holds a tub (a manifest.json or a catalog file)."""
+    if (path / MANIFEST).is_file():
+        return True
+    try:
+        return any(CATALOG_RE.match(p.name) for p in path.iterdir())
+    except OSError:
+        return False
+
+
+def find_tubs(paths: str | os.PathLike[str] | Iterable[str | os.PathLike[str]]) -> list[Path]:
+    """Tub folders in ``paths``: each path is a tub or a folder searched (recursively) for tubs.
+
+    Raises TubError when a path does not exist or holds no tub.
+    """
+    if isinstance(paths, str | os.PathLike):
+        paths = [paths]
+    found: list[Path] = []
+    for p in paths:
+        path = Path(os.path.expanduser(os.fspath(p)))
+        if not path.is_dir():
+            raise TubError(f"{path}: no such folder; give a tub folder or a folder of tubs")
+        if is_tub(path):
+            found.append(path)
+            continue
+        inside = []
+        for root, dirs, _files in os.walk(path):
+            dirs.sort()
+            here = Path(root)
+            if here != path and is_tub(here):
+                inside.append(here)
+                dirs.clear()  # a tub's images/ is not searched
+        if not inside:
+            raise TubError(f"{path} holds no tub (no manifest.json or catalog_*.catalog in it or below)")
+        found.extend(inside)
+    return found
+
+
+def _report(error: CorruptRecord, on_error: OnError, errors: list[CorruptRecord] | None) -> None:
+    if errors is not None:
+        errors.append(error)
+    if on_error == "raise":
+        raise error
+    logger.warning("skipped: %s", error)
+
+
+def iter_records(paths: str | os.PathLike[str] | Iterable[str | os.PathLike[str]], *,
+                 on_error: OnError = "skip", include_deleted: bool = False, check_images: bool = True,
+                 errors: list[CorruptRecord] | None = None) -> Iterator[TubRecord]:
+    """Records of every tub in ``paths``, in tub and index order, deleted ones skipped.
+
+    Args:
+        paths: tub folders and/or folders of tubs.
+        on_error: "skip" logs a bad record (tub, index, file) and goes on; "raise" raises
+            CorruptRecord at the first one.
+        include_deleted: also yield soft-deleted records.
+        check_images: skip records whose image files are missing or empty (a cheap stat; decoding
+            errors surface in ``TubRecord.image()``).
+        errors: if given, every bad record found is appended to it.
+    """
+    if on_error not in ("skip", "raise"):
+        raise ValueError(f"on_error must be 'skip' or 'raise', got {on_error!r}")
+    for tub_path in find_tubs(paths):
+        try:
+            tub = Tub(tub_path, read_only=True)
+        except TubError as exc:
+            _report(CorruptRecord(tub_path, None, tub_path / MANIFEST, str(exc)), on_error, errors)
+            continue
+        image_keys = [k for k, t in zip(tub.inputs, tub.types, strict=True) if t in IMAGE_TYPES]
+        deleted = tub.manifest.deleted_indexes
+        images = tub.images_path
+        for catalog, index, rec, _line, salvaged in tub.scan():
+            if rec is None:
+                _report(CorruptRecord(tub.path, index, catalog, "unparsable catalog line"), on_error, errors)
+                continue
+            if salvaged:
+                logger.warning("%s: record %d salvaged from a line with a torn record before it",
+                               catalog, index)
+            if index in deleted and not include_deleted:
+                continue
+            if check_images and not _images_ok(tub.path, index, rec, image_keys, images, on_error, errors):
+                continue
+            yield TubRecord(tub.path, index, rec)
+
+
+def _images_ok(tub: Path, index: int, rec: dict[str, Any], keys: list[str], images: Path,
+               on_error: OnError, errors: list[CorruptRecord] | None) -> bool:
+    for key in keys:
+        name = rec.get(key)
+        if name is None:
+            _report(CorruptRecord(tub, index, images, f"record has no image {key!r}"), on_error, errors)
+            return False
+        path = images / str(name)
+        try:
+            size = os.stat(path).st_size
+        except OSError:
+            _report(CorruptRecord(tub, index, path, "image file is missing"), on_error, errors)
+            return False
+        if size == 0:
+            _report(CorruptRecord(tub, index, path, "image file is empty (0 bytes)"), on_error, errors)
+            return False
+    return True
+
+
+def load_records(paths: str | os.PathLike[str] | Iterable[str | os.PathLike[str]], **kwargs: Any
+                 ) -> list[TubRecord]:
+    """``list(iter_records(paths, **kwargs))``."""
+    return list(iter_records(paths, **kwargs))
+
+
+def iter_images(records: Iterable[TubRecord], key: str = IMAGE_KEY, *, workers: int = 2,
+                on_error: OnError = "skip", prefetch: int = 64) -> Iterator[tuple[TubRecord, np.ndarray]]:
+    """(record, decoded image) pairs in order, files read and decoded by ``workers`` threads.
+
+    OpenCV releases the GIL while decoding, so threads use several cores. Undecodable images are
+    reported and skipped, or raised with ``on_error="raise"``.
+    """
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+
+    def load(chunk: list[TubRecord]) -> list[np.ndarray | CorruptRecord]:
+        out: list[np.ndarray | CorruptRecord] = []
+        for rec in chunk:
+            try:
+                out.append(rec.image(key))
+            except CorruptRecord as exc:
+                out.append(exc)
+        return out
+
+    # Chunks of records per task keep the executor's per-task overhead small.
+    window: deque[tuple[list[TubRecord], Future[Any]]] = deque()
+    chunk: list[TubRecord] = []
+    with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="tub-read") as pool:
+        for rec in records:
+            chunk.append(rec)
+            if len(chunk) >= _CHUNK:
+                window.append((chunk, pool.submit(load, chunk)))
+                chunk = []
+                if len(window) * _CHUNK >= prefetch:
+                    yield from _take(window, on_error)
+        if chunk:
+            window.append((chunk, pool.submit(load, chunk)))
+        while window:
+            yield from _take(window, on_error)
+
+
+_CHUNK = 16
+
+
+def _take(window: deque[tuple[list[TubRecord], Future[Any]]], on_error: OnError
+          ) -> Iterator[tuple[TubRecord, np.ndarray]]:
+    chunk, fut = window.popleft()
+    for rec, result in zip(chunk, fut.result(), strict=True):
+        if isinstance(result, CorruptRecord):
+            _report(result, on_error, None)
+        else:
+            yield rec, result

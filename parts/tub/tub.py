@@ -1,0 +1,395 @@
+"""``Tub``: one DonkeyCar tub v2 folder, opened for reading or for crash-safe appending.
+
+Writing order per commit (the durability window, docs/data-format.md): image files are written
+as records arrive; at a commit the images are fsynced (in parallel), then the images folder, then
+the records' catalog lines are appended in one write and fsynced. manifest.json is replaced
+atomically at most once a second and at every session start, new catalog, delete, restore and
+close (recovery never needs it current). A crash therefore loses at most the records since the
+last commit, and a catalog line never reaches the disk before its images.
+"""
+
+from __future__ import annotations
+
+import atexit
+import logging
+import os
+import time
+import weakref
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from pathlib import Path
+from typing import Any
+
+from parts.tub.catalog import CatalogFile, parse_line, record_index, scan_catalog
+from parts.tub.errors import TubError, TubSchemaError
+from parts.tub.format import (
+    IMAGE_TYPES,
+    IMAGES,
+    INDEX,
+    SESSION,
+    TIMESTAMP,
+    catalog_name,
+    check_schema,
+    dumps_record,
+    encode_value,
+    image_file_name,
+)
+from parts.tub.image_files import ImageFiles
+from parts.tub.imaging import encode_image
+from parts.tub.manifest import Manifest, parse_metadata
+from parts.tub.recovery import inspect_tub
+
+logger = logging.getLogger(__name__)
+
+_MAX_OPEN_IMAGES = 256  # commit early rather than hold more image descriptors open
+# manifest.json is rewritten at most this often while recording (and at every delete, restore,
+# new catalog, first commit of a session and close).
+MANIFEST_INTERVAL_S = 1.0
+
+
+def _close_at_exit(tub: Tub) -> Callable[[], None]:
+    """An atexit hook that closes the tub if the program forgot to (holds only a weak reference)."""
+    ref = weakref.ref(tub)
+
+    def hook() -> None:
+        t = ref()
+        if t is not None and not t.closed:
+            logger.warning("%s: closing the tub at exit (close() was not called)", t.path)
+            t.close()
+
+    return hook
+
+
+class Tub:
+    """A tub folder (DonkeyCar tub v2), compatible both ways.
+
+    Args:
+        path: the tub folder; created when writable and missing.
+        inputs, types: the record schema (memory keys and their types: float, int, str, boolean,
+            nparray, list, vector, image_array, gray16_array). Needed for a new tub; for an existing
+            tub they must equal the stored ones or be omitted (then the stored schema is used).
+        metadata: user metadata (dict or DonkeyCar's ``["k:v"]``), merged into manifest line 3.
+        max_catalog_len: records per catalog file for a new tub.
+        read_only: never write; recovery is then done in memory only.
+        fsync: make each commit durable against power loss (off: durable only against a crash of
+            the process).
+        fsync_records, fsync_ms: the durability window: commit after this many records or when
+            the oldest uncommitted record is this old, whichever comes first (0 = every record).
+        jpeg_quality: JPEG quality (1-100) for ``image_array`` values.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], inputs: list[str] | None = None,
+                 types: list[str] | None = None, metadata: Mapping[str, Any] | Iterable[str] | None = None,
+                 max_catalog_len: int = 1000, read_only: bool = False, *, fsync: bool = True,
+                 fsync_records: int = 20, fsync_ms: float = 500.0, jpeg_quality: int = 75) -> None:
+        if not isinstance(max_catalog_len, int) or max_catalog_len < 1:
+            raise ValueError(f"max_catalog_len must be a positive int, got {max_catalog_len!r}")
+        if fsync_records < 0 or fsync_ms < 0:
+            raise ValueError("fsync_records and fsync_ms must be >= 0")
+        if not 1 <= int(jpeg_quality) <= 100:
+            raise ValueError(f"jpeg_quality must be within 1..100, got {jpeg_quality!r}")
+        self.path = Path(os.path.expanduser(os.fspath(path))).absolute()
+        self.read_only = read_only
+        self.fsync = fsync
+        self.fsync_records = fsync_records
+        self.fsync_ms = fsync_ms
+        self.jpeg_quality = int(jpeg_quality)
+        self._closed = False
+        self._catalog: CatalogFile | None = None
+        self._images = ImageFiles(self.path / IMAGES, fsync)
+        self._pending_lines: list[str] = []
+        self._pending_since: float | None = None
+        self._atexit: Callable[[], None] | None = None
+        self._session_registered = False
+        self._manifest_saved_at = -MANIFEST_INTERVAL_S
+        self.written = 0  # records written by this session
+
+        if inputs is not None or types is not None:
+            check_schema(list(inputs or []), list(types or []))
+        user_meta = parse_metadata(metadata)
+        if not self.path.exists():
+            if read_only:
+                raise TubError(f"{self.path}: no such tub folder")
+            self.path.mkdir(parents=True)
+        elif not self.path.is_dir():
+            raise TubError(f"{self.path} is a file, not a tub folder")
+        state = inspect_tub(self.path, max_catalog_len)
+        self.problems = list(state.problems)
+        if read_only and not state.is_tub:
+            raise TubError(f"{self.path} is not a tub: it has no manifest.json and no catalog_*.catalog")
+        m = state.manifest
+        if not state.has_schema or not m.inputs and not m.paths:
+            if inputs is None:
+                if not read_only:
+                    raise TubSchemaError(f"{self.path} is a new tub: give inputs and types")
+                m.inputs, m.types = [], []
+            else:
+                m.inputs, m.types = list(inputs), list(types or [])
+                if not state.is_tub:
+                    m.max_len = max_catalog_len
+                    m.manifest_metadata.setdefault("created_at", time.time())
+        elif inputs is not None and (list(inputs) != m.inputs or list(types or []) != m.types):
+            raise TubSchemaError(
+                f"{self.path} stores inputs {m.inputs} with types {m.types}, not {list(inputs)} "
+                f"{list(types or [])}. Record into a new tub, or open this one without inputs/types.")
+        new_meta = {k: v for k, v in user_meta.items() if m.metadata.get(k) != v}
+        m.metadata.update(user_meta)
+        self.manifest: Manifest = m
+        self._types = dict(zip(m.inputs, m.types, strict=True))
+        self.session_number, self.session_id = m.new_session(state.session_floor)
+        if not read_only:
+            self._open_for_writing(state.is_tub and not state.problems and not new_meta
+                                   and not state.torn)
+            self._atexit = _close_at_exit(self)
+            atexit.register(self._atexit)
+        if self.problems:
+            logger.warning("%s: recovered: %s", self.path, "; ".join(self.problems))
+
+    # -- properties --------------------------------------------------------------------------------
+    @property
+    def inputs(self) -> list[str]:
+        return self.manifest.inputs
+
+    @property
+    def types(self) -> list[str]:
+        return self.manifest.types
+
+    @property
+    def metadata(self) -> dict[str, Any]:
+        return self.manifest.metadata
+
+    @property
+    def current_index(self) -> int:
+        """The index the next record gets (records ever written, deleted ones included)."""
+        return self.manifest.current_index
+
+    @property
+    def deleted_indexes(self) -> set[int]:
+        return set(self.manifest.deleted_indexes)
+
+    @property
+    def max_len(self) -> int:
+        return self.manifest.max_len
+
+    @property
+    def catalog_paths(self) -> list[Path]:
+        return [self.path / p for p in self.manifest.paths]
+
+    @property
+    def images_path(self) -> Path:
+        return self.path / IMAGES
+
+    def __len__(self) -> int:
+        return self.manifest.current_index - len(self.manifest.deleted_indexes)
+
+    def __repr__(self) -> str:
+        return f"Tub({str(self.path)!r}, records={len(self)}, read_only={self.read_only})"
+
+    def __enter__(self) -> Tub:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    # -- writing -------------------------------------------------------------------------------------
+    def _open_for_writing(self, clean: bool) -> None:
+        m = self.manifest
+        self.images_path.mkdir(exist_ok=True)
+        if not m.paths:
+            m.paths.append(catalog_name(0))
+        start = (len(m.paths) - 1) * m.max_len
+        self._catalog = CatalogFile.open_append(self.path / m.paths[-1], start, durable=self.fsync)
+        if not clean:
+            m.save(self.path, durable=self.fsync)
+
+    def _check_writable(self) -> None:
+        if self.read_only:
+            raise TubError(f"{self.path} was opened read-only")
+        if self._closed:
+            raise TubError(f"{self.path} is closed")
+
+    def write_record(self, record: Mapping[str, Any], *, timestamp_ms: int | None = None) -> int:
+        """Write one record (keys not in inputs and None values are skipped); return its index.
+
+        ``timestamp_ms`` is the capture time stored as ``_timestamp_ms`` (default: now). Images
+        (``image_array``) may be arrays (encoded to JPEG) or bytes of an encoded JPEG, kept as is.
+        """
+        self._check_writable()
+        m = self.manifest
+        index = m.current_index
+        if index > 0 and index % m.max_len == 0 and len(m.paths) <= index // m.max_len:
+            self._add_catalog()
+        contents: dict[str, Any] = {}
+        for key, value in record.items():
+            tp = self._types.get(key)
+            if value is None or tp is None:
+                continue
+            if tp in IMAGE_TYPES:
+                data, ext = encode_image(value, tp, self.jpeg_quality)
+                name = image_file_name(index, key, ext)
+                self._images.write(name, data)
+                contents[key] = name
+            else:
+                contents[key] = encode_value(key, tp, value)
+        contents[TIMESTAMP] = int(round(time.time() * 1000)) if timestamp_ms is None else int(timestamp_ms)
+        contents[INDEX] = index
+        contents[SESSION] = self.session_id
+        self._pending_lines.append(dumps_record(contents) + "\n")
+        if self._pending_since is None:
+            self._pending_since = time.monotonic()
+        m.current_index = index + 1
+        self.written += 1
+        if self.commit_due() or len(self._images) >= _MAX_OPEN_IMAGES:
+            self.commit()
+        return index
+
+    def commit_due(self) -> bool:
+        """Whether the durability window is full (records or age of the oldest pending record)."""
+        if not self._pending_lines:
+            return False
+        if len(self._pending_lines) >= max(1, self.fsync_records):
+            return True
+        return (time.monotonic() - (self._pending_since or 0.0)) * 1000.0 >= self.fsync_ms
+
+    def seconds_to_commit(self) -> float | None:
+        """Seconds until the pending records must be committed (None when nothing is pending)."""
+        if self._pending_since is None:
+            return None
+        return max(0.0, self.fsync_ms / 1000.0 - (time.monotonic() - self._pending_since))
+
+    def commit(self) -> None:
+        """Make every record written so far durable (images, then catalog lines, then manifests)."""
+        if self._catalog is None or not self._pending_lines:
+            return
+        if self.fsync:
+            self._images.sync()
+        self._catalog.append(self._pending_lines, durable=self.fsync)
+        self._pending_lines = []
+        self._pending_since = None
+        self._save_manifest(force=False)
+
+    def flush(self) -> None:
+        """Commit the pending records and rewrite the manifest now."""
+        self.commit()
+        self._save_manifest(force=True)
+
+    def _save_manifest(self, force: bool) -> None:
+        """Rewrite manifest.json (atomic), at most every MANIFEST_INTERVAL_S unless forced.
+
+        Our recovery does not need it current (current_index is taken from the catalogs); it is
+        kept close for DonkeyCar, which trusts it.
+        """
+        m = self.manifest
+        if self.written and not self._session_registered:
+            m.add_session(self.session_number, self.session_id)
+            self._session_registered = True
+            force = True
+        now = time.monotonic()
+        if force or now - self._manifest_saved_at >= MANIFEST_INTERVAL_S:
+            m.save(self.path, durable=self.fsync)
+            self._manifest_saved_at = now
+
+    def _add_catalog(self) -> None:
+        """Start the next catalog file (DonkeyCar: when current_index is a multiple of max_len)."""
+        self.commit()
+        assert self._catalog is not None
+        self._catalog.save_manifest(durable=self.fsync)
+        self._catalog.close()
+        m = self.manifest
+        name = catalog_name(len(m.paths))
+        self._catalog = CatalogFile.open_append(self.path / name, m.current_index, durable=self.fsync)
+        m.paths.append(name)
+        self._save_manifest(force=True)
+
+    # -- deleting ---------------------------------------------------------------------------------------
+    def _check_indexes(self, indexes: int | Iterable[int]) -> set[int]:
+        idx = {indexes} if isinstance(indexes, int) else {int(i) for i in indexes}
+        bad = sorted(i for i in idx if not 0 <= i < self.current_index)
+        if bad:
+            raise ValueError(f"{self.path}: indexes {bad[:5]} are outside 0..{self.current_index - 1}")
+        return idx
+
+    def delete_records(self, indexes: int | Iterable[int]) -> None:
+        """Soft-delete records (DonkeyCar's ``deleted_indexes``): files stay, readers skip them."""
+        self._check_writable()
+        idx = self._check_indexes(indexes)
+        self.manifest.deleted_indexes |= idx
+        self.flush()
+        if idx:
+            logger.info("%s: deleted %d records (%d..%d)", self.path, len(idx), min(idx), max(idx))
+
+    def restore_records(self, indexes: int | Iterable[int]) -> None:
+        """Undo soft deletes."""
+        self._check_writable()
+        idx = self._check_indexes(indexes)
+        self.manifest.deleted_indexes -= idx
+        self.flush()
+
+    def delete_last_n_records(self, n: int) -> list[int]:
+        """Soft-delete the last ``n`` records that are not deleted yet; returns their indexes."""
+        if n < 0:
+            raise ValueError(f"n must be >= 0, got {n}")
+        deleted = self.manifest.deleted_indexes
+        chosen: list[int] = []
+        i = self.current_index - 1
+        while i >= 0 and len(chosen) < n:
+            if i not in deleted:
+                chosen.append(i)
+            i -= 1
+        if chosen:
+            self.delete_records(chosen)
+        return sorted(chosen)
+
+    # -- reading --------------------------------------------------------------------------------------
+    def scan(self) -> Iterator[tuple[Path, int, dict[str, Any] | None, bytes, bool]]:
+        """Every whole catalog line: (catalog, index, record or None if unparsable, raw line, salvaged).
+
+        Deleted records are included; uncommitted records of a writable tub are committed first.
+        """
+        if not self.read_only and not self._closed:
+            self.commit()
+        position = 0
+        for i, catalog in enumerate(self.catalog_paths):
+            start = i * self.max_len
+            position = max(position, start)
+            for line in scan_catalog(catalog).lines:
+                rec, salvaged = parse_line(line)
+                index = record_index(rec, position) if rec is not None else position
+                yield catalog, index, rec, line, salvaged
+                position = index + 1
+
+    def records(self, include_deleted: bool = False) -> Iterator[tuple[int, dict[str, Any]]]:
+        """(index, record) of every parsable record, skipping deleted ones unless asked."""
+        deleted = self.manifest.deleted_indexes
+        for catalog, index, rec, _line, _salvaged in self.scan():
+            if rec is None:
+                logger.error("%s: unparsable line for record %d skipped", catalog, index)
+                continue
+            if include_deleted or index not in deleted:
+                yield index, rec
+
+    def __iter__(self) -> Iterator[dict[str, Any]]:
+        """Records (dicts) that are not deleted, like DonkeyCar's ``Tub.__iter__``."""
+        return (rec for _, rec in self.records())
+
+    # -- closing --------------------------------------------------------------------------------------
+    def close(self) -> None:
+        """Commit everything and close the files. Safe to call twice."""
+        if self._closed:
+            return
+        try:
+            if not self.read_only and self._catalog is not None:
+                self.flush()
+                self._catalog.save_manifest(durable=self.fsync)
+        finally:
+            self._closed = True
+            if self._atexit is not None:
+                atexit.unregister(self._atexit)
+                self._atexit = None
+            if self._catalog is not None:
+                self._catalog.close()
+            self._images.close()
+            logger.debug("%s: closed (%d records written this session)", self.path, self.written)
+
+    @property
+    def closed(self) -> bool:
+        return self._closed

@@ -1,0 +1,288 @@
+"""``TubWriter``: the drive-loop part that records into a tub without blocking the loop.
+
+``run()`` (loop thread) only copies the values into a bounded queue. Two threads of the writer do
+the rest: one JPEG-encodes, one writes files and fsyncs, so both overlap. When the queue is full the record is dropped,
+counted and a warning is logged (at most every few seconds) — never silently lost.
+"""
+
+from __future__ import annotations
+
+import atexit
+import logging
+import os
+import queue
+import shutil
+import threading
+import time
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from parts.tub.format import IMAGE_TYPES
+from parts.tub.imaging import encode_image
+from parts.tub.tub import Tub
+from vehicle.part import ThreadedPart
+
+logger = logging.getLogger(__name__)
+
+TIMESTAMP_INPUT = "cam/timestamp"
+_ENCODED_MAX = 16  # encoded records waiting for the file writer (memory bound of the 2nd stage)
+_WARN_EVERY_S = 5.0
+
+
+@dataclass
+class WriterStats:
+    """Counters of a TubWriter (records)."""
+
+    accepted: int = 0   # queued by run()
+    written: int = 0    # written to the tub
+    dropped: int = 0    # queue full: not recorded
+    failed: int = 0     # write raised (logged)
+
+
+class _Stop:
+    pass
+
+
+class _DeleteLast:
+    def __init__(self, n: int) -> None:
+        self.n = n
+
+
+class _Encoder(ThreadedPart):
+    """First stage: JPEG-encodes the images of queued records (OpenCV releases the GIL, so this
+    overlaps with the file I/O of the writer thread) and hands them on in order."""
+
+    def __init__(self, owner: TubWriter) -> None:
+        super().__init__()
+        self.owner = owner
+
+    def poll(self) -> Any:
+        w = self.owner
+        try:
+            item = w._queue.get(timeout=0.5)
+        except queue.Empty:
+            return self.NOTHING
+        if isinstance(item, tuple):
+            values, ts_ms = item
+            try:
+                for key, tp in w._image_types.items():
+                    if values.get(key) is not None:
+                        values[key] = encode_image(values[key], tp, w.tub.jpeg_quality)[0]
+            except Exception:
+                w.stats.failed += 1
+                logger.exception("%s: cannot encode a record's image; record skipped", w.path)
+                return self.NOTHING
+        elif isinstance(item, _Stop):
+            self.stop_event.set()
+        w._encoded.put(item)  # bounded: waits while the writer thread is behind
+        return self.NOTHING
+
+
+class _Worker(ThreadedPart):
+    """The writer thread: takes encoded records and writes them; commits when due."""
+
+    def __init__(self, owner: TubWriter) -> None:
+        super().__init__()
+        self.owner = owner
+
+    def poll(self) -> Any:
+        w = self.owner
+        wait = w.tub.seconds_to_commit()
+        try:
+            item = w._encoded.get(timeout=wait if wait is not None else 0.5)
+        except queue.Empty:
+            if w.tub.commit_due():
+                w._guard(w.tub.commit)
+            return self.NOTHING
+        if isinstance(item, _Stop):
+            self.stop_event.set()
+        elif isinstance(item, _DeleteLast):
+            w._guard(lambda: w.tub.delete_last_n_records(item.n))
+        else:
+            values, ts_ms = item
+            if w._guard(lambda: w.tub.write_record(values, timestamp_ms=ts_ms)) is not None:
+                w.stats.written += 1
+            else:
+                w.stats.failed += 1
+        return self.NOTHING
+
+
+class TubWriter:
+    """Record ``inputs`` into a tub each time ``run(*values)`` is called (DonkeyCar's TubWriter).
+
+    Args:
+        base_path: the tub folder (created if missing; an existing tub is appended to).
+        inputs, types: memory keys and their tub types. An input named ``cam/timestamp`` (capture
+            time, seconds) is not stored as a field: it becomes the record's ``_timestamp_ms``.
+        metadata: user metadata (dict or ``["k:v"]``).
+        max_catalog_len: records per catalog file.
+        queue_size: records waiting for the writer thread before new ones are dropped.
+        fsync, fsync_records, fsync_ms, jpeg_quality: see :class:`parts.tub.tub.Tub`.
+        remove_if_empty: when the folder is created here and no record is written, remove it on
+            shutdown.
+        encoder_thread: JPEG-encode in a thread of its own (overlaps with file I/O on a machine
+            with a spare core); False encodes in the file-writer thread.
+
+    ``run()`` returns the number of records in the tub counting queued ones (``tub/num_records``);
+    ``shutdown()`` writes what is queued, commits and closes. Usable without a Vehicle.
+    """
+
+    def __init__(self, base_path: str | os.PathLike[str], inputs: list[str], types: list[str],
+                 metadata: Mapping[str, Any] | Iterable[str] | None = None, max_catalog_len: int = 1000,
+                 *, queue_size: int = 100, fsync: bool = True, fsync_records: int = 20,
+                 fsync_ms: float = 500.0, jpeg_quality: int = 75, remove_if_empty: bool = False,
+                 encoder_thread: bool = True) -> None:
+        inputs, types = list(inputs), list(types)
+        if len(inputs) != len(types):
+            raise ValueError(f"TubWriter: {len(inputs)} inputs but {len(types)} types; give one type "
+                             "per input")
+        if queue_size < 1:
+            raise ValueError(f"TubWriter: queue_size must be >= 1, got {queue_size}")
+        self.inputs = inputs
+        # A tub folder this writer creates is removed again when no record was ever written to it
+        # (with remove_if_empty), so drives without recording leave no empty tubs behind.
+        self._remove_if_empty = remove_if_empty and not os.path.exists(base_path)
+        self._ts_pos = inputs.index(TIMESTAMP_INPUT) if TIMESTAMP_INPUT in inputs else None
+        keep = [i for i in range(len(inputs)) if i != self._ts_pos]
+        self.tub = Tub(base_path, [inputs[i] for i in keep], [types[i] for i in keep], metadata,
+                       max_catalog_len, fsync=fsync, fsync_records=fsync_records, fsync_ms=fsync_ms,
+                       jpeg_quality=jpeg_quality)
+        self._keys = [inputs[i] for i in keep]
+        self._keep = keep
+        self.queue_size = queue_size
+        # Unbounded Queue with the bound enforced in run(): control items (stop, delete) always fit.
+        self._queue: queue.Queue[Any] = queue.Queue()
+        # With an encoder thread, encoded records wait here for the file writer; without one the
+        # writer thread reads the input queue and encodes itself.
+        self._encoded: queue.Queue[Any] = queue.Queue(maxsize=_ENCODED_MAX) if encoder_thread \
+            else self._queue
+        self._image_types = {k: t for k, t in zip(self.tub.inputs, self.tub.types, strict=True)
+                             if t in IMAGE_TYPES}
+        self.stats = WriterStats()
+        self._base_count = self.tub.current_index
+        self._last_warning = -_WARN_EVERY_S
+        self._dropped_since_warning = 0
+        self._error_logged_at = -_WARN_EVERY_S
+        self._lock = threading.Lock()
+        self._closed = False
+        self._threads: list[ThreadedPart] = [_Encoder(self)] if encoder_thread else []
+        self._worker = _Worker(self)
+        self._threads.append(self._worker)
+        for t in self._threads:
+            t.start()
+        # Write what is queued if the program ends without shutdown() (the threads are daemons).
+        atexit.register(self.shutdown)
+
+    @property
+    def path(self) -> str:
+        return str(self.tub.path)
+
+    def run(self, *values: Any) -> int:
+        """Queue one record (never blocks on I/O); returns the tub's record count incl. queued ones."""
+        if len(values) != len(self.inputs):
+            raise ValueError(f"TubWriter expected {len(self.inputs)} inputs {self.inputs}, got {len(values)}")
+        if self._closed:
+            raise RuntimeError(f"TubWriter for {self.path} is shut down")
+        if self._queue.qsize() >= self.queue_size:
+            self._drop()
+        else:
+            record = {}
+            for i in self._keep:
+                v = values[i]
+                # copy arrays: a camera may reuse its buffer for the next frame
+                record[self.inputs[i]] = v.copy() if isinstance(v, np.ndarray) else v
+            ts_ms = None
+            if self._ts_pos is not None and values[self._ts_pos] is not None:
+                ts_ms = int(round(float(values[self._ts_pos]) * 1000))
+            self._queue.put((record, ts_ms))
+            self.stats.accepted += 1
+        return self._base_count + self.stats.accepted
+
+    def _drop(self) -> None:
+        self.stats.dropped += 1
+        self._dropped_since_warning += 1
+        now = time.monotonic()
+        if now - self._last_warning >= _WARN_EVERY_S:
+            logger.warning("%s: writer queue full (%d records): dropped %d records (%d in total); "
+                           "the disk is too slow for the loop rate: lower TUB_JPEG_QUALITY or "
+                           "raise TUB_FSYNC_RECORDS", self.path, self.queue_size,
+                           self._dropped_since_warning, self.stats.dropped)
+            self._last_warning = now
+            self._dropped_since_warning = 0
+
+    def _guard(self, fn: Any) -> Any:
+        """Run fn in the writer thread; log a failure (rate-limited) and return None."""
+        try:
+            result = fn()
+            return True if result is None else result
+        except Exception:
+            now = time.monotonic()
+            if now - self._error_logged_at >= _WARN_EVERY_S:
+                logger.exception("%s: writing failed (record %d)", self.path, self.tub.current_index)
+                self._error_logged_at = now
+            return None
+
+    def delete_last(self, n: int) -> None:
+        """Soft-delete the last ``n`` records, including queued ones (done in the writer thread)."""
+        self._queue.put(_DeleteLast(int(n)))
+
+    def pending(self) -> int:
+        """Records queued but not written yet."""
+        extra = self._encoded.qsize() if self._encoded is not self._queue else 0
+        return self._queue.qsize() + extra
+
+    def shutdown(self, timeout: float | None = None) -> None:
+        """Write everything queued, commit, close the tub. Safe to call twice."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+        atexit.unregister(self.shutdown)
+        self._queue.put(_Stop())
+        deadline = None if timeout is None else time.monotonic() + timeout
+        for part in self._threads:
+            thread = part._thread
+            if thread is not None:
+                thread.join(None if deadline is None else max(0.0, deadline - time.monotonic()))
+                if thread.is_alive():
+                    logger.error("%s: writer threads still busy after %.1f s; %d records not written",
+                                 self.path, timeout or 0, self.pending())
+            part.stop_event.set()
+        self.tub.close()
+        if self._remove_if_empty and self.tub.current_index == 0:
+            shutil.rmtree(self.tub.path, ignore_errors=True)
+            logger.info("%s: no record written; empty tub removed", self.path)
+        if self.stats.dropped:
+            logger.warning("%s: %d records were dropped (queue full)", self.path, self.stats.dropped)
+        logger.info("%s: %d records written this session", self.path, self.stats.written)
+
+    close = shutdown
+
+
+class TubWiper:
+    """Part: on a rising edge of its input, soft-delete the last ``num_records`` records.
+
+    ``target`` is a TubWriter (deletion happens in its thread, queued records included) or a Tub.
+    """
+
+    def __init__(self, target: TubWriter | Tub, num_records: int = 100) -> None:
+        if num_records < 1:
+            raise ValueError(f"TubWiper: num_records must be >= 1, got {num_records}")
+        self.target = target
+        self.num_records = num_records
+        self._active = False
+
+    def run(self, is_delete: Any) -> None:
+        if is_delete:
+            if not self._active:
+                self._active = True
+                if isinstance(self.target, TubWriter):
+                    self.target.delete_last(self.num_records)
+                else:
+                    self.target.delete_last_n_records(self.num_records)
+                logger.info("erasing the last %d records", self.num_records)
+        else:
+            self._active = False

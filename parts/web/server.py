@@ -1,0 +1,357 @@
+"""The web controller's server: python-socketio on aiohttp, run in its own event loop.
+
+Everything here runs in the web thread. It talks to the drive loop only through the lock-protected
+:class:`~parts.web.state.ControlState` and :class:`LatestFrame`. python-socketio and aiohttp are
+imported when the server starts, never at import time.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import threading
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from parts.web import protocol
+from parts.web.pairing import token_ok
+from parts.web.state import ControlState
+
+logger = logging.getLogger(__name__)
+
+STATIC_DIR = Path(__file__).with_name("static")
+#: seconds a browser has to acknowledge a frame before the next one is sent anyway
+FRAME_ACK_TIMEOUT = 2.0
+_CONTENT_TYPES = {".html": "text/html", ".js": "text/javascript", ".css": "text/css",
+                  ".png": "image/png", ".svg": "image/svg+xml", ".ico": "image/x-icon"}
+
+
+class LatestFrame:
+    """The newest camera frame, JPEG-encoded at most once per frame, shared by every viewer.
+
+    The loop thread calls :meth:`put` (a copy, so a camera that reuses its buffer cannot tear the
+    image); the server thread calls :meth:`jpeg`. Only the latest frame is kept: a viewer that is
+    slow skips frames instead of queueing stale ones.
+    """
+
+    def __init__(self, quality: int = 80) -> None:
+        if not 1 <= quality <= 100:
+            raise ValueError(f"JPEG quality must be in [1, 100], got {quality!r}")
+        self.quality = quality
+        self._lock = threading.Lock()
+        self._image: np.ndarray | None = None
+        self._version = 0
+        self._jpeg: bytes | None = None
+        self._jpeg_version = -1
+
+    @property
+    def version(self) -> int:
+        """Counter of frames put so far."""
+        with self._lock:
+            return self._version
+
+    def put(self, image: np.ndarray) -> None:
+        """Store a HxWx3 uint8 RGB (or HxW grey) frame."""
+        if not (isinstance(image, np.ndarray) and image.dtype == np.uint8 and image.ndim in (2, 3)):
+            raise TypeError("camera frame must be a HxWx3 uint8 RGB numpy array, got "
+                            f"{type(image).__name__} {getattr(image, 'dtype', '')}"
+                            f"{getattr(image, 'shape', '')}")
+        with self._lock:
+            self._image = image.copy()
+            self._version += 1
+
+    def jpeg(self) -> tuple[bytes | None, int]:
+        """The latest frame as JPEG bytes and its version (None before the first frame)."""
+        import cv2
+
+        with self._lock:
+            image, version = self._image, self._version
+            if version == self._jpeg_version:
+                return self._jpeg, version
+        if image is None:
+            return None, version
+        bgr = cv2.cvtColor(image, cv2.COLOR_RGB2BGR) if image.ndim == 3 else image
+        ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, self.quality])
+        if not ok:
+            raise RuntimeError(f"JPEG encoding failed for a frame of shape {image.shape}")
+        data = buf.tobytes()
+        with self._lock:
+            if version >= self._jpeg_version:
+                self._jpeg, self._jpeg_version = data, version
+        return data, version
+
+
+def list_models(models_dir: Path | None) -> list[str]:
+    """Names of the ``*.pt`` model files directly in ``models_dir`` (sorted; [] if absent)."""
+    if models_dir is None or not models_dir.is_dir():
+        return []
+    return sorted(p.name for p in models_dir.glob("*.pt") if p.is_file())
+
+
+def static_file(root: Path, request_path: str) -> Path | None:
+    """The file a request path names inside ``root``, or None when it names nothing there.
+
+    The path is resolved (``..``, symlinks) and must stay inside ``root``: no request can read a
+    file outside the served folder.
+    """
+    if "\x00" in request_path or "\\" in request_path:
+        return None
+    parts = [p for p in request_path.split("/") if p not in ("", ".")]
+    if not parts or any(p == ".." or p.startswith(".") for p in parts):
+        return None
+    base = root.resolve()
+    candidate = base.joinpath(*parts).resolve()
+    if not candidate.is_relative_to(base) or not candidate.is_file():
+        return None
+    return candidate
+
+
+class WebServer:
+    """Serve the page and the Socket.IO API until :meth:`stop` is called.
+
+    Args:
+        state: the control slot shared with the loop.
+        frames: the latest camera frame.
+        host: interface to bind. Default ``127.0.0.1`` (this machine only).
+        port: TCP port; 0 picks a free one (see :attr:`port` once started). Default 8887.
+        token: token every Socket.IO connection must present (None = none needed).
+        models_dir: folder listed by the model picker (None = no picker).
+        max_speed_limit: largest speed limit a browser may set, m/s. Default 5.0.
+        telemetry_hz: how often the page gets the state. Default 20.
+        static_dir: folder the page is served from. Default the package's ``static``.
+    """
+
+    def __init__(self, state: ControlState, frames: LatestFrame, *, host: str = "127.0.0.1",
+                 port: int = 8887, token: str | None = None, models_dir: Path | None = None,
+                 max_speed_limit: float = 5.0, telemetry_hz: float = 20.0,
+                 static_dir: Path = STATIC_DIR) -> None:
+        if not 0 <= port <= 65535:
+            raise ValueError(f"port must be in [0, 65535], got {port}")
+        if not telemetry_hz > 0:
+            raise ValueError(f"telemetry_hz must be > 0, got {telemetry_hz}")
+        self.state, self.frames = state, frames
+        self.host, self.port, self.token = host, port, token
+        self.models_dir, self.max_speed_limit = models_dir, max_speed_limit
+        self.telemetry_hz, self.static_dir = telemetry_hz, static_dir
+        self.loop: asyncio.AbstractEventLoop | None = None
+        self.rejected = 0  # messages refused as malformed, out of range or not allowed
+        self._stop: asyncio.Event | None = None
+        self._stop_requested = threading.Event()
+        self._frame_event: asyncio.Event | None = None
+        self._senders: dict[str, asyncio.Task[None]] = {}
+        self._sio: Any = None
+
+    # -- called from other threads ----------------------------------------------------------------
+    @property
+    def has_viewers(self) -> bool:
+        """Whether any browser is connected (frames are only copied and encoded then)."""
+        return bool(self._senders)
+
+    def notify_frame(self) -> None:
+        """Wake the frame senders (thread-safe; a no-op until the server runs)."""
+        loop = self.loop
+        if loop is not None and self._senders and not loop.is_closed():
+            with contextlib.suppress(RuntimeError):  # loop closed between the check and the call
+                loop.call_soon_threadsafe(self._wake_senders)
+
+    def stop(self) -> None:
+        """Ask the server to close (thread-safe)."""
+        self._stop_requested.set()
+        loop, stop = self.loop, self._stop
+        if loop is not None and stop is not None and not loop.is_closed():
+            with contextlib.suppress(RuntimeError):
+                loop.call_soon_threadsafe(stop.set)
+
+    # -- the web thread ---------------------------------------------------------------------------
+    async def start(self) -> Any:
+        """Bind and start serving; returns the aiohttp runner (see :meth:`serve_until_stopped`)."""
+        import socketio
+        from aiohttp import web
+
+        self.loop = asyncio.get_running_loop()
+        self._stop = asyncio.Event()
+        self._frame_event = asyncio.Event()
+        sio = socketio.AsyncServer(async_mode="aiohttp", transports=["websocket"],
+                                   max_http_buffer_size=protocol.MAX_MESSAGE_BYTES,
+                                   ping_interval=5, ping_timeout=5)
+        self._sio = sio
+        self._register(sio)
+        app = web.Application(client_max_size=protocol.MAX_MESSAGE_BYTES)
+        app.router.add_get("/", self._index)
+        app.router.add_get("/static/{path:.*}", self._static)
+        sio.attach(app)
+        runner = web.AppRunner(app, access_log=None, handle_signals=False)
+        await runner.setup()
+        site = web.TCPSite(runner, self.host, self.port)
+        try:
+            await site.start()
+        except OSError as exc:
+            await runner.cleanup()
+            raise OSError(exc.errno, f"web controller cannot listen on {self.host}:{self.port} "
+                          f"({exc.strerror}); another program (or car) uses the port: set "
+                          "WEB_CONTROL_PORT to a free port in myconfig.py") from exc
+        self.port = runner.addresses[0][1]
+        return runner
+
+    async def serve_until_stopped(self, runner: Any) -> None:
+        """Send telemetry until :meth:`stop`, then disconnect everyone and close."""
+        assert self._stop is not None  # set by start()  # noqa: S101
+        telemetry = asyncio.create_task(self._telemetry())
+        try:
+            if not self._stop_requested.is_set():
+                await self._stop.wait()
+        finally:
+            telemetry.cancel()
+            for task in list(self._senders.values()):
+                task.cancel()
+            await asyncio.gather(telemetry, *self._senders.values(), return_exceptions=True)
+            self._senders.clear()
+            await self._sio.shutdown()  # disconnects every browser, ends engine.io's tasks
+            await runner.cleanup()
+
+    def _wake_senders(self) -> None:
+        event, self._frame_event = self._frame_event, asyncio.Event()
+        if event is not None:
+            event.set()
+
+    async def _index(self, request: Any) -> Any:
+        from aiohttp import web
+
+        return web.FileResponse(self.static_dir / "index.html",
+                                headers={"Cache-Control": "no-cache", "Content-Type": "text/html"})
+
+    async def _static(self, request: Any) -> Any:
+        from aiohttp import web
+
+        path = static_file(self.static_dir, request.match_info["path"])
+        if path is None:
+            raise web.HTTPNotFound(text="not found")
+        ctype = _CONTENT_TYPES.get(path.suffix, "application/octet-stream")
+        return web.FileResponse(path, headers={"Cache-Control": "no-cache", "Content-Type": ctype})
+
+    def _models(self) -> list[str]:
+        return list_models(self.models_dir)
+
+    def _hello(self, sid: str, role: str) -> dict[str, Any]:
+        return {"sid": sid, "role": role, "deadman_s": self.state.deadman_s,
+                "modes": protocol.MODE_LABELS, "models": self._models(),
+                "max_speed_limit": self.max_speed_limit, "state": self.state.snapshot()}
+
+    def _reject(self, sid: str, error: str) -> dict[str, Any]:
+        self.rejected += 1
+        logger.info("web: rejected a message from %s: %s", sid, error)
+        return {"ok": False, "error": error}
+
+    def _register(self, sio: Any) -> None:
+        """Socket.IO handlers; each returns the acknowledgement the client receives."""
+        import socketio
+
+        @sio.event
+        async def connect(sid: str, environ: dict[str, Any], auth: Any = None) -> None:
+            if not token_ok(self.token, auth):
+                logger.warning("web: refused a connection from %s: missing or wrong pairing token",
+                               environ.get("REMOTE_ADDR", "?"))
+                raise socketio.exceptions.ConnectionRefusedError(
+                    "pairing token missing or wrong: open the URL printed when the car started")
+            role = self.state.connect(sid)
+            self._senders[sid] = asyncio.create_task(self._send_frames(sid))
+            await sio.emit("hello", self._hello(sid, role), to=sid)
+            logger.info("web: %s connected as %s", environ.get("REMOTE_ADDR", "?"), role)
+
+        @sio.event
+        async def disconnect(sid: str, reason: Any = None) -> None:
+            task = self._senders.pop(sid, None)
+            if task is not None:
+                task.cancel()
+            if self.state.disconnect(sid):
+                logger.info("web: the driving browser left: car stopped")
+                await sio.emit("roles", {"driver": None})
+
+        @sio.on("drive")
+        async def drive(sid: str, data: Any = None) -> dict[str, Any]:
+            if not self.state.is_driver(sid):
+                return self._reject(sid, "drive: this browser watches; press 'Take control' to drive")
+            try:
+                angle, throttle = protocol.parse_drive(data)
+            except protocol.ProtocolError as exc:
+                return self._reject(sid, str(exc))
+            self.state.drive(angle, throttle)
+            return {"ok": True}
+
+        @sio.on("set")
+        async def set_(sid: str, data: Any = None) -> dict[str, Any]:
+            if not self.state.is_driver(sid):
+                return self._reject(sid, "set: this browser watches; press 'Take control' first")
+            try:
+                settings = protocol.parse_settings(data, models=self._models(),
+                                                   max_speed_limit=self.max_speed_limit)
+            except protocol.ProtocolError as exc:
+                return self._reject(sid, str(exc))
+            model_path = None
+            if "model" in settings and self.models_dir is not None:
+                model_path = str((self.models_dir / settings["model"]).resolve())
+            self.state.apply(settings, model_path)
+            return {"ok": True}
+
+        @sio.on("estop")
+        async def estop(sid: str, data: Any = None) -> dict[str, Any]:
+            try:
+                on = protocol.parse_estop(data)
+            except protocol.ProtocolError as exc:
+                return self._reject(sid, str(exc))
+            # anyone watching may stop the car; only the driver may release the stop
+            if not on and not self.state.is_driver(sid):
+                return self._reject(sid, "estop: only the driving browser can release the stop")
+            self.state.set_estop(on)
+            if on:
+                logger.warning("web: emergency stop latched by %s", sid)
+            return {"ok": True}
+
+        @sio.on("take_control")
+        async def take_control(sid: str, data: Any = None) -> dict[str, Any]:
+            previous = self.state.take_control(sid)
+            await sio.emit("roles", {"driver": sid})
+            logger.info("web: %s takes control (previous driver: %s)", sid, previous)
+            return {"ok": True, "role": "driver"}
+
+        @sio.on("models")
+        async def models(sid: str, data: Any = None) -> dict[str, Any]:
+            return {"ok": True, "models": self._models()}
+
+        @sio.on("*")
+        async def unknown(event: str, sid: str, data: Any = None) -> dict[str, Any]:
+            return self._reject(sid, f"unknown event {event!r}; the page sends drive, set, estop, "
+                                "take_control, models")
+
+    async def _telemetry(self) -> None:
+        period = 1.0 / self.telemetry_hz
+        while True:
+            if self._senders:
+                await self._sio.emit("state", self.state.snapshot())
+            await asyncio.sleep(period)
+
+    async def _send_frames(self, sid: str) -> None:
+        """Send each new frame to one browser, waiting for its acknowledgement before the next:
+        at most one frame is in flight per browser, and a slow one gets the latest, not a queue."""
+        import socketio
+
+        seen = -1
+        while True:
+            event = self._frame_event
+            if self.frames.version == seen and event is not None:
+                await event.wait()
+                continue
+            data, version = self.frames.jpeg()
+            seen = version
+            if data is None:
+                continue
+            try:
+                await self._sio.call("frame", data, to=sid, timeout=FRAME_ACK_TIMEOUT)
+            except socketio.exceptions.TimeoutError:
+                logger.debug("web: %s did not acknowledge a frame within %.1f s", sid,
+                              FRAME_ACK_TIMEOUT)
+            except (socketio.exceptions.SocketIOError, KeyError, ValueError):
+                return  # the browser disconnected

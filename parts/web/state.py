@@ -1,0 +1,233 @@
+"""The lock-protected slot between the web server thread and the drive loop.
+
+The server thread (browsers) writes commands and reads telemetry; the loop thread writes telemetry
+and reads commands. Every access holds one lock and copies plain values, so neither thread ever sees
+a half-updated state. The dead-man rule is applied on the loop's side (:meth:`ControlState.outputs`),
+so it holds even when the server thread is stuck.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from parts.web.protocol import MODES
+
+logger = logging.getLogger(__name__)
+
+#: |value| below this counts as zero for the dead-man rule
+NEUTRAL_EPS = 1e-3
+
+
+@dataclass
+class Commands:
+    """What the browsers asked for (the web controller's own view, before arbitration)."""
+
+    angle: float = 0.0  # [-1, 1], as sent by the driving browser
+    throttle: float = 0.0  # [-1, 1], before max_throttle scaling
+    mode: str = "user"
+    recording: bool = False
+    estop: bool = False
+    max_throttle: float = 0.5  # scale applied to the browser's throttle, [0, 1]
+    constant_throttle: bool = False  # throttle = max_throttle while the page drives
+    speed_limit: float | None = None  # m/s, for the speed controller; None = no limit
+    model_request: str | None = None  # path of the model file asked for
+
+    def user_throttle(self) -> float:
+        """The throttle the controller outputs: scaled, or constant when that mode is on."""
+        if self.estop:
+            return 0.0
+        if self.constant_throttle:
+            return self.max_throttle
+        return self.throttle * self.max_throttle
+
+
+@dataclass
+class Telemetry:
+    """What the loop reports to the page (inputs of the latest loop; None = not produced)."""
+
+    mode: str | None = None
+    recording: bool | None = None
+    estop: bool | None = None
+    num_records: int | None = None
+    angle: float | None = None
+    throttle: float | None = None
+    pilot_angle: float | None = None
+    pilot_throttle: float | None = None
+    pilot_model: str | None = None
+    speed: float | None = None
+    loop_rate_hz: float | None = None
+    loop_overruns: int | None = None
+    loops: int = 0  # loops seen by the controller
+
+
+@dataclass
+class Roles:
+    """Which connected browser drives; the others watch."""
+
+    driver: str | None = None
+    viewers: set[str] = field(default_factory=set)
+
+
+class ControlState:
+    """Commands, telemetry and the dead-man timer behind one lock.
+
+    Args:
+        deadman_s: seconds without a control message from the driving browser after which a
+            non-zero throttle (or a pilot mode) falls back to throttle 0 and user mode.
+        init_mode: drive mode at start, one of ``user``, ``local_angle``, ``local``.
+        max_throttle: initial throttle scale in [0, 1].
+        clock: monotonic time source in seconds (injectable for tests). Default ``time.monotonic``.
+    """
+
+    def __init__(self, deadman_s: float = 0.5, init_mode: str = "user", max_throttle: float = 0.5,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        if not deadman_s > 0:
+            raise ValueError(f"deadman_s must be > 0 seconds, got {deadman_s!r}")
+        if init_mode not in MODES:
+            raise ValueError(f"init_mode must be one of {MODES}, got {init_mode!r}")
+        if not 0.0 <= max_throttle <= 1.0:
+            raise ValueError(f"max_throttle must be in [0, 1], got {max_throttle!r}")
+        self.deadman_s = deadman_s
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._cmd = Commands(mode=init_mode, max_throttle=max_throttle)
+        self._tel = Telemetry()
+        self._roles = Roles()
+        self._last_control: float | None = None  # clock() of the driver's latest message
+        self._armed = False  # the driving browser holds a command the dead-man must guard
+        self._dirty: set[str] = set()  # fields the browser changed since the loop read them
+        self.deadman_trips = 0
+
+    # -- server thread ----------------------------------------------------------------------------
+    def connect(self, sid: str) -> str:
+        """Register a browser; the first one becomes the driver. Returns its role."""
+        with self._lock:
+            if self._roles.driver is None:
+                self._roles.driver = sid
+                return "driver"
+            self._roles.viewers.add(sid)
+            return "viewer"
+
+    def disconnect(self, sid: str) -> bool:
+        """Forget a browser; returns whether it was the driver. A leaving driver stops the car at
+        once (throttle 0; user mode if it had the car moving). The driver's seat then stays free
+        until a browser connects or presses "take control"."""
+        with self._lock:
+            self._roles.viewers.discard(sid)
+            if self._roles.driver != sid:
+                return False
+            self._roles.driver = None
+            self._cmd.angle = self._cmd.throttle = 0.0
+            if self._armed:
+                self._stop_locked("driver disconnected")
+            return True
+
+    def take_control(self, sid: str) -> str | None:
+        """Make ``sid`` the driver; returns the previous driver's sid (now a viewer). The command
+        is reset to neutral so the new driver starts from a stopped car."""
+        with self._lock:
+            previous = self._roles.driver
+            if previous == sid:
+                return None
+            self._roles.viewers.discard(sid)
+            if previous is not None:
+                self._roles.viewers.add(previous)
+            self._roles.driver = sid
+            self._cmd.angle = self._cmd.throttle = 0.0
+            self._last_control = self._clock()
+            return previous
+
+    def role(self, sid: str) -> str:
+        """``driver``, ``viewer`` or ``unknown``."""
+        with self._lock:
+            if self._roles.driver == sid:
+                return "driver"
+            return "viewer" if sid in self._roles.viewers else "unknown"
+
+    def is_driver(self, sid: str) -> bool:
+        """Whether ``sid`` drives."""
+        with self._lock:
+            return self._roles.driver == sid
+
+    def drive(self, angle: float, throttle: float) -> None:
+        """Set the driver's (validated) stick and restart the dead-man timer."""
+        with self._lock:
+            self._cmd.angle, self._cmd.throttle = angle, throttle
+            self._last_control = self._clock()
+            self._armed = True
+
+    def apply(self, settings: dict[str, Any], model_path: str | None = None) -> None:
+        """Apply validated settings (see ``protocol.parse_settings``); ``model_path`` is the
+        resolved file for a ``model`` setting."""
+        with self._lock:
+            for key in ("mode", "recording", "max_throttle", "constant_throttle", "speed_limit"):
+                if key in settings:
+                    setattr(self._cmd, key, settings[key])
+                    self._dirty.add(key)
+            if "model" in settings:
+                self._cmd.model_request = model_path
+            if settings.get("mode", "user") != "user" or settings.get("constant_throttle"):
+                # a pilot mode or constant throttle moves the car: the dead-man must guard it
+                self._last_control = self._clock()
+                self._armed = True
+
+    def set_estop(self, on: bool) -> None:
+        """Latch (True) or release (False) the emergency stop. Latching also stops the car."""
+        with self._lock:
+            self._cmd.estop = on
+            if on:
+                self._stop_locked("emergency stop")
+                self._cmd.recording = False
+                self._dirty.add("recording")
+
+    def snapshot(self) -> dict[str, Any]:
+        """Everything the page shows, as plain JSON-able values."""
+        with self._lock:
+            cmd = asdict(self._cmd)
+            cmd["user_throttle"] = self._cmd.user_throttle()
+            return {"command": cmd, "telemetry": asdict(self._tel),
+                    "driver": self._roles.driver, "viewers": len(self._roles.viewers),
+                    "deadman_trips": self.deadman_trips}
+
+    # -- loop thread ------------------------------------------------------------------------------
+    def report(self, telemetry: Telemetry) -> None:
+        """Store the latest loop's telemetry and adopt mode/recording changed by other parts."""
+        with self._lock:
+            telemetry.loops = self._tel.loops + 1
+            self._tel = telemetry
+            # another controller (gamepad) or part may have changed these: follow it unless the
+            # browser changed them since the loop last read them
+            if telemetry.mode in MODES and "mode" not in self._dirty:
+                self._cmd.mode = telemetry.mode
+            if isinstance(telemetry.recording, bool) and "recording" not in self._dirty:
+                self._cmd.recording = telemetry.recording
+
+    def outputs(self) -> Commands:
+        """The commands for this loop, after the dead-man rule. Called by the loop thread."""
+        with self._lock:
+            cmd = self._cmd
+            if self._armed and self._last_control is not None:
+                moving = abs(cmd.user_throttle()) > NEUTRAL_EPS or cmd.mode != "user"
+                silent = self._clock() - self._last_control
+                if moving and silent > self.deadman_s:
+                    self.deadman_trips += 1
+                    logger.warning("web dead-man: no control message for %.2f s (limit %.2f s): "
+                                   "throttle 0, user mode", silent, self.deadman_s)
+                    self._stop_locked("dead-man")
+            self._dirty.clear()
+            return Commands(**asdict(cmd))
+
+    def _stop_locked(self, why: str) -> None:
+        logger.debug("web controller stop: %s", why)
+        self._cmd.angle = self._cmd.throttle = 0.0
+        self._cmd.constant_throttle = False
+        if self._cmd.mode != "user":
+            self._cmd.mode = "user"
+            self._dirty.add("mode")
+        self._dirty.add("constant_throttle")
+        self._armed = False

@@ -1,0 +1,98 @@
+"""Augmentations: each operation, its steering correction, probabilities, and the preview grid."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from parts.pilots.augment import Augmenter, AugmentSettings, preview_grid
+from vehicle.config import Config
+
+
+def _only(name: str, **kw) -> Augmenter:
+    return Augmenter(AugmentSettings(names=(name,), **{f"{name}_p": 1.0, **kw}))
+
+
+@pytest.fixture
+def image() -> np.ndarray:
+    img = np.full((60, 80, 3), 60, np.uint8)
+    img[:, 10:20] = 250  # a bright bar on the left
+    return img
+
+
+def test_flip_mirrors_and_negates_steering(image):
+    out, angle = _only("flip")(image, 0.4, np.random.default_rng(0))
+    assert np.array_equal(out, image[:, ::-1])
+    assert angle == pytest.approx(-0.4)
+
+
+def test_shift_moves_the_image_and_corrects_steering(image):
+    aug = _only("shift", shift_x=0.1, shift_y=0.0, shift_steering=1.0)
+    rng = np.random.default_rng(3)
+    ops = aug.draw(rng)
+    dx = ops[0][1]["dx"]
+    out = aug.apply(image, ops)
+    bar = np.flatnonzero(out[30, :, 0] > 200)
+    assert bar.mean() == pytest.approx(14.5 + dx * 80, abs=1.0)  # moved by dx of the width
+    # shifted right = the car is left of its path = steer right (+)
+    assert aug.steering(0.1, ops) == pytest.approx(0.1 + dx)
+    assert aug.steering(0.99, [("shift", {"dx": 0.1, "dy": 0.0})]) == 1.0  # clipped to [-1, 1]
+
+
+def test_brightness_contrast_shadow_zoom_blur_change_pixels_not_steering(image):
+    rng = np.random.default_rng(1)
+    for name in ("brightness", "shadow", "zoom", "blur"):
+        aug = _only(name)
+        ops = aug.draw(rng)
+        out = aug.apply(image, ops)
+        assert out.shape == image.shape and out.dtype == np.uint8
+        assert not np.array_equal(out, image), name
+        assert aug.steering(0.3, ops) == pytest.approx(0.3), name
+    shadow = _only("shadow", shadow_darkness=0.5)
+    out = shadow.apply(image, [("shadow", {"top": 0.5, "bottom": 0.5, "side": 0.0, "factor": 0.5})])
+    assert out[:, :40].max() == 125 and np.array_equal(out[:, 40:], image[:, 40:])
+    bright = _only("brightness").apply(image, [("brightness", {"beta": 51.0, "alpha": 1.0})])
+    assert int(bright[0, 0, 0]) == 111 and int(bright[0, 15, 0]) == 255  # +20 %, saturating
+
+
+def test_probabilities_and_input_untouched(image):
+    none = Augmenter(AugmentSettings(names=AugmentSettings().names, flip_p=0, brightness_p=0, shadow_p=0,
+                                     shift_p=0))
+    rng = np.random.default_rng(0)
+    assert all(none.draw(rng) == [] for _ in range(20))
+    half = _only("flip", flip_p=0.5)
+    flips = sum(bool(half.draw(rng)) for _ in range(400))
+    assert 150 < flips < 250
+    copy = image.copy()
+    _only("flip").apply(image, [("flip", {})])
+    assert np.array_equal(image, copy)
+
+
+def test_settings_from_config_and_validation():
+    cfg = Config.defaults(AUGMENTATIONS=["zoom", "blur"], AUG_ZOOM_P=0.7)
+    s = AugmentSettings.from_config(cfg)
+    assert s.names == ("zoom", "blur") and s.zoom_p == 0.7
+    assert AugmentSettings.from_config(cfg, []).names == ()
+    with pytest.raises(ValueError, match="unknown augmentation"):
+        AugmentSettings(names=("rotate",))
+    with pytest.raises(ValueError, match="AUG_FLIP_P"):
+        AugmentSettings(flip_p=1.5)
+
+
+def test_preview_grid_layout(image):
+    grid = preview_grid([image, image], [0.2, -0.5], _only("flip"), variants=3, scale=2)
+    assert grid.shape == (2 * 120, 4 * 160, 3)
+    # second column = flipped copy of the first (away from the text labels)
+    assert np.array_equal(grid[40:80, 160 + 40:160 + 80], np.ascontiguousarray(grid[40:80, 80:120][:, ::-1]))
+
+
+def test_preview_aug_command_writes_png(tiny_tub, tmp_path):
+    import cv2
+
+    from vehicle.cli import main
+
+    out = tmp_path / "aug.png"
+    assert main(["train", "preview-aug", "--tubs", str(tiny_tub), "--out", str(out), "--rows", "3",
+                 "--variants", "4", "--car", str(tmp_path)]) == 0
+    png = cv2.imread(str(out))
+    assert png.shape == (3 * 128, 5 * 128, 3)

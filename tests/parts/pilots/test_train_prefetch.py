@@ -1,0 +1,40 @@
+"""Background batch prefetching and DataLoader workers."""
+
+from __future__ import annotations
+
+import threading
+
+import pytest
+
+from parts.pilots.prefetch import Prefetcher
+from parts.pilots.train import train
+from vehicle.config import Config
+
+
+def test_prefetcher_yields_everything_in_order():
+    with Prefetcher(range(50), depth=3) as p:
+        assert list(p) == list(range(50))
+
+
+def test_prefetcher_forwards_errors_and_stops_early():
+    def broken():
+        yield 1
+        raise RuntimeError("bad frame")
+
+    p = Prefetcher(broken())
+    assert next(p) == 1
+    with pytest.raises(RuntimeError, match="bad frame"):
+        next(p)
+    p.close()
+    endless = Prefetcher(iter(int, 1), depth=2)  # an infinite source
+    assert next(endless) == 0
+    endless.close()
+    assert not any(t.name == "batch-prefetch" and t.is_alive() for t in threading.enumerate())
+    with pytest.raises(ValueError, match="depth"):
+        Prefetcher([], depth=0)
+
+
+def test_training_with_dataloader_workers(tiny_tub, tmp_path, torch_one_thread):
+    cfg = Config.defaults(BATCH_SIZE=32, MAX_EPOCHS=2, TRAIN_SEED=0)
+    metrics = train(cfg, [tiny_tub], tmp_path / "w.pt", workers=1, register=False)
+    assert metrics["epoch_samples"] == [96, 96]

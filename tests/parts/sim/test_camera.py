@@ -1,0 +1,85 @@
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from parts.sim.camera import Camera, ImageJitter
+from parts.sim.simcar import load_world
+
+
+@pytest.fixture
+def track_and_texture(world):
+    return load_world(2, **world)
+
+
+def ground_to_pixel(cam: Camera, x_car: float, y_car: float) -> tuple[float, float]:
+    """Project a ground point given in the car frame to image pixels (inverse homography)."""
+    p = np.linalg.inv(cam.car_from_pixel) @ np.array([x_car, y_car, 1.0])
+    return p[0] / p[2], p[1] / p[2]
+
+
+def test_homography_matches_pinhole_geometry():
+    cam = Camera(160, 120, fov_deg=90.0, pitch_deg=30.0, height_m=0.2, forward_m=0.1)
+    # the optical axis hits the ground at h / tan(pitch) ahead of the camera, in the image centre
+    u, v = ground_to_pixel(cam, 0.1 + 0.2 / math.tan(math.radians(30)), 0.0)
+    assert (u, v) == pytest.approx((79.5, 59.5), abs=1e-6)
+    # a point to the left of the car appears left of centre, further points appear higher up
+    assert ground_to_pixel(cam, 1.0, 0.3)[0] < 79.5
+    assert ground_to_pixel(cam, 2.0, 0.0)[1] < ground_to_pixel(cam, 1.0, 0.0)[1]
+    # horizontal field of view: the camera ray (1, 0, 1) (45 deg right) meets the right image edge
+    t = 0.2 / math.sin(math.radians(30))
+    u, v = ground_to_pixel(cam, 0.1 + t * math.cos(math.radians(30)), -t)
+    assert (u, v) == pytest.approx((159.5, 59.5), abs=1e-6)
+
+
+def test_render_sees_the_road_ahead_and_the_sky(track_and_texture):
+    track, tex = track_and_texture
+    cam = Camera(160, 120)
+    x, y, h = track.pose_at(3.0, -0.2)  # right half of the road: asphalt under the camera
+    img = cam.render(tex, x, y, h)
+    assert img.shape == (120, 160, 3) and img.dtype == np.uint8
+    assert 0 < cam.ground_row < 60
+    sky = img[: cam.ground_row // 2]
+    assert sky[..., 2].mean() > sky[..., 0].mean()  # blue-ish sky at the top
+    # the road (grey, low saturation) fills the bottom centre; the verge differs from it
+    bottom = img[-10:, 70:90].astype(float)
+    assert np.abs(bottom[..., 0] - bottom[..., 1]).mean() < 25
+    # moving the car sideways by half a road width moves the road in the image
+    img2 = cam.render(tex, x + 0.4 * math.sin(h), y - 0.4 * math.cos(h), h)
+    assert np.abs(img.astype(int) - img2.astype(int)).mean() > 10
+
+
+def test_other_resolutions_and_buffers(track_and_texture):
+    track, tex = track_and_texture
+    cam = Camera(320, 160, fov_deg=80.0)
+    out = np.zeros((160, 320, 3), np.uint8)
+    res = cam.render(tex, *track.pose_at(0.0), out=out)
+    assert res is out and out.any()
+
+
+def test_camera_rejects_bad_settings():
+    with pytest.raises(ValueError, match="fov"):
+        Camera(fov_deg=200)
+    with pytest.raises(ValueError, match="size"):
+        Camera(4, 4)
+    with pytest.raises(ValueError, match="height"):
+        Camera(height_m=0)
+
+
+def test_jitter_is_seeded_and_changes_images():
+    img = np.full((20, 30, 3), 100, np.uint8)
+    assert not ImageJitter().active
+    a = ImageJitter(noise=5.0, brightness=0.3, seed=1).apply(img.copy())
+    b = ImageJitter(noise=5.0, brightness=0.3, seed=1).apply(img.copy())
+    c = ImageJitter(noise=5.0, brightness=0.3, seed=2).apply(img.copy())
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
+    assert a.std() > 2.0  # per-pixel noise
+    edge = np.zeros((20, 30, 3), np.uint8)
+    edge[:, 15:] = 200
+    blurred = ImageJitter(blur=5).apply(edge.copy())
+    assert 0 < blurred[10, 14, 0] < 200
+    with pytest.raises(ValueError, match="jitter"):
+        ImageJitter(brightness=1.5)

@@ -1,0 +1,35 @@
+"""Recorder run by test_tub_crash.py and killed with SIGKILL at a random instant.
+
+Usage: python crash_child.py TUB SEED. Appends records to TUB with a TubWriter (the real part:
+queue, writer thread, fsync policy) until killed; it never stops by itself.
+"""
+
+from __future__ import annotations
+
+import random
+import sys
+import time
+
+import numpy as np
+
+from parts.tub.writer import TubWriter
+
+
+def main() -> None:
+    path, seed = sys.argv[1], int(sys.argv[2])
+    rng = random.Random(seed)
+    writer = TubWriter(path, ["cam/image_array", "user/angle", "n", "cam/timestamp"],
+                       ["image_array", "float", "int", "float"], max_catalog_len=25,
+                       fsync_records=rng.choice([1, 3, 10]), fsync_ms=rng.choice([5, 50]))
+    frame = np.zeros((24, 32, 3), np.uint8)
+    print("ready", flush=True)
+    i = 0
+    while True:
+        frame[:] = (i * 7) % 256
+        writer.run(frame, (i % 21 - 10) / 10, i, time.time())
+        i += 1
+        time.sleep(0.002)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,143 @@
+"""DonkeyCar tub v2 compatibility, both ways, checked against tubs built from the documented format."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pytest
+
+from parts.tub.errors import TubSchemaError
+from parts.tub.reader import load_records
+from parts.tub.tub import Tub
+
+INPUTS = ["cam/image_array", "user/angle", "user/throttle", "user/mode"]
+TYPES = ["image_array", "float", "float", "str"]
+
+
+def test_reads_donkey_tub_with_several_catalogs_and_deleted_records(donkey_tub):
+    path, written = donkey_tub(8, max_len=3, deleted=(1, 2), metadata={"driver": "bob"})
+    tub = Tub(path, read_only=True)
+    assert tub.inputs == INPUTS and tub.types == TYPES
+    assert tub.metadata == {"driver": "bob"}
+    assert len(tub) == 6 and tub.current_index == 8
+    assert list(tub) == [r for r in written if r["_index"] not in (1, 2)]
+    assert tub.problems == []
+    recs = load_records(path)
+    assert [r.index for r in recs] == [0, 3, 4, 5, 6, 7]
+    assert recs[1].data == written[3]
+    img = recs[1].image()
+    assert img.shape == (120, 160, 3) and img.dtype == np.uint8
+
+
+def test_reads_user_steering_tubs(donkey_tub):
+    path, written = donkey_tub(4, angle_key="user/steering")
+    recs = load_records(path)
+    assert [r.angle for r in recs] == [w["user/steering"] for w in written]
+
+
+def test_written_tub_follows_the_documented_format(tmp_path, image):
+    path = tmp_path / "tub"
+    with Tub(path, INPUTS, TYPES, metadata=["driver:ann"], max_catalog_len=3) as tub:
+        for i in range(7):
+            assert tub.write_record({"cam/image_array": image(i), "user/angle": i / 10,
+                                     "user/throttle": np.float32(0.5), "user/mode": "user",
+                                     "not/an/input": 1}, timestamp_ms=1000 + i) == i
+        tub.delete_records([2, 5])
+    lines = (path / "manifest.json").read_text().split("\n")
+    assert len(lines) == 6 and lines[5] == ""  # five newline-terminated JSON lines
+    assert json.loads(lines[0]) == INPUTS and json.loads(lines[1]) == TYPES
+    assert json.loads(lines[2]) == {"driver": "ann"}
+    sessions = json.loads(lines[3])["sessions"]
+    assert re.fullmatch(r"\d\d-\d\d-\d\d_0", sessions["last_full_id"])
+    assert sessions["all_full_ids"] == [sessions["last_full_id"]] and sessions["last_id"] == 0
+    assert json.loads(lines[4]) == {"paths": ["catalog_0.catalog", "catalog_1.catalog", "catalog_2.catalog"],
+                                    "current_index": 7, "max_len": 3, "deleted_indexes": [2, 5]}
+    for k, n in ((0, 3), (1, 3), (2, 1)):
+        text = (path / f"catalog_{k}.catalog").read_text()
+        raw = text.splitlines(keepends=True)
+        assert len(raw) == n
+        meta = json.loads((path / f"catalog_{k}.catalog_manifest").read_text())
+        assert meta["line_lengths"] == [len(x) for x in raw]
+        assert meta["start_index"] == 3 * k and meta["path"] == f"catalog_{k}.catalog_manifest"
+        for line in raw:
+            rec = json.loads(line)
+            assert line == json.dumps(rec, allow_nan=False, sort_keys=True) + "\n"
+    rec = json.loads((path / "catalog_1.catalog").read_text().splitlines()[1])
+    assert rec == {"_index": 4, "_session_id": sessions["last_full_id"], "_timestamp_ms": 1004,
+                   "cam/image_array": "4_cam_image_array_.jpg", "user/angle": 0.4,
+                   "user/mode": "user", "user/throttle": 0.5}
+    img = load_records(path)[3].image()
+    assert np.abs(img.astype(int) - image(4).astype(int)).mean() < 8  # lossy JPEG, same picture
+
+
+def test_appending_to_a_donkey_tub_continues_indexes_and_sessions(donkey_tub, read_lines, image):
+    path, written = donkey_tub(5, max_len=3, sessions=("26-11-20_0", "26-11-20_1"))
+    with Tub(path) as tub:  # no inputs: adopt the stored schema
+        assert tub.session_id.endswith("_2")
+        assert tub.write_record({"cam/image_array": image(9), "user/angle": 0.1, "user/throttle": 0.2,
+                                 "user/mode": "user"}) == 5
+    lines = read_lines(path)
+    assert lines[:5] == written
+    assert [r["_index"] for r in lines] == [0, 1, 2, 3, 4, 5]
+    assert lines[5]["_session_id"].endswith("_2")
+    m = (path / "manifest.json").read_text().splitlines()
+    assert json.loads(m[3])["sessions"]["all_full_ids"][-1] == lines[5]["_session_id"]
+    assert json.loads(m[4])["current_index"] == 6
+
+
+def test_reopen_gives_a_new_session_and_metadata_merges(tmp_path):
+    path = tmp_path / "t"
+    ids = []
+    for i in range(3):
+        with Tub(path, ["a"], ["float"], metadata={"run": str(i)}) as tub:
+            tub.write_record({"a": 1.0})
+            ids.append(tub.session_id)
+    assert [s.rsplit("_", 1)[1] for s in ids] == ["0", "1", "2"]
+    assert Tub(path, read_only=True).metadata == {"run": "2"}
+
+
+def test_schema_errors_say_what_to_do(tmp_path):
+    with pytest.raises(TubSchemaError, match="give inputs and types"):
+        Tub(tmp_path / "new")
+    with pytest.raises(TubSchemaError, match="same length"):
+        Tub(tmp_path / "x", ["a", "b"], ["float"])
+    with pytest.raises(TubSchemaError, match="unknown type"):
+        Tub(tmp_path / "x", ["a"], ["double"])
+    Tub(tmp_path / "t", ["a"], ["float"]).close()
+    with pytest.raises(TubSchemaError, match="Record into a new tub"):
+        Tub(tmp_path / "t", ["b"], ["float"])
+    with Tub(tmp_path / "t") as tub, pytest.raises(TubSchemaError, match="NaN"):
+        tub.write_record({"a": float("nan")})
+    with pytest.raises(TubSchemaError, match="key:value"):
+        Tub(tmp_path / "m", ["a"], ["float"], metadata=["novalue"])
+
+
+def test_value_types_are_stored_as_donkeycar_does(tmp_path):
+    inputs = ["f", "i", "s", "b", "n", "l"]
+    types = ["float", "int", "str", "boolean", "nparray", "list"]
+    with Tub(tmp_path / "t", inputs, types) as tub:
+        tub.write_record({"f": np.float64(1.5), "i": np.int64(3), "s": "x", "b": np.bool_(True),
+                          "n": np.arange(3), "l": (1, 2), "extra": 5})
+        tub.write_record({"f": None, "i": 4})  # None values are left out, like DonkeyCar
+    recs = list(Tub(tmp_path / "t", read_only=True))
+    assert {k: v for k, v in recs[0].items() if not k.startswith("_")} == \
+        {"f": 1.5, "i": 3, "s": "x", "b": True, "n": [0, 1, 2], "l": [1, 2]}
+    assert "f" not in recs[1] and recs[1]["i"] == 4
+
+
+def test_soft_delete_restore_and_delete_last_n(tmp_path):
+    with Tub(tmp_path / "t", ["a"], ["int"], max_catalog_len=4) as tub:
+        for i in range(10):
+            tub.write_record({"a": i})
+        tub.delete_records(range(2, 4))
+        assert tub.delete_last_n_records(3) == [7, 8, 9]
+        assert len(tub) == 5
+        tub.restore_records([3, 8])
+        with pytest.raises(ValueError, match="outside 0..9"):
+            tub.delete_records([10])
+    tub = Tub(tmp_path / "t", read_only=True)
+    assert [r["a"] for r in tub] == [0, 1, 3, 4, 5, 6, 8]
+    assert tub.deleted_indexes == {2, 7, 9}
+    assert (tmp_path / "t" / "catalog_2.catalog").read_text().count("\n") == 2  # nothing removed

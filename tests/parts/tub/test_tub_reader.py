@@ -1,0 +1,75 @@
+"""Reading many tubs for training: deleted skipped, bad records reported with tub, index and file."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from parts.tub.errors import CorruptRecord, TubError
+from parts.tub.reader import find_tubs, iter_images, iter_records, load_records
+
+
+def test_folder_of_tubs_in_order_skipping_deleted(donkey_tub, tmp_path):
+    donkey_tub(4, name="data/tub_1", deleted=(0,))
+    donkey_tub(3, name="data/tub_2")
+    (tmp_path / "data" / "notes").mkdir()  # not a tub: ignored
+    recs = load_records(tmp_path / "data")
+    assert [(r.tub.name, r.index) for r in recs] == [("tub_1", 1), ("tub_1", 2), ("tub_1", 3),
+                                                     ("tub_2", 0), ("tub_2", 1), ("tub_2", 2)]
+    assert len(load_records([tmp_path / "data/tub_2", tmp_path / "data/tub_1"], include_deleted=True)) == 7
+
+
+def test_bad_records_are_reported_and_skipped_or_raised(donkey_tub, caplog):
+    path, _ = donkey_tub(6, max_len=10)
+    (path / "images" / "1_cam_image_array_.jpg").write_bytes(b"")     # 0-byte JPEG
+    (path / "images" / "2_cam_image_array_.jpg").unlink()              # missing
+    cat = path / "catalog_0.catalog"
+    lines = cat.read_text().splitlines(keepends=True)
+    lines[3] = "{not json}\n"
+    cat.write_text("".join(lines))
+    errors: list[CorruptRecord] = []
+    recs = load_records(path, errors=errors)
+    assert [r.index for r in recs] == [0, 4, 5]
+    assert [(e.index, e.file.name, e.reason) for e in errors] == [
+        (1, "1_cam_image_array_.jpg", "image file is empty (0 bytes)"),
+        (2, "2_cam_image_array_.jpg", "image file is missing"),
+        (3, "catalog_0.catalog", "unparsable catalog line")]
+    assert all(e.tub == path for e in errors)
+    assert "record 1" in caplog.text and str(path) in caplog.text
+    with pytest.raises(CorruptRecord, match=r"record 1: .*1_cam_image_array_\.jpg: image file is empty"):
+        load_records(path, on_error="raise")
+
+
+def test_undecodable_image_raises_from_image_and_is_skipped_by_iter_images(donkey_tub):
+    path, _ = donkey_tub(4)
+    (path / "images" / "2_cam_image_array_.jpg").write_bytes(b"\xff\xd8 not a jpeg")
+    recs = load_records(path)
+    with pytest.raises(CorruptRecord) as info:
+        recs[2].image()
+    assert info.value.index == 2 and info.value.file.name == "2_cam_image_array_.jpg"
+    pairs = list(iter_images(recs, workers=2))
+    assert [r.index for r, _ in pairs] == [0, 1, 3]
+    assert all(img.shape == (120, 160, 3) and img.dtype == np.uint8 for _, img in pairs)
+    with pytest.raises(CorruptRecord):
+        list(iter_images(recs, on_error="raise"))
+
+
+def test_images_decode_to_rgb(tmp_path):
+    from parts.tub.tub import Tub
+
+    img = np.zeros((24, 32, 3), np.uint8)
+    img[..., 0] = 250  # pure red
+    with Tub(tmp_path / "t", ["cam/image_array"], ["image_array"]) as tub:
+        tub.write_record({"cam/image_array": img})
+    out = load_records(tmp_path / "t")[0].image()
+    assert out[..., 0].mean() > 240 and out[..., 2].mean() < 10
+
+
+def test_find_tubs_errors_name_the_path(tmp_path):
+    with pytest.raises(TubError, match="no such folder"):
+        find_tubs(tmp_path / "nope")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(TubError, match="holds no tub"):
+        find_tubs(tmp_path / "empty")
+    with pytest.raises(ValueError, match="on_error"):
+        list(iter_records(tmp_path, on_error="ignore"))

@@ -1,0 +1,123 @@
+"""TubWriter: off-thread writing, capture timestamps, counted drops, wiper, Vehicle assembly."""
+
+from __future__ import annotations
+
+import logging
+import threading
+
+import numpy as np
+import pytest
+
+from parts.tub.reader import load_records
+from parts.tub.tub import Tub
+from parts.tub.writer import TubWiper, TubWriter
+from vehicle.config import Config
+
+INPUTS = ["cam/image_array", "user/angle", "user/throttle", "user/mode", "cam/timestamp"]
+TYPES = ["image_array", "float", "float", "str", "float"]
+
+
+def test_records_everything_with_capture_timestamps(tmp_path, image):
+    w = TubWriter(tmp_path / "t", INPUTS, TYPES, max_catalog_len=10)
+    counts = [w.run(image(i), i / 100, 0.3, "user", 1_800_000_000.0 + i * 0.05) for i in range(25)]
+    assert counts == list(range(1, 26))
+    w.shutdown()
+    w.shutdown()  # twice is fine
+    tub = Tub(tmp_path / "t", read_only=True)
+    assert tub.inputs == INPUTS[:4]  # the timestamp is not a field
+    recs = load_records(tmp_path / "t")
+    assert [r["_timestamp_ms"] for r in recs] == [1_800_000_000_000 + 50 * i for i in range(25)]
+    assert [r["user/angle"] for r in recs] == [i / 100 for i in range(25)]
+    assert w.stats.written == 25 and w.stats.dropped == 0
+
+
+def test_arrays_are_copied_so_a_reused_camera_buffer_is_safe(tmp_path):
+    w = TubWriter(tmp_path / "t", ["cam/image_array", "n"], ["image_array", "int"])
+    buf = np.zeros((24, 32, 3), np.uint8)
+    for i in range(5):
+        buf[:] = 40 * i
+        w.run(buf, i)
+    w.shutdown()
+    means = [int(r.image().mean()) for r in load_records(tmp_path / "t")]
+    assert all(abs(m - 40 * i) <= 2 for i, m in enumerate(means))
+
+
+def test_full_queue_drops_counted_and_warned_and_run_never_waits(tmp_path, caplog):
+    w = TubWriter(tmp_path / "t", ["n"], ["int"], queue_size=3)
+    gate = threading.Event()
+    real = w.tub.write_record
+
+    def slow(record, **kw):
+        gate.wait(5)  # the disk is stuck
+        return real(record, **kw)
+
+    w.tub.write_record = slow
+    with caplog.at_level(logging.WARNING, logger="parts.tub.writer"):
+        for i in range(40):
+            w.run(i)  # returns although the writer thread is blocked
+    # at most 3 queued + 16 encoded + one in each thread are held: the rest is dropped, counted
+    assert w.stats.dropped >= 40 - 21 and w.stats.accepted + w.stats.dropped == 40
+    warnings = [r for r in caplog.records if "dropped" in r.getMessage()]
+    assert len(warnings) == 1  # rate-limited: one warning for the burst
+    gate.set()
+    w.shutdown()
+    written = [r["n"] for r in Tub(tmp_path / "t", read_only=True)]
+    assert len(written) == w.stats.accepted == w.stats.written  # every accepted record is on disk
+    assert written == sorted(set(written)) and written[:3] == [0, 1, 2]
+
+
+def test_wiper_deletes_on_rising_edge_including_queued_records(tmp_path):
+    w = TubWriter(tmp_path / "t", ["n"], ["int"])
+    wiper = TubWiper(w, num_records=3)
+    for i in range(10):
+        w.run(i)
+        wiper.run(i in (6, 7, 8))  # held for three loops: one erase
+    w.shutdown()
+    assert [r["n"] for r in Tub(tmp_path / "t", read_only=True)] == [0, 1, 2, 3, 7, 8, 9]
+
+
+def test_wrong_arguments_raise(tmp_path):
+    with pytest.raises(ValueError, match="one type per input"):
+        TubWriter(tmp_path / "t", ["a", "b"], ["float"])
+    w = TubWriter(tmp_path / "t", ["a"], ["float"])
+    with pytest.raises(ValueError, match="expected 1 inputs"):
+        w.run(1.0, 2.0)
+    w.shutdown()
+    with pytest.raises(RuntimeError, match="shut down"):
+        w.run(1.0)
+
+
+def test_add_tub_writer_in_a_vehicle(tmp_path, image):
+    from vehicle import Vehicle
+    from vehicle.assembly.tub import add_tub_writer
+    from vehicle.clock import SimulatedClock
+
+    cfg = Config.defaults(CAR_PATH=str(tmp_path), METADATA=["driver:test"])
+
+    class Camera:
+        def __init__(self):
+            self.i = 0
+
+        def run(self):
+            self.i += 1
+            return image(self.i % 5), 1_800_000_000.0 + self.i, self.i % 3 != 0, self.i == 8
+
+    V = Vehicle(clock=SimulatedClock())
+    V.add(Camera(), outputs=["cam/image_array", "cam/timestamp", "recording", "tub/erase"])
+    V.add(lambda: (0.25, 0.5, "user"), outputs=["user/angle", "user/throttle", "user/mode"])
+    writer = add_tub_writer(V, cfg)
+    V.start(rate_hz=20, max_loop_count=12)
+    tubs = sorted((tmp_path / "data").iterdir())
+    assert [t.name.split("_")[1] for t in tubs] == ["1"] and tubs[0] == writer.tub.path
+    recs = load_records(tubs[0])
+    # recorded loops: i % 3 != 0 -> 1 2 4 5 7 8 10 11; the erase at loop 8 removed 100 (all before)
+    assert [r["_timestamp_ms"] for r in recs] == [1_800_000_010_000, 1_800_000_011_000]
+    assert Tub(tubs[0], read_only=True).metadata == {"driver": "test"}
+    assert V.mem["tub/num_records"] == 8
+
+    V2 = Vehicle(clock=SimulatedClock())
+    V2.add(lambda: (image(0), False), outputs=["cam/image_array", "recording"])
+    V2.add(lambda: (0.0, 0.0, "user"), outputs=["user/angle", "user/throttle", "user/mode"])
+    add_tub_writer(V2, cfg)
+    V2.start(rate_hz=20, max_loop_count=3)
+    assert sorted(p.name for p in (tmp_path / "data").iterdir()) == [tubs[0].name]  # no empty tub left

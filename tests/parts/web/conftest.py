@@ -1,0 +1,171 @@
+"""Fixtures for the web controller tests: a real server on 127.0.0.1 (ephemeral port), a real
+python-socketio client, a fake camera, and the loop side driven by the test."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from parts.web.part import WebController
+
+pytest.importorskip("socketio")
+pytest.importorskip("aiohttp")
+
+
+def make_frame(i: int, h: int = 120, w: int = 160) -> np.ndarray:
+    """A test frame: a white column that moves with ``i`` on a dark gradient."""
+    img = np.zeros((h, w, 3), np.uint8)
+    img[:, :, 2] = np.linspace(0, 120, w, dtype=np.uint8)
+    img[:, i % w] = 255
+    return img
+
+
+class LoopSide:
+    """Plays the drive loop: calls run_threaded with telemetry and returns the outputs by key."""
+
+    def __init__(self, part: WebController) -> None:
+        self.part = part
+        self.telemetry: dict[str, Any] = {k: None for k in WebController.INPUTS}
+        self.i = 0
+
+    def step(self, **telemetry: Any) -> dict[str, Any]:
+        self.telemetry.update({k.replace("__", "/"): v for k, v in telemetry.items()})
+        if self.telemetry.get("cam/image_array") is None:
+            self.telemetry["cam/image_array"] = make_frame(self.i)
+        self.i += 1
+        out = self.part.run_threaded(*(self.telemetry[k] for k in WebController.INPUTS))
+        result = dict(zip(WebController.OUTPUTS, out, strict=True))
+        # feed back what a car's memory would hold next loop
+        self.telemetry["user/mode"] = result["user/mode"]
+        self.telemetry["recording"] = result["recording"]
+        self.telemetry["estop"] = result["estop"]
+        self.telemetry["cam/image_array"] = None
+        return result
+
+    async def until(self, cond: Callable[[dict[str, Any]], bool], timeout: float = 5.0,
+                    **telemetry: Any) -> dict[str, Any]:
+        """Step every 10 ms until ``cond(outputs)`` holds; fail after ``timeout`` seconds."""
+        end = time.monotonic() + timeout
+        while True:
+            out = self.step(**telemetry)
+            if cond(out):
+                return out
+            if time.monotonic() > end:
+                raise AssertionError(f"condition not met within {timeout} s; last outputs {out}")
+            await asyncio.sleep(0.01)
+
+
+class Client:
+    """A python-socketio AsyncClient that records what the server sends."""
+
+    def __init__(self, ack_frames: bool = True) -> None:
+        import socketio
+
+        self.sio = socketio.AsyncClient(reconnection=False)
+        self.hello: asyncio.Future[dict[str, Any]] | None = None
+        self.states: list[dict[str, Any]] = []
+        self.frames: list[bytes] = []
+        self.roles: list[dict[str, Any]] = []
+        self.ack_frames = ack_frames
+        self._never: asyncio.Future[None] | None = None
+        self.sio.on("hello", self._on_hello)
+        self.sio.on("state", self.states.append)
+        self.sio.on("roles", self.roles.append)
+        self.sio.on("frame", self._on_frame)
+        self.connect_errors: list[Any] = []
+        self.sio.on("connect_error", self.connect_errors.append)
+
+    def _on_hello(self, data: dict[str, Any]) -> None:
+        if self.hello is not None and not self.hello.done():
+            self.hello.set_result(data)
+
+    async def _on_frame(self, data: bytes) -> bool:
+        self.frames.append(data)
+        if not self.ack_frames:  # a stalled viewer: never acknowledge
+            self._never = asyncio.get_running_loop().create_future()
+            await self._never
+        return True
+
+    async def connect(self, port: int, token: str | None = None,
+                      headers: dict[str, str] | None = None) -> dict[str, Any]:
+        self.hello = asyncio.get_running_loop().create_future()
+        try:
+            await self.sio.connect(f"http://127.0.0.1:{port}", transports=["websocket"],
+                                   auth={"token": token} if token else None, wait_timeout=5,
+                                   headers=headers or {})
+        except Exception:
+            http = getattr(self.sio.eio, "http", None)
+            if http is not None and not http.closed:
+                await http.close()  # the client leaves its session open after a refusal
+            raise
+        return await asyncio.wait_for(self.hello, 5)
+
+    async def call(self, event: str, data: Any = None) -> Any:
+        return await self.sio.call(event, data, timeout=5)
+
+    async def close(self) -> None:
+        if self._never is not None and not self._never.done():
+            self._never.cancel()
+        await self.sio.disconnect()
+
+
+@pytest.fixture
+def models_dir(tmp_path: Path) -> Path:
+    d = tmp_path / "models"
+    d.mkdir()
+    (d / "a.pt").write_bytes(b"not a real model")
+    (d / "b.pt").write_bytes(b"not a real model")
+    (d / "notes.txt").write_text("not listed")
+    return d
+
+
+@pytest.fixture
+def web_factory(models_dir: Path) -> Iterator[Callable[..., WebController]]:
+    """Start WebControllers on free ports; all are shut down after the test."""
+    started: list[WebController] = []
+
+    def make(**kwargs: Any) -> WebController:
+        kwargs.setdefault("port", 0)
+        kwargs.setdefault("deadman_s", 0.3)
+        kwargs.setdefault("models_dir", models_dir)
+        part = WebController(**kwargs).start()
+        started.append(part)
+        return part
+
+    yield make
+    for part in started:
+        part.shutdown()
+        assert not part.running
+
+
+@pytest.fixture
+def web(web_factory: Callable[..., WebController]) -> WebController:
+    return web_factory()
+
+
+@pytest.fixture
+def loop_side(web: WebController) -> LoopSide:
+    return LoopSide(web)
+
+
+def run(coro: Any) -> Any:
+    """Run a test coroutine (no pytest-asyncio needed)."""
+    return asyncio.run(asyncio.wait_for(coro, 30))
+
+
+@pytest.fixture
+def arun() -> Callable[[Any], Any]:
+    """Run a test coroutine: ``arun(main())``."""
+    return run
+
+
+@pytest.fixture
+def client_cls() -> type[Client]:
+    """The recording Socket.IO client class: ``c = client_cls(); await c.connect(port)``."""
+    return Client

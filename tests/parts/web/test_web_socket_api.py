@@ -1,0 +1,319 @@
+"""The Socket.IO API with a real python-socketio client against the real server on 127.0.0.1."""
+
+from __future__ import annotations
+
+import asyncio
+
+import cv2
+import numpy as np
+import pytest
+import socketio
+
+
+def test_connect_hello_lists_models_and_first_client_drives(web, client_cls, arun, models_dir):
+    async def main():
+        c = client_cls()
+        hello = await c.connect(web.port)
+        assert hello["role"] == "driver"
+        assert hello["models"] == ["a.pt", "b.pt"]  # *.pt only, sorted
+        assert hello["deadman_s"] == 0.3
+        assert set(hello["modes"]) == {"user", "local_angle", "local"}
+        await c.close()
+
+    arun(main())
+
+
+def test_drive_reaches_outputs_scaled_by_max_throttle(web, loop_side, client_cls, arun):
+    async def main():
+        c = client_cls()
+        await c.connect(web.port)
+        assert await c.call("drive", {"angle": -0.4, "throttle": 0.8}) == {"ok": True}
+        out = loop_side.step()
+        assert out["user/angle"] == pytest.approx(-0.4)
+        assert out["user/throttle"] == pytest.approx(0.8 * 0.5)  # default max throttle 0.5
+        assert await c.call("set", {"max_throttle": 1.0}) == {"ok": True}
+        assert loop_side.step()["user/throttle"] == pytest.approx(0.8)
+        assert await c.call("set", {"constant_throttle": True, "max_throttle": 0.3}) == {"ok": True}
+        await c.call("drive", {"angle": 0.0, "throttle": 0.0})
+        assert loop_side.step()["user/throttle"] == pytest.approx(0.3)
+        await c.close()
+
+    arun(main())
+
+
+def test_mode_record_speed_limit_and_state_messages(web, loop_side, client_cls, arun):
+    async def main():
+        c = client_cls()
+        await c.connect(web.port)
+        assert await c.call("set", {"mode": "local_angle", "recording": True,
+                                    "speed_limit": 1.5}) == {"ok": True}
+        out = loop_side.step(**{"tub/num_records": 42, "sim/speed": 1.2, "loop/rate_hz": 19.5,
+                                "loop/overruns": 3, "pilot/angle": 0.25, "pilot/model": "/m/a.pt"})
+        assert out["user/mode"] == "local_angle"
+        assert out["recording"] is True
+        assert out["user/speed_limit"] == pytest.approx(1.5)
+        # the page gets the telemetry in "state" messages
+        async def state_with_records():
+            while not any(s["telemetry"]["num_records"] == 42 for s in c.states):
+                loop_side.step(**{"tub/num_records": 42})
+                await asyncio.sleep(0.02)
+            return next(s for s in c.states if s["telemetry"]["num_records"] == 42)
+        state = await asyncio.wait_for(state_with_records(), 5)
+        tel = state["telemetry"]
+        assert tel["speed"] == pytest.approx(1.2)
+        assert tel["loop_rate_hz"] == pytest.approx(19.5) and tel["loop_overruns"] == 3
+        assert tel["pilot_angle"] == pytest.approx(0.25) and tel["pilot_model"] == "a.pt"
+        assert state["command"]["mode"] == "local_angle"
+        assert await c.call("set", {"speed_limit": None}) == {"ok": True}
+        assert loop_side.step()["user/speed_limit"] is None
+        await c.close()
+
+    arun(main())
+
+
+def test_model_picker_requests_a_file_of_the_models_folder(web, loop_side, client_cls, arun, models_dir):
+    async def main():
+        c = client_cls()
+        await c.connect(web.port)
+        assert await c.call("set", {"model": "b.pt"}) == {"ok": True}
+        assert loop_side.step()["pilot/model_request"] == str((models_dir / "b.pt").resolve())
+        (models_dir / "c.pt").write_bytes(b"new")
+        assert (await c.call("models"))["models"] == ["a.pt", "b.pt", "c.pt"]
+        for bad in ("../a.pt", "notes.txt", str(models_dir / "a.pt"), "missing.pt", 3):
+            res = await c.call("set", {"model": bad})
+            assert res["ok"] is False and "models folder" in res["error"]
+        assert loop_side.step()["pilot/model_request"] == str((models_dir / "b.pt").resolve())
+        await c.close()
+
+    arun(main())
+
+
+def test_deadman_stops_a_silent_driver(web, loop_side, client_cls, arun):
+    async def main():
+        c = client_cls()
+        await c.connect(web.port)
+        await c.call("set", {"max_throttle": 1.0, "mode": "local"})
+        await c.call("drive", {"angle": 0.2, "throttle": 0.6})
+        out = loop_side.step()
+        assert out["user/throttle"] == pytest.approx(0.6) and out["user/mode"] == "local"
+        # the page stays connected but sends nothing: after deadman_s the car stops
+        out = await loop_side.until(lambda o: o["user/throttle"] == 0.0)
+        assert out["user/mode"] == "user" and out["user/angle"] == 0.0
+        assert web.state.deadman_trips == 1
+        # a new control message drives again
+        await c.call("drive", {"angle": 0.0, "throttle": 0.5})
+        assert loop_side.step()["user/throttle"] == pytest.approx(0.5)
+        await c.close()
+
+    arun(main())
+
+
+def test_heartbeats_keep_the_car_driving(web_factory, client_cls, arun):
+    from parts.web.part import WebController
+
+    web = web_factory(deadman_s=2.0)
+
+    async def main():
+        c = client_cls()
+        await c.connect(web.port)
+        for _ in range(10):
+            await c.call("drive", {"angle": 0.0, "throttle": 1.0})
+            await asyncio.sleep(0.05)
+            out = web.run_threaded(*([None] * len(WebController.INPUTS)))
+            assert out[1] == pytest.approx(0.5)
+        assert web.state.deadman_trips == 0
+        await c.close()
+
+    arun(main())
+
+
+def test_disconnect_of_the_driver_stops_at_once(web, loop_side, client_cls, arun):
+    async def main():
+        c = client_cls()
+        await c.connect(web.port)
+        await c.call("drive", {"angle": 0.5, "throttle": 1.0})
+        assert loop_side.step()["user/throttle"] == pytest.approx(0.5)
+        await c.close()
+        out = await loop_side.until(lambda o: o["user/throttle"] == 0.0, timeout=2.0)
+        assert out["user/angle"] == 0.0
+
+    arun(main())
+
+
+def test_token_refused_and_accepted(web_factory, client_cls, arun):
+    web = web_factory(token="correct-horse-battery")
+
+    async def main():
+        for token in (None, "wrong-token-000", ""):
+            c = client_cls()
+            with pytest.raises(socketio.exceptions.ConnectionError):
+                await c.connect(web.port, token=token)
+            assert "pairing token missing or wrong" in str(c.connect_errors)
+        c = client_cls()
+        assert (await c.connect(web.port, token="correct-horse-battery"))["role"] == "driver"
+        await c.close()
+
+    arun(main())
+    assert "?token=correct-horse-battery" in web.url
+
+
+def test_pages_of_other_sites_cannot_connect(web, client_cls, arun):
+    async def main():
+        c = client_cls()
+        with pytest.raises(socketio.exceptions.ConnectionError):
+            await c.connect(web.port, headers={"Origin": "http://evil.example"})
+        c = client_cls()
+        hello = await c.connect(web.port, headers={"Origin": f"http://127.0.0.1:{web.port}"})
+        assert hello["role"] == "driver"
+        await c.close()
+
+    arun(main())
+
+
+def test_network_interface_needs_a_token():
+    from parts.web.part import WebController
+
+    assert WebController(host="127.0.0.1", port=0).token is None
+    lan = WebController(host="0.0.0.0", port=0)  # not started: nothing is bound
+    assert lan.token is not None and len(lan.token) >= 12
+    assert lan.token in lan.url
+    with pytest.raises(ValueError, match="at least 8"):
+        WebController(port=0, token="short")
+
+
+MALFORMED = [
+    ("drive", None), ("drive", "0.5"), ("drive", [0.1, 0.2]), ("drive", {"angle": 0.1}),
+    ("drive", {"angle": 1.5, "throttle": 0.0}), ("drive", {"angle": 0.0, "throttle": -1.01}),
+    ("drive", {"angle": float("nan"), "throttle": 0.0}),
+    ("drive", {"angle": 0.0, "throttle": float("inf")}),
+    ("drive", {"angle": True, "throttle": 0.0}), ("drive", {"angle": "0.1", "throttle": 0.0}),
+    ("drive", {"angle": 0.0, "throttle": 0.1, "boost": 1}),
+    ("set", {}), ("set", {"mode": "turbo"}), ("set", {"recording": "yes"}),
+    ("set", {"max_throttle": 2.0}), ("set", {"speed_limit": -1.0}), ("set", {"speed_limit": 0}),
+    ("set", {"speed_limit": 99.0}), ("set", {"constant_throttle": 1}), ("set", {"steer": 1}),
+    ("estop", {}), ("estop", {"on": "true"}), ("estop", 1),
+    ("launch_missiles", {"now": True}),
+]
+
+
+def test_malformed_messages_never_reach_the_outputs(web, loop_side, client_cls, arun):
+    async def main():
+        c = client_cls()
+        await c.connect(web.port)
+        before = loop_side.step()
+        for event, data in MALFORMED:
+            res = await c.call(event, data)
+            assert res["ok"] is False, (event, data, res)
+            assert res["error"]
+        after = loop_side.step()
+        assert after == before
+        assert after["user/throttle"] == 0.0 and after["user/mode"] == "user"
+        assert web.server.rejected == len(MALFORMED)
+        # still connected and working
+        assert await c.call("drive", {"angle": 0.1, "throttle": 0.2}) == {"ok": True}
+        await c.close()
+
+    arun(main())
+
+
+def test_an_oversized_message_drops_the_connection(web, loop_side, client_cls, arun):
+    async def main():
+        c = client_cls()
+        await c.connect(web.port)
+        await c.call("drive", {"angle": 0.0, "throttle": 0.4})
+        with pytest.raises(socketio.exceptions.TimeoutError):
+            await c.sio.call("drive", {"angle": 1.0, "throttle": 1.0, "pad": "x" * 10_000}, timeout=1)
+        out = await loop_side.until(lambda o: o["user/throttle"] == 0.0)  # dropped driver: stop
+        assert out["user/angle"] == 0.0
+        await c.close()
+
+    arun(main())
+
+
+def test_second_client_watches_until_it_takes_control(web, loop_side, client_cls, arun):
+    async def main():
+        a, b = client_cls(), client_cls()
+        assert (await a.connect(web.port))["role"] == "driver"
+        assert (await b.connect(web.port))["role"] == "viewer"
+        await a.call("drive", {"angle": 0.3, "throttle": 0.4})
+        res = await b.call("drive", {"angle": -1.0, "throttle": 1.0})
+        assert res["ok"] is False and "Take control" in res["error"]
+        assert (await b.call("set", {"mode": "local"}))["ok"] is False
+        out = loop_side.step()
+        assert out["user/angle"] == pytest.approx(0.3) and out["user/mode"] == "user"
+        # any watcher may stop the car, only the driver releases
+        assert await b.call("estop", {"on": True}) == {"ok": True}
+        assert loop_side.step()["estop"] is True
+        assert (await b.call("estop", {"on": False}))["ok"] is False
+        assert await a.call("estop", {"on": False}) == {"ok": True}
+        # take control: b drives from a stopped command, a watches
+        assert (await b.call("take_control"))["role"] == "driver"
+        out = loop_side.step()
+        assert out["user/angle"] == 0.0 and out["user/throttle"] == 0.0
+        assert (await a.call("drive", {"angle": 0.5, "throttle": 0.5}))["ok"] is False
+        assert await b.call("drive", {"angle": -0.5, "throttle": 0.2}) == {"ok": True}
+        assert loop_side.step()["user/angle"] == pytest.approx(-0.5)
+        await a.close()
+        await b.close()
+
+    arun(main())
+
+
+def test_estop_latches_until_released(web, loop_side, client_cls, arun):
+    async def main():
+        c = client_cls()
+        await c.connect(web.port)
+        await c.call("set", {"recording": True, "mode": "local"})
+        await c.call("drive", {"angle": 0.0, "throttle": 1.0})
+        await c.call("estop", {"on": True})
+        await c.call("drive", {"angle": 0.0, "throttle": 1.0})  # ignored while latched
+        out = loop_side.step()
+        assert out["estop"] is True and out["user/throttle"] == 0.0
+        assert out["user/mode"] == "user" and out["recording"] is False
+        await c.call("estop", {"on": False})
+        await c.call("drive", {"angle": 0.0, "throttle": 1.0})
+        out = loop_side.step()
+        assert out["estop"] is False and out["user/throttle"] == pytest.approx(0.5)
+        await c.close()
+
+    arun(main())
+
+
+def test_frames_arrive_as_jpeg_of_the_camera_image(web, loop_side, client_cls, arun):
+    async def main():
+        c = client_cls()
+        await c.connect(web.port)
+        while len(c.frames) < 3:
+            loop_side.step()
+            await asyncio.sleep(0.02)
+        img = cv2.imdecode(np.frombuffer(c.frames[-1], np.uint8), cv2.IMREAD_COLOR)
+        assert img.shape == (120, 160, 3)
+        assert c.frames[-1][:2] == b"\xff\xd8"
+        await c.close()
+
+    arun(main())
+
+
+def test_a_stalled_viewer_gets_no_queue_of_stale_frames(web, loop_side, client_cls, arun):
+    async def main():
+        slow, fast = client_cls(ack_frames=False), client_cls()
+        await slow.connect(web.port)
+        await fast.connect(web.port)
+        for _ in range(15):
+            loop_side.step()
+            await asyncio.sleep(0.02)
+        while len(fast.frames) < 5:
+            loop_side.step()
+            await asyncio.sleep(0.02)
+        # the stalled viewer holds one unacknowledged frame; nothing is queued behind it
+        assert len(slow.frames) == 1
+        assert len(fast.frames) >= 5
+        await slow.close()
+        await fast.close()
+
+    arun(main())
+
+
+def test_port_in_use_says_what_to_change(web, web_factory):
+    with pytest.raises(OSError, match="WEB_CONTROL_PORT"):
+        web_factory(port=web.port)
