@@ -7,11 +7,11 @@ throughput with the real data path vs the same model fed from memory.
 
 Inference: batch 1, 1 CPU thread (torch.set_num_threads(1); ONNX Runtime intra_op_num_threads=1),
 120x160 camera frames with the car's default preprocessing for each type (pilotnet: 66x200 YUV).
-Each runtime is timed ``--repeats`` times interleaved with the others (the machine is shared and
-noisy); median and p99 are over all calls. "bare" is the model alone on an already preprocessed
-tensor; "part" is ``Pilot.run(frame)``, preprocessing included; the overhead compares the part
-with the same runtime's preprocessing + bare forward, the least work that turns a frame into a
-command.
+The runtimes are timed call by call in turn (``--repeats`` x ``--iters`` calls each), so all of
+them see the same load of the shared, noisy machine; median and p99 are over all calls. "bare" is
+the model alone on an already preprocessed tensor; "part" is ``Pilot.run(frame)``, preprocessing
+included; the overhead compares the part with the same runtime's preprocessing + bare forward,
+the least work that turns a frame into a command.
 
 Training: samples/s of forward + backward + Adam at batch 64 over a tub recorded by the simulator
 expert, through the training data path (tub reader, frame cache, augmentations, preprocessing,
@@ -148,10 +148,15 @@ def bench_type(mtype: str, cfg: Config, frame: np.ndarray, iters: int, repeats: 
     }
     for fn in calls.values():  # warm up (allocator, ORT graph optimisations)
         time_calls(fn, 20)
+    # Round robin, call by call: every runtime samples the same moments of the shared machine's
+    # load, so the ratios hold even when the absolute times drift.
     samples: dict[str, list[float]] = {k: [] for k in calls}
-    for _ in range(repeats):
+    clock = time.perf_counter
+    for _ in range(repeats * iters):
         for k, fn in calls.items():
-            samples[k] += time_calls(fn, iters)
+            t = clock()
+            fn()
+            samples[k].append(clock() - t)
     row: dict = {"type": mtype, "input": "x".join(map(str, images.shape[1:])),
                  "mmacs": macs(model, (images, extra)) / 1e6}
     for k, v in samples.items():
@@ -168,12 +173,14 @@ def _ms(row: dict, key: str) -> str:
 
 def print_inference(rows: list[dict]) -> None:
     print("\n| type | input (CxHxW) | MMACs | eager median / p99 ms | TorchScript | ONNX Runtime | "
-          "ONNX speed-up | preprocess ms | Pilot.run (torch) | part overhead torch / onnx |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+          "ONNX speed-up | preprocess ms | Pilot.run (torch) | part vs preprocess + forward, torch / onnx | "
+          "part vs forward alone (torch) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         print(f"| {r['type']} | {r['input']} | {r['mmacs']:.1f} | {_ms(r, 'eager')} | {_ms(r, 'torchscript')} | "
               f"{_ms(r, 'onnx')} | {r['eager'][0] / r['onnx'][0]:.2f}x | {r['preprocess'][0]:.3f} | "
-              f"{_ms(r, 'part_torch')} | {r['overhead_torch'] * 100:+.1f} % / {r['overhead_onnx'] * 100:+.1f} % |")
+              f"{_ms(r, 'part_torch')} | {r['overhead_torch'] * 100:+.1f} % / {r['overhead_onnx'] * 100:+.1f} % | "
+              f"{(r['part_torch'][0] / r['eager'][0] - 1) * 100:+.1f} % |")
 
 
 def training(records: int, epochs: int, threads_list: list[int], folder: Path) -> list[dict]:
@@ -226,7 +233,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--types", default="all", help="comma-separated model types (default: all)")
     parser.add_argument("--iters", type=int, default=200, help="calls per timing run")
-    parser.add_argument("--repeats", type=int, default=3, help="interleaved timing runs per runtime")
+    parser.add_argument("--repeats", type=int, default=3, help="timing rounds (x iters calls per runtime)")
     parser.add_argument("--skip-train", action="store_true", help="inference only")
     parser.add_argument("--records", type=int, default=2000, help="expert records for the training bench")
     parser.add_argument("--epochs", type=int, default=2, help="timed epochs per variant and thread count")

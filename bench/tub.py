@@ -3,11 +3,13 @@
     .venv/bin/python bench/tub.py [--records 2000] [--runs 5] [--donkey-python .bench/donkey-venv/bin/python]
 
 Write: records/s through the recording part (ours: TubWriter.run() for every record, then
-shutdown() which waits until all is on disk; DonkeyCar: TubWriter.run()). Read: records/s of
+shutdown() which waits until all is on disk; DonkeyCar: TubWriter.run()), and ours through
+Tub.write_record in one thread. Read: records/s of
 "training reads" (catalog records + decoded 160x120 RGB image; ours: reader.load_records +
 iter_images with 2 threads, and one thread for reference; DonkeyCar: Tub iteration + its
 pipeline TubRecord.image()). Images: a rendered gradient with noise and a moving shape, so
-JPEG sizes are realistic. Prints medians over --runs runs and the ratios. DonkeyCar runs in its own
+JPEG sizes are realistic. Dirty pages are flushed (os.sync) before every timed phase. Prints
+medians over --runs runs and the ratios. DonkeyCar runs in its own
 venv (bench/setup_donkey_venv.sh); without it only our figures are printed.
 """
 
@@ -57,6 +59,7 @@ if mode in ("write", "both"):
 if mode in ("read", "both"):
     cfg = Config()
     cfg.IMAGE_W, cfg.IMAGE_H, cfg.IMAGE_DEPTH, cfg.CACHE_POLICY = 160, 120, 3, "NOCACHE"
+    os.sync()
     t0 = time.perf_counter()
     tub = Tub(path, read_only=True)
     count, total = 0, 0
@@ -88,9 +91,15 @@ def dir_bytes(path: Path) -> int:
     return sum(f.stat().st_size for f in path.rglob("*") if f.is_file())
 
 
+def settle() -> None:
+    """Flush every dirty page before a timed phase, so no phase pays for the previous one's writeback."""
+    os.sync()
+
+
 def ours_write(frames: np.ndarray, path: Path, n: int, fsync: bool) -> float:
     from parts.tub.writer import TubWriter
 
+    settle()
     t0 = time.perf_counter()
     w = TubWriter(path, INPUTS, TYPES, queue_size=n + 1, fsync=fsync)
     for i in range(n):
@@ -100,9 +109,23 @@ def ours_write(frames: np.ndarray, path: Path, n: int, fsync: bool) -> float:
     return time.perf_counter() - t0
 
 
+def ours_write_sync(frames: np.ndarray, path: Path, n: int) -> float:
+    """Tub.write_record in the caller's thread (what import tools use), default fsync window."""
+    from parts.tub.tub import Tub
+
+    settle()
+    t0 = time.perf_counter()
+    with Tub(path, INPUTS, TYPES) as tub:
+        for i in range(n):
+            tub.write_record({"cam/image_array": frames[i % len(frames)], "user/angle": (i % 200) / 100 - 1,
+                              "user/throttle": 0.3, "user/mode": "user"})
+    return time.perf_counter() - t0
+
+
 def ours_read(path: Path, workers: int) -> tuple[float, int]:
     from parts.tub.reader import iter_images, load_records
 
+    settle()
     t0 = time.perf_counter()
     count = 0
     if workers > 1:
@@ -115,6 +138,7 @@ def ours_read(path: Path, workers: int) -> tuple[float, int]:
 
 
 def donkey(python: str, frames_file: Path, path: Path, n: int, mode: str) -> dict:
+    settle()
     res = subprocess.run([python, "-c", DONKEY_SCRIPT, str(frames_file), str(path), str(n), mode,
                           json.dumps(INPUTS), json.dumps(TYPES)],
                          capture_output=True, text=True, check=False)
@@ -156,6 +180,7 @@ def main() -> int:
                 add("donkey bytes/record", dir_bytes(dk) / n)
             ours = work / f"ours_{run}"
             add("ours write (fsync window 20 rec/500 ms)", n / ours_write(frames, ours, n, True))
+            add("ours write (Tub.write_record, one thread)", n / ours_write_sync(frames, work / f"sync_{run}", n))
             nosync = work / f"nosync_{run}"
             add("ours write (no fsync, like DonkeyCar)", n / ours_write(frames, nosync, n, False))
             add("ours bytes/record", dir_bytes(ours) / n)
@@ -174,8 +199,8 @@ def main() -> int:
                 first = load_records(ours)[0].data
                 assert theirs["first"] == first, (theirs["first"], first)
                 print("compatibility: DonkeyCar read all our records; we read all of DonkeyCar's")
-            for p in work.glob("*_*"):
-                shutil.rmtree(p, ignore_errors=True)
+            # Tubs are removed only at the end: deleting thousands of files (ext4 with `discard`)
+            # slows down the file creation of the runs that follow.
             print(f"run {run + 1}/{args.runs} done", file=sys.stderr)
     finally:
         shutil.rmtree(work, ignore_errors=True)

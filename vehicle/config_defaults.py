@@ -320,8 +320,9 @@ PILOT_SPEED_LIMIT: float | None = None
 # Memory key of the measured speed in m/s; None = sim/speed when the simulator is in the vehicle,
 # else enc/speed.
 PILOT_SPEED_KEY: str | None = None
-# PI gains: throttle per m/s of speed error, and throttle per m/s of error per second.
+# Proportional gain of the PI speed controller: throttle per m/s of speed error.
 PILOT_SPEED_KP: float = 0.3
+# Integral gain of the PI speed controller: throttle per m/s of error per second.
 PILOT_SPEED_KI: float = 0.6
 # Highest throttle the speed controller commands (lower it for a first run on a real car).
 PILOT_SPEED_MAX_THROTTLE: float = 1.0
@@ -522,9 +523,9 @@ TUB_FSYNC_MS: int = 500
 # fsync at each commit (protects against power loss). False: commits still happen per window, but
 # only a crash of the process (not a power cut) is survived; faster on slow SD cards.
 TUB_FSYNC: bool = True
-# Records waiting for the writer thread; when full, new records are dropped, counted and a warning
-# is logged (the loop never waits for the disk). 100 records = 5 s at 20 Hz.
+# Records in flight to the writer threads (accepted, not yet written); beyond it new records are
+# dropped, counted and a warning is logged (the loop never waits for the disk). 100 = 5 s at 20 Hz.
 TUB_QUEUE_SIZE: int = 100
-# JPEG quality of recorded images, 1-100. 75 is DonkeyCar's (PIL's default): ~4-5 KB per 160x120
+# JPEG quality of recorded images, 1-100. 75 is DonkeyCar's (PIL's default): ~3-5 KB per 160x120
 # frame.
 TUB_JPEG_QUALITY: int = 75

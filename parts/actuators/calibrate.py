@@ -47,6 +47,47 @@ Steering: step to each end until the wheels stop turning, without the servo buzz
 Throttle: the ESC beeps at neutral; reverse needs reverse, neutral, reverse on most car ESCs."""
 
 
+class LineReader:
+    """``input()`` that lets signal handlers run while it waits for a line.
+
+    ``input()`` (and readline) block in C: a SIGTERM or SIGHUP arriving just before the blocking
+    read leaves its Python handler pending until the user types something, so the tool would not
+    return to neutral when killed. This polls the descriptor with a short timeout instead, so a
+    pending handler runs within ``poll_s``. The terminal's own line editing still works.
+    """
+
+    def __init__(self, fd: int | None = None, out: Callable[[str], None] | None = None,
+                 poll_s: float = 0.2) -> None:
+        import sys
+
+        self.fd = sys.stdin.fileno() if fd is None else fd
+        self._out = out or (lambda text: (sys.stdout.write(text), sys.stdout.flush()))
+        self.poll_s = poll_s
+        self._buffer = b""
+        self._eof = False
+
+    def __call__(self, prompt: str = "") -> str:
+        import os
+        import select
+
+        self._out(prompt)
+        while b"\n" not in self._buffer:
+            if self._eof:
+                if self._buffer:  # a last line without a newline
+                    line, self._buffer = self._buffer, b""
+                    return line.decode(errors="replace")
+                raise EOFError
+            ready, _, _ = select.select([self.fd], [], [], self.poll_s)
+            if ready:
+                chunk = os.read(self.fd, 4096)
+                if chunk:
+                    self._buffer += chunk
+                else:
+                    self._eof = True
+        line, _, self._buffer = self._buffer.partition(b"\n")
+        return line.decode(errors="replace")
+
+
 class CalibrationSession:
     """The read-try-record loop on one channel of an open PCA9685.
 

@@ -50,6 +50,9 @@ def plot_losses(path: str | os.PathLike[str], train_loss: list[float], val_loss:
         ax.plot(epochs, val_loss, marker="o", label="validation")
     if best_epoch:
         ax.axvline(best_epoch, color="grey", linestyle="--", label=f"best (epoch {best_epoch})")
+    from matplotlib.ticker import MaxNLocator
+
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # epochs are whole numbers
     ax.set_xlabel("epoch")
     ax.set_ylabel("loss")
     ax.set_title(title)

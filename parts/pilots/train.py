@@ -125,8 +125,10 @@ def prepare_data(cfg: Any, data: DriveData, model: PilotModel, preprocess: Prepr
 
 def _loaders(prep: PreparedData, batch_size: int, workers: int, dist_info: DistInfo, device: torch.device,
              seed: int) -> tuple[DataLoader, DataLoader | None]:
+    # Workers are not persistent: each epoch forks them afresh with the dataset's current epoch (the
+    # augmentation draws depend on it) and the frame cache shared copy-on-write.
     common: dict[str, Any] = {"batch_size": batch_size, "num_workers": workers,
-                              "pin_memory": device.type == "cuda", "persistent_workers": workers > 0}
+                              "pin_memory": device.type == "cuda"}
     if dist_info.enabled:
         train_sampler = DistributedSampler(prep.train, num_replicas=dist_info.world_size, rank=dist_info.rank,
                                            shuffle=True, seed=seed)

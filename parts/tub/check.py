@@ -7,6 +7,7 @@ import os
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from parts.tub.format import IMAGE_TYPES
 from parts.tub.imaging import decode_image, looks_whole_jpeg
@@ -135,7 +136,8 @@ def _image_problem(images: Path, rec: dict, keys: list[str], decode: bool) -> st
     return None
 
 
-def _progress(total: int, desc: str, enabled: bool):  # noqa: ANN202 - tqdm or a no-op
+def _progress(total: int, desc: str, enabled: bool) -> Any:
+    """A tqdm bar (disabled: a no-op with the same methods)."""
     from tqdm import tqdm
 
     return tqdm(total=total, desc=desc, unit="rec", disable=not enabled, leave=False)

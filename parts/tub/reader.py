@@ -209,13 +209,16 @@ def load_records(paths: str | os.PathLike[str] | Iterable[str | os.PathLike[str]
     return list(iter_records(paths, **kwargs))
 
 
-def iter_images(records: Iterable[TubRecord], key: str = IMAGE_KEY, *, workers: int = 2,
+def iter_images(records: Iterable[TubRecord], key: str = IMAGE_KEY, *, workers: int | None = None,
                 on_error: OnError = "skip", prefetch: int = 64) -> Iterator[tuple[TubRecord, np.ndarray]]:
     """(record, decoded image) pairs in order, files read and decoded by ``workers`` threads.
 
-    OpenCV releases the GIL while decoding, so threads use several cores. Undecodable images are
-    reported and skipped, or raised with ``on_error="raise"``.
+    OpenCV releases the GIL while decoding, so threads use several cores. ``workers`` defaults to
+    the cores less one (at most 4), leaving one for the consumer. Undecodable images are reported
+    and skipped, or raised with ``on_error="raise"``.
     """
+    if workers is None:
+        workers = max(1, min(4, (os.cpu_count() or 2) - 1))
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
 

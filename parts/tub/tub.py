@@ -40,7 +40,9 @@ from parts.tub.recovery import inspect_tub
 
 logger = logging.getLogger(__name__)
 
-_MAX_OPEN_IMAGES = 256  # commit early rather than hold more image descriptors open
+# Image files held open for the next commit's fsync; beyond this the commit comes early (file
+# descriptor limit), whatever fsync_records says.
+_MAX_OPEN_IMAGES = 256
 # manifest.json is rewritten at most this often while recording (and at every delete, restore,
 # new catalog, first commit of a session and close).
 MANIFEST_INTERVAL_S = 1.0

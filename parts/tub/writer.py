@@ -1,8 +1,9 @@
 """``TubWriter``: the drive-loop part that records into a tub without blocking the loop.
 
-``run()`` (loop thread) only copies the values into a bounded queue. Two threads of the writer do
-the rest: one JPEG-encodes, one writes files and fsyncs, so both overlap. When the queue is full the record is dropped,
-counted and a warning is logged (at most every few seconds) — never silently lost.
+``run()`` (loop thread) only copies the values into a queue. Two threads of the writer do the
+rest: one JPEG-encodes, one writes files and fsyncs, so both overlap. When ``queue_size`` records
+are in flight (accepted, not yet written) a new record is dropped, counted and a warning is logged
+(at most every few seconds): never silently lost, and the loop never waits for the disk.
 """
 
 from __future__ import annotations
@@ -28,7 +29,8 @@ from vehicle.part import ThreadedPart
 logger = logging.getLogger(__name__)
 
 TIMESTAMP_INPUT = "cam/timestamp"
-_ENCODED_MAX = 16  # encoded records waiting for the file writer (memory bound of the 2nd stage)
+_BATCH = 32  # records the encoder takes from the queue at once
+_ENCODED_MAX = 4  # encoded batches (of up to _BATCH records, ~3-5 KB each) waiting for the writer
 _WARN_EVERY_S = 5.0
 
 
@@ -53,7 +55,8 @@ class _DeleteLast:
 
 class _Encoder(ThreadedPart):
     """First stage: JPEG-encodes the images of queued records (OpenCV releases the GIL, so this
-    overlaps with the file I/O of the writer thread) and hands them on in order."""
+    overlaps with the file I/O of the writer thread) and hands them on in order, in batches of
+    what is queued (fewer queue hand-offs between the threads)."""
 
     def __init__(self, owner: TubWriter) -> None:
         super().__init__()
@@ -62,22 +65,29 @@ class _Encoder(ThreadedPart):
     def poll(self) -> Any:
         w = self.owner
         try:
-            item = w._queue.get(timeout=0.5)
+            batch = [w._queue.get(timeout=0.5)]
         except queue.Empty:
             return self.NOTHING
-        if isinstance(item, tuple):
-            values, ts_ms = item
+        while len(batch) < _BATCH and not isinstance(batch[-1], _Stop):
             try:
-                for key, tp in w._image_types.items():
-                    if values.get(key) is not None:
-                        values[key] = encode_image(values[key], tp, w.tub.jpeg_quality)[0]
-            except Exception:
-                w.stats.failed += 1
-                logger.exception("%s: cannot encode a record's image; record skipped", w.path)
-                return self.NOTHING
-        elif isinstance(item, _Stop):
-            self.stop_event.set()
-        w._encoded.put(item)  # bounded: waits while the writer thread is behind
+                batch.append(w._queue.get_nowait())
+            except queue.Empty:
+                break
+        out = []
+        for item in batch:
+            if isinstance(item, tuple):
+                try:
+                    for key, tp in w._image_types.items():
+                        if item[0].get(key) is not None:
+                            item[0][key] = encode_image(item[0][key], tp, w.tub.jpeg_quality)[0]
+                except Exception:
+                    w.stats.failed += 1
+                    logger.exception("%s: cannot encode a record's image; record skipped", w.path)
+                    continue
+            elif isinstance(item, _Stop):
+                self.stop_event.set()
+            out.append(item)
+        w._encoded.put(out)  # bounded: waits while the writer thread is behind
         return self.NOTHING
 
 
@@ -92,21 +102,23 @@ class _Worker(ThreadedPart):
         w = self.owner
         wait = w.tub.seconds_to_commit()
         try:
-            item = w._encoded.get(timeout=wait if wait is not None else 0.5)
+            got = w._encoded.get(timeout=wait if wait is not None else 0.5)
         except queue.Empty:
             if w.tub.commit_due():
                 w._guard(w.tub.commit)
             return self.NOTHING
-        if isinstance(item, _Stop):
-            self.stop_event.set()
-        elif isinstance(item, _DeleteLast):
-            w._guard(lambda: w.tub.delete_last_n_records(item.n))
-        else:
-            values, ts_ms = item
-            if w._guard(lambda: w.tub.write_record(values, timestamp_ms=ts_ms)) is not None:
-                w.stats.written += 1
+        for item in got if isinstance(got, list) else [got]:
+            if isinstance(item, _Stop):
+                self.stop_event.set()
+            elif isinstance(item, _DeleteLast):
+                w._guard(lambda item=item: w.tub.delete_last_n_records(item.n))
             else:
-                w.stats.failed += 1
+                values, ts_ms = item
+                if w._guard(lambda values=values, ts_ms=ts_ms: w.tub.write_record(
+                        values, timestamp_ms=ts_ms)) is not None:
+                    w.stats.written += 1
+                else:
+                    w.stats.failed += 1
         return self.NOTHING
 
 
@@ -119,7 +131,8 @@ class TubWriter:
             time, seconds) is not stored as a field: it becomes the record's ``_timestamp_ms``.
         metadata: user metadata (dict or ``["k:v"]``).
         max_catalog_len: records per catalog file.
-        queue_size: records waiting for the writer thread before new ones are dropped.
+        queue_size: records in flight (accepted by run(), not yet written) before new ones are
+            dropped.
         fsync, fsync_records, fsync_ms, jpeg_quality: see :class:`parts.tub.tub.Tub`.
         remove_if_empty: when the folder is created here and no record is written, remove it on
             shutdown.
@@ -150,10 +163,9 @@ class TubWriter:
         self.tub = Tub(base_path, [inputs[i] for i in keep], [types[i] for i in keep], metadata,
                        max_catalog_len, fsync=fsync, fsync_records=fsync_records, fsync_ms=fsync_ms,
                        jpeg_quality=jpeg_quality)
-        self._keys = [inputs[i] for i in keep]
         self._keep = keep
         self.queue_size = queue_size
-        # Unbounded Queue with the bound enforced in run(): control items (stop, delete) always fit.
+        # Unbounded Queue, the bound is enforced in run(): control items (stop, delete) always fit.
         self._queue: queue.Queue[Any] = queue.Queue()
         # With an encoder thread, encoded records wait here for the file writer; without one the
         # writer thread reads the input queue and encodes itself.
@@ -186,7 +198,7 @@ class TubWriter:
             raise ValueError(f"TubWriter expected {len(self.inputs)} inputs {self.inputs}, got {len(values)}")
         if self._closed:
             raise RuntimeError(f"TubWriter for {self.path} is shut down")
-        if self._queue.qsize() >= self.queue_size:
+        if self.pending() >= self.queue_size:
             self._drop()
         else:
             record = {}
@@ -230,9 +242,9 @@ class TubWriter:
         self._queue.put(_DeleteLast(int(n)))
 
     def pending(self) -> int:
-        """Records queued but not written yet."""
-        extra = self._encoded.qsize() if self._encoded is not self._queue else 0
-        return self._queue.qsize() + extra
+        """Records accepted but not written yet."""
+        s = self.stats
+        return max(0, s.accepted - s.written - s.failed)
 
     def shutdown(self, timeout: float | None = None) -> None:
         """Write everything queued, commit, close the tub. Safe to call twice."""

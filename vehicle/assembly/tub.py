@@ -36,9 +36,9 @@ def add_tub_writer(V: Any, cfg: Any, inputs: list[str] | None = None, types: lis
     """Add a TubWriter (run_condition ``recording``, output ``tub/num_records``) and return it.
 
     ``inputs``/``types`` default to TUB_INPUTS/TUB_TYPES (plus pilot/angle and pilot/throttle with
-    RECORD_DURING_AI). When a part produces ``cam/timestamp`` it is recorded as ``_timestamp_ms``.
-    When a part produces ``tub/erase``, a TubWiper deletes the last ERASE_LAST_N_RECORDS records
-    on each press.
+    RECORD_DURING_AI, when a pilot part was added). When a part produces ``cam/timestamp`` it is
+    recorded as ``_timestamp_ms``. When a part produces ``tub/erase``, a TubWiper deletes the last
+    ERASE_LAST_N_RECORDS records on each press.
     """
     from parts.tub.errors import TubError
     from parts.tub.writer import TubWiper, TubWriter
@@ -49,7 +49,7 @@ def add_tub_writer(V: Any, cfg: Any, inputs: list[str] | None = None, types: lis
         inputs, types = list(cfg.TUB_INPUTS), list(cfg.TUB_TYPES)
         if getattr(cfg, "RECORD_DURING_AI", False):
             for key in ("pilot/angle", "pilot/throttle"):
-                if key not in inputs:
+                if key not in inputs and _produced(V, key):  # a drive without a model has no pilot
                     inputs.append(key)
                     types.append("float")
     inputs, types = list(inputs), list(types or [])

@@ -89,6 +89,17 @@ def _signals_exit() -> Iterator[None]:
             signal.signal(s, handler)
 
 
+def _reader() -> Any:
+    """A signal-friendly line reader on stdin's descriptor; plain input() if stdin has none."""
+    from parts.actuators.calibrate import LineReader
+
+    try:
+        sys.stdin.fileno()
+    except (AttributeError, OSError, ValueError):  # io.UnsupportedOperation is both
+        return input
+    return LineReader()
+
+
 def _calibrate(args: argparse.Namespace) -> int:
     from parts.actuators.calibrate import CalibrationSession
     from parts.actuators.pca9685 import PCA9685, PCA9685Error
@@ -109,7 +120,7 @@ def _calibrate(args: argparse.Namespace) -> int:
         driver = PCA9685(bus, address, freq, osc_hz=cfg.PCA9685_OSC_HZ, bus_factory=factory)
         neutral = _default_neutral(cfg, args.channel) if args.neutral is None else args.neutral
         # no I/O yet: checks the neutral value against the safe range
-        session = CalibrationSession(driver, args.channel, neutral, step=args.step)
+        session = CalibrationSession(driver, args.channel, neutral, step=args.step, read=_reader())
     except ValueError as exc:
         raise UserError(str(exc)) from exc
     interrupted = False

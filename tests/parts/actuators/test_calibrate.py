@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from parts.actuators.calibrate import CalibrationSession
+from parts.actuators.calibrate import CalibrationSession, LineReader
 from parts.actuators.config_writer import update_myconfig
 from parts.actuators.fake_pca9685 import OFF, read_trace_file
 
@@ -63,6 +63,21 @@ def test_every_way_out_ends_neutral(driver, board, ending):
         with pytest.raises(type(ending)):
             session.run()
     assert board.pulses(1) == [OFF, 375, 450, 375]
+
+
+def test_line_reader_splits_lines_and_ends_with_eof():
+    r, w = os.pipe()
+    os.write(w, b"400\n+\nq")
+    os.close(w)
+    prompts: list[str] = []
+    read = LineReader(r, out=prompts.append, poll_s=0.01)
+    try:
+        assert [read("> "), read("> "), read("> ")] == ["400", "+", "q"]
+        with pytest.raises(EOFError):
+            read("> ")
+    finally:
+        os.close(r)
+    assert prompts == ["> "] * 4
 
 
 def test_neutral_outside_the_safe_range_is_refused(driver):
@@ -161,8 +176,9 @@ class Terminal:
         os.write(self.master, keys.encode())
 
     def wait(self, timeout: float = 30.0) -> int:
+        deadline = time.monotonic() + timeout
         try:
-            while True:  # drain, so the child never blocks on a full terminal
+            while time.monotonic() < deadline:  # drain, so the child never blocks on a full terminal
                 ready, _, _ = select.select([self.master], [], [], 0.2)
                 if ready:
                     try:
@@ -174,7 +190,7 @@ class Terminal:
                     self.output += chunk.decode(errors="replace")
                 elif self.proc.poll() is not None:
                     break
-            return self.proc.wait(timeout)
+            return self.proc.wait(max(0.1, deadline - time.monotonic()))
         finally:
             os.close(self.master)
             if self.proc.poll() is None:

@@ -119,3 +119,12 @@ def test_manage_py_and_vehicle_train_share_arguments(tiny_tub, tmp_path, capsys,
     assert main(["train", "--car", str(tmp_path), "--tubs", str(tiny_tub), "--model", str(tmp_path / "c.pt"),
                  "--type", "lstm"]) == 2
     assert "unknown model type 'lstm'" in capsys.readouterr().err
+
+
+def test_training_without_validation_split_monitors_training_loss(tiny_tub, tmp_path, torch_one_thread):
+    cfg = Config.defaults(**{**FAST, "MAX_EPOCHS": 2, "TRAIN_TEST_SPLIT": 1.0})
+    metrics = train(cfg, [tiny_tub], tmp_path / "m.pt", register=False)
+    assert metrics["val_samples"] == 0 and metrics["train_samples"] == 120
+    assert metrics["best_epoch"] >= 1 and metrics["best_loss"] == pytest.approx(min(metrics["train_loss"]))
+    saved = json.loads((tmp_path / "m.metrics.json").read_text())
+    assert saved["val_loss"] == [None, None]  # NaN is not JSON: written as null

@@ -38,3 +38,29 @@ def test_training_with_dataloader_workers(tiny_tub, tmp_path, torch_one_thread):
     cfg = Config.defaults(BATCH_SIZE=32, MAX_EPOCHS=2, TRAIN_SEED=0)
     metrics = train(cfg, [tiny_tub], tmp_path / "w.pt", workers=1, register=False)
     assert metrics["epoch_samples"] == [96, 96]
+
+
+def test_workers_see_each_epochs_augmentation_draws(tiny_tub):
+    import numpy as np
+    import torch
+
+    from parts.pilots.augment import Augmenter, AugmentSettings
+    from parts.pilots.dataset import PilotDataset, build_samples, read_drive_data
+    from parts.pilots.distributed import DistInfo
+    from parts.pilots.framecache import FrameCache
+    from parts.pilots.preprocess import Preprocess
+    from parts.pilots.train import PreparedData, _loaders
+
+    data = read_drive_data([tiny_tub])
+    cache = FrameCache(data.records, ["cam/image_array"])
+    cache.fill(np.arange(len(data)))
+    aug = Augmenter(AugmentSettings(names=("brightness",), brightness_p=1.0))
+    ds = PilotDataset(data, build_samples(data, np.arange(8)), cache, Preprocess(), augmenter=aug)
+    prep = PreparedData(data, ds, None, Preprocess(), (64, 64, 3), {})
+    loader, _ = _loaders(prep, 8, 1, DistInfo(), torch.device("cpu"), seed=0)
+    batches = []
+    for epoch in range(2):
+        ds.set_epoch(epoch)
+        batches.append(next(iter(loader))[0])
+    # the batch holds all 8 samples (shuffled): equal sums would mean the same brightness draws
+    assert batches[0].double().sum() != batches[1].double().sum()

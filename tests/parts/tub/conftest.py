@@ -86,6 +86,12 @@ def donkey_tub(tmp_path: Path) -> Callable[..., tuple[Path, list[dict[str, Any]]
 
 
 @pytest.fixture
+def jpeg() -> Callable[[np.ndarray], bytes]:
+    """The encoder DonkeyCar uses, as a fixture (test folders share the module name conftest)."""
+    return jpeg_bytes
+
+
+@pytest.fixture
 def image() -> Callable[[int], np.ndarray]:
     return gradient_image
 

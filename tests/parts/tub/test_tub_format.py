@@ -141,3 +141,20 @@ def test_soft_delete_restore_and_delete_last_n(tmp_path):
     assert [r["a"] for r in tub] == [0, 1, 3, 4, 5, 6, 8]
     assert tub.deleted_indexes == {2, 7, 9}
     assert (tmp_path / "t" / "catalog_2.catalog").read_text().count("\n") == 2  # nothing removed
+
+
+def test_durability_window_commits_by_count_and_age(tmp_path):
+    cat = tmp_path / "t" / "catalog_0.catalog"
+    tub = Tub(tmp_path / "t", ["a"], ["int"], fsync_records=3, fsync_ms=60_000)
+    tub.write_record({"a": 0})
+    tub.write_record({"a": 1})
+    assert cat.read_text() == ""  # still inside the window: not written yet
+    tub.write_record({"a": 2})
+    assert cat.read_text().count("\n") == 3
+    tub.write_record({"a": 3})
+    tub.close()
+    assert cat.read_text().count("\n") == 4
+    aged = Tub(tmp_path / "u", ["a"], ["int"], fsync_records=100, fsync_ms=0)
+    aged.write_record({"a": 0})  # the age limit alone commits
+    assert (tmp_path / "u" / "catalog_0.catalog").read_text().count("\n") == 1
+    aged.close()

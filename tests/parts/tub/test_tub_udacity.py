@@ -14,15 +14,13 @@ NAMES = ["2016_12_01_13_30_48_287", "2016_12_01_13_30_48_404", "2016_12_01_13_30
 
 
 @pytest.fixture
-def recording(tmp_path, image):
+def recording(tmp_path, image, jpeg):
     """A Udacity recording folder with IMG/ holding center/left/right JPEGs of three frames."""
-    from conftest import jpeg_bytes
-
     rec = tmp_path / "rec"
     (rec / "IMG").mkdir(parents=True)
     for i, stamp in enumerate(NAMES):
         for side in ("center", "left", "right"):
-            (rec / "IMG" / f"{side}_{stamp}.jpg").write_bytes(jpeg_bytes(image(i, 160, 320)))
+            (rec / "IMG" / f"{side}_{stamp}.jpg").write_bytes(jpeg(image(i, 160, 320)))
     return rec
 
 
