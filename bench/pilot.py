@@ -1,7 +1,7 @@
 """Pilot benchmarks: inference latency per model type and runtime, pilot-part overhead, and training
 throughput with the real data path vs the same model fed from memory.
 
-    .venv/bin/python bench/pilot.py                 # everything (about 3 minutes on 2 cores)
+    .venv/bin/python bench/pilot.py                 # everything (about 2 minutes on 2 cores)
     .venv/bin/python bench/pilot.py --skip-train    # inference only
     .venv/bin/python bench/pilot.py --types linear --iters 300 --repeats 5
 

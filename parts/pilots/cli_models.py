@@ -88,9 +88,10 @@ def _registry(args: argparse.Namespace) -> Any:
 def _short(mapping: dict[str, Any], keys: tuple[str, ...]) -> str:
     parts = []
     for key in keys:
-        if key in mapping and mapping[key] is not None:
-            value = mapping[key]
-            parts.append(f"{key}={value:.4g}" if isinstance(value, float) else f"{key}={value}")
+        value = mapping.get(key)
+        if isinstance(value, bool) or not isinstance(value, int | float | str):
+            continue  # per-epoch lists and the like: `vehicle models show NAME` prints them
+        parts.append(f"{key}={value:.4g}" if isinstance(value, float) else f"{key}={value}")
     return " ".join(parts)
 
 
@@ -101,7 +102,7 @@ def format_table(entries: list[Any]) -> str:
     for e in entries:
         name = e.name if e.exists else f"{e.name} (missing)"
         datasets = ",".join(Path(d).name for d in e.datasets)
-        metrics = _short(e.metrics, ("val_loss", "best_val_loss", "train_loss", "epochs"))
+        metrics = _short(e.metrics, ("best_val_loss", "val_loss", "best_epoch", "epochs"))
         rows.append((name, e.type, e.created.replace("+00:00", "Z"), datasets, metrics, e.comment or ""))
     widths = [max(len(r[i]) for r in rows) for i in range(len(header) - 1)]
     return "\n".join("  ".join(c.ljust(w) for c, w in zip(r[:-1], widths, strict=True)) + "  " + r[-1]

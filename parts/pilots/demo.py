@@ -93,6 +93,7 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
         raise ValueError(f"need records >= 100, epochs >= 1 and laps >= 1 (got {records}, {epochs}, {laps})")
     out = out.resolve()
     cfg = Config.defaults(CAR_PATH=str(out), **DEMO_SETTINGS)
+    _write_myconfig(out)
     tub = out / "data" / "demo_tub"
     if tub.exists():
         shutil.rmtree(tub)  # the demo records afresh each run; it never touches other folders
@@ -144,6 +145,18 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
     _say(format_table(expert_report))
     return {"pilot": pilot_report, "expert": expert_report, "model": model_path, "seconds": seconds,
             "metrics": metrics}
+
+
+def _write_myconfig(out: Path) -> None:
+    """Make ``out`` a car folder with the demo's settings (kept if it already has a myconfig.py),
+    so ``vehicle models --car``, ``vehicle sim eval`` and ``manage.py`` there use them too."""
+    path = out / "myconfig.py"
+    if path.exists():
+        return
+    out.mkdir(parents=True, exist_ok=True)
+    lines = ['"""Settings of the `vehicle demo` car (written by the demo)."""', ""]
+    lines += [f"{name} = {value!r}" for name, value in DEMO_SETTINGS.items()]
+    path.write_text("\n".join(lines) + "\n")
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:

@@ -92,7 +92,6 @@ class Pilot:
         self._log = _RateLimitedLog()
         self._load_lock = threading.Lock()
         self._loader: threading.Thread | None = None
-        self._requested: Path | None = None
         self.load_error: str | None = None  # why the last requested model was not loaded
         #: refuse hot switches to a model with other inputs (set once the part is wired in a
         #: vehicle, whose input list cannot change while it runs)
@@ -138,10 +137,9 @@ class Pilot:
         if len(rest) + 1 != expected:
             raise TypeError(f"Pilot.run takes {expected} inputs {self.inputs}, got {len(rest) + 1}; "
                             "wire the part with inputs=pilot.inputs")
-        if image is None:  # no frame yet (camera starting): stand still, wheels straight
-            angle, throttle = 0.0, 0.0
-        else:
-            angle, throttle = self._predict(active, image, rest[:n_extra])
+        if image is None:  # no frame yet (camera starting): stand still, wheels straight, even
+            return 0.0, 0.0  # with speed control (which would accelerate from standstill blind)
+        angle, throttle = self._predict(active, image, rest[:n_extra])
         if self.speed_control is not None:
             speed, limit = rest[n_extra], rest[n_extra + 1]
             throttle = self.speed_control.run(throttle, speed, limit)
@@ -196,12 +194,12 @@ class Pilot:
 
     # -- hot switch -----------------------------------------------------------------------------
     def resolve(self, path: str | Path) -> Path:
-        """``path`` as given if it exists, else inside ``models_dir``."""
+        """``path`` as given if it exists, else inside ``models_dir`` (as given, then its file name)."""
         candidate = Path(path)
         if not candidate.exists() and not candidate.is_absolute() and self.models_dir is not None:
-            inside = self.models_dir / candidate
-            if inside.exists():
-                return inside
+            for inside in (self.models_dir / candidate, self.models_dir / candidate.name):
+                if inside.exists():
+                    return inside
         return candidate
 
     def request_model(self, path: str | Path) -> bool:
@@ -213,7 +211,6 @@ class Pilot:
             if self._loader is not None and self._loader.is_alive():
                 return False
             target = self.resolve(path)
-            self._requested = target
             self._loader = threading.Thread(target=self._load, args=(target,), name="PilotModelLoader",
                                             daemon=True)
             self._loader.start()

@@ -15,6 +15,7 @@ from the metadata stored in the model file (and copied into each export).
 
 from __future__ import annotations
 
+import abc
 import json
 import logging
 import os
@@ -46,7 +47,7 @@ def preprocessor_from_meta(meta: dict[str, Any]) -> Callable[[np.ndarray], np.nd
     return preprocess
 
 
-class Runner:
+class Runner(abc.ABC):
     """One loaded model: its metadata, its preprocessing and a batch-1 ``predict``.
 
     Attributes:
@@ -74,9 +75,9 @@ class Runner:
         """The model's file name (what ``pilot/model`` shows)."""
         return self.path.name
 
+    @abc.abstractmethod
     def predict(self, images: np.ndarray, extra: np.ndarray | None) -> tuple[float, float]:
         """``(angle, throttle)`` for one preprocessed input (batch dimension included)."""
-        raise NotImplementedError
 
     def close(self) -> None:  # noqa: B027 - optional
         """Release the backend's resources."""

@@ -30,6 +30,10 @@ def test_tiny_demo_writes_model_export_reports_and_registry(tmp_path, capsys):
     entry = ModelRegistry.for_models_dir(out / "models").get("demo_linear")
     assert entry.type == "linear" and entry.comment == "vehicle demo"
     assert entry.metrics["epochs"] == 1
+    from vehicle.config import load_config
+
+    cfg = load_config(car_path=out)  # the demo folder is a car folder with the demo's settings
+    assert (cfg.ROI_CROP_TOP, cfg.PREPROCESS_NORMALIZE) == (40, "symmetric")
 
 
 @pytest.mark.parametrize("args, message", [

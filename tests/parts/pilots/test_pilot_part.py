@@ -74,6 +74,9 @@ def test_infinite_and_nan_predictions_give_zero_and_a_rate_limited_warning(make_
 
 def test_no_frame_yet_means_stand_still(make_model_file):
     assert load_pilot(make_model_file("linear"), backend="torch").run(None) == (0.0, 0.0)
+    # also with speed control, which would give full throttle at standstill
+    pilot = load_pilot(make_model_file("linear"), backend="torch", speed_control=SpeedControl("limit"))
+    assert pilot.run(None, 0.0, 2.0) == (0.0, 0.0)
 
 
 def test_wrong_number_of_inputs_is_a_clear_error(make_model_file, frame):
@@ -92,6 +95,8 @@ def test_behavior_model_reads_the_one_hot_state(make_model_file, frame):
     assert list(left) == pytest.approx(bare(path, frame, [1.0, 0.0]), abs=1e-6)
     assert list(right) == pytest.approx(bare(path, frame, [0.0, 1.0]), abs=1e-6)
     assert left != right
+    # no behaviour state yet: zeros (and a warning), never a crash of the loop
+    assert list(pilot.run(frame, None)) == pytest.approx(bare(path, frame, [0.0, 0.0]), abs=1e-6)
 
 
 def test_memory_model_feeds_back_its_previous_commands(make_model_file, frame):
@@ -136,6 +141,7 @@ def test_hot_switch_loads_in_the_background_and_swaps(make_model_file, frame, tm
     assert switch.run("b.pt") in ("a.pt", "b.pt")  # relative to models_dir; never waits for the load
     assert pilot.wait_loaded(timeout=30)
     assert switch.run("b.pt") == "b.pt"
+    assert pilot.resolve("models/b.pt") == b  # a car-relative path from another working directory
     assert list(pilot.run(frame)) == pytest.approx(bare(b, frame), abs=1e-6)
     # a file that does not load keeps the current model driving
     (tmp_path / "broken.pt").write_bytes(b"not a model")

@@ -100,7 +100,7 @@ def test_cli_list_show_comment_rm(car, capsys):
     reg = ModelRegistry.for_models_dir(car / "models")
     (car / "models" / "fast.pt").write_bytes(b"x")
     reg.register(car / "models" / "fast.pt", model_type="linear", datasets=[car / "data" / "tub_1"],
-                 metrics={"val_loss": 0.01234, "epochs": 7})
+                 metrics={"val_loss": 0.01234, "epochs": 7, "train_loss": [0.5, 0.2]})
     reg.register(car / "models" / "gone.pt", model_type="pilotnet")
 
     assert main(["models", "--car", str(car)]) == 0
@@ -108,6 +108,7 @@ def test_cli_list_show_comment_rm(car, capsys):
     assert lines[0].split()[:3] == ["NAME", "TYPE", "CREATED"]
     assert lines[1].split()[:2] == ["fast", "linear"]
     assert "tub_1" in lines[1] and "val_loss=0.01234" in lines[1] and "epochs=7" in lines[1]
+    assert "train_loss" not in lines[1]  # lists stay out of the table
     assert lines[2].startswith("gone (missing)")
 
     assert main(["models", "comment", "fast", "good on track 3", "--car", str(car)]) == 0
