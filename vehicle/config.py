@@ -23,6 +23,9 @@ logger = logging.getLogger(__name__)
 
 DEFAULTS_MODULE = Path(__file__).with_name("config_defaults.py")
 
+#: DonkeyCar settings that have another name here, so a copied myconfig.py gets a precise hint
+RENAMED: dict[str, str] = {"WEB_INIT_MODE": "DEFAULT_MODE"}
+
 
 class ConfigError(ValueError):
     """A setting is unknown, of the wrong type, or the override file cannot be read."""
@@ -115,7 +118,7 @@ def check_value(name: str, value: Any, where: str = "") -> None:
     """Raise ConfigError unless ``name`` is a known setting and ``value`` fits its type."""
     known = settings()
     if name not in known:
-        close = difflib.get_close_matches(name, known, n=1)
+        close = [RENAMED[name]] if name in RENAMED else difflib.get_close_matches(name, known, n=1)
         hint = f" Did you mean {close[0]}?" if close else ""
         raise ConfigError(f"{where}unknown setting {name}.{hint} "
                           "See docs/config.md for every setting.")

@@ -81,6 +81,7 @@ CAMERA_REPLAY_LOOP: bool = True
 # == Drive modes ==
 
 # Mode at start: "user" (human drives), "local_angle" (pilot steers), "local" (pilot drives).
+# The web page, the gamepad and the drive-mode part all start from it (DonkeyCar: WEB_INIT_MODE).
 DEFAULT_MODE: Literal["user", "local_angle", "local"] = "user"
 # Pilot throttle is multiplied by this in "local" mode (1.0 = as predicted).
 AI_THROTTLE_MULT: float = 1.0
@@ -479,8 +480,6 @@ WEB_TOKEN: str | None = None
 # Dead-man time in seconds: when the driving page sends no control message for this long while
 # the throttle is non-zero (or a pilot mode is on), throttle goes to 0 and the mode to user.
 WEB_DEADMAN_S: float = 0.5
-# Drive mode the page starts in.
-WEB_INIT_MODE: Literal["user", "local_angle", "local"] = "user"
 # Initial maximum throttle of the page, [0, 1]: the page's full stick gives this throttle; it can be
 # changed on the page and is also the constant-throttle value.
 WEB_MAX_THROTTLE: float = 0.5

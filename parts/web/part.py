@@ -97,7 +97,7 @@ class WebController(ThreadedPart):
     def from_config(cls, cfg: Any) -> WebController:
         """Build from a car's settings (``WEB_*``, ``MODELS_PATH``)."""
         return cls(cfg.WEB_HOST, cfg.WEB_CONTROL_PORT, cfg.WEB_TOKEN, deadman_s=cfg.WEB_DEADMAN_S,
-                   init_mode=cfg.WEB_INIT_MODE, max_throttle=cfg.WEB_MAX_THROTTLE,
+                   init_mode=cfg.DEFAULT_MODE, max_throttle=cfg.WEB_MAX_THROTTLE,
                    models_dir=cfg.path("MODELS_PATH"), max_speed_limit=cfg.WEB_MAX_SPEED_LIMIT,
                    telemetry_hz=cfg.WEB_TELEMETRY_HZ, jpeg_quality=cfg.WEB_JPEG_QUALITY)
 

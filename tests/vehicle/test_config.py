@@ -94,3 +94,8 @@ def test_every_setting_is_documented():
 
     undocumented = [s.name for s in settings().values() if not s.doc]
     assert undocumented == []
+
+
+def test_donkeycar_name_gets_its_new_name():
+    with pytest.raises(ConfigError, match="unknown setting WEB_INIT_MODE. Did you mean DEFAULT_MODE?"):
+        Config.defaults(WEB_INIT_MODE="local")

@@ -56,7 +56,7 @@ def add_controller(V: Any, cfg: Config) -> Any:
                       if web is not None else None)
     if web is None:
         return pad
-    arbiter = ControllerArbiter(cfg.CONTROLLER_PRIORITY, initial_mode=cfg.WEB_INIT_MODE)
+    arbiter = ControllerArbiter(cfg.CONTROLLER_PRIORITY, initial_mode=cfg.DEFAULT_MODE)
     V.add(arbiter, inputs=list(ControllerArbiter.INPUTS), outputs=list(ControllerArbiter.OUTPUTS))
     return web
 

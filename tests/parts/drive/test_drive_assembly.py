@@ -41,7 +41,9 @@ def test_behavior_and_watchdog_in_a_vehicle():
     V.add(Script([(0, "local", 0.5, True), (1, "local", 0.5, False), (0, "local", 0.5, False),
                   (-1, "user", 0.5, False)]),
           outputs=["behavior/step", "user/mode", "user/throttle", "cam/ok"])
-    assert add_camera_watchdog(V, cfg) is not None
+    watchdog = add_camera_watchdog(V, cfg)
+    assert type(watchdog).__name__ == "CameraWatchdog"
+    assert V.parts[-1].part is watchdog and V.parts[-1].outputs == ("user/mode", "user/throttle")
     part = add_behavior(V, cfg)
     assert part is not None
     assert add_camera_watchdog(V, cfg) is None  # only one watchdog per vehicle
