@@ -5,9 +5,10 @@
 Write: records/s through the recording part (ours: TubWriter.run() for every record, then
 shutdown() which waits until all is on disk; DonkeyCar: TubWriter.run()), and ours through
 Tub.write_record in one thread. Read: records/s of
-"training reads" (catalog records + decoded 160x120 RGB image; ours: reader.load_records +
-iter_images with 2 threads, and one thread for reference; DonkeyCar: Tub iteration + its
-pipeline TubRecord.image()). Images: a rendered gradient with noise and a moving shape, so
+"training reads" (catalog records + decoded 160x120 RGB image; ours: reader.load_records,
+then the training frame cache's fill (2 threads decoding into one array), and
+TubRecord.image() in one thread; DonkeyCar: Tub iteration + its pipeline
+TubRecord.image()). Images: a rendered gradient with noise and a moving shape, so
 JPEG sizes are realistic. Dirty pages are flushed (os.sync) before every timed phase. Prints
 medians over --runs runs and the ratios. DonkeyCar runs in its own
 venv (bench/setup_donkey_venv.sh); without it only our figures are printed.
@@ -123,16 +124,21 @@ def ours_write_sync(frames: np.ndarray, path: Path, n: int) -> float:
 
 
 def ours_read(path: Path, workers: int) -> tuple[float, int]:
-    from parts.tub.reader import iter_images, load_records
+    """workers=1: TubRecord.image() in a loop; more: what training does, FrameCache.fill (all frames
+    decoded into one array by ``workers`` threads)."""
+    from parts.pilots.framecache import FrameCache
+    from parts.tub.reader import load_records
 
     settle()
     t0 = time.perf_counter()
     count = 0
+    records = load_records(path)
     if workers > 1:
-        for _rec, img in iter_images(load_records(path), workers=workers):
-            count += int(img[0, 0, 0] >= 0)
+        cache = FrameCache(records, ["cam/image_array"], threads=workers)
+        bad = cache.fill(np.arange(len(records)))
+        count = len(records) - len(bad) if cache.cached else 0
     else:
-        for rec in load_records(path):
+        for rec in records:
             count += int(rec.image()[0, 0, 0] >= 0)
     return time.perf_counter() - t0, count
 
@@ -186,7 +192,7 @@ def main() -> int:
             add("ours bytes/record", dir_bytes(ours) / n)
             t, count = ours_read(ours, workers=2)
             assert count == n
-            add("ours read (2 decode threads)", n / t)
+            add("ours read (training FrameCache, 2 threads)", n / t)
             t, _ = ours_read(ours, workers=1)
             add("ours read (1 thread)", n / t)
             if have_donkey and run == 0:

@@ -66,9 +66,16 @@ def init_distributed(device_setting: str) -> tuple[DistInfo, torch.device]:
     return DistInfo(rank, world, local_rank), device
 
 
-def shutdown_distributed() -> None:
-    """Leave the process group (if joined)."""
+def shutdown_distributed(*, clean: bool = True) -> None:
+    """Leave the process group (if joined).
+
+    ``clean`` (every rank got here without an error) waits at a barrier first: a rank that tears gloo
+    down while a peer is still in its last collective aborts the process ("terminate called without
+    an active exception"). After an error the peers may never arrive, so there is no barrier then.
+    """
     if dist.is_available() and dist.is_initialized():
+        if clean:
+            dist.barrier()
         dist.destroy_process_group()
 
 

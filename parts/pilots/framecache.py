@@ -18,6 +18,8 @@ import numpy as np
 
 logger = logging.getLogger(__name__)
 
+_CHUNK = 64  # frames a decoding thread takes at a time
+
 
 class FrameCache:
     """Frames of ``records`` under camera ``keys``, addressed by (record position, key index)."""
@@ -33,9 +35,9 @@ class FrameCache:
         self._frames: np.ndarray | None = None
         self.decodes = 0  # frames decoded so far (a test checks later epochs add none)
 
-    def _decode(self, pos: int, key: int) -> np.ndarray:
+    def _decode(self, pos: int, key: int, out: np.ndarray | None = None) -> np.ndarray:
         self.decodes += 1
-        image = self.records[pos].image(self.keys[key])
+        image = self.records[pos].image(self.keys[key], out)
         if image is None:
             rec = self.records[pos]
             raise ValueError(f"record {rec.index} of {rec.tub} has no image under {self.keys[key]!r}")
@@ -73,31 +75,45 @@ class FrameCache:
         frames = np.empty((slots.size, *first.shape), np.uint8)
         bad: list[int] = []
 
-        def work(j: int) -> None:
+        def work(j: int) -> bool:
             slot = int(slots[j])
             pos, key = divmod(slot, n_keys)
+            dst = frames[j]
             try:
-                img = self._decode(pos, key)
+                img = self._decode(pos, key, dst)  # decoded in place when the frame fits
             except Exception as exc:  # CorruptRecord, missing file: skip the record, say which
                 logger.warning("skipping record: %s", exc)
                 bad.append(pos)
-                return
+                return False
             if img.shape != first.shape:
                 rec = self.records[pos]
                 logger.warning("skipping record %s of %s: frame %s differs from %s", rec.index, rec.tub,
                                img.shape, first.shape)
                 bad.append(pos)
-                return
-            frames[j] = img
+                return False
+            if img.base is not dst:  # decoded elsewhere (OpenCV): copy in
+                dst[...] = img
+            return True
 
-        iterator: Any = range(slots.size)
+        def work_chunk(lo: int) -> int:
+            hi = min(slots.size, lo + _CHUNK)
+            for j in range(lo, hi):
+                work(j)
+            return hi - lo
+
+        bar: Any = None
         if progress:
             from tqdm import tqdm
 
-            iterator = tqdm(iterator, desc="decoding frames", unit="frame", leave=False)
+            bar = tqdm(total=int(slots.size), desc="decoding frames", unit="frame", leave=False)
+        # Chunks, not one task per frame: a task costs about as much as decoding a small frame,
+        # and the decoders (which release the GIL) would wait on the pool's bookkeeping.
         with ThreadPoolExecutor(self.threads) as pool:
-            for _ in pool.map(work, iterator, chunksize=64):
-                pass
+            for done in pool.map(work_chunk, range(0, int(slots.size), _CHUNK)):
+                if bar is not None:
+                    bar.update(done)
+        if bar is not None:
+            bar.close()
         self._rows, self._frames = rows, frames
         logger.info("cached %d decoded frames (%.0f MB)", slots.size, frames.nbytes / 1e6)
         return np.unique(np.asarray(bad, np.int64))

@@ -174,6 +174,7 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
     if model_path.suffix != ".pt":
         raise ValueError(f"model file {model_path} must end in .pt (e.g. models/mypilot.pt)")
     dist_info, dev = init_distributed(device or cfg.TRAIN_DEVICE)
+    clean = False
     try:
         torch.manual_seed(cfg.TRAIN_SEED)
         old_meta: dict[str, Any] | None = None
@@ -236,9 +237,10 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
         metrics = _metrics(history, prep, started)
         if dist_info.is_main:
             _finish(model_path, base_meta, metrics, history, type_name, cfg.SHOW_PLOT, register, comment)
+        clean = True
         return metrics
     finally:
-        shutdown_distributed()
+        shutdown_distributed(clean=clean)
 
 
 def _tty() -> bool:

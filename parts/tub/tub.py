@@ -1,8 +1,9 @@
 """``Tub``: one DonkeyCar tub v2 folder, opened for reading or for crash-safe appending.
 
 Writing order per commit (the durability window, docs/data-format.md): image files are written
-as records arrive; at a commit the images are fsynced (in parallel), then the images folder, then
-the records' catalog lines are appended in one write and fsynced. manifest.json is replaced
+as records arrive; at a commit the images are made durable (one ``syncfs`` on Linux, else an fsync
+of each, in parallel, and of the images folder), then the records' catalog lines are appended in
+one write and fsynced. manifest.json is replaced
 atomically at most once a second and at every session start, new catalog, delete, restore and
 close (recovery never needs it current). A crash therefore loses at most the records since the
 last commit, and a catalog line never reaches the disk before its images.
@@ -240,7 +241,7 @@ class Tub:
             self._pending_since = time.monotonic()
         m.current_index = index + 1
         self.written += 1
-        if self.commit_due() or len(self._images) >= _MAX_OPEN_IMAGES:
+        if self.commit_due() or self._images.open_files >= _MAX_OPEN_IMAGES:
             self.commit()
         return index
 
