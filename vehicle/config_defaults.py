@@ -161,7 +161,8 @@ ROI_CROP_RIGHT: int = 0
 PREPROCESS_RESIZE: tuple[int, int] | None = None
 # Colour space fed to the model; None = the model type's default (pilotnet: yuv, others: rgb).
 PREPROCESS_COLOR: Literal["rgb", "yuv", "hsv", "gray"] | None = None
-# Pixel scaling: "unit" = [0, 1], "symmetric" = [-1, 1]; None = the model type's default.
+# Pixel scaling: "unit" = [0, 1] (DonkeyCar's), "symmetric" = [-1, 1]; None = the model type's
+# default, [-1, 1] for every type (centred inputs: the linear model learns from the first epoch).
 PREPROCESS_NORMALIZE: Literal["unit", "symmetric"] | None = None
 
 # Training-only augmentations, each applied with its probability AUG_<NAME>_P: flip (mirror,

@@ -31,9 +31,6 @@ logger = logging.getLogger(__name__)
 #: each is a normal setting of vehicle/config_defaults.py
 DEMO_SETTINGS: dict[str, Any] = {
     "ROI_CROP_TOP": 40,  # the top third of the frame is sky: less to learn and 1/3 less compute
-    # inputs centred on 0: with [0, 1] inputs the linear model often sits on the "predict the
-    # mean" plateau for several epochs; centred, it learns from the first epoch
-    "PREPROCESS_NORMALIZE": "symmetric",
     "BATCH_SIZE": 64,
     # the expert (and so the pilot it teaches) drives at 1.5 m/s instead of 2: at 2 m/s one sharp
     # curve per unseen track was too much for a model trained in 2 minutes

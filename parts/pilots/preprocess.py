@@ -144,10 +144,13 @@ class Preprocess:
 def preprocess_from_config(cfg: Any, model_type: str,
                            image_shape: tuple[int, int, int] | None = None) -> Preprocess:
     """The car's preprocessing for ``model_type``: ROI_CROP_* and PREPROCESS_* settings; where a
-    PREPROCESS_* setting is None the model type's default applies (pilotnet: 66x200, YUV, [-1, 1])."""
+    PREPROCESS_* setting is None the model type's default applies (pilotnet: 66x200, YUV; every
+    type: [-1, 1])."""
     from parts.pilots.models import model_type as lookup
 
-    defaults: dict[str, Any] = {"resize": None, "color": "rgb", "normalize": "unit"}
+    # [-1, 1] for every type: with [0, 1] inputs (DonkeyCar's) the linear model often sat on the
+    # "predict the mean" plateau for several epochs of the demo; centred, it learns from the first
+    defaults: dict[str, Any] = {"resize": None, "color": "rgb", "normalize": "symmetric"}
     defaults.update(getattr(lookup(model_type), "preprocess_defaults", {}))
     resize = cfg.PREPROCESS_RESIZE if cfg.PREPROCESS_RESIZE is not None else defaults["resize"]
     return Preprocess(

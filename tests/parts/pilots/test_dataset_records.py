@@ -176,3 +176,12 @@ def test_preprocess_validates_and_explains():
         Preprocess.from_dict({"crop": [0, 0, 0, 0], "gamma": 2})
     unit = Preprocess()(np.full((4, 4, 3), 255, np.uint8))
     assert float(unit.max()) == 1.0
+
+
+def test_default_preprocessing_centres_pixels_and_a_setting_overrides_it():
+    pre = preprocess_from_config(Config.defaults(), "linear", (120, 160, 3))
+    assert (pre.normalize, pre.color, pre.resize) == ("symmetric", "rgb", None)
+    x = pre.normalize_batch(torch.tensor([[[[0, 255]]]], dtype=torch.uint8).expand(1, 3, 1, 2))
+    assert x.min().item() == -1.0 and x.max().item() == 1.0
+    unit = preprocess_from_config(Config.defaults(PREPROCESS_NORMALIZE="unit"), "linear", (120, 160, 3))
+    assert unit.normalize == "unit"
