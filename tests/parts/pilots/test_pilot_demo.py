@@ -33,7 +33,11 @@ def test_tiny_demo_writes_model_export_reports_and_registry(tmp_path, capsys):
     from vehicle.config import load_config
 
     cfg = load_config(car_path=out)  # the demo folder is a car folder with the demo's settings
-    assert (cfg.ROI_CROP_TOP, cfg.PREPROCESS_NORMALIZE) == (40, "symmetric")
+    assert cfg.ROI_CROP_TOP == 40
+    from parts.pilots.modelfile import load_model
+
+    _, meta = load_model(model)  # what the pilot was trained on: cropped, pixels in [-1, 1]
+    assert meta["preprocess"]["crop"][0] == 40 and meta["preprocess"]["normalize"] == "symmetric"
 
 
 @pytest.mark.parametrize("args, message", [
