@@ -3,7 +3,7 @@
 The cache holds the decoded uint8 frame exactly as recorded, never a processed one: augmentations
 and preprocessing run on it afresh every time (DonkeyCar cached processed images and applied its
 transformations again from the second epoch on). Frames are decoded up front by a pool of threads
-(OpenCV releases the GIL while decoding) into one array, which DataLoader workers share.
+(the JPEG codecs release the GIL while decoding) into one array, which DataLoader workers share.
 """
 
 from __future__ import annotations

@@ -234,7 +234,7 @@ def iter_images(records: Iterable[TubRecord], key: str = IMAGE_KEY, *, workers: 
                 on_error: OnError = "skip", prefetch: int = 64) -> Iterator[tuple[TubRecord, np.ndarray]]:
     """(record, decoded image) pairs in order, files read and decoded by ``workers`` threads.
 
-    OpenCV releases the GIL while decoding, so threads use several cores. ``workers`` defaults to
+    The JPEG codecs release the GIL while decoding, so threads use several cores. ``workers`` defaults to
     the cores less one (at most 4), leaving one for the consumer. Undecodable images are reported
     and skipped, or raised with ``on_error="raise"``.
     """

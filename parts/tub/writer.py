@@ -63,13 +63,13 @@ class _Encoder(ThreadedPart):
     def __init__(self, owner: TubWriter, threads: int) -> None:
         super().__init__()
         self.owner = owner
+        self._threads = threads
         self._helpers = ThreadPoolExecutor(threads - 1, thread_name_prefix="tub-encode") if threads > 1 else None
 
     def _encode_all(self, records: list[tuple[dict[str, Any], int | None]]) -> list[bool]:
         if self._helpers is None or len(records) < 2:
             return [self._encode(r) for r in records]
-        parts = self._helpers._max_workers + 1
-        size = -(-len(records) // parts)
+        size = -(-len(records) // self._threads)  # ceil: the batch in up to `threads` slices
         slices = [records[i:i + size] for i in range(0, len(records), size)]
         jobs = [self._helpers.submit(lambda sl=sl: [self._encode(r) for r in sl]) for sl in slices[1:]]
         ok = [self._encode(r) for r in slices[0]]
@@ -85,8 +85,7 @@ class _Encoder(ThreadedPart):
                 if values.get(key) is not None:
                     values[key] = encode_image(values[key], tp, w.tub.jpeg_quality)[0]
             return True
-        except Exception:
-            w.stats.failed += 1
+        except Exception:  # counted by poll(), in one thread
             logger.exception("%s: cannot encode a record's image; record skipped", w.path)
             return False
 
@@ -103,6 +102,7 @@ class _Encoder(ThreadedPart):
                 break
         records = [item for item in batch if isinstance(item, tuple)]
         failed = {id(r) for r, ok in zip(records, self._encode_all(records), strict=True) if not ok}
+        w.stats.failed += len(failed)
         out = []
         for item in batch:
             if isinstance(item, _Stop):

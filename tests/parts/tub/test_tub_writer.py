@@ -163,3 +163,17 @@ def test_several_encoding_threads_keep_record_order(tmp_path, encode_threads):
 def test_encode_threads_must_be_positive(tmp_path):
     with pytest.raises(ValueError, match="encode_threads must be >= 1"):
         TubWriter(tmp_path / "t", ["n"], ["int"], encode_threads=0)
+
+
+@pytest.mark.parametrize("encode_threads", [1, 2])
+def test_an_image_that_cannot_be_encoded_is_counted_and_the_rest_written(tmp_path, encode_threads, caplog):
+    w = TubWriter(tmp_path / "t", ["cam/image_array", "n"], ["image_array", "int"], queue_size=50,
+                  encode_threads=encode_threads)
+    good = np.full((8, 8, 3), 90, np.uint8)
+    with caplog.at_level(logging.ERROR, logger="parts.tub.writer"):
+        for i in range(10):
+            w.run(np.zeros((8, 8, 5), np.uint8) if i == 4 else good, i)  # 5 channels: not an image
+        w.shutdown()
+    assert w.stats.failed == 1 and w.stats.written == 9 and w.pending() == 0
+    assert [r["n"] for r in load_records(tmp_path / "t")] == [0, 1, 2, 3, 5, 6, 7, 8, 9]
+    assert any("cannot encode" in r.getMessage() for r in caplog.records)
