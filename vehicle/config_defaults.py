@@ -513,8 +513,8 @@ TUB_TYPES: list[str] = ["image_array", "float", "float", "str"]
 METADATA: list[str] = []
 # Records per catalog file (DonkeyCar's max_catalog_len).
 TUB_MAX_CATALOG_LEN: int = 1000
-# Durability window: records are made durable (images fsynced, then their catalog lines appended
-# and fsynced, then the manifest replaced atomically) every TUB_FSYNC_RECORDS records or when the
+# Durability window: records are made durable (images synced to the disk, then their catalog
+# lines appended and fsynced, then the manifest replaced atomically) every TUB_FSYNC_RECORDS records or when the
 # oldest unsaved record is TUB_FSYNC_MS milliseconds old, whichever comes first. A crash or power
 # loss loses at most the records of one window plus those still queued (see TUB_QUEUE_SIZE).
 TUB_FSYNC_RECORDS: int = 20

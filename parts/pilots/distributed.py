@@ -69,9 +69,10 @@ def init_distributed(device_setting: str) -> tuple[DistInfo, torch.device]:
 def shutdown_distributed(*, clean: bool = True) -> None:
     """Leave the process group (if joined).
 
-    ``clean`` (every rank got here without an error) waits at a barrier first: a rank that tears gloo
-    down while a peer is still in its last collective aborts the process ("terminate called without
-    an active exception"). After an error the peers may never arrive, so there is no barrier then.
+    ``clean`` (every rank finished training; only rank 0's file writing came after) waits at a
+    barrier first: a rank that tears gloo down while a peer is still in its last collective aborts
+    the process ("terminate called without an active exception"). After an error in training the
+    peers may never arrive, so there is no barrier then (torchrun stops them).
     """
     if dist.is_available() and dist.is_initialized():
         if clean:

@@ -234,10 +234,12 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
                                patience=cfg.EARLY_STOP_PATIENCE if cfg.USE_EARLY_STOP else None,
                                min_delta=cfg.MIN_DELTA, progress=progress)
         history = fit(train_model, train_loader, val_loader, preprocess, dev, settings, dist_info, save_best)
+        # every rank got through the last collective: from here each leaves through the barrier,
+        # rank 0 even when its own file writing below fails, so no peer waits for it in vain
+        clean = True
         metrics = _metrics(history, prep, started)
         if dist_info.is_main:
             _finish(model_path, base_meta, metrics, history, type_name, cfg.SHOW_PLOT, register, comment)
-        clean = True
         return metrics
     finally:
         shutdown_distributed(clean=clean)

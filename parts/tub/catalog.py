@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from parts.tub.format import INDEX, atomic_write, catalog_manifest_name, write_all
+from parts.tub.format import INDEX, O_BINARY, atomic_write, catalog_manifest_name, write_all
 
 _RECORD_START = b'{"_index": '
 
@@ -111,7 +111,7 @@ class CatalogFile:
         """Open (create) a catalog for appending, cutting a torn last line first."""
         scan = scan_catalog(path)
         existed = path.exists()
-        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_APPEND | O_BINARY, 0o644)
         if scan.torn_bytes:
             os.ftruncate(fd, scan.valid_bytes)
             if durable:

@@ -113,8 +113,17 @@ def dumps_record(record: Mapping[str, Any]) -> str:
 
 # -- file helpers --------------------------------------------------------------------------------
 
+# os.open flags: binary on Windows (else CRLF translation and a stop at byte 0x1A), 0 elsewhere
+O_BINARY: int = getattr(os, "O_BINARY", 0)
+
+
 def fsync_dir(path: str | os.PathLike[str]) -> None:
-    """fsync a directory so that new, renamed or removed entries in it survive a power loss."""
+    """fsync a directory so that new, renamed or removed entries in it survive a power loss.
+
+    Windows cannot open a directory for this; NTFS journals its directory changes itself.
+    """
+    if os.name == "nt":
+        return
     fd = os.open(path, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
     try:
         os.fsync(fd)
@@ -130,7 +139,7 @@ def atomic_write(path: Path, data: str | bytes, *, durable: bool = True) -> None
     """
     raw = data.encode() if isinstance(data, str) else data
     tmp = path.with_name(f".{path.name}.tmp")
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | O_BINARY, 0o644)
     try:
         view = memoryview(raw)
         while view:

@@ -1,8 +1,10 @@
 """Image files of a tub being recorded: written at once, made durable together at the next commit.
 
-On Linux one ``syncfs()`` makes a whole commit's images durable: about a third of the cost of
-fsyncing each file (even with the fsyncs issued in parallel), measured on ext4. Elsewhere every
-file is fsynced, in parallel, then the folder.
+On Linux, where the images folder is on a filesystem whose ``syncfs()`` flushes the device's
+write cache (ext4, xfs, btrfs, f2fs; tmpfs has nothing to flush), one ``syncfs()`` makes a whole
+commit's images durable: about a third of the cost of fsyncing each file, even with the fsyncs
+issued in parallel (``bench/commit.py``). Elsewhere (FAT and exFAT SD cards or USB sticks, FUSE
+mounts, macOS, Windows) every file is fsynced, in parallel, then the folder.
 """
 
 from __future__ import annotations
@@ -15,11 +17,15 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from parts.tub.format import fsync_dir, write_all
+from parts.tub.format import O_BINARY, fsync_dir, write_all
 
 logger = logging.getLogger(__name__)
 
 FSYNC_THREADS = 8  # fsyncs of many small files issued together share journal commits (~4x faster)
+
+# Filesystems whose syncfs() writes everything and flushes the device cache, as fsync does.
+# vfat/exfat write the blocks but send no cache flush; FUSE mounts do not pass syncfs on.
+SYNCFS_FILESYSTEMS = frozenset({"ext4", "ext3", "xfs", "btrfs", "f2fs", "tmpfs"})
 
 _syncfs: Callable[[int], int] | None | bool = False  # False: not looked up yet
 
@@ -39,46 +45,70 @@ def syncfs_function() -> Callable[[int], int] | None:
     return _syncfs  # type: ignore[return-value]
 
 
+def filesystem_type(path: str | os.PathLike[str], mounts: str = "/proc/self/mounts") -> str | None:
+    """The type of the filesystem holding ``path`` ("ext4", "vfat", ...) from the mount table, or
+    None when it cannot be told (no /proc: not Linux)."""
+    target = os.path.realpath(path)
+    best, best_type = "", None
+    try:
+        with open(mounts, encoding="utf-8", errors="replace") as f:
+            for line in f:
+                fields = line.split()
+                if len(fields) < 3:
+                    continue
+                # the mount table escapes spaces and the like as octal: "\040"
+                point = fields[1].encode().decode("unicode_escape")
+                inside = target == point or target.startswith(point.rstrip("/") + "/")
+                if inside and len(point) >= len(best):
+                    best, best_type = point, fields[2]
+    except OSError:
+        return None
+    return best_type
+
+
 class ImageFiles:
     """Writes image files into ``folder``; with ``durable``, :meth:`sync` makes them survive power loss.
 
-    ``use_syncfs``: None = syncfs where available; False = fsync each file (kept open until then).
+    ``use_syncfs``: None = syncfs where it is as strong as fsync (see the module docstring);
+    False = fsync each file.
     """
 
     def __init__(self, folder: Path, durable: bool, use_syncfs: bool | None = None) -> None:
         self.folder = folder
         self.durable = durable
-        self._syncfs = syncfs_function() if durable and use_syncfs is not False else None
-        self._fds: list[int] = []  # files held open for their fsync (no syncfs)
-        self._unsynced = 0
+        self._syncfs: Callable[[int], int] | None = None
+        if durable and use_syncfs is not False:
+            fs = filesystem_type(folder)
+            self._syncfs = syncfs_function() if fs in SYNCFS_FILESYSTEMS else None
+            if self._syncfs is None:
+                logger.debug("%s is on %s: commits fsync each image", folder, fs or "an unknown filesystem")
+        self._pending: list[str] = []  # files written, not yet synced (kept until a sync succeeds)
         self._pool: ThreadPoolExecutor | None = None
 
     def __len__(self) -> int:
         """Files written and not yet synced."""
-        return self._unsynced
+        return len(self._pending)
 
     @property
-    def open_files(self) -> int:
-        """Files held open until the next sync (only without syncfs)."""
-        return len(self._fds)
+    def uses_syncfs(self) -> bool:
+        return self._syncfs is not None
 
     def write(self, name: str, data: bytes) -> None:
-        fd = os.open(os.path.join(self.folder, name), os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        path = os.path.join(self.folder, name)
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | O_BINARY, 0o644)
         try:
             write_all(fd, data)
-        except BaseException:
-            os.close(fd)
-            raise
-        if self.durable and self._syncfs is None:
-            self._fds.append(fd)  # fsynced at the commit, before the records' catalog lines
-        else:
+        finally:
             os.close(fd)
         if self.durable:
-            self._unsynced += 1
+            self._pending.append(path)
 
     def sync(self) -> None:
-        """Make every file written since the last sync durable, with its folder entry."""
-        if not self._unsynced:
+        """Make every file written since the last successful sync durable, with its folder entry.
+
+        On an error nothing is forgotten: the next sync covers these files again.
+        """
+        if not self._pending:
             return
         if self._syncfs is not None:
             fd = os.open(self.folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
@@ -88,27 +118,31 @@ class ImageFiles:
                     raise OSError(err, f"syncfs of the filesystem holding {self.folder}: {os.strerror(err)}")
             finally:
                 os.close(fd)
-            self._unsynced = 0
-            return
-        fds, self._fds = self._fds, []
-        self._unsynced = 0
-        if self._pool is None:
-            self._pool = ThreadPoolExecutor(max_workers=FSYNC_THREADS, thread_name_prefix="tub-fsync")
-        try:
-            jobs = [self._pool.submit(os.fsync, fd) for fd in fds]
+        else:
+            if self._pool is None:
+                self._pool = ThreadPoolExecutor(max_workers=FSYNC_THREADS, thread_name_prefix="tub-fsync")
+            jobs = [self._pool.submit(_fsync_file, path) for path in self._pending]
+            errors = []
+            for job in jobs:  # wait for every job, even after a failure
+                if (exc := job.exception()) is not None:
+                    errors.append(exc)
+            if errors:
+                raise errors[0]
             fsync_dir(self.folder)
-            for job in jobs:
-                job.result()
-        finally:
-            for fd in fds:
-                os.close(fd)
+        self._pending = []
 
     def close(self) -> None:
-        """Close pending files without syncing and stop the fsync threads."""
-        for fd in self._fds:
-            os.close(fd)
-        self._fds = []
-        self._unsynced = 0
+        """Forget pending files (not synced) and stop the fsync threads."""
+        self._pending = []
         if self._pool is not None:
             self._pool.shutdown(wait=True)
             self._pool = None
+
+
+def _fsync_file(path: str) -> None:
+    # opened for writing: Windows flushes only handles with write access
+    fd = os.open(path, os.O_WRONLY | O_BINARY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)

@@ -3,7 +3,7 @@
 JPEGs go through simplejpeg when it is installed (the ``train`` extra: libjpeg-turbo called
 directly, decoding a 160x120 frame in about half OpenCV's time here, and releasing the GIL), else
 through OpenCV, which also handles PNGs and the rare JPEG simplejpeg refuses (CMYK). Both decode to
-the same pixels: they share libjpeg-turbo's default settings.
+the same pixels (within 1 where OpenCV is built on another libjpeg) and ignore EXIF orientation.
 """
 
 from __future__ import annotations
@@ -56,7 +56,7 @@ def encode_image(array: Any, tp: str, quality: int) -> tuple[bytes, str]:
         if color or arr.ndim == 2 or arr.shape[2] == 1:
             # 4:2:0 chroma subsampling: what OpenCV, PIL and so DonkeyCar write at this quality
             return sj.encode_jpeg(np.ascontiguousarray(arr if color else arr.reshape(*arr.shape[:2], 1)),
-                                  int(quality), "RGB" if color else "GRAY", "420"), ".jpg"
+                                  int(quality), "RGB" if color else "GRAY", "420", fastdct=False), ".jpg"
     cv = cv2()
     if tp == "gray16_array":
         ok, buf = cv.imencode(".png", arr.astype(np.uint16, copy=False))
@@ -82,13 +82,16 @@ def decode_image(data: bytes | np.ndarray, out: np.ndarray | None = None) -> np.
     """Decode JPEG/PNG bytes -> HxWx3 uint8 RGB (16-bit PNG -> HxW uint16); None when undecodable.
 
     ``out``: a C-contiguous uint8 array the JPEG may be decoded into (saves an allocation and a copy
-    when filling a batch); the result is a view of it when it was used, a new array otherwise.
+    when filling a batch); the result is a view of it when it was used, a new array otherwise. A
+    frame of another size is packed into its first bytes: check the result's shape.
+
+    EXIF orientation is ignored on both paths (as PIL, and so DonkeyCar, do).
     """
     global _RGB_FLAG
     sj = simplejpeg()
     if sj is not None and len(data) > 2 and data[0] == 0xFF and data[1] == 0xD8:
         try:
-            if out is not None and out.flags.c_contiguous and out.nbytes >= 3:
+            if out is not None and out.dtype == np.uint8 and out.flags.c_contiguous and out.flags.writeable:
                 try:
                     return sj.decode_jpeg(data, "RGB", buffer=out)
                 except ValueError:
@@ -101,7 +104,8 @@ def decode_image(data: bytes | np.ndarray, out: np.ndarray | None = None) -> np.
     if buf.size == 0:
         return None
     if _RGB_FLAG is None:
-        _RGB_FLAG = getattr(cv, "IMREAD_COLOR_RGB", -1)
+        rgb = getattr(cv, "IMREAD_COLOR_RGB", -1)
+        _RGB_FLAG = rgb | cv.IMREAD_IGNORE_ORIENTATION if rgb >= 0 else -1
     if buf.size > 8 and bytes(buf[:8]) == b"\x89PNG\r\n\x1a\n":
         img = cv.imdecode(buf, cv.IMREAD_UNCHANGED)
         if img is not None and img.dtype == np.uint8 and img.ndim == 3:
@@ -109,7 +113,7 @@ def decode_image(data: bytes | np.ndarray, out: np.ndarray | None = None) -> np.
         return img
     if _RGB_FLAG >= 0:
         return cv.imdecode(buf, _RGB_FLAG)
-    img = cv.imdecode(buf, cv.IMREAD_COLOR)
+    img = cv.imdecode(buf, cv.IMREAD_COLOR | cv.IMREAD_IGNORE_ORIENTATION)
     return None if img is None else cv.cvtColor(img, cv.COLOR_BGR2RGB)
 
 

@@ -22,7 +22,7 @@ from typing import Any, Literal
 import numpy as np
 
 from parts.tub.errors import CorruptRecord, TubError
-from parts.tub.format import CATALOG_RE, IMAGE_TYPES, IMAGES, MANIFEST
+from parts.tub.format import CATALOG_RE, IMAGE_TYPES, IMAGES, MANIFEST, O_BINARY
 from parts.tub.imaging import decode_image
 from parts.tub.tub import Tub
 
@@ -107,7 +107,7 @@ _READ_SIZE = 64 * 1024  # one read() takes a whole 160x120 JPEG (~3 KB); below m
 def _read_file(path: str) -> bytes:
     """A small file's bytes in as few system calls as possible (open, read, close: each one lets
     another decoding thread take the GIL, so fewer calls also means fewer thread hand-offs)."""
-    fd = os.open(path, os.O_RDONLY)
+    fd = os.open(path, os.O_RDONLY | O_BINARY)
     try:
         data = os.read(fd, _READ_SIZE)
         if len(data) < _READ_SIZE:

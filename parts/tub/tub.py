@@ -1,9 +1,9 @@
 """``Tub``: one DonkeyCar tub v2 folder, opened for reading or for crash-safe appending.
 
 Writing order per commit (the durability window, docs/data-format.md): image files are written
-as records arrive; at a commit the images are made durable (one ``syncfs`` on Linux, else an fsync
-of each, in parallel, and of the images folder), then the records' catalog lines are appended in
-one write and fsynced. manifest.json is replaced
+as records arrive; at a commit the images are made durable (one ``syncfs`` on Linux filesystems
+where that flushes the device, else an fsync of each, in parallel, and of the images folder), then
+the records' catalog lines are appended in one write and fsynced. manifest.json is replaced
 atomically at most once a second and at every session start, new catalog, delete, restore and
 close (recovery never needs it current). A crash therefore loses at most the records since the
 last commit, and a catalog line never reaches the disk before its images.
@@ -41,9 +41,6 @@ from parts.tub.recovery import inspect_tub
 
 logger = logging.getLogger(__name__)
 
-# Image files held open for the next commit's fsync; beyond this the commit comes early (file
-# descriptor limit), whatever fsync_records says.
-_MAX_OPEN_IMAGES = 256
 # manifest.json is rewritten at most this often while recording (and at every delete, restore,
 # new catalog, first commit of a session and close).
 MANIFEST_INTERVAL_S = 1.0
@@ -241,7 +238,7 @@ class Tub:
             self._pending_since = time.monotonic()
         m.current_index = index + 1
         self.written += 1
-        if self.commit_due() or self._images.open_files >= _MAX_OPEN_IMAGES:
+        if self.commit_due():
             self.commit()
         return index
 

@@ -102,7 +102,8 @@ class _Encoder(ThreadedPart):
                 break
         records = [item for item in batch if isinstance(item, tuple)]
         failed = {id(r) for r, ok in zip(records, self._encode_all(records), strict=True) if not ok}
-        w.stats.failed += len(failed)
+        if failed:
+            w._count_failed(len(failed))
         out = []
         for item in batch:
             if isinstance(item, _Stop):
@@ -145,7 +146,7 @@ class _Worker(ThreadedPart):
                         values, timestamp_ms=ts_ms)) is not None:
                     w.stats.written += 1
                 else:
-                    w.stats.failed += 1
+                    w._count_failed(1)
         return self.NOTHING
 
 
@@ -213,6 +214,7 @@ class TubWriter:
         self._dropped_since_warning = 0
         self._error_logged_at = -_WARN_EVERY_S
         self._lock = threading.Lock()
+        self._failed_lock = threading.Lock()  # failures are counted by the encoder and the writer
         self._closed = False
         self._threads: list[ThreadedPart] = [_Encoder(self, encode_threads)] if encoder_thread else []
         self._worker = _Worker(self)
@@ -246,6 +248,10 @@ class TubWriter:
             self._queue.put((record, ts_ms))
             self.stats.accepted += 1
         return self._base_count + self.stats.accepted
+
+    def _count_failed(self, n: int) -> None:
+        with self._failed_lock:
+            self.stats.failed += n
 
     def _drop(self) -> None:
         self.stats.dropped += 1

@@ -1,18 +1,24 @@
-"""ImageFiles: when images are made durable (syncfs on Linux, else one fsync per file)."""
+"""ImageFiles: when images are made durable (syncfs on Linux filesystems where it flushes the
+device, else one fsync per file), and the Tub's order: images durable before their catalog lines."""
 
 from __future__ import annotations
 
 import os
 import sys
 
+import numpy as np
 import pytest
 
 from parts.tub import image_files
-from parts.tub.image_files import ImageFiles, syncfs_function
+from parts.tub.image_files import ImageFiles, filesystem_type, syncfs_function
+from parts.tub.reader import load_records
+from parts.tub.tub import Tub
+
+linux_only = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="syncfs is Linux-only")
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="syncfs is Linux-only")
-def test_syncfs_commit_closes_files_at_once_and_syncs_once(tmp_path, monkeypatch):
+@linux_only
+def test_syncfs_commit_syncs_once_on_the_images_folder(tmp_path, monkeypatch):
     real = syncfs_function()
     assert real is not None
     calls: list[int] = []
@@ -22,10 +28,13 @@ def test_syncfs_commit_closes_files_at_once_and_syncs_once(tmp_path, monkeypatch
         return real(fd)
 
     monkeypatch.setattr(image_files, "_syncfs", counting)
+    monkeypatch.setattr(image_files, "filesystem_type", lambda path: "ext4")
+    monkeypatch.setattr(os, "fsync", lambda fd: pytest.fail("fsync called although syncfs is used"))
     files = ImageFiles(tmp_path, durable=True)
+    assert files.uses_syncfs
     for i in range(3):
         files.write(f"{i}_cam_.jpg", b"\xff\xd8" + bytes([i]) * 100 + b"\xff\xd9")
-    assert len(files) == 3 and files.open_files == 0  # nothing held open with syncfs
+    assert len(files) == 3
     files.sync()
     assert calls == [tmp_path.stat().st_ino]  # one call, on the images folder
     assert len(files) == 0
@@ -34,7 +43,8 @@ def test_syncfs_commit_closes_files_at_once_and_syncs_once(tmp_path, monkeypatch
     assert (tmp_path / "2_cam_.jpg").read_bytes()[2] == 2
 
 
-def test_without_syncfs_each_file_and_the_folder_are_fsynced(tmp_path, monkeypatch):
+def test_on_fat_or_fuse_each_file_and_the_folder_are_fsynced(tmp_path, monkeypatch):
+    monkeypatch.setattr(image_files, "filesystem_type", lambda path: "vfat")
     synced: list[int] = []
     real_fsync = os.fsync
 
@@ -43,14 +53,30 @@ def test_without_syncfs_each_file_and_the_folder_are_fsynced(tmp_path, monkeypat
         real_fsync(fd)
 
     monkeypatch.setattr(os, "fsync", counting)
-    files = ImageFiles(tmp_path, durable=True, use_syncfs=False)
+    files = ImageFiles(tmp_path, durable=True)
+    assert not files.uses_syncfs
     for i in range(4):
         files.write(f"{i}.jpg", b"x" * 10)
-    assert files.open_files == 4  # held open for their fsync
     files.sync()
     inodes = {(tmp_path / f"{i}.jpg").stat().st_ino for i in range(4)}
     assert set(synced) == inodes | {tmp_path.stat().st_ino} and len(synced) == 5
-    assert files.open_files == 0 and len(files) == 0
+    assert len(files) == 0
+    files.close()
+
+
+def test_a_failed_fsync_keeps_every_file_pending_for_the_next_sync(tmp_path, monkeypatch):
+    files = ImageFiles(tmp_path, durable=True, use_syncfs=False)
+    files.write("a.jpg", b"a")
+    files.write("b.jpg", b"b")
+    real_fsync = os.fsync
+    monkeypatch.setattr(os, "fsync", lambda fd: (_ for _ in ()).throw(OSError(5, "I/O error")))
+    with pytest.raises(OSError, match="I/O error"):
+        files.sync()
+    assert len(files) == 2
+    synced: list[int] = []
+    monkeypatch.setattr(os, "fsync", lambda fd: (synced.append(fd), real_fsync(fd)))
+    files.sync()
+    assert len(synced) == 3 and len(files) == 0  # both files and the folder
     files.close()
 
 
@@ -62,3 +88,53 @@ def test_not_durable_writes_and_never_syncs(tmp_path, monkeypatch):
     assert len(files) == 0
     files.sync()
     assert (tmp_path / "a.jpg").read_bytes() == b"abc"
+
+
+def test_filesystem_type_takes_the_longest_mount_point(tmp_path):
+    table = tmp_path / "mounts"
+    table.write_text("/dev/root / ext4 rw 0 0\n"
+                     f"/dev/sda1 {tmp_path}/sd\\040card vfat rw 0 0\n"
+                     f"/dev/sdb1 {tmp_path}/sd vfat rw 0 0\n"
+                     "sshfs#me@host: /mnt/far fuse.sshfs rw 0 0\n")
+    (tmp_path / "sd card" / "tub").mkdir(parents=True)
+    assert filesystem_type(tmp_path / "sd card" / "tub", str(table)) == "vfat"
+    assert filesystem_type(tmp_path / "sdcard", str(table)) == "ext4"  # not inside "sd"
+    assert filesystem_type("/mnt/far/x", str(table)) == "fuse.sshfs"
+    assert filesystem_type("/x", str(tmp_path / "missing")) is None
+
+
+def test_tub_commit_makes_images_durable_before_their_catalog_lines(tmp_path, monkeypatch):
+    events: list[str] = []
+    tub = Tub(tmp_path / "t", ["cam/image_array", "n"], ["image_array", "int"], fsync_records=3,
+              fsync_ms=60_000)
+    catalog = tub._catalog
+    real_sync, real_append = tub._images.sync, catalog.append
+    fail = [True]
+
+    def sync() -> None:
+        events.append(f"sync {len(tub._images)}")
+        if fail[0]:
+            raise OSError(5, "I/O error")
+        real_sync()
+
+    def append(lines, *, durable):
+        events.append(f"append {len(lines)}")
+        real_append(lines, durable=durable)
+
+    monkeypatch.setattr(tub._images, "sync", sync)
+    monkeypatch.setattr(catalog, "append", append)
+    frame = np.zeros((8, 8, 3), np.uint8)
+    tub.write_record({"cam/image_array": frame, "n": 0})
+    tub.write_record({"cam/image_array": frame, "n": 1})
+    with pytest.raises(OSError):
+        tub.write_record({"cam/image_array": frame, "n": 2})  # the commit's sync fails
+    assert events == ["sync 3"]  # no catalog line was written for images not known durable
+    fail[0] = False
+    tub.write_record({"cam/image_array": frame, "n": 3})
+    # the retry covers the first images too, and only then are all the lines appended
+    assert events == ["sync 3", "sync 4", "append 4"]
+    tub.write_record({"cam/image_array": frame, "n": 4})
+    tub.write_record({"cam/image_array": frame, "n": 5})
+    tub.close()
+    assert events[3:5] == ["sync 2", "append 2"]
+    assert [r["n"] for r in load_records(tmp_path / "t")] == [0, 1, 2, 3, 4, 5]

@@ -39,7 +39,21 @@ def test_both_codecs_decode_to_the_same_pixels(frame, monkeypatch):
     data, _ = encode_image(frame, "image_array", 75)
     fast = decode_image(data)
     monkeypatch.setattr(imaging, "_simplejpeg", False)
-    assert np.array_equal(fast, decode_image(data))
+    # identical with this OpenCV wheel; within 1 where OpenCV is built on another libjpeg
+    assert np.abs(fast.astype(int) - decode_image(data)).max() <= 1
+
+
+def test_exif_orientation_is_ignored_by_both_codecs(frame, codec):
+    import io
+
+    from PIL import Image
+
+    exif = Image.Exif()
+    exif[0x0112] = 6  # "rotate 90° clockwise to display": OpenCV would apply it by default
+    buf = io.BytesIO()
+    Image.fromarray(frame).save(buf, "JPEG", quality=90, exif=exif)
+    img = decode_image(buf.getvalue())
+    assert img.shape == (120, 160, 3)  # as stored, like PIL (DonkeyCar) reads it
 
 
 def test_decode_into_out_uses_it_when_the_frame_fits(frame, codec):

@@ -145,7 +145,19 @@ def test_add_tub_writer_inputs_follow_config_and_available_keys(tmp_path, image)
 
 
 @pytest.mark.parametrize("encode_threads", [1, 3])
-def test_several_encoding_threads_keep_record_order(tmp_path, encode_threads):
+def test_several_encoding_threads_keep_record_order(tmp_path, encode_threads, monkeypatch):
+    from concurrent.futures import ThreadPoolExecutor
+
+    from parts.tub import writer as writer_module
+
+    handed_off: list[int] = []
+
+    class CountingPool(ThreadPoolExecutor):
+        def submit(self, fn, /, *args, **kwargs):
+            handed_off.append(1)
+            return super().submit(fn, *args, **kwargs)
+
+    monkeypatch.setattr(writer_module, "ThreadPoolExecutor", CountingPool)
     w = TubWriter(tmp_path / "t", ["cam/image_array", "n"], ["image_array", "int"], queue_size=500,
                   encode_threads=encode_threads)
     frame = np.zeros((24, 32, 3), np.uint8)
@@ -158,6 +170,8 @@ def test_several_encoding_threads_keep_record_order(tmp_path, encode_threads):
     assert [r.index for r in recs] == list(range(120))
     assert all(abs(int(r.image().mean()) - 2 * r["n"]) <= 2 for r in recs)
     assert w.stats.written == 120 and w.stats.failed == 0
+    # with helpers, batches really were split (one hand-off per helper and batch)
+    assert (len(handed_off) > 0) == (encode_threads > 1)
 
 
 def test_encode_threads_must_be_positive(tmp_path):
