@@ -76,12 +76,8 @@ class ImageFiles:
     def __init__(self, folder: Path, durable: bool, use_syncfs: bool | None = None) -> None:
         self.folder = folder
         self.durable = durable
-        self._syncfs: Callable[[int], int] | None = None
-        if durable and use_syncfs is not False:
-            fs = filesystem_type(folder)
-            self._syncfs = syncfs_function() if fs in SYNCFS_FILESYSTEMS else None
-            if self._syncfs is None:
-                logger.debug("%s is on %s: commits fsync each image", folder, fs or "an unknown filesystem")
+        self._use_syncfs = use_syncfs
+        self._syncfs: Callable[[int], int] | None | bool = False  # False: decided at the first sync
         self._pending: list[str] = []  # files written, not yet synced (kept until a sync succeeds)
         self._pool: ThreadPoolExecutor | None = None
 
@@ -91,7 +87,20 @@ class ImageFiles:
 
     @property
     def uses_syncfs(self) -> bool:
-        return self._syncfs is not None
+        return self._syncfs_for_folder() is not None
+
+    def _syncfs_for_folder(self) -> Callable[[int], int] | None:
+        """syncfs when the folder's filesystem flushes the device with it (looked up once, when
+        first needed: a tub opened only to be read never reads the mount table)."""
+        if self._syncfs is False:
+            self._syncfs = None
+            if self.durable and self._use_syncfs is not False:
+                fs = filesystem_type(self.folder)
+                self._syncfs = syncfs_function() if fs in SYNCFS_FILESYSTEMS else None
+                if self._syncfs is None:
+                    logger.debug("%s is on %s: commits fsync each image", self.folder,
+                                 fs or "an unknown filesystem")
+        return self._syncfs  # type: ignore[return-value]
 
     def write(self, name: str, data: bytes) -> None:
         path = os.path.join(self.folder, name)
@@ -110,10 +119,11 @@ class ImageFiles:
         """
         if not self._pending:
             return
-        if self._syncfs is not None:
+        syncfs = self._syncfs_for_folder()
+        if syncfs is not None:
             fd = os.open(self.folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
             try:
-                if self._syncfs(fd) != 0:
+                if syncfs(fd) != 0:
                     err = ctypes.get_errno()
                     raise OSError(err, f"syncfs of the filesystem holding {self.folder}: {os.strerror(err)}")
             finally:
