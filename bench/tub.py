@@ -2,12 +2,13 @@
 
     .venv/bin/python bench/tub.py [--records 2000] [--runs 5] [--donkey-python .bench/donkey-venv/bin/python]
 
-Write: records/s through the recording part (ours: TubWriter.run() for every record, then
-shutdown() which waits until all is on disk; DonkeyCar: TubWriter.run()), and ours through
+Write: records/s through the recording part (ours: TubWriter.run() for every record, waiting
+while its queue of 100 is full, then shutdown() which waits until all is on disk; DonkeyCar:
+TubWriter.run(), which writes before it returns), and ours through
 Tub.write_record in one thread. Read: records/s of
-"training reads" (catalog records + decoded 160x120 RGB image; ours: reader.load_records,
-then the training frame cache's fill (2 threads decoding into one array), and
-TubRecord.image() in one thread; DonkeyCar: Tub iteration + its pipeline
+"training reads" (catalog records + decoded 160x120 RGB image; ours: iter_images over
+iter_records (a decoding thread per core), the training frame cache's fill (2 threads decoding
+into one array) and TubRecord.image() in one thread; DonkeyCar: Tub iteration + its pipeline
 TubRecord.image()). Images: a rendered gradient with noise and a moving shape, so
 JPEG sizes are realistic. Dirty pages are flushed (os.sync) before every timed phase. Prints
 medians over --runs runs and the ratios. DonkeyCar runs in its own
@@ -102,8 +103,13 @@ def ours_write(frames: np.ndarray, path: Path, n: int, fsync: bool) -> float:
 
     settle()
     t0 = time.perf_counter()
-    w = TubWriter(path, INPUTS, TYPES, queue_size=n + 1, fsync=fsync)
+    w = TubWriter(path, INPUTS, TYPES, fsync=fsync)
     for i in range(n):
+        # Sustained throughput: like a loop faster than the disk, but waiting instead of dropping
+        # when the default queue (100 records) is full. Queueing all n frames at once would time
+        # the allocation of n frame copies instead.
+        while w.pending() >= w.queue_size:
+            time.sleep(0.0005)
         w.run(frames[i % len(frames)], (i % 200) / 100 - 1, 0.3, "user")
     w.shutdown()
     assert w.stats.written == n and w.stats.dropped == 0
@@ -123,24 +129,47 @@ def ours_write_sync(frames: np.ndarray, path: Path, n: int) -> float:
     return time.perf_counter() - t0
 
 
-def ours_read(path: Path, workers: int) -> tuple[float, int]:
-    """workers=1: TubRecord.image() in a loop; more: what training does, FrameCache.fill (all frames
-    decoded into one array by ``workers`` threads)."""
+def ours_read(path: Path, how: str) -> tuple[float, int]:
+    """Records with decoded images, three ways: "iter" iterates ``iter_images(iter_records(tub,
+    check_images=False))`` (frames decoded by one thread per core, catalogs parsed meanwhile;
+    missing or empty images are reported when read); "cache" fills the training
+    frame cache (``load_records``, then every frame decoded by 2 threads into one array held in
+    memory); "serial" calls TubRecord.image() in a loop in one thread."""
     from parts.pilots.framecache import FrameCache
-    from parts.tub.reader import load_records
+    from parts.tub.reader import iter_images, iter_records, load_records
 
     settle()
     t0 = time.perf_counter()
     count = 0
-    records = load_records(path)
-    if workers > 1:
-        cache = FrameCache(records, ["cam/image_array"], threads=workers)
+    if how == "iter":
+        for _rec, img in iter_images(iter_records(path, check_images=False)):
+            count += int(img[0, 0, 0] >= 0)
+    elif how == "cache":
+        records = load_records(path)
+        cache = FrameCache(records, ["cam/image_array"], threads=2)
         bad = cache.fill(np.arange(len(records)))
         count = len(records) - len(bad) if cache.cached else 0
     else:
-        for rec in records:
+        for rec in load_records(path):
             count += int(rec.image()[0, 0, 0] >= 0)
     return time.perf_counter() - t0, count
+
+
+def create_cost_us(folder: Path, n: int = 200) -> float:
+    """Median µs to create one small file in ``folder``: the floor of every image write there.
+
+    On ext4 without a journal (this VM's disk) it jumps from ~15 µs to 0.2-1 ms for several minutes
+    after many files were deleted: the allocator skips inodes freed in the last 1-6 minutes.
+    """
+    folder.mkdir()
+    times = []
+    for i in range(n):
+        t0 = time.perf_counter()
+        fd = os.open(folder / f"{i}.jpg", os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        times.append(time.perf_counter() - t0)
+        os.write(fd, b"x" * 3000)
+        os.close(fd)
+    return statistics.median(times) * 1e6
 
 
 def donkey(python: str, frames_file: Path, path: Path, n: int, mode: str) -> dict:
@@ -173,6 +202,7 @@ def main() -> int:
         results.setdefault(key, []).append(value)
 
     try:
+        print(f"creating a file in {args.workdir}: {create_cost_us(work / 'probe'):.0f} µs (median)")
         frames = make_frames()
         frames_file = work / "frames.npy"
         np.save(frames_file, frames)
@@ -185,16 +215,16 @@ def main() -> int:
                 add("donkey read", n / r["read_s"])
                 add("donkey bytes/record", dir_bytes(dk) / n)
             ours = work / f"ours_{run}"
-            add("ours write (fsync window 20 rec/500 ms)", n / ours_write(frames, ours, n, True))
+            add("ours write (durability window 500 ms/100 rec)", n / ours_write(frames, ours, n, True))
             add("ours write (Tub.write_record, one thread)", n / ours_write_sync(frames, work / f"sync_{run}", n))
             nosync = work / f"nosync_{run}"
             add("ours write (no fsync, like DonkeyCar)", n / ours_write(frames, nosync, n, False))
             add("ours bytes/record", dir_bytes(ours) / n)
-            t, count = ours_read(ours, workers=2)
-            assert count == n
-            add("ours read (training FrameCache, 2 threads)", n / t)
-            t, _ = ours_read(ours, workers=1)
-            add("ours read (1 thread)", n / t)
+            for how, label in (("iter", "iter_images, a thread per core"),
+                               ("cache", "training FrameCache fill"), ("serial", "one thread")):
+                t, count = ours_read(ours, how)
+                assert count == n
+                add(f"ours read ({label})", n / t)
             if have_donkey and run == 0:
                 # compatibility both ways: DonkeyCar reads our tub, we read DonkeyCar's
                 theirs = donkey(args.donkey_python, frames_file, ours, n, "read")
@@ -210,6 +240,7 @@ def main() -> int:
             print(f"run {run + 1}/{args.runs} done", file=sys.stderr)
     finally:
         shutil.rmtree(work, ignore_errors=True)
+        os.sync()  # ext4 without a journal skips freed inodes 1 minute if on clean blocks, else 6
 
     if have_donkey:  # ratios within each run first: the machine's load drifts between runs
         for k in list(results):

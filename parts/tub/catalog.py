@@ -19,6 +19,7 @@ from typing import Any
 from parts.tub.format import INDEX, O_BINARY, atomic_write, catalog_manifest_name, write_all
 
 _RECORD_START = b'{"_index": '
+_loads = json.JSONDecoder().decode
 
 
 @dataclass
@@ -41,7 +42,10 @@ def scan_catalog(path: Path) -> CatalogScan:
     end = data.rfind(b"\n") + 1
     body = data[:end]
     lines = body.split(b"\n")[:-1] if body else []
-    lengths = [len(ln.decode("utf-8", errors="replace")) + 1 for ln in lines]
+    if body.isascii():  # what json.dumps writes: a character per byte
+        lengths = [len(ln) + 1 for ln in lines]
+    else:
+        lengths = [len(ln.decode("utf-8", errors="replace")) + 1 for ln in lines]
     return CatalogScan(path, lines, lengths, end, len(data) - end)
 
 
@@ -52,7 +56,7 @@ def parse_line(line: bytes) -> tuple[dict[str, Any] | None, bool]:
     gives the whole second record with ``salvaged=True``.
     """
     try:
-        rec = json.loads(line)
+        rec = _loads(line.decode())  # a str: json.loads(bytes) would sniff the encoding first
         if isinstance(rec, dict):
             return rec, False
     except ValueError:

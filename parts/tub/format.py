@@ -106,9 +106,13 @@ def encode_value(key: str, tp: str, value: Any) -> Any:
     raise TubSchemaError(f"{key!r}: type {tp!r} is not a catalog value type")
 
 
+# one encoder for every line: json.dumps with options builds a new one per call
+_LINE_ENCODER = json.JSONEncoder(allow_nan=False, sort_keys=True)
+
+
 def dumps_record(record: Mapping[str, Any]) -> str:
     """One catalog line (without newline): ASCII JSON, keys sorted, NaN rejected (DonkeyCar's)."""
-    return json.dumps(record, allow_nan=False, sort_keys=True)
+    return _LINE_ENCODER.encode(record)
 
 
 # -- file helpers --------------------------------------------------------------------------------

@@ -2,7 +2,7 @@
 
 >>> records = load_records(["data"])          # a tub, or a folder of tubs
 >>> img = records[0].image()                 # HxWx3 uint8 RGB
->>> for rec, img in iter_images(records): ...  # decoded in parallel threads
+>>> for rec, img in iter_images(iter_records(["data"], check_images=False)): ...  # parallel decoding
 
 A bad record (unparsable catalog line, missing or empty image file) is reported with tub, index and
 file, then skipped (``on_error="skip"``) or raised as :class:`CorruptRecord` (``on_error="raise"``).
@@ -190,7 +190,7 @@ def iter_records(paths: str | os.PathLike[str] | Iterable[str | os.PathLike[str]
             continue
         image_keys = [k for k, t in zip(tub.inputs, tub.types, strict=True) if t in IMAGE_TYPES]
         deleted = tub.manifest.deleted_indexes
-        images = tub.images_path
+        images = os.fspath(tub.images_path)  # str paths: pathlib costs more than the stat itself
         for catalog, index, rec, _line, salvaged in tub.scan():
             if rec is None:
                 _report(CorruptRecord(tub.path, index, catalog, "unparsable catalog line"), on_error, errors)
@@ -205,14 +205,14 @@ def iter_records(paths: str | os.PathLike[str] | Iterable[str | os.PathLike[str]
             yield TubRecord(tub.path, index, rec)
 
 
-def _images_ok(tub: Path, index: int, rec: dict[str, Any], keys: list[str], images: Path,
+def _images_ok(tub: Path, index: int, rec: dict[str, Any], keys: list[str], images: str,
                on_error: OnError, errors: list[CorruptRecord] | None) -> bool:
     for key in keys:
         name = rec.get(key)
         if name is None:
             _report(CorruptRecord(tub, index, images, f"record has no image {key!r}"), on_error, errors)
             return False
-        path = images / str(name)
+        path = os.path.join(images, str(name))
         try:
             size = os.stat(path).st_size
         except OSError:
@@ -231,17 +231,24 @@ def load_records(paths: str | os.PathLike[str] | Iterable[str | os.PathLike[str]
 
 
 def iter_images(records: Iterable[TubRecord], key: str = IMAGE_KEY, *, workers: int | None = None,
-                on_error: OnError = "skip", prefetch: int = 64) -> Iterator[tuple[TubRecord, np.ndarray]]:
+                on_error: OnError = "skip", prefetch: int | None = None
+                ) -> Iterator[tuple[TubRecord, np.ndarray]]:
     """(record, decoded image) pairs in order, files read and decoded by ``workers`` threads.
 
     The JPEG codecs release the GIL while decoding, so threads use several cores. ``workers`` defaults to
-    the cores less one (at most 4), leaving one for the consumer. Undecodable images are reported
-    and skipped, or raised with ``on_error="raise"``.
+    one per core (at most 4): the consumer mostly waits for frames, so a core kept free for it would
+    idle. ``prefetch``: records decoded ahead of the consumer (default: two tasks per worker).
+    Undecodable images are reported and skipped, or raised with ``on_error="raise"``.
+    ``records`` may be a generator: ``iter_records(paths, check_images=False)`` parses catalogs
+    while the first frames decode, and a missing or empty image is still reported (when it is
+    read) without a stat of every file beforehand.
     """
     if workers is None:
-        workers = max(1, min(4, (os.cpu_count() or 2) - 1))
+        workers = max(1, min(4, os.cpu_count() or 1))
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
+    if prefetch is None:  # records decoded ahead: two tasks per worker, so none idles between tasks
+        prefetch = 2 * workers * _CHUNK
 
     def load(chunk: list[TubRecord]) -> list[np.ndarray | CorruptRecord]:
         out: list[np.ndarray | CorruptRecord] = []
@@ -269,7 +276,7 @@ def iter_images(records: Iterable[TubRecord], key: str = IMAGE_KEY, *, workers: 
             yield from _take(window, on_error)
 
 
-_CHUNK = 16
+_CHUNK = 32  # records per task: a task hand-off costs about as much as decoding a frame
 
 
 def _take(window: deque[tuple[list[TubRecord], Future[Any]]], on_error: OnError

@@ -167,8 +167,9 @@ class TubWriter:
         encoder_thread: JPEG-encode in a thread of its own (overlaps with file I/O on a machine
             with a spare core); False encodes in the file-writer thread.
         encode_threads: threads sharing the JPEG encoding (with ``encoder_thread``); default 2
-            on a machine with at least 4 cores (a Pi 4 encodes a 640x480 frame in milliseconds),
-            else 1.
+            on a machine with 2 or more cores. A batch is split only when records queued up (a
+            burst, or the disk stalled), so at the loop's rate one thread encodes and catching up
+            uses a second core.
 
     ``run()`` returns the number of records in the tub counting queued ones (``tub/num_records``);
     ``shutdown()`` writes what is queued, commits and closes. Usable without a Vehicle.
@@ -176,7 +177,7 @@ class TubWriter:
 
     def __init__(self, base_path: str | os.PathLike[str], inputs: list[str], types: list[str],
                  metadata: Mapping[str, Any] | Iterable[str] | None = None, max_catalog_len: int = 1000,
-                 *, queue_size: int = 100, fsync: bool = True, fsync_records: int = 20,
+                 *, queue_size: int = 100, fsync: bool = True, fsync_records: int = 100,
                  fsync_ms: float = 500.0, jpeg_quality: int = 75, remove_if_empty: bool = False,
                  encoder_thread: bool = True, encode_threads: int | None = None) -> None:
         inputs, types = list(inputs), list(types)
@@ -186,7 +187,7 @@ class TubWriter:
         if queue_size < 1:
             raise ValueError(f"TubWriter: queue_size must be >= 1, got {queue_size}")
         if encode_threads is None:
-            encode_threads = 2 if (os.cpu_count() or 1) >= 4 else 1
+            encode_threads = 2 if (os.cpu_count() or 1) >= 2 else 1
         if encode_threads < 1:
             raise ValueError(f"TubWriter: encode_threads must be >= 1, got {encode_threads}")
         self.inputs = inputs

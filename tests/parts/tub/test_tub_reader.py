@@ -54,6 +54,18 @@ def test_undecodable_image_raises_from_image_and_is_skipped_by_iter_images(donke
         list(iter_images(recs, on_error="raise"))
 
 
+def test_streaming_without_stat_still_reports_missing_and_empty_images(donkey_tub, caplog):
+    path, _ = donkey_tub(40, max_len=15)  # three catalogs, more records than one decoding task
+    (path / "images" / "1_cam_image_array_.jpg").write_bytes(b"")
+    (path / "images" / "33_cam_image_array_.jpg").unlink()
+    pairs = list(iter_images(iter_records(path, check_images=False), workers=2))
+    assert [r.index for r, _ in pairs] == [i for i in range(40) if i not in (1, 33)]
+    assert "record 1" in caplog.text and "image file is empty (0 bytes)" in caplog.text
+    assert "record 33" in caplog.text and "33_cam_image_array_.jpg: cannot read image" in caplog.text
+    with pytest.raises(CorruptRecord, match="record 1: "):
+        list(iter_images(iter_records(path, check_images=False), on_error="raise"))
+
+
 def test_images_decode_to_rgb(tmp_path):
     from parts.tub.tub import Tub
 
