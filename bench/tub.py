@@ -7,7 +7,7 @@ while its queue of 100 is full, then shutdown() which waits until all is on disk
 TubWriter.run(), which writes before it returns), and ours through
 Tub.write_record in one thread. Read: records/s of
 "training reads" (catalog records + decoded 160x120 RGB image; ours: iter_images over
-iter_records (a decoding thread per core), the training frame cache's fill (2 threads decoding
+iter_records (a decoding thread per core, up to 4), the training frame cache's fill (2 threads decoding
 into one array) and TubRecord.image() in one thread; DonkeyCar: Tub iteration + its pipeline
 TubRecord.image()). Images: a rendered gradient with noise and a moving shape, so
 JPEG sizes are realistic. Dirty pages are flushed (os.sync) before every timed phase. Prints
@@ -131,7 +131,7 @@ def ours_write_sync(frames: np.ndarray, path: Path, n: int) -> float:
 
 def ours_read(path: Path, how: str) -> tuple[float, int]:
     """Records with decoded images, three ways: "iter" iterates ``iter_images(iter_records(tub,
-    check_images=False))`` (frames decoded by one thread per core, catalogs parsed meanwhile;
+    check_images=False))`` (frames decoded by a thread per core up to 4, catalogs parsed meanwhile;
     missing or empty images are reported when read); "cache" fills the training
     frame cache (``load_records``, then every frame decoded by 2 threads into one array held in
     memory); "serial" calls TubRecord.image() in a loop in one thread."""
@@ -220,7 +220,7 @@ def main() -> int:
             nosync = work / f"nosync_{run}"
             add("ours write (no fsync, like DonkeyCar)", n / ours_write(frames, nosync, n, False))
             add("ours bytes/record", dir_bytes(ours) / n)
-            for how, label in (("iter", "iter_images, a thread per core"),
+            for how, label in (("iter", "iter_images, a thread per core up to 4"),
                                ("cache", "training FrameCache fill"), ("serial", "one thread")):
                 t, count = ours_read(ours, how)
                 assert count == n

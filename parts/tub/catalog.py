@@ -19,7 +19,12 @@ from typing import Any
 from parts.tub.format import INDEX, O_BINARY, atomic_write, catalog_manifest_name, write_all
 
 _RECORD_START = b'{"_index": '
-_loads = json.JSONDecoder().decode
+_decode_str = json.JSONDecoder().decode
+
+
+def _loads_utf8(line: bytes) -> Any:
+    """json.loads for the usual line (plain UTF-8) without json's encoding sniffing."""
+    return _decode_str(line.decode())
 
 
 @dataclass
@@ -55,12 +60,13 @@ def parse_line(line: bytes) -> tuple[dict[str, Any] | None, bool]:
     A line holding a torn record followed by a whole one (what DonkeyCar writes after a power loss)
     gives the whole second record with ``salvaged=True``.
     """
-    try:
-        rec = _loads(line.decode())  # a str: json.loads(bytes) would sniff the encoding first
-        if isinstance(rec, dict):
-            return rec, False
-    except ValueError:
-        pass
+    for decode in (_loads_utf8, json.loads):  # the fast path, then json's own reading of bytes
+        try:
+            rec = decode(line)
+            if isinstance(rec, dict):
+                return rec, False
+        except ValueError:
+            pass
     at = line.rfind(_RECORD_START)
     if at > 0:
         try:

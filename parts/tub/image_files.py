@@ -13,6 +13,8 @@ import ctypes
 import logging
 import os
 import sys
+import threading
+import weakref
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -80,7 +82,12 @@ class ImageFiles:
         self._syncfs: Callable[[int], int] | None | bool = False  # False: decided at the first sync
         self._pending: list[str] = []  # files written, not yet synced (kept until a sync succeeds)
         self._pool: ThreadPoolExecutor | None = None
-        self._folder_fd = -1  # the folder, open for syncfs
+        # The folder, opened once for syncfs; closed by close() or when this object is collected.
+        # The lock keeps close() from closing it under a sync that still runs (a writer thread
+        # that outlived its shutdown timeout): a reused descriptor number could sync another disk.
+        self._folder_fd = -1
+        self._folder_close: weakref.finalize | None = None
+        self._folder_lock = threading.Lock()
 
     def __len__(self) -> int:
         """Files written and not yet synced."""
@@ -122,11 +129,13 @@ class ImageFiles:
             return
         syncfs = self._syncfs_for_folder()
         if syncfs is not None:
-            if self._folder_fd < 0:  # kept open: two system calls less per commit
-                self._folder_fd = os.open(self.folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
-            if syncfs(self._folder_fd) != 0:
-                err = ctypes.get_errno()
-                raise OSError(err, f"syncfs of the filesystem holding {self.folder}: {os.strerror(err)}")
+            with self._folder_lock:
+                if self._folder_fd < 0:  # kept open: two system calls less per commit
+                    self._folder_fd = os.open(self.folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+                    self._folder_close = weakref.finalize(self, os.close, self._folder_fd)
+                if syncfs(self._folder_fd) != 0:
+                    err = ctypes.get_errno()
+                    raise OSError(err, f"syncfs of the filesystem holding {self.folder}: {os.strerror(err)}")
         else:
             if self._pool is None:
                 self._pool = ThreadPoolExecutor(max_workers=FSYNC_THREADS, thread_name_prefix="tub-fsync")
@@ -143,9 +152,10 @@ class ImageFiles:
     def close(self) -> None:
         """Forget pending files (not synced) and stop the fsync threads."""
         self._pending = []
-        if self._folder_fd >= 0:
-            os.close(self._folder_fd)
-            self._folder_fd = -1
+        with self._folder_lock:
+            if self._folder_close is not None:
+                self._folder_close()  # os.close, once
+                self._folder_close, self._folder_fd = None, -1
         if self._pool is not None:
             self._pool.shutdown(wait=True)
             self._pool = None

@@ -102,8 +102,9 @@ def write_movie(path: str | os.PathLike[str], out: str | os.PathLike[str], *, st
     writer = None
     frames = 0
     try:
-        for rec, img in tqdm(iter_images(records, key), total=len(records), desc="movie", unit="frame",
-                             disable=not progress, leave=False):
+        decoders = max(1, (os.cpu_count() or 2) - 1)  # a core left to draw and encode the video
+        for rec, img in tqdm(iter_images(records, key, workers=decoders), total=len(records), desc="movie",
+                             unit="frame", disable=not progress, leave=False):
             frame = cv.cvtColor(img, cv.COLOR_RGB2BGR) if img.ndim == 3 else cv.cvtColor(img, cv.COLOR_GRAY2BGR)
             if scale != 1:
                 frame = cv.resize(frame, (frame.shape[1] * scale, frame.shape[0] * scale),

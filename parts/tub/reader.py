@@ -236,19 +236,22 @@ def iter_images(records: Iterable[TubRecord], key: str = IMAGE_KEY, *, workers: 
     """(record, decoded image) pairs in order, files read and decoded by ``workers`` threads.
 
     The JPEG codecs release the GIL while decoding, so threads use several cores. ``workers`` defaults to
-    one per core (at most 4): the consumer mostly waits for frames, so a core kept free for it would
-    idle. ``prefetch``: records decoded ahead of the consumer (default: two tasks per worker).
-    Undecodable images are reported and skipped, or raised with ``on_error="raise"``.
-    ``records`` may be a generator: ``iter_records(paths, check_images=False)`` parses catalogs
-    while the first frames decode, and a missing or empty image is still reported (when it is
-    read) without a stat of every file beforehand.
+    one per core, at most 4 (a consumer that only collects frames would leave a core of its own
+    idle; give fewer when it works hard itself). ``prefetch``: records decoded ahead of the
+    consumer (default: two tasks per worker, at most 128 frames in memory).
+
+    A missing, empty or undecodable image of ``key`` is reported with tub, index and file and
+    skipped, or raised with ``on_error="raise"``. ``records`` may be a generator:
+    ``iter_records(paths, check_images=False)`` parses catalogs while the first frames decode,
+    without a stat of every image beforehand (its own reports of bad catalog lines may then come
+    up to ``prefetch`` records ahead of the frames).
     """
     if workers is None:
         workers = max(1, min(4, os.cpu_count() or 1))
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
-    if prefetch is None:  # records decoded ahead: two tasks per worker, so none idles between tasks
-        prefetch = 2 * workers * _CHUNK
+    if prefetch is None:  # two tasks per worker, so none idles between tasks; frames held: <= 128
+        prefetch = min(2 * workers * _CHUNK, 4 * _CHUNK)
 
     def load(chunk: list[TubRecord]) -> list[np.ndarray | CorruptRecord]:
         out: list[np.ndarray | CorruptRecord] = []
@@ -262,7 +265,8 @@ def iter_images(records: Iterable[TubRecord], key: str = IMAGE_KEY, *, workers: 
     # Chunks of records per task keep the executor's per-task overhead small.
     window: deque[tuple[list[TubRecord], Future[Any]]] = deque()
     chunk: list[TubRecord] = []
-    with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="tub-read") as pool:
+    pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="tub-read")
+    try:
         for rec in records:
             chunk.append(rec)
             if len(chunk) >= _CHUNK:
@@ -274,6 +278,8 @@ def iter_images(records: Iterable[TubRecord], key: str = IMAGE_KEY, *, workers: 
             window.append((chunk, pool.submit(load, chunk)))
         while window:
             yield from _take(window, on_error)
+    finally:  # the consumer may stop early (break, an error): drop the tasks not started yet
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 _CHUNK = 32  # records per task: a task hand-off costs about as much as decoding a frame

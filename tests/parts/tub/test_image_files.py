@@ -41,6 +41,30 @@ def test_syncfs_commit_syncs_once_on_the_images_folder(tmp_path, monkeypatch):
     files.sync()  # nothing pending: no call
     assert len(calls) == 1
     assert (tmp_path / "2_cam_.jpg").read_bytes()[2] == 2
+    files.write("3_cam_.jpg", b"\xff\xd8\xff\xd9")
+    files.sync()
+    assert calls == [tmp_path.stat().st_ino] * 2  # the folder stays open between commits
+
+
+@linux_only
+def test_the_folder_kept_open_for_syncfs_is_closed(tmp_path, monkeypatch):
+    monkeypatch.setattr(image_files, "filesystem_type", lambda path: "ext4")
+
+    def open_fds() -> int:
+        return len(os.listdir("/proc/self/fd"))
+
+    before = open_fds()
+    files = ImageFiles(tmp_path, durable=True)
+    files.write("0.jpg", b"x")
+    files.sync()
+    assert open_fds() == before + 1
+    files.close()
+    assert open_fds() == before
+    files.write("1.jpg", b"x")  # a sync after close opens the folder again
+    files.sync()
+    assert open_fds() == before + 1
+    del files  # collected without close(): the descriptor is not leaked
+    assert open_fds() == before
 
 
 def test_on_fat_or_fuse_each_file_and_the_folder_are_fsynced(tmp_path, monkeypatch):

@@ -55,15 +55,48 @@ def test_undecodable_image_raises_from_image_and_is_skipped_by_iter_images(donke
 
 
 def test_streaming_without_stat_still_reports_missing_and_empty_images(donkey_tub, caplog):
-    path, _ = donkey_tub(40, max_len=15)  # three catalogs, more records than one decoding task
+    n = 150
+    path, _ = donkey_tub(n, max_len=60)  # three catalogs, several decoding tasks
     (path / "images" / "1_cam_image_array_.jpg").write_bytes(b"")
     (path / "images" / "33_cam_image_array_.jpg").unlink()
-    pairs = list(iter_images(iter_records(path, check_images=False), workers=2))
-    assert [r.index for r, _ in pairs] == [i for i in range(40) if i not in (1, 33)]
+    pulled = 0
+
+    def counted():
+        nonlocal pulled
+        for rec in iter_records(path, check_images=False):
+            pulled += 1
+            yield rec
+
+    stream = iter_images(counted(), workers=2, prefetch=32)
+    first = next(stream)
+    assert first[0].index == 0 and pulled < n  # frames come out while the catalogs are still read
+    pairs = [first, *stream]
+    assert pulled == n
+    assert [r.index for r, _ in pairs] == [i for i in range(n) if i not in (1, 33)]
     assert "record 1" in caplog.text and "image file is empty (0 bytes)" in caplog.text
     assert "record 33" in caplog.text and "33_cam_image_array_.jpg: cannot read image" in caplog.text
     with pytest.raises(CorruptRecord, match="record 1: "):
         list(iter_images(iter_records(path, check_images=False), on_error="raise"))
+
+
+def test_stopping_early_drops_the_queued_decoding(donkey_tub, monkeypatch):
+    from parts.tub import reader
+
+    path, _ = donkey_tub(200, max_len=1000)
+    decoded = 0
+    image = reader.TubRecord.image
+
+    def counting(self, *args, **kwargs):
+        nonlocal decoded
+        decoded += 1
+        return image(self, *args, **kwargs)
+
+    monkeypatch.setattr(reader.TubRecord, "image", counting)
+    stream = iter_images(load_records(path), workers=1, prefetch=192)  # 6 tasks of 32 queued
+    assert next(stream)[0].index == 0
+    stream.close()  # what a `break` out of the loop does
+    # the tasks not started yet were cancelled: without that all 6 would be decoded for nothing
+    assert 32 <= decoded < 192
 
 
 def test_images_decode_to_rgb(tmp_path):
