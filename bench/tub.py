@@ -215,7 +215,7 @@ def main() -> int:
                 add("donkey read", n / r["read_s"])
                 add("donkey bytes/record", dir_bytes(dk) / n)
             ours = work / f"ours_{run}"
-            add("ours write (durability window 500 ms/100 rec)", n / ours_write(frames, ours, n, True))
+            add("ours write (durability window 20 rec/500 ms)", n / ours_write(frames, ours, n, True))
             add("ours write (Tub.write_record, one thread)", n / ours_write_sync(frames, work / f"sync_{run}", n))
             nosync = work / f"nosync_{run}"
             add("ours write (no fsync, like DonkeyCar)", n / ours_write(frames, nosync, n, False))

@@ -516,10 +516,8 @@ TUB_MAX_CATALOG_LEN: int = 1000
 # Durability window: records are made durable (images synced to the disk, then their catalog
 # lines appended and fsynced, then the manifest replaced atomically) every TUB_FSYNC_RECORDS records or when the
 # oldest unsaved record is TUB_FSYNC_MS milliseconds old, whichever comes first. A crash or power
-# loss loses at most the records of one window plus those still queued (see TUB_QUEUE_SIZE). At
-# camera rates up to 200 Hz the time bound comes first (at 20 Hz: 10 records); the record bound
-# caps a burst, such as the queue draining after a stall, where each commit's disk flush costs.
-TUB_FSYNC_RECORDS: int = 100
+# loss loses at most the records of one window plus those still queued (see TUB_QUEUE_SIZE).
+TUB_FSYNC_RECORDS: int = 20
 # Age in milliseconds of the oldest unsaved record that triggers a commit (see TUB_FSYNC_RECORDS).
 TUB_FSYNC_MS: int = 500
 # fsync at each commit (protects against power loss). False: commits still happen per window, but

@@ -80,7 +80,7 @@ class Tub:
     def __init__(self, path: str | os.PathLike[str], inputs: list[str] | None = None,
                  types: list[str] | None = None, metadata: Mapping[str, Any] | Iterable[str] | None = None,
                  max_catalog_len: int = 1000, read_only: bool = False, *, fsync: bool = True,
-                 fsync_records: int = 100, fsync_ms: float = 500.0, jpeg_quality: int = 75) -> None:
+                 fsync_records: int = 20, fsync_ms: float = 500.0, jpeg_quality: int = 75) -> None:
         if not isinstance(max_catalog_len, int) or max_catalog_len < 1:
             raise ValueError(f"max_catalog_len must be a positive int, got {max_catalog_len!r}")
         if fsync_records < 0 or fsync_ms < 0:

@@ -177,7 +177,7 @@ class TubWriter:
 
     def __init__(self, base_path: str | os.PathLike[str], inputs: list[str], types: list[str],
                  metadata: Mapping[str, Any] | Iterable[str] | None = None, max_catalog_len: int = 1000,
-                 *, queue_size: int = 100, fsync: bool = True, fsync_records: int = 100,
+                 *, queue_size: int = 100, fsync: bool = True, fsync_records: int = 20,
                  fsync_ms: float = 500.0, jpeg_quality: int = 75, remove_if_empty: bool = False,
                  encoder_thread: bool = True, encode_threads: int | None = None) -> None:
         inputs, types = list(inputs), list(types)
