@@ -68,7 +68,9 @@ def test_throttle_filter_and_recording_rules_in_a_vehicle():
     V = Vehicle(clock=SimulatedClock())
     V.add(Script([("user", -0.5), ("user", -0.5), ("user", -0.5), ("local", 0.4)]),
           outputs=["user/mode", "throttle"])
-    assert add_throttle_filter(V, Config.defaults()) is not None
+    flt = add_throttle_filter(V, Config.defaults())
+    assert type(flt).__name__ == "ThrottleFilter"
+    assert V.parts[-1].part is flt and V.parts[-1].inputs == ("throttle",) and V.parts[-1].outputs == ("throttle",)
     add_recording_rules(V, Config.defaults())
     log = Log()
     V.add(log, inputs=["throttle", "recording"])
