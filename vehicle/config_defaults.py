@@ -515,8 +515,9 @@ METADATA: list[str] = []
 TUB_MAX_CATALOG_LEN: int = 1000
 # Durability window: records are made durable (images synced to the disk, then their catalog
 # lines appended and fsynced, then the manifest replaced atomically) every TUB_FSYNC_RECORDS records or when the
-# oldest unsaved record is TUB_FSYNC_MS milliseconds old, whichever comes first. A crash or power
-# loss loses at most the records of one window plus those still queued (see TUB_QUEUE_SIZE).
+# oldest unsaved record is TUB_FSYNC_MS milliseconds old, whichever comes first. While recording, a
+# crash loses at most two windows and a power cut three, plus the records still queued (see
+# TUB_QUEUE_SIZE and docs/data-format.md).
 TUB_FSYNC_RECORDS: int = 20
 # Age in milliseconds of the oldest unsaved record that triggers a commit (see TUB_FSYNC_RECORDS).
 TUB_FSYNC_MS: int = 500

@@ -115,6 +115,8 @@ class CatalogFile:
     line_lengths: list[int] = field(default_factory=list)
     created_at: float = field(default_factory=time.time)
     fd: int = -1
+    size: int = 0          # bytes of whole, committed lines: where the next line starts
+    _torn: bool = False    # a failed append may have left bytes past ``size``
 
     @classmethod
     def open_append(cls, path: Path, start_index: int, *, durable: bool) -> CatalogFile:
@@ -129,19 +131,47 @@ class CatalogFile:
         meta = read_catalog_manifest(path) or {}
         created = meta.get("created_at")
         cat = cls(path, start_index, list(scan.line_lengths),
-                  created if isinstance(created, int | float) else time.time(), fd)
+                  created if isinstance(created, int | float) else time.time(), fd, scan.valid_bytes)
         if not existed or meta.get("line_lengths") != cat.line_lengths \
                 or meta.get("start_index") != start_index:
             cat.save_manifest(durable=durable)
         return cat
 
     def append(self, lines: list[str], *, durable: bool) -> None:
-        """Append whole lines (each ending in a newline) in one write, then fsync when durable."""
+        """Append whole lines (each ending in a newline) in one write, then fsync when durable.
+
+        When the write or the fsync fails, the file is cut back to its committed lines, so that
+        retrying the same lines never writes them twice or glues them to a torn one.
+        """
+        if self._torn:  # the cut after an earlier failure failed too: cut before going on
+            os.ftruncate(self.fd, self.size)
+            self._torn = False
         data = "".join(lines).encode()
-        write_all(self.fd, data)
-        if durable:
-            os.fsync(self.fd)
+        try:
+            write_all(self.fd, data)
+            if durable:
+                os.fsync(self.fd)
+        except BaseException:
+            self._torn = True
+            try:
+                os.ftruncate(self.fd, self.size)
+                self._torn = False
+            except OSError:
+                pass  # retried before the next append
+            raise
+        self.size += len(data)
         self.line_lengths.extend(len(ln) for ln in lines)
+
+    def cut_back(self, size: int, lines: int) -> None:
+        """Remove the last ``lines`` lines, which start at byte ``size`` (to append them again)."""
+        del self.line_lengths[len(self.line_lengths) - lines:]
+        self.size = size
+        self._torn = True  # cut now, or before the next append if this fails
+        try:
+            os.ftruncate(self.fd, size)
+            self._torn = False
+        except OSError:
+            pass
 
     def save_manifest(self, *, durable: bool = False) -> None:
         write_catalog_manifest(self.path, self.start_index, self.line_lengths, self.created_at,

@@ -121,11 +121,13 @@ class ImageFiles:
             self._pending.append(path)
 
     def sync(self) -> None:
-        """Make every file written since the last successful sync durable, with its folder entry.
+        """Make every file written before this call (and not synced yet) durable, with its folder
+        entry. A thread may write further files meanwhile: they stay pending for the next sync.
 
         On an error nothing is forgotten: the next sync covers these files again.
         """
-        if not self._pending:
+        count = len(self._pending)  # files written before the sync began
+        if not count:
             return
         syncfs = self._syncfs_for_folder()
         if syncfs is not None:
@@ -139,7 +141,7 @@ class ImageFiles:
         else:
             if self._pool is None:
                 self._pool = ThreadPoolExecutor(max_workers=FSYNC_THREADS, thread_name_prefix="tub-fsync")
-            jobs = [self._pool.submit(_fsync_file, path) for path in self._pending]
+            jobs = [self._pool.submit(_fsync_file, path) for path in self._pending[:count]]
             errors = []
             for job in jobs:  # wait for every job, even after a failure
                 if (exc := job.exception()) is not None:
@@ -147,7 +149,7 @@ class ImageFiles:
             if errors:
                 raise errors[0]
             fsync_dir(self.folder)
-        self._pending = []
+        del self._pending[:count]  # in place: write() in another thread appends to this list
 
     def close(self) -> None:
         """Forget pending files (not synced) and stop the fsync threads."""

@@ -3,10 +3,11 @@
 Writing order per commit (the durability window, docs/data-format.md): image files are written
 as records arrive; at a commit the images are made durable (one ``syncfs`` on Linux filesystems
 where that flushes the device, else an fsync of each, in parallel, and of the images folder), then
-the records' catalog lines are appended in one write and fsynced. manifest.json is replaced
+the records' catalog lines are appended in one write and fsynced (``parts.tub.committer``, in the
+caller's thread or, with ``commit_thread``, in a thread of its own). manifest.json is replaced
 atomically at most once a second and at every session start, new catalog, delete, restore and
 close (recovery never needs it current). A crash therefore loses at most the records since the
-last commit, and a catalog line never reaches the disk before its images.
+last completed commit, and a catalog line never reaches the disk before its images.
 """
 
 from __future__ import annotations
@@ -16,11 +17,13 @@ import logging
 import os
 import time
 import weakref
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, MutableMapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from parts.tub.catalog import CatalogFile, parse_line, record_index, scan_catalog
+from parts.tub.committer import Committer
 from parts.tub.errors import TubError, TubSchemaError
 from parts.tub.format import (
     IMAGE_TYPES,
@@ -44,6 +47,14 @@ logger = logging.getLogger(__name__)
 # manifest.json is rewritten at most this often while recording (and at every delete, restore,
 # new catalog, first commit of a session and close).
 MANIFEST_INTERVAL_S = 1.0
+
+
+@dataclass(frozen=True)
+class StoredImage:
+    """An image value already written as the file ``name`` (of record ``index``) in ``images/``."""
+
+    name: str
+    index: int
 
 
 def _close_at_exit(tub: Tub) -> Callable[[], None]:
@@ -75,12 +86,17 @@ class Tub:
         fsync_records, fsync_ms: the durability window: commit after this many records or when
             the oldest uncommitted record is this old, whichever comes first (0 = every record).
         jpeg_quality: JPEG quality (1-100) for ``image_array`` values.
+        commit_thread: commit in a thread of the tub's own, so that writing the next records
+            overlaps with the disk's flush (``TubWriter`` with fsync). ``commit()`` then starts a
+            commit and ``flush()`` waits for it; a crash may lose one more window (the one being
+            committed while the next is written), a power cut two more (docs/data-format.md).
     """
 
     def __init__(self, path: str | os.PathLike[str], inputs: list[str] | None = None,
                  types: list[str] | None = None, metadata: Mapping[str, Any] | Iterable[str] | None = None,
                  max_catalog_len: int = 1000, read_only: bool = False, *, fsync: bool = True,
-                 fsync_records: int = 20, fsync_ms: float = 500.0, jpeg_quality: int = 75) -> None:
+                 fsync_records: int = 20, fsync_ms: float = 500.0, jpeg_quality: int = 75,
+                 commit_thread: bool = False) -> None:
         if not isinstance(max_catalog_len, int) or max_catalog_len < 1:
             raise ValueError(f"max_catalog_len must be a positive int, got {max_catalog_len!r}")
         if fsync_records < 0 or fsync_ms < 0:
@@ -94,7 +110,7 @@ class Tub:
         self.fsync_ms = fsync_ms
         self.jpeg_quality = int(jpeg_quality)
         self._closed = False
-        self._catalog: CatalogFile | None = None
+        self._committer: Committer | None = None  # None: read-only
         self._images = ImageFiles(self.path / IMAGES, fsync)
         self._pending_lines: list[str] = []
         self._pending_since: float | None = None
@@ -138,7 +154,7 @@ class Tub:
         self.session_number, self.session_id = m.new_session(state.session_floor)
         if not read_only:
             self._open_for_writing(state.is_tub and not state.problems and not new_meta
-                                   and not state.torn)
+                                   and not state.torn, commit_thread)
             self._atexit = _close_at_exit(self)
             atexit.register(self._atexit)
         if self.problems:
@@ -191,15 +207,17 @@ class Tub:
         self.close()
 
     # -- writing -------------------------------------------------------------------------------------
-    def _open_for_writing(self, clean: bool) -> None:
+    def _open_for_writing(self, clean: bool, commit_thread: bool) -> None:
         m = self.manifest
         self.images_path.mkdir(exist_ok=True)
         if not m.paths:
             m.paths.append(catalog_name(0))
         start = (len(m.paths) - 1) * m.max_len
-        self._catalog = CatalogFile.open_append(self.path / m.paths[-1], start, durable=self.fsync)
+        catalog = CatalogFile.open_append(self.path / m.paths[-1], start, durable=self.fsync)
         if not clean:
             m.save(self.path, durable=self.fsync)
+        self._committer = Committer(self.path, self._images, catalog, durable=self.fsync,
+                                    background=commit_thread, fsync_ms=self.fsync_ms)
 
     def _check_writable(self) -> None:
         if self.read_only:
@@ -207,29 +225,69 @@ class Tub:
         if self._closed:
             raise TubError(f"{self.path} is closed")
 
-    def write_record(self, record: Mapping[str, Any], *, timestamp_ms: int | None = None) -> int:
-        """Write one record (keys not in inputs and None values are skipped); return its index.
-
-        ``timestamp_ms`` is the capture time stored as ``_timestamp_ms`` (default: now). Images
-        (``image_array``) may be arrays (encoded to JPEG) or bytes of an encoded JPEG, kept as is.
+    def write_images(self, index: int, record: MutableMapping[str, Any]) -> None:
+        """Write the record's images as the files of record ``index``, replacing each value by its
+        :class:`StoredImage`. Safe in several threads at once (``TubWriter`` writes a batch's
+        images in parallel); ``write_record(record, index=index)`` then stores the record.
         """
         self._check_writable()
-        m = self.manifest
-        index = m.current_index
-        if index > 0 and index % m.max_len == 0 and len(m.paths) <= index // m.max_len:
-            self._add_catalog()
-        contents: dict[str, Any] = {}
         for key, value in record.items():
             tp = self._types.get(key)
-            if value is None or tp is None:
-                continue
-            if tp in IMAGE_TYPES:
+            if tp in IMAGE_TYPES and value is not None and not isinstance(value, StoredImage):
                 data, ext = encode_image(value, tp, self.jpeg_quality)
                 name = image_file_name(index, key, ext)
                 self._images.write(name, data)
-                contents[key] = name
+                record[key] = StoredImage(name, index)
+
+    def write_record(self, record: Mapping[str, Any], *, timestamp_ms: int | None = None,
+                     index: int | None = None) -> int:
+        """Write one record (keys not in inputs and None values are skipped); return its index.
+
+        ``timestamp_ms`` is the capture time stored as ``_timestamp_ms`` (default: now). Images
+        (``image_array``) may be arrays (encoded to JPEG), bytes of an encoded JPEG (kept as is)
+        or a :class:`StoredImage` written by :meth:`write_images` for this record. ``index``
+        (default: the next one) may only be ahead of the next one when records given indexes
+        could not be written: their indexes are then kept as deleted records without values, so
+        that a record's index stays its position in the catalogs (what DonkeyCar relies on).
+        """
+        self._check_writable()
+        m = self.manifest
+        if index is None:
+            index = m.current_index
+        elif index < m.current_index:
+            raise ValueError(f"{self.path}: record index {index} is taken; the next one is {m.current_index}")
+        values = dict(record)
+        self.write_images(index, values)
+        contents: dict[str, Any] = {}
+        for key, value in values.items():
+            tp = self._types.get(key)
+            if value is None or tp is None:
+                continue
+            if isinstance(value, StoredImage):
+                if value.index != index:
+                    raise ValueError(f"{self.path}: image {value.name} belongs to record {value.index}, "
+                                     f"not {index}")
+                contents[key] = value.name
             else:
                 contents[key] = encode_value(key, tp, value)
+        if index > m.current_index:
+            logger.warning("%s: records %d..%d could not be written; kept as deleted records",
+                           self.path, m.current_index, index - 1)
+            while m.current_index < index:
+                m.deleted_indexes.add(self._append_line({}, None))
+            self._manifest_saved_at = -MANIFEST_INTERVAL_S  # the deletions go with the next commit
+        self._append_line(contents, timestamp_ms)
+        self.written += 1
+        if self.commit_due():
+            self.commit()
+        return index
+
+    def _append_line(self, contents: dict[str, Any], timestamp_ms: int | None) -> int:
+        """Give ``contents`` the next index and queue its catalog line; returns the index."""
+        m = self.manifest
+        index = m.current_index
+        if index > 0 and index % m.max_len == 0 and len(m.paths) <= index // m.max_len:
+            self._add_catalog()  # DonkeyCar: a new catalog every max_len records
         contents[TIMESTAMP] = int(round(time.time() * 1000)) if timestamp_ms is None else int(timestamp_ms)
         contents[INDEX] = index
         contents[SESSION] = self.session_id
@@ -237,16 +295,17 @@ class Tub:
         if self._pending_since is None:
             self._pending_since = time.monotonic()
         m.current_index = index + 1
-        self.written += 1
-        if self.commit_due():
-            self.commit()
         return index
 
     def commit_due(self) -> bool:
-        """Whether the durability window is full (records or age of the oldest pending record)."""
+        """Whether the durability window is full (records or age of the oldest pending record).
+
+        Inline, records of a commit that failed count too: every new record retries it.
+        """
+        failing = self._committer.failing_records if self._committer is not None else 0
         if not self._pending_lines:
-            return False
-        if len(self._pending_lines) >= max(1, self.fsync_records):
+            return failing > 0
+        if len(self._pending_lines) + failing >= max(1, self.fsync_records):
             return True
         return (time.monotonic() - (self._pending_since or 0.0)) * 1000.0 >= self.fsync_ms
 
@@ -257,26 +316,37 @@ class Tub:
         return max(0.0, self.fsync_ms / 1000.0 - (time.monotonic() - self._pending_since))
 
     def commit(self) -> None:
-        """Make every record written so far durable (images, then catalog lines, then manifests)."""
-        if self._catalog is None or not self._pending_lines:
+        """Make every record written so far durable (images, then catalog lines, then manifests).
+
+        With ``commit_thread`` this starts the commit; :meth:`flush` waits for it.
+        """
+        if self._committer is None:
             return
-        if self.fsync:
-            self._images.sync()
-        self._catalog.append(self._pending_lines, durable=self.fsync)
-        self._pending_lines = []
-        self._pending_since = None
-        self._save_manifest(force=False)
+        if self._pending_lines:
+            self._submit(force_manifest=False)
+        elif self._committer.failing_records:
+            self._committer.wait()  # retry the failed commit
 
     def flush(self) -> None:
-        """Commit the pending records and rewrite the manifest now."""
-        self.commit()
-        self._save_manifest(force=True)
+        """Commit the pending records and rewrite the manifest; on return both are written, and
+        durable with ``fsync``."""
+        if self._committer is not None:
+            self._submit(force_manifest=True, durable=True)
+            self._committer.wait()
 
-    def _save_manifest(self, force: bool) -> None:
-        """Rewrite manifest.json (atomic), at most every MANIFEST_INTERVAL_S unless forced.
+    def _submit(self, force_manifest: bool, next_catalog: tuple[Path, int] | None = None,
+                durable: bool = False) -> None:
+        """Hand the pending catalog lines (and the manifest when due) to the committer."""
+        assert self._committer is not None
+        lines, self._pending_lines, self._pending_since = self._pending_lines, [], None
+        self._committer.submit(lines, next_catalog, self._manifest_text(force_manifest), durable)
+
+    def _manifest_text(self, force: bool) -> str | None:
+        """manifest.json's new text when due: at most every MANIFEST_INTERVAL_S unless forced.
 
         Our recovery does not need it current (current_index is taken from the catalogs); it is
-        kept close for DonkeyCar, which trusts it.
+        kept close for DonkeyCar, which trusts it. Taken when the records are handed to the
+        committer, it lists exactly the records committed before it is written.
         """
         m = self.manifest
         if self.written and not self._session_registered:
@@ -285,20 +355,16 @@ class Tub:
             force = True
         now = time.monotonic()
         if force or now - self._manifest_saved_at >= MANIFEST_INTERVAL_S:
-            m.save(self.path, durable=self.fsync)
             self._manifest_saved_at = now
+            return m.dumps()
+        return None
 
     def _add_catalog(self) -> None:
         """Start the next catalog file (DonkeyCar: when current_index is a multiple of max_len)."""
-        self.commit()
-        assert self._catalog is not None
-        self._catalog.save_manifest(durable=self.fsync)
-        self._catalog.close()
         m = self.manifest
         name = catalog_name(len(m.paths))
-        self._catalog = CatalogFile.open_append(self.path / name, m.current_index, durable=self.fsync)
         m.paths.append(name)
-        self._save_manifest(force=True)
+        self._submit(force_manifest=True, next_catalog=(self.path / name, m.current_index))
 
     # -- deleting ---------------------------------------------------------------------------------------
     def _check_indexes(self, indexes: int | Iterable[int]) -> set[int]:
@@ -345,8 +411,9 @@ class Tub:
 
         Deleted records are included; uncommitted records of a writable tub are committed first.
         """
-        if not self.read_only and not self._closed:
+        if self._committer is not None and not self._closed:
             self.commit()
+            self._committer.wait()
         position = 0
         for i, catalog in enumerate(self.catalog_paths):
             start = i * self.max_len
@@ -377,16 +444,14 @@ class Tub:
         if self._closed:
             return
         try:
-            if not self.read_only and self._catalog is not None:
-                self.flush()
-                self._catalog.save_manifest(durable=self.fsync)
+            self.flush()
         finally:
             self._closed = True
             if self._atexit is not None:
                 atexit.unregister(self._atexit)
                 self._atexit = None
-            if self._catalog is not None:
-                self._catalog.close()
+            if self._committer is not None:
+                self._committer.close()
             self._images.close()
             logger.debug("%s: closed (%d records written this session)", self.path, self.written)
 

@@ -1,7 +1,9 @@
 """``TubWriter``: the drive-loop part that records into a tub without blocking the loop.
 
-``run()`` (loop thread) only copies the values into a queue. Two threads of the writer do the
-rest: one JPEG-encodes, one writes files and fsyncs, so both overlap. When ``queue_size`` records
+``run()`` (loop thread) only copies the values into a queue. Threads of the writer do the rest,
+overlapping: the encoding threads JPEG-encode and write the image files, one thread stores the
+catalog lines in order, and with fsync one commits (waits for the disk to make each window
+durable, ``parts.tub.committer``). When ``queue_size`` records
 are in flight (accepted, not yet written) a new record is dropped, counted and a warning is logged
 (at most every few seconds): never silently lost, and the loop never waits for the disk.
 """
@@ -15,7 +17,7 @@ import queue
 import shutil
 import threading
 import time
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
@@ -55,24 +57,28 @@ class _DeleteLast:
 
 
 class _Encoder(ThreadedPart):
-    """First stage: JPEG-encodes the images of queued records (the codecs release the GIL, so this
-    overlaps with the file I/O of the writer thread) and hands them on in order, in batches of
-    what is queued (fewer queue hand-offs between the threads). With ``threads`` > 1 a batch is
-    split between this thread and helpers: one hand-off per batch, not per record."""
+    """First stage: JPEG-encodes the images of queued records and writes their files (the codecs
+    and file system calls release the GIL, so this overlaps with the writer thread), then hands
+    the records on in order, in batches of what is queued (fewer queue hand-offs between the
+    threads). Indexes are given here, in order, to the records whose images encoded. With
+    ``threads`` > 1 a batch's encoding and writing are each split between this thread and
+    helpers: one hand-off per batch, not per record."""
 
     def __init__(self, owner: TubWriter, threads: int) -> None:
         super().__init__()
         self.owner = owner
         self._threads = threads
         self._helpers = ThreadPoolExecutor(threads - 1, thread_name_prefix="tub-encode") if threads > 1 else None
+        self._next_index = owner.tub.current_index  # the index the next record gets
 
-    def _encode_all(self, records: list[tuple[dict[str, Any], int | None]]) -> list[bool]:
-        if self._helpers is None or len(records) < 2:
-            return [self._encode(r) for r in records]
-        size = -(-len(records) // self._threads)  # ceil: the batch in up to `threads` slices
-        slices = [records[i:i + size] for i in range(0, len(records), size)]
-        jobs = [self._helpers.submit(lambda sl=sl: [self._encode(r) for r in sl]) for sl in slices[1:]]
-        ok = [self._encode(r) for r in slices[0]]
+    def _each(self, fn: Callable[[Any], bool], items: list[Any]) -> list[bool]:
+        """``[fn(item) for item in items]``, the list split between this thread and the helpers."""
+        if self._helpers is None or len(items) < 2 or not self.owner._image_types:
+            return [fn(item) for item in items]
+        size = -(-len(items) // self._threads)  # ceil: the batch in up to `threads` slices
+        slices = [items[i:i + size] for i in range(0, len(items), size)]
+        jobs = [self._helpers.submit(lambda sl=sl: [fn(item) for item in sl]) for sl in slices[1:]]
+        ok = [fn(item) for item in slices[0]]
         for job in jobs:
             ok.extend(job.result())
         return ok
@@ -89,6 +95,15 @@ class _Encoder(ThreadedPart):
             logger.exception("%s: cannot encode a record's image; record skipped", w.path)
             return False
 
+    def _write(self, record: tuple[dict[str, Any], int | None, int]) -> bool:
+        w = self.owner
+        try:
+            w.tub.write_images(record[2], record[0])
+            return True
+        except Exception:
+            w._log_failure(record[2])
+            return False
+
     def poll(self) -> Any:
         w = self.owner
         try:
@@ -101,15 +116,24 @@ class _Encoder(ThreadedPart):
             except queue.Empty:
                 break
         records = [item for item in batch if isinstance(item, tuple)]
-        failed = {id(r) for r, ok in zip(records, self._encode_all(records), strict=True) if not ok}
-        if failed:
-            w._count_failed(len(failed))
-        out = []
+        numbered = []  # (values, timestamp, index) of the records whose images encoded
+        for (values, ts_ms), ok in zip(records, self._each(self._encode, records), strict=True):
+            if ok:
+                numbered.append((values, ts_ms, self._next_index))
+                self._next_index += 1
+        # a record whose files cannot be written is dropped: the tub keeps its index as a deleted
+        # record (Tub.write_record), so indexes stay positions, as DonkeyCar needs
+        stored = {id(r[0]): r for r, ok in zip(numbered, self._each(self._write, numbered), strict=True) if ok}
+        if len(stored) < len(records):
+            w._count_failed(len(records) - len(stored))
+        out = []  # the batch in its order: stored records and control items
         for item in batch:
+            if isinstance(item, tuple):
+                if id(item[0]) in stored:
+                    out.append(stored[id(item[0])])
+                continue
             if isinstance(item, _Stop):
                 self.stop_event.set()
-            elif id(item) in failed:
-                continue
             out.append(item)
         w._encoded.put(out)  # bounded: waits while the writer thread is behind
         return self.NOTHING
@@ -139,11 +163,11 @@ class _Worker(ThreadedPart):
             if isinstance(item, _Stop):
                 self.stop_event.set()
             elif isinstance(item, _DeleteLast):
-                w._guard(lambda item=item: w.tub.delete_last_n_records(item.n))
+                w._guard(w.tub.delete_last_n_records, item.n)
             else:
-                values, ts_ms = item
-                if w._guard(lambda values=values, ts_ms=ts_ms: w.tub.write_record(
-                        values, timestamp_ms=ts_ms)) is not None:
+                # (values, timestamp) or, from the encoder thread, (values, timestamp, index)
+                values, ts_ms, index = item if len(item) == 3 else (*item, None)
+                if w._guard(w.tub.write_record, values, timestamp_ms=ts_ms, index=index) is not None:
                     w.stats.written += 1
                 else:
                     w._count_failed(1)
@@ -198,7 +222,7 @@ class TubWriter:
         keep = [i for i in range(len(inputs)) if i != self._ts_pos]
         self.tub = Tub(base_path, [inputs[i] for i in keep], [types[i] for i in keep], metadata,
                        max_catalog_len, fsync=fsync, fsync_records=fsync_records, fsync_ms=fsync_ms,
-                       jpeg_quality=jpeg_quality)
+                       jpeg_quality=jpeg_quality, commit_thread=fsync)
         self._keep = keep
         self.queue_size = queue_size
         # Unbounded Queue, the bound is enforced in run(): control items (stop, delete) always fit.
@@ -266,17 +290,21 @@ class TubWriter:
             self._last_warning = now
             self._dropped_since_warning = 0
 
-    def _guard(self, fn: Any) -> Any:
+    def _guard(self, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
         """Run fn in the writer thread; log a failure (rate-limited) and return None."""
         try:
-            result = fn()
+            result = fn(*args, **kwargs)
             return True if result is None else result
         except Exception:
-            now = time.monotonic()
-            if now - self._error_logged_at >= _WARN_EVERY_S:
-                logger.exception("%s: writing failed (record %d)", self.path, self.tub.current_index)
-                self._error_logged_at = now
+            self._log_failure(self.tub.current_index)
             return None
+
+    def _log_failure(self, index: int) -> None:
+        """Log the exception being handled, at most every few seconds (a failing disk fails often)."""
+        now = time.monotonic()
+        if now - self._error_logged_at >= _WARN_EVERY_S:
+            logger.exception("%s: writing failed (record %d)", self.path, index)
+            self._error_logged_at = now
 
     def delete_last(self, n: int) -> None:
         """Soft-delete the last ``n`` records, including queued ones (done in the writer thread)."""
@@ -295,14 +323,32 @@ class TubWriter:
             self._closed = True
         atexit.unregister(self.shutdown)
         self._queue.put(_Stop())
-        deadline = None if timeout is None else time.monotonic() + timeout
+        # The closing runs in a thread of its own, so that a timeout is kept even when the disk
+        # stalls; the tub is then closed when the writer threads are done with it (it is never
+        # used by two threads at once).
+        failure: list[BaseException] = []
+
+        def finish() -> None:
+            try:
+                self._finish()
+            except BaseException as exc:
+                failure.append(exc)
+                logger.exception("%s: closing the tub failed", self.path)
+
+        closer = threading.Thread(target=finish, name=f"tub-close {self.tub.path.name}", daemon=True)
+        closer.start()
+        closer.join(timeout)
+        if closer.is_alive():
+            logger.error("%s: writer threads still busy after %.1f s; %d records not written yet; the "
+                         "tub is closed when they are", self.path, timeout or 0, self.pending())
+        elif failure:
+            raise failure[0]
+
+    def _finish(self) -> None:
+        """Wait for the writer threads to write what is queued, then close the tub."""
         for part in self._threads:
-            thread = part._thread
-            if thread is not None:
-                thread.join(None if deadline is None else max(0.0, deadline - time.monotonic()))
-                if thread.is_alive():
-                    logger.error("%s: writer threads still busy after %.1f s; %d records not written",
-                                 self.path, timeout or 0, self.pending())
+            if part._thread is not None:
+                part._thread.join()
             part.stop_event.set()
             if isinstance(part, _Encoder):
                 part.stop_helpers()

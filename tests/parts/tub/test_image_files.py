@@ -131,7 +131,7 @@ def test_tub_commit_makes_images_durable_before_their_catalog_lines(tmp_path, mo
     events: list[str] = []
     tub = Tub(tmp_path / "t", ["cam/image_array", "n"], ["image_array", "int"], fsync_records=3,
               fsync_ms=60_000)
-    catalog = tub._catalog
+    catalog = tub._committer.catalog
     real_sync, real_append = tub._images.sync, catalog.append
     fail = [True]
 

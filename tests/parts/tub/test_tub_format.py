@@ -158,3 +158,28 @@ def test_durability_window_commits_by_count_and_age(tmp_path):
     aged.write_record({"a": 0})  # the age limit alone commits
     assert (tmp_path / "u" / "catalog_0.catalog").read_text().count("\n") == 1
     aged.close()
+
+
+def test_indexes_given_ahead_keep_the_skipped_ones_as_deleted_records(tmp_path):
+    tub = Tub(tmp_path / "t", ["cam/image_array", "a"], ["image_array", "int"], max_catalog_len=3)
+    assert tub.write_record({"a": 0}) == 0
+    # records 1-6 got indexes but could not be written (their images failed): kept as deleted
+    # records without values, so that every index stays its position (DonkeyCar relies on it)
+    assert tub.write_record({"a": 7}, index=7) == 7
+    with pytest.raises(ValueError, match="record index 5 is taken; the next one is 8"):
+        tub.write_record({"a": 5}, index=5)
+    record = {"cam/image_array": np.zeros((8, 8, 3), np.uint8), "a": 8}
+    tub.write_images(8, record)
+    with pytest.raises(ValueError, match="belongs to record 8, not 9"):
+        tub.write_record(dict(record), index=9)
+    assert tub.write_record(record, index=8) == 8
+    tub.close()
+    t = tmp_path / "t"
+    lines = [json.loads(ln) for i in range(3) for ln in (t / f"catalog_{i}.catalog").read_text().splitlines()]
+    assert [rec["_index"] for rec in lines] == list(range(9))
+    assert [rec.get("a") for rec in lines] == [0, None, None, None, None, None, None, 7, 8]
+    reopened = Tub(t, read_only=True)
+    assert reopened.deleted_indexes == {1, 2, 3, 4, 5, 6} and len(reopened) == 3
+    assert reopened.problems == []
+    assert [(r.index, r["a"]) for r in load_records(t, check_images=False)] == [(0, 0), (7, 7), (8, 8)]
+    assert lines[8]["cam/image_array"] == "8_cam_image_array_.jpg"

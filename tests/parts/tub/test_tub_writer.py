@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 
 import numpy as np
 import pytest
 
+from parts.tub.image_files import ImageFiles
 from parts.tub.reader import load_records
 from parts.tub.tub import Tub
 from parts.tub.writer import TubWiper, TubWriter
@@ -191,3 +193,54 @@ def test_an_image_that_cannot_be_encoded_is_counted_and_the_rest_written(tmp_pat
     assert w.stats.failed == 1 and w.stats.written == 9 and w.pending() == 0
     assert [r["n"] for r in load_records(tmp_path / "t")] == [0, 1, 2, 3, 5, 6, 7, 8, 9]
     assert any("cannot encode" in r.getMessage() for r in caplog.records)
+
+
+@pytest.mark.parametrize("encode_threads", [1, 2])
+def test_a_record_whose_image_cannot_be_written_keeps_its_index_as_a_deleted_record(
+        tmp_path, encode_threads, monkeypatch, caplog):
+    real_write = ImageFiles.write
+
+    def write(self, name, data):
+        if name.startswith("4_"):
+            raise OSError(28, "No space left on device")
+        real_write(self, name, data)
+
+    monkeypatch.setattr(ImageFiles, "write", write)
+    w = TubWriter(tmp_path / "t", ["cam/image_array", "n"], ["image_array", "int"], queue_size=50,
+                  encode_threads=encode_threads)
+    with caplog.at_level(logging.WARNING):
+        for i in range(8):
+            w.run(np.full((8, 8, 3), 30 * i, np.uint8), i)
+        w.shutdown()
+    assert w.stats.failed == 1 and w.stats.written == 7 and w.pending() == 0
+    records = load_records(tmp_path / "t", on_error="raise")
+    assert [(r.index, r["n"]) for r in records] == [(0, 0), (1, 1), (2, 2), (3, 3), (5, 5), (6, 6), (7, 7)]
+    assert [round(r.image().mean() / 30) for r in records] == [0, 1, 2, 3, 5, 6, 7]  # each its own image
+    tub = Tub(tmp_path / "t", read_only=True)
+    assert tub.current_index == 8 and tub.deleted_indexes == {4} and len(tub) == 7
+    assert "writing failed (record 4)" in caplog.text and "No space left" in caplog.text
+    assert "records 4..4 could not be written; kept as deleted records" in caplog.text
+
+
+def test_shutdown_keeps_its_timeout_when_the_disk_stalls_and_the_tub_closes_later(tmp_path, monkeypatch, caplog):
+    gate = threading.Event()
+    real_sync = ImageFiles.sync
+
+    def stalled_sync(self):
+        gate.wait(10)
+        real_sync(self)
+
+    monkeypatch.setattr(ImageFiles, "sync", stalled_sync)
+    w = TubWriter(tmp_path / "t", ["cam/image_array", "n"], ["image_array", "int"], fsync_records=5)
+    for i in range(12):
+        w.run(np.full((8, 8, 3), 20 * i, np.uint8), i)
+    with caplog.at_level(logging.ERROR, logger="parts.tub.writer"):
+        w.shutdown(timeout=0.3)  # returns although the commit waits for the "disk"
+    assert "still busy after 0.3 s" in caplog.text
+    assert not w.tub.closed
+    gate.set()
+    deadline = time.monotonic() + 10
+    while not w.tub.closed and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert w.tub.closed
+    assert [r["n"] for r in load_records(tmp_path / "t")] == list(range(12))
