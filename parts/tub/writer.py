@@ -25,7 +25,6 @@ from typing import Any
 import numpy as np
 
 from parts.tub.format import IMAGE_TYPES
-from parts.tub.imaging import encode_image
 from parts.tub.tub import Tub
 from vehicle.part import ThreadedPart
 
@@ -57,12 +56,11 @@ class _DeleteLast:
 
 
 class _Encoder(ThreadedPart):
-    """First stage: JPEG-encodes the images of queued records and writes their files (the codecs
-    and file system calls release the GIL, so this overlaps with the writer thread), then hands
-    the records on in order, in batches of what is queued (fewer queue hand-offs between the
-    threads). Indexes are given here, in order, to the records whose images encoded. With
-    ``threads`` > 1 a batch's encoding and writing are each split between this thread and
-    helpers: one hand-off per batch, not per record."""
+    """First stage: gives queued records their indexes, JPEG-encodes their images and writes the
+    files (the codecs and file system calls release the GIL, so this overlaps with the writer
+    thread), then hands the records on in order, in batches of what is queued (fewer queue
+    hand-offs between the threads). With ``threads`` > 1 a batch is split between this thread
+    and helpers: one hand-off per batch, not per record."""
 
     def __init__(self, owner: TubWriter, threads: int) -> None:
         super().__init__()
@@ -83,25 +81,14 @@ class _Encoder(ThreadedPart):
             ok.extend(job.result())
         return ok
 
-    def _encode(self, record: tuple[dict[str, Any], int | None]) -> bool:
-        w = self.owner
-        values = record[0]
+    def _store(self, record: tuple[dict[str, Any], int | None, int]) -> bool:
+        """Encode and write the images of one record (in this thread or a helper)."""
+        values, _ts_ms, index = record
         try:
-            for key, tp in w._image_types.items():
-                if values.get(key) is not None:
-                    values[key] = encode_image(values[key], tp, w.tub.jpeg_quality)[0]
-            return True
-        except Exception:  # counted by poll(), in one thread
-            logger.exception("%s: cannot encode a record's image; record skipped", w.path)
-            return False
-
-    def _write(self, record: tuple[dict[str, Any], int | None, int]) -> bool:
-        w = self.owner
-        try:
-            w.tub.write_images(record[2], record[0])
+            self.owner.tub.write_images(index, values)
             return True
         except Exception:
-            w._log_failure(record[2])
+            self.owner._log_failure(index)
             return False
 
     def poll(self) -> Any:
@@ -115,17 +102,15 @@ class _Encoder(ThreadedPart):
                 batch.append(w._queue.get_nowait())
             except queue.Empty:
                 break
-        records = [item for item in batch if isinstance(item, tuple)]
-        numbered = []  # (values, timestamp, index) of the records whose images encoded
-        for (values, ts_ms), ok in zip(records, self._each(self._encode, records), strict=True):
-            if ok:
-                numbered.append((values, ts_ms, self._next_index))
-                self._next_index += 1
-        # a record whose files cannot be written is dropped: the tub keeps its index as a deleted
-        # record (Tub.write_record), so indexes stay positions, as DonkeyCar needs
-        stored = {id(r[0]): r for r, ok in zip(numbered, self._each(self._write, numbered), strict=True) if ok}
-        if len(stored) < len(records):
-            w._count_failed(len(records) - len(stored))
+        # Indexes in queue order; a record whose images cannot be encoded or written is dropped,
+        # and the tub keeps its index as a deleted record (Tub.write_record), so that indexes
+        # stay positions, as DonkeyCar needs.
+        numbered = [(values, ts_ms, self._next_index + i)
+                    for i, (values, ts_ms) in enumerate(item for item in batch if isinstance(item, tuple))]
+        self._next_index += len(numbered)
+        stored = {id(r[0]): r for r, ok in zip(numbered, self._each(self._store, numbered), strict=True) if ok}
+        if len(stored) < len(numbered):
+            w._count_failed(len(numbered) - len(stored))
         out = []  # the batch in its order: stored records and control items
         for item in batch:
             if isinstance(item, tuple):
