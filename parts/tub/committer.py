@@ -17,7 +17,7 @@ catalog is on the same filesystem, the catalog is not fsynced at each commit: th
 ``syncfs`` makes the lines appended before it durable together with its own images, so a commit
 that replaces no manifest flushes the device once instead of twice (a slow SD card takes
 milliseconds per flush). Such lines are fsynced on their own when no commit follows within
-``fsync_ms``, before manifest.json is replaced, before a catalog is closed, and at flush and
+twice ``fsync_ms``, before manifest.json is replaced, before a catalog is closed, and at flush and
 close. A power cut then loses at most the window whose lines await the next commit, the window
 being committed and the one being written.
 
@@ -85,7 +85,9 @@ class Committer:
         self._unsynced: list[str] = []
         self._durable_size = 0
         self._unsynced_at = 0.0  # time.monotonic() of the oldest unsynced line
-        self._fsync_s = fsync_ms / 1000.0
+        # Lines no commit took along are fsynced after twice the window's age bound: at a steady
+        # loop rate the next commit comes before, with its syncfs.
+        self._idle_s = 2 * fsync_ms / 1000.0
         self._jobs: deque[_Job] = deque()
         self._running: _Job | None = None     # the job being committed (background)
         self._error: Exception | None = None  # the last attempt's failure; None after a success
@@ -211,7 +213,7 @@ class Committer:
         while True:
             with self._cond:
                 if self._unsynced and not self._jobs and not self._closing:
-                    left = self._unsynced_at + self._fsync_s - time.monotonic()
+                    left = self._unsynced_at + self._idle_s - time.monotonic()
                     if not self._cond.wait_for(lambda: self._jobs or self._closing, timeout=max(0.0, left)):
                         job = self._running = _Job([], durable=True)  # an fsync of those lines
                         self._jobs.appendleft(job)

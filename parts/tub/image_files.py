@@ -12,6 +12,8 @@ from __future__ import annotations
 import ctypes
 import logging
 import os
+import platform
+import re
 import sys
 import threading
 import weakref
@@ -32,12 +34,25 @@ SYNCFS_FILESYSTEMS = frozenset({"ext4", "ext3", "xfs", "btrfs", "f2fs", "tmpfs"}
 _syncfs: Callable[[int], int] | None | bool = False  # False: not looked up yet
 
 
+SYNCFS_REPORTS_ERRORS = (5, 8)  # Linux reports writeback errors from syncfs() since 5.8
+
+
+def kernel_version(release: str | None = None) -> tuple[int, int]:
+    """(major, minor) of the running kernel (``platform.release()``), (0, 0) when unreadable."""
+    match = re.match(r"(\d+)\.(\d+)", release if release is not None else platform.release())
+    return (int(match[1]), int(match[2])) if match else (0, 0)
+
+
 def syncfs_function() -> Callable[[int], int] | None:
-    """libc's ``syncfs(fd)`` (Linux), or None where there is none. Looked up on first use."""
+    """libc's ``syncfs(fd)`` on Linux 5.8 or later, else None. Looked up on first use.
+
+    Older kernels (Jetson Nano's 4.9) return success from syncfs() even when writing back failed,
+    so there each image is fsynced, which reports it.
+    """
     global _syncfs
     if _syncfs is False:
         _syncfs = None
-        if sys.platform.startswith("linux"):
+        if sys.platform.startswith("linux") and kernel_version() >= SYNCFS_REPORTS_ERRORS:
             try:
                 fn = ctypes.CDLL(None, use_errno=True).syncfs  # CDLL calls release the GIL
                 fn.argtypes, fn.restype = [ctypes.c_int], ctypes.c_int

@@ -256,6 +256,10 @@ class Tub:
             index = m.current_index
         elif index < m.current_index:
             raise ValueError(f"{self.path}: record index {index} is taken; the next one is {m.current_index}")
+        for value in record.values():
+            if isinstance(value, StoredImage) and value.index != index:
+                raise ValueError(f"{self.path}: image {value.name} belongs to record {value.index}, "
+                                 f"not {index}")
         values = dict(record)
         self.write_images(index, values)
         contents: dict[str, Any] = {}
@@ -263,24 +267,26 @@ class Tub:
             tp = self._types.get(key)
             if value is None or tp is None:
                 continue
-            if isinstance(value, StoredImage):
-                if value.index != index:
-                    raise ValueError(f"{self.path}: image {value.name} belongs to record {value.index}, "
-                                     f"not {index}")
-                contents[key] = value.name
-            else:
-                contents[key] = encode_value(key, tp, value)
+            contents[key] = value.name if isinstance(value, StoredImage) else encode_value(key, tp, value)
         if index > m.current_index:
-            logger.warning("%s: records %d..%d could not be written; kept as deleted records",
-                           self.path, m.current_index, index - 1)
-            while m.current_index < index:
-                m.deleted_indexes.add(self._append_line({}, None))
-            self._manifest_saved_at = -MANIFEST_INTERVAL_S  # the deletions go with the next commit
+            self._keep_skipped(index)
         self._append_line(contents, timestamp_ms)
         self.written += 1
         if self.commit_due():
             self.commit()
         return index
+
+    def _keep_skipped(self, index: int) -> None:
+        """Fill the indexes before ``index`` with deleted records without values. Their deletion
+        reaches manifest.json before their lines reach the catalog: a crash in between leaves
+        deleted indexes beyond the last record, which recovery drops."""
+        m = self.manifest
+        logger.warning("%s: records %d..%d could not be written; kept as deleted records",
+                       self.path, m.current_index, index - 1)
+        m.deleted_indexes.update(range(m.current_index, index))
+        self._submit(force_manifest=True)
+        while m.current_index < index:
+            self._append_line({}, None)
 
     def _append_line(self, contents: dict[str, Any], timestamp_ms: int | None) -> int:
         """Give ``contents`` the next index and queue its catalog line; returns the index."""
@@ -338,8 +344,14 @@ class Tub:
                 durable: bool = False) -> None:
         """Hand the pending catalog lines (and the manifest when due) to the committer."""
         assert self._committer is not None
-        lines, self._pending_lines, self._pending_since = self._pending_lines, [], None
-        self._committer.submit(lines, next_catalog, self._manifest_text(force_manifest), durable)
+        lines, since = self._pending_lines, self._pending_since
+        self._pending_lines, self._pending_since = [], None
+        try:
+            self._committer.submit(lines, next_catalog, self._manifest_text(force_manifest), durable)
+        except TubError:  # refused (the commit thread failed): the lines stay pending
+            self._pending_lines[:0] = lines
+            self._pending_since = since
+            raise
 
     def _manifest_text(self, force: bool) -> str | None:
         """manifest.json's new text when due: at most every MANIFEST_INTERVAL_S unless forced.

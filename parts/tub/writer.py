@@ -232,6 +232,9 @@ class TubWriter:
         for t in self._threads:
             t.start()
         # Write what is queued if the program ends without shutdown() (the threads are daemons).
+        # The tub is closed by shutdown() only, never by its own exit hook from another thread.
+        if self.tub._atexit is not None:
+            atexit.unregister(self.tub._atexit)
         atexit.register(self.shutdown)
 
     @property
@@ -281,7 +284,8 @@ class TubWriter:
             result = fn(*args, **kwargs)
             return True if result is None else result
         except Exception:
-            self._log_failure(self.tub.current_index)
+            index = kwargs.get("index")
+            self._log_failure(self.tub.current_index if index is None else index)
             return None
 
     def _log_failure(self, index: int) -> None:

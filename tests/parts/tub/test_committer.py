@@ -107,7 +107,10 @@ def test_the_writer_goes_on_while_a_commit_waits_for_the_disk_but_only_one_windo
 
     t = threading.Thread(target=writer)
     t.start()
-    t.join(1.0)
+    deadline = time.monotonic() + 10
+    while len(os.listdir(tub.images_path)) < 6 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    time.sleep(0.05)
     # records 0-2 are being committed (the disk is "slow"); 3-5 were written meanwhile; the
     # commit of 3-5 (due at record 5) waits for the first one: the writer is one window ahead
     assert t.is_alive()
@@ -241,7 +244,7 @@ def test_background_commits_flush_the_device_once_each_and_lines_ride_on_the_nex
 def test_lines_no_commit_takes_along_are_fsynced_after_fsync_ms(tmp_path, monkeypatch):
     calls = _count_flushes(monkeypatch)
     tub = Tub(tmp_path / "t", INPUTS, TYPES, fsync_records=3, fsync_ms=60_000, commit_thread=True)
-    tub._committer._fsync_s = 0.05  # the committer's idle delay only: commits still come by count
+    tub._committer._idle_s = 0.05  # the committer's idle delay only: commits still come by count
     _records(tub, range(6))
     deadline = time.monotonic() + 10
     while len(calls) < 4 and time.monotonic() < deadline:  # recording paused: no commit comes

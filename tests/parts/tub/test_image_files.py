@@ -162,3 +162,15 @@ def test_tub_commit_makes_images_durable_before_their_catalog_lines(tmp_path, mo
     tub.close()
     assert events[3:5] == ["sync 2", "append 2"]
     assert [r["n"] for r in load_records(tmp_path / "t")] == [0, 1, 2, 3, 4, 5]
+
+
+def test_syncfs_is_used_only_where_the_kernel_reports_its_errors(monkeypatch):
+    assert image_files.kernel_version("4.9.337-tegra") == (4, 9)
+    assert image_files.kernel_version("6.6.31+rpt-rpi-v8") == (6, 6)
+    assert image_files.kernel_version("weird") == (0, 0)
+    monkeypatch.setattr(image_files, "_syncfs", False)  # look it up again
+    monkeypatch.setattr(image_files.platform, "release", lambda: "4.9.337-tegra")  # Jetson Nano
+    assert syncfs_function() is None
+    monkeypatch.setattr(image_files, "_syncfs", False)
+    monkeypatch.setattr(image_files.platform, "release", lambda: "5.8.0")
+    assert syncfs_function() is not None or not sys.platform.startswith("linux")

@@ -183,3 +183,17 @@ def test_indexes_given_ahead_keep_the_skipped_ones_as_deleted_records(tmp_path):
     assert reopened.problems == []
     assert [(r.index, r["a"]) for r in load_records(t, check_images=False)] == [(0, 0), (7, 7), (8, 8)]
     assert lines[8]["cam/image_array"] == "8_cam_image_array_.jpg"
+
+
+def test_skipped_indexes_are_deleted_in_the_manifest_before_their_lines_are_written(tmp_path):
+    tub = Tub(tmp_path / "t", ["a"], ["int"], fsync_records=20, fsync_ms=60_000)
+    tub.write_record({"a": 0})
+    tub.write_record({"a": 3}, index=3)
+    # a crash now: manifest.json already deletes 1-2, the catalog holds record 0 only
+    manifest = json.loads((tmp_path / "t" / "manifest.json").read_text().splitlines()[4])
+    assert manifest["current_index"] == 1 and manifest["deleted_indexes"] == [1, 2]
+    crashed = Tub(tmp_path / "t", read_only=True)
+    assert crashed.current_index == 1 and crashed.deleted_indexes == set() and len(crashed) == 1
+    tub.close()
+    done = Tub(tmp_path / "t", read_only=True)
+    assert done.current_index == 4 and done.deleted_indexes == {1, 2} and len(done) == 2
