@@ -1,11 +1,12 @@
 """``TubWriter``: the drive-loop part that records into a tub without blocking the loop.
 
-``run()`` (loop thread) only copies the values into a queue. Threads of the writer do the rest,
-overlapping: the encoding threads JPEG-encode and write the image files, one thread stores the
-catalog lines in order, and with fsync one commits (waits for the disk to make each window
-durable, ``parts.tub.committer``). When ``queue_size`` records
-are in flight (accepted, not yet written) a new record is dropped, counted and a warning is logged
-(at most every few seconds): never silently lost, and the loop never waits for the disk.
+``run()`` (loop thread) only copies the values into a queue. The writer's recording thread takes
+what is queued in batches, gives the records their indexes in order, JPEG-encodes and writes their
+image files (a batch is split with helper threads: the codecs and file system calls release the
+GIL), then stores the catalog lines in order; with fsync, a commit thread makes each window
+durable while the next one is written (``parts.tub.committer``). When ``queue_size`` records are
+in flight (accepted, not yet written) a new record is dropped, counted and a warning is logged (at
+most every few seconds): never silently lost, and the loop never waits for the disk.
 """
 
 from __future__ import annotations
@@ -31,8 +32,7 @@ from vehicle.part import ThreadedPart
 logger = logging.getLogger(__name__)
 
 TIMESTAMP_INPUT = "cam/timestamp"
-_BATCH = 32  # records the encoder takes from the queue at once
-_ENCODED_MAX = 4  # encoded batches (of up to _BATCH records, ~3-5 KB each) waiting for the writer
+_BATCH = 32  # records the recording thread takes from the queue at once
 _WARN_EVERY_S = 5.0
 
 
@@ -55,12 +55,16 @@ class _DeleteLast:
         self.n = n
 
 
-class _Encoder(ThreadedPart):
-    """First stage: gives queued records their indexes, JPEG-encodes their images and writes the
-    files (the codecs and file system calls release the GIL, so this overlaps with the writer
-    thread), then hands the records on in order, in batches of what is queued (fewer queue
-    hand-offs between the threads). With ``threads`` > 1 a batch is split between this thread
-    and helpers: one hand-off per batch, not per record."""
+class _Recorder(ThreadedPart):
+    """The recording thread: takes what is queued in batches, gives the records their indexes in
+    queue order, encodes and writes their images (the batch split between this thread and
+    ``threads - 1`` helpers: one hand-off per helper and batch, not per record), then stores the
+    records in order and commits when due.
+
+    One thread for both stages: a thread of its own for the catalog lines (~5 µs per record) cost
+    more in hand-offs and GIL contention than it saved; without it durable writes to disk were
+    17% faster (``bench/tub_compare.py``).
+    """
 
     def __init__(self, owner: TubWriter, threads: int) -> None:
         super().__init__()
@@ -68,6 +72,45 @@ class _Encoder(ThreadedPart):
         self._threads = threads
         self._helpers = ThreadPoolExecutor(threads - 1, thread_name_prefix="tub-encode") if threads > 1 else None
         self._next_index = owner.tub.current_index  # the index the next record gets
+
+    def poll(self) -> Any:
+        w = self.owner
+        wait = w.tub.seconds_to_commit()
+        try:
+            batch = [w._queue.get(timeout=min(wait, 0.5) if wait is not None else 0.5)]
+        except queue.Empty:
+            if w.tub.commit_due():  # recording paused: commit the window by its age
+                w._guard(w.tub.commit)
+            return self.NOTHING
+        while len(batch) < _BATCH and not isinstance(batch[-1], _Stop):
+            try:
+                batch.append(w._queue.get_nowait())
+            except queue.Empty:
+                break
+        stored = self._store_images([item for item in batch if isinstance(item, tuple)])
+        for item in batch:  # in queue order: records, deletions and the stop
+            if isinstance(item, tuple):
+                if id(item[0]) in stored:
+                    self._write(*stored[id(item[0])])
+            elif isinstance(item, _DeleteLast):
+                w._guard(w.tub.delete_last_n_records, item.n)
+            elif isinstance(item, _Stop):
+                self.stop_event.set()
+        return self.NOTHING
+
+    def _store_images(self, records: list[tuple[dict[str, Any], int | None]]
+                      ) -> dict[int, tuple[dict[str, Any], int | None, int]]:
+        """Give ``records`` their indexes and write their images; returns (values, timestamp,
+        index) by ``id(values)`` of the records whose images were written. A record that fails is
+        counted and left out: the tub keeps its index as a deleted record (``Tub.write_record``),
+        so that indexes stay positions, as DonkeyCar needs."""
+        numbered = [(values, ts_ms, self._next_index + i) for i, (values, ts_ms) in enumerate(records)]
+        self._next_index += len(numbered)
+        ok = self._each(self._store, numbered)
+        stored = {id(r[0]): r for r, done in zip(numbered, ok, strict=True) if done}
+        if len(stored) < len(numbered):
+            self.owner.stats.failed += len(numbered) - len(stored)
+        return stored
 
     def _each(self, fn: Callable[[Any], bool], items: list[Any]) -> list[bool]:
         """``[fn(item) for item in items]``, the list split between this thread and the helpers."""
@@ -91,72 +134,17 @@ class _Encoder(ThreadedPart):
             self.owner._log_failure(index)
             return False
 
-    def poll(self) -> Any:
+    def _write(self, values: dict[str, Any], ts_ms: int | None, index: int) -> None:
+        """Store one record whose images are written (its catalog line; commits when due)."""
         w = self.owner
-        try:
-            batch = [w._queue.get(timeout=0.5)]
-        except queue.Empty:
-            return self.NOTHING
-        while len(batch) < _BATCH and not isinstance(batch[-1], _Stop):
-            try:
-                batch.append(w._queue.get_nowait())
-            except queue.Empty:
-                break
-        # Indexes in queue order; a record whose images cannot be encoded or written is dropped,
-        # and the tub keeps its index as a deleted record (Tub.write_record), so that indexes
-        # stay positions, as DonkeyCar needs.
-        numbered = [(values, ts_ms, self._next_index + i)
-                    for i, (values, ts_ms) in enumerate(item for item in batch if isinstance(item, tuple))]
-        self._next_index += len(numbered)
-        stored = {id(r[0]): r for r, ok in zip(numbered, self._each(self._store, numbered), strict=True) if ok}
-        if len(stored) < len(numbered):
-            w._count_failed(len(numbered) - len(stored))
-        out = []  # the batch in its order: stored records and control items
-        for item in batch:
-            if isinstance(item, tuple):
-                if id(item[0]) in stored:
-                    out.append(stored[id(item[0])])
-                continue
-            if isinstance(item, _Stop):
-                self.stop_event.set()
-            out.append(item)
-        w._encoded.put(out)  # bounded: waits while the writer thread is behind
-        return self.NOTHING
+        if w._guard(w.tub.write_record, values, timestamp_ms=ts_ms, index=index) is not None:
+            w.stats.written += 1
+        else:
+            w.stats.failed += 1
 
     def stop_helpers(self) -> None:
         if self._helpers is not None:
             self._helpers.shutdown(wait=True)
-
-
-class _Worker(ThreadedPart):
-    """The writer thread: takes encoded records and writes them; commits when due."""
-
-    def __init__(self, owner: TubWriter) -> None:
-        super().__init__()
-        self.owner = owner
-
-    def poll(self) -> Any:
-        w = self.owner
-        wait = w.tub.seconds_to_commit()
-        try:
-            got = w._encoded.get(timeout=wait if wait is not None else 0.5)
-        except queue.Empty:
-            if w.tub.commit_due():
-                w._guard(w.tub.commit)
-            return self.NOTHING
-        for item in got if isinstance(got, list) else [got]:
-            if isinstance(item, _Stop):
-                self.stop_event.set()
-            elif isinstance(item, _DeleteLast):
-                w._guard(w.tub.delete_last_n_records, item.n)
-            else:
-                # (values, timestamp) or, from the encoder thread, (values, timestamp, index)
-                values, ts_ms, index = item if len(item) == 3 else (*item, None)
-                if w._guard(w.tub.write_record, values, timestamp_ms=ts_ms, index=index) is not None:
-                    w.stats.written += 1
-                else:
-                    w._count_failed(1)
-        return self.NOTHING
 
 
 class TubWriter:
@@ -173,10 +161,9 @@ class TubWriter:
         fsync, fsync_records, fsync_ms, jpeg_quality: see :class:`parts.tub.tub.Tub`.
         remove_if_empty: when the folder is created here and no record is written, remove it on
             shutdown.
-        encoder_thread: JPEG-encode in a thread of its own (overlaps with file I/O on a machine
-            with a spare core); False encodes in the file-writer thread.
-        encode_threads: threads sharing the JPEG encoding (with ``encoder_thread``); default 2
-            on a machine with 2 or more cores. A batch is split only when records queued up (a
+        encode_threads: threads sharing the JPEG encoding and image writes (the recording
+            thread and ``encode_threads - 1`` helpers); default 2 on a machine with 2 or more
+            cores. A batch is split only when records queued up (a
             burst, or the disk stalled), so at the loop's rate one thread encodes and catching up
             uses a second core.
 
@@ -188,7 +175,7 @@ class TubWriter:
                  metadata: Mapping[str, Any] | Iterable[str] | None = None, max_catalog_len: int = 1000,
                  *, queue_size: int = 100, fsync: bool = True, fsync_records: int = 20,
                  fsync_ms: float = 500.0, jpeg_quality: int = 75, remove_if_empty: bool = False,
-                 encoder_thread: bool = True, encode_threads: int | None = None) -> None:
+                 encode_threads: int | None = None) -> None:
         inputs, types = list(inputs), list(types)
         if len(inputs) != len(types):
             raise ValueError(f"TubWriter: {len(inputs)} inputs but {len(types)} types; give one type "
@@ -212,10 +199,6 @@ class TubWriter:
         self.queue_size = queue_size
         # Unbounded Queue, the bound is enforced in run(): control items (stop, delete) always fit.
         self._queue: queue.Queue[Any] = queue.Queue()
-        # With an encoder thread, encoded records wait here for the file writer; without one the
-        # writer thread reads the input queue and encodes itself.
-        self._encoded: queue.Queue[Any] = queue.Queue(maxsize=_ENCODED_MAX) if encoder_thread \
-            else self._queue
         self._image_types = {k: t for k, t in zip(self.tub.inputs, self.tub.types, strict=True)
                              if t in IMAGE_TYPES}
         self.stats = WriterStats()
@@ -224,13 +207,9 @@ class TubWriter:
         self._dropped_since_warning = 0
         self._error_logged_at = -_WARN_EVERY_S
         self._lock = threading.Lock()
-        self._failed_lock = threading.Lock()  # failures are counted by the encoder and the writer
         self._closed = False
-        self._threads: list[ThreadedPart] = [_Encoder(self, encode_threads)] if encoder_thread else []
-        self._worker = _Worker(self)
-        self._threads.append(self._worker)
-        for t in self._threads:
-            t.start()
+        self._recorder = _Recorder(self, encode_threads)
+        self._recorder.start()
         # Write what is queued if the program ends without shutdown() (the threads are daemons).
         # The tub is closed by shutdown() only, never by its own exit hook from another thread.
         if self.tub._atexit is not None:
@@ -262,10 +241,6 @@ class TubWriter:
             self.stats.accepted += 1
         return self._base_count + self.stats.accepted
 
-    def _count_failed(self, n: int) -> None:
-        with self._failed_lock:
-            self.stats.failed += n
-
     def _drop(self) -> None:
         self.stats.dropped += 1
         self._dropped_since_warning += 1
@@ -279,7 +254,7 @@ class TubWriter:
             self._dropped_since_warning = 0
 
     def _guard(self, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
-        """Run fn in the writer thread; log a failure (rate-limited) and return None."""
+        """Run fn in the recording thread; log a failure (rate-limited) and return None."""
         try:
             result = fn(*args, **kwargs)
             return True if result is None else result
@@ -296,7 +271,7 @@ class TubWriter:
             self._error_logged_at = now
 
     def delete_last(self, n: int) -> None:
-        """Soft-delete the last ``n`` records, including queued ones (done in the writer thread)."""
+        """Soft-delete the last ``n`` records, including queued ones (done in the recording thread)."""
         self._queue.put(_DeleteLast(int(n)))
 
     def pending(self) -> int:
@@ -335,12 +310,11 @@ class TubWriter:
 
     def _finish(self) -> None:
         """Wait for the writer threads to write what is queued, then close the tub."""
-        for part in self._threads:
-            if part._thread is not None:
-                part._thread.join()
-            part.stop_event.set()
-            if isinstance(part, _Encoder):
-                part.stop_helpers()
+        recorder = self._recorder
+        if recorder._thread is not None:
+            recorder._thread.join()
+        recorder.stop_event.set()
+        recorder.stop_helpers()
         self.tub.close()
         if self._remove_if_empty and self.tub.current_index == 0:
             shutil.rmtree(self.tub.path, ignore_errors=True)

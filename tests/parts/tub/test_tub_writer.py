@@ -44,6 +44,25 @@ def test_arrays_are_copied_so_a_reused_camera_buffer_is_safe(tmp_path):
     assert all(abs(m - 40 * i) <= 2 for i, m in enumerate(means))
 
 
+@pytest.mark.parametrize("fsync", [True, False])
+def test_a_paused_recording_commits_its_window_by_age(tmp_path, fsync):
+    # 3 records, far fewer than fsync_records: only the window's age (fsync_ms) commits them,
+    # from the recording thread while nothing more is queued
+    w = TubWriter(tmp_path / "t", ["n"], ["int"], fsync=fsync, fsync_records=1000, fsync_ms=30)
+    for i in range(3):
+        w.run(i)
+    deadline = time.monotonic() + 10
+    committed: list[int] = []
+    while time.monotonic() < deadline and len(committed) < 3:
+        time.sleep(0.02)
+        committed = [r["n"] for r in load_records(tmp_path / "t")]
+    try:
+        assert committed == [0, 1, 2]  # in the catalog while the writer is still open
+        assert w.stats.written == 3 and w.pending() == 0
+    finally:
+        w.shutdown()
+
+
 def test_full_queue_drops_counted_and_warned_and_run_never_waits(tmp_path, caplog):
     w = TubWriter(tmp_path / "t", ["n"], ["int"], queue_size=3)
     gate = threading.Event()
