@@ -524,7 +524,7 @@ TUB_FSYNC_MS: int = 500
 # fsync at each commit (protects against power loss). False: commits still happen per window, but
 # only a crash of the process (not a power cut) is survived; faster on slow SD cards.
 TUB_FSYNC: bool = True
-# Records in flight to the writer threads (accepted, not yet written); beyond it new records are
+# Records in flight to the recording thread (accepted, not yet written); beyond it new records are
 # dropped, counted and a warning is logged (the loop never waits for the disk). 100 = 5 s at 20 Hz.
 TUB_QUEUE_SIZE: int = 100
 # JPEG quality of recorded images, 1-100. 75 is DonkeyCar's (PIL's default): ~3-5 KB per 160x120

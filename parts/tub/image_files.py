@@ -22,6 +22,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from parts.tub.format import O_BINARY, fsync_dir, write_all
+from parts.tub.pools import submit_or_run
 
 logger = logging.getLogger(__name__)
 
@@ -156,7 +157,7 @@ class ImageFiles:
         else:
             if self._pool is None:
                 self._pool = ThreadPoolExecutor(max_workers=FSYNC_THREADS, thread_name_prefix="tub-fsync")
-            jobs = [self._pool.submit(_fsync_file, path) for path in self._pending[:count]]
+            jobs = [submit_or_run(self._pool, _fsync_file, path) for path in self._pending[:count]]
             errors = []
             for job in jobs:  # wait for every job, even after a failure
                 if (exc := job.exception()) is not None:

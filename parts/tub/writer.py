@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from parts.tub.format import IMAGE_TYPES
+from parts.tub.pools import submit_or_run
 from parts.tub.tub import Tub
 from vehicle.part import ThreadedPart
 
@@ -76,8 +77,11 @@ class _Recorder(ThreadedPart):
     def poll(self) -> Any:
         w = self.owner
         wait = w.tub.seconds_to_commit()
+        # at least 20 ms: after a failed commit the window stays due, and retrying it at once
+        # would spin, taking the GIL from the drive loop
+        timeout = min(max(wait, 0.02), 0.5) if wait is not None else 0.5
         try:
-            batch = [w._queue.get(timeout=min(wait, 0.5) if wait is not None else 0.5)]
+            batch = [w._queue.get(timeout=timeout)]
         except queue.Empty:
             if w.tub.commit_due():  # recording paused: commit the window by its age
                 w._guard(w.tub.commit)
@@ -118,8 +122,8 @@ class _Recorder(ThreadedPart):
             return [fn(item) for item in items]
         size = -(-len(items) // self._threads)  # ceil: the batch in up to `threads` slices
         slices = [items[i:i + size] for i in range(0, len(items), size)]
-        jobs = [self._helpers.submit(lambda sl=sl: [fn(item) for item in sl]) for sl in slices[1:]]
-        ok = [fn(item) for item in slices[0]]
+        jobs = [submit_or_run(self._helpers, _map, fn, sl) for sl in slices[1:]]
+        ok = _map(fn, slices[0])
         for job in jobs:
             ok.extend(job.result())
         return ok
@@ -145,6 +149,10 @@ class _Recorder(ThreadedPart):
     def stop_helpers(self) -> None:
         if self._helpers is not None:
             self._helpers.shutdown(wait=True)
+
+
+def _map(fn: Callable[[Any], bool], items: list[Any]) -> list[bool]:
+    return [fn(item) for item in items]
 
 
 class TubWriter:
@@ -246,10 +254,13 @@ class TubWriter:
         self._dropped_since_warning += 1
         now = time.monotonic()
         if now - self._last_warning >= _WARN_EVERY_S:
-            logger.warning("%s: writer queue full (%d records): dropped %d records (%d in total); "
-                           "the disk is too slow for the loop rate: lower TUB_JPEG_QUALITY or "
-                           "raise TUB_FSYNC_RECORDS", self.path, self.queue_size,
-                           self._dropped_since_warning, self.stats.dropped)
+            failed = self._recorder.error
+            why = (f"the recording thread failed ({failed!r}): nothing is written any more, see the "
+                   "error logged when it failed" if failed is not None else
+                   "the disk is too slow for the loop rate: lower TUB_JPEG_QUALITY or raise "
+                   "TUB_FSYNC_RECORDS")
+            logger.warning("%s: writer queue full (%d records): dropped %d records (%d in total); %s",
+                           self.path, self.queue_size, self._dropped_since_warning, self.stats.dropped, why)
             self._last_warning = now
             self._dropped_since_warning = 0
 
@@ -288,7 +299,7 @@ class TubWriter:
         atexit.unregister(self.shutdown)
         self._queue.put(_Stop())
         # The closing runs in a thread of its own, so that a timeout is kept even when the disk
-        # stalls; the tub is then closed when the writer threads are done with it (it is never
+        # stalls; the tub is then closed when the recording thread is done with it (it is never
         # used by two threads at once).
         failure: list[BaseException] = []
 
@@ -303,19 +314,22 @@ class TubWriter:
         closer.start()
         closer.join(timeout)
         if closer.is_alive():
-            logger.error("%s: writer threads still busy after %.1f s; %d records not written yet; the "
+            logger.error("%s: recording thread still busy after %.1f s; %d records not written yet; the "
                          "tub is closed when they are", self.path, timeout or 0, self.pending())
         elif failure:
             raise failure[0]
 
     def _finish(self) -> None:
-        """Wait for the writer threads to write what is queued, then close the tub."""
+        """Wait for the recording thread to write what is queued, then close the tub."""
         recorder = self._recorder
         if recorder._thread is not None:
             recorder._thread.join()
         recorder.stop_event.set()
         recorder.stop_helpers()
         self.tub.close()
+        if recorder.error is not None:
+            logger.error("%s: the recording thread failed (%r); %d accepted records were not written",
+                         self.path, recorder.error, self.pending())
         if self._remove_if_empty and self.tub.current_index == 0:
             shutil.rmtree(self.tub.path, ignore_errors=True)
             logger.info("%s: no record written; empty tub removed", self.path)

@@ -3,8 +3,12 @@
 from __future__ import annotations
 
 import logging
+import os
+import subprocess
+import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,6 +19,7 @@ from parts.tub.tub import Tub
 from parts.tub.writer import TubWiper, TubWriter
 from vehicle.config import Config
 
+ROOT = Path(__file__).resolve().parents[3]
 INPUTS = ["cam/image_array", "user/angle", "user/throttle", "user/mode", "cam/timestamp"]
 TYPES = ["image_array", "float", "float", "str", "float"]
 
@@ -46,19 +51,18 @@ def test_arrays_are_copied_so_a_reused_camera_buffer_is_safe(tmp_path):
 
 @pytest.mark.parametrize("fsync", [True, False])
 def test_a_paused_recording_commits_its_window_by_age(tmp_path, fsync):
-    # 3 records, far fewer than fsync_records: only the window's age (fsync_ms) commits them,
-    # from the recording thread while nothing more is queued
+    # One record, far fewer than fsync_records, and no later write that could find its window
+    # old: only the recording thread, idle, commits it by the window's age (fsync_ms)
     w = TubWriter(tmp_path / "t", ["n"], ["int"], fsync=fsync, fsync_records=1000, fsync_ms=30)
-    for i in range(3):
-        w.run(i)
+    w.run(7)
     deadline = time.monotonic() + 10
     committed: list[int] = []
-    while time.monotonic() < deadline and len(committed) < 3:
+    while time.monotonic() < deadline and not committed:
         time.sleep(0.02)
         committed = [r["n"] for r in load_records(tmp_path / "t")]
     try:
-        assert committed == [0, 1, 2]  # in the catalog while the writer is still open
-        assert w.stats.written == 3 and w.pending() == 0
+        assert committed == [7]  # in the catalog while the writer is still open
+        assert w.stats.written == 1 and w.pending() == 0
     finally:
         w.shutdown()
 
@@ -85,6 +89,30 @@ def test_full_queue_drops_counted_and_warned_and_run_never_waits(tmp_path, caplo
     written = [r["n"] for r in Tub(tmp_path / "t", read_only=True)]
     assert len(written) == w.stats.accepted == w.stats.written  # every accepted record is on disk
     assert written == sorted(set(written)) and written[:3] == [0, 1, 2]
+
+
+def test_a_failed_recording_thread_is_named_in_the_drop_warning_and_at_shutdown(tmp_path, monkeypatch, caplog):
+    from parts.tub import writer as writer_module
+
+    def broken(self, records):
+        raise RuntimeError("encoder bug")
+
+    monkeypatch.setattr(writer_module._Recorder, "_store_images", broken)
+    w = TubWriter(tmp_path / "t", ["n"], ["int"], queue_size=5)
+    with caplog.at_level(logging.WARNING):
+        for i in range(5):
+            w.run(i)
+        deadline = time.monotonic() + 10
+        while w._recorder.error is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        for i in range(3):
+            w.run(i)  # queue full: dropped, and the warning says why
+        w.shutdown()
+    assert isinstance(w._recorder.error, RuntimeError)
+    assert w.stats.accepted == 5 and w.stats.dropped == 3 and w.stats.written == 0
+    assert "recording thread failed (RuntimeError('encoder bug')): nothing is written" in caplog.text
+    assert "5 accepted records were not written" in caplog.text
+    assert "disk is too slow" not in caplog.text
 
 
 def test_wiper_deletes_on_rising_edge_including_queued_records(tmp_path):
@@ -264,3 +292,31 @@ def test_shutdown_keeps_its_timeout_when_the_disk_stalls_and_the_tub_closes_late
         time.sleep(0.01)
     assert w.tub.closed
     assert [r["n"] for r in load_records(tmp_path / "t")] == list(range(12))
+
+
+EXIT_CHILD = r"""
+import sys
+import numpy as np
+import parts.tub.image_files as image_files
+from parts.tub.writer import TubWriter
+if sys.argv[2] == "fsync-each":
+    image_files._syncfs = None  # as on a FAT card or Linux < 5.8: a pool fsyncs each image
+w = TubWriter(sys.argv[1], ["cam/image_array", "n"], ["image_array", "int"], queue_size=500)
+for i in range(60):
+    w.run(np.full((48, 64, 3), 4 * i, np.uint8), i)
+# ends without w.shutdown(): its exit hook writes what is queued
+"""
+
+
+@pytest.mark.parametrize("sync", ["syncfs", "fsync-each"])
+def test_a_program_that_ends_without_shutdown_still_writes_every_queued_record(tmp_path, sync):
+    # At exit Python's thread pools take no new tasks: the encoding helpers' and the fsync pool's
+    # work then runs in the recording thread instead of failing and losing the records
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    res = subprocess.run([sys.executable, "-c", EXIT_CHILD, str(tmp_path / "t"), sync], env=env,
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert "failed" not in res.stderr, res.stderr[-2000:]
+    records = load_records(tmp_path / "t", on_error="raise")
+    assert [r["n"] for r in records] == list(range(60))
+    assert all(abs(int(r.image().mean()) - 4 * r["n"]) <= 2 for r in records)
