@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from parts.tub.errors import TubError
 from parts.tub.image_files import ImageFiles
 from parts.tub.reader import load_records
 from parts.tub.tub import Tub
@@ -113,6 +114,30 @@ def test_a_failed_recording_thread_is_named_in_the_drop_warning_and_at_shutdown(
     assert "recording thread failed (RuntimeError('encoder bug')): nothing is written" in caplog.text
     assert "5 accepted records were not written" in caplog.text
     assert "disk is too slow" not in caplog.text
+
+
+def test_a_window_that_cannot_be_committed_is_retried_without_spinning(tmp_path, monkeypatch, caplog):
+    from parts.tub.committer import Committer
+
+    def die(self):
+        raise RuntimeError("commit thread bug")
+
+    monkeypatch.setattr(Committer, "_run_jobs", die)  # the commit thread fails at once
+    w = TubWriter(tmp_path / "t", ["n"], ["int"], fsync=True, fsync_records=1000, fsync_ms=30)
+    attempts = []
+    real_commit = w.tub.commit
+
+    def commit():
+        attempts.append(1)
+        real_commit()
+
+    w.tub.commit = commit
+    with caplog.at_level(logging.ERROR):
+        w.run(1)
+        time.sleep(0.6)  # the window is due after 30 ms; each attempt is refused
+        assert 1 <= len(attempts) <= 40  # one attempt per 20 ms at most: without the floor, thousands
+        with pytest.raises(TubError, match="the commit thread failed"):
+            w.shutdown()  # the record could not be committed: said, not hidden
 
 
 def test_wiper_deletes_on_rising_edge_including_queued_records(tmp_path):
