@@ -119,7 +119,7 @@ class _Recorder(ThreadedPart):
     def _each(self, fn: Callable[[Any], bool], items: list[Any]) -> list[bool]:
         """``[fn(item) for item in items]``, the list split between this thread and the helpers."""
         if self._helpers is None or len(items) < 2 or not self.owner._image_types:
-            return [fn(item) for item in items]
+            return _map(fn, items)
         size = -(-len(items) // self._threads)  # ceil: the batch in up to `threads` slices
         slices = [items[i:i + size] for i in range(0, len(items), size)]
         jobs = [submit_or_run(self._helpers, _map, fn, sl) for sl in slices[1:]]
@@ -152,6 +152,7 @@ class _Recorder(ThreadedPart):
 
 
 def _map(fn: Callable[[Any], bool], items: list[Any]) -> list[bool]:
+    """``fn`` of each item, in this thread (a helper's task, or the recording thread's slice)."""
     return [fn(item) for item in items]
 
 
@@ -171,9 +172,8 @@ class TubWriter:
             shutdown.
         encode_threads: threads sharing the JPEG encoding and image writes (the recording
             thread and ``encode_threads - 1`` helpers); default 2 on a machine with 2 or more
-            cores. A batch is split only when records queued up (a
-            burst, or the disk stalled), so at the loop's rate one thread encodes and catching up
-            uses a second core.
+            cores. A batch is split only when records queued up (a burst, or the disk stalled),
+            so at the loop's rate one thread encodes and catching up uses a second core.
 
     ``run()`` returns the number of records in the tub counting queued ones (``tub/num_records``);
     ``shutdown()`` writes what is queued, commits and closes. Usable without a Vehicle.
