@@ -125,19 +125,26 @@ def cmd_ls(args: argparse.Namespace) -> int:
 
 
 def _edit(args: argparse.Namespace, delete: bool) -> int:
-    from parts.tub.tools import parse_ranges
+    from parts.tub.tools import format_ranges, parse_ranges
     from parts.tub.tub import Tub
 
     try:
         with Tub(args.tub) as tub:
             idx = parse_ranges(args.ranges, tub.current_index)
             before = len(tub)
-            (tub.delete_records if delete else tub.restore_records)(idx)
+            kept: list[int] = []  # restore: indexes that stay deleted
+            if delete:
+                tub.delete_records(idx)
+            else:
+                kept = tub.restore_records(idx)
             after = len(tub)
     except _errors() as exc:
         raise _user_error(exc) from exc
     verb = "deleted" if delete else "restored"
     _out(f"{args.tub}: {verb} {abs(before - after)} records ({len(idx)} indexes given); {after} records now")
+    if kept:
+        _out(f"{len(kept)} kept deleted: they carry no value (records that could not be written), "
+             f"indexes {format_ranges(kept)}")
     return 0
 
 

@@ -42,6 +42,20 @@ def parse_ranges(spec: str, end: int) -> list[int]:
     return sorted(out)
 
 
+def format_ranges(indexes: list[int]) -> str:
+    """Sorted indexes -> the shortest spec :func:`parse_ranges` reads back: ``[1, 2, 3, 7]`` ->
+    ``"1:4,7"``."""
+    parts: list[str] = []
+    i = 0
+    while i < len(indexes):
+        j = i
+        while j + 1 < len(indexes) and indexes[j + 1] == indexes[j] + 1:
+            j += 1
+        parts.append(str(indexes[i]) if i == j else f"{indexes[i]}:{indexes[j] + 1}")
+        i = j + 1
+    return ",".join(parts)
+
+
 def disk_size(path: Path) -> int:
     """Bytes of all files under ``path``."""
     total = 0

@@ -395,12 +395,21 @@ class Tub:
         if idx:
             logger.info("%s: deleted %d records (%d..%d)", self.path, len(idx), min(idx), max(idx))
 
-    def restore_records(self, indexes: int | Iterable[int]) -> None:
-        """Undo soft deletes."""
+    def restore_records(self, indexes: int | Iterable[int]) -> list[int]:
+        """Undo soft deletes; returns the deleted indexes kept deleted because their records carry
+        no value: the indexes of records that could not be written (``write_record``), which no
+        reader could use (DonkeyCar's training would fail on them)."""
         self._check_writable()
-        idx = self._check_indexes(indexes)
-        self.manifest.deleted_indexes -= idx
+        idx = self._check_indexes(indexes) & self.manifest.deleted_indexes
+        inputs = set(self.inputs)
+        empty = {i for i, rec in self.records(include_deleted=True)
+                 if i in idx and inputs.isdisjoint(rec)} if idx else set()
+        self.manifest.deleted_indexes -= idx - empty
         self.flush()
+        if empty:
+            logger.warning("%s: %d records kept deleted: they carry no value (records that could not "
+                           "be written), e.g. %d", self.path, len(empty), min(empty))
+        return sorted(empty)
 
     def delete_last_n_records(self, n: int) -> list[int]:
         """Soft-delete the last ``n`` records that are not deleted yet; returns their indexes."""

@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from parts.tub.tools import parse_ranges
+from parts.tub.tools import format_ranges, parse_ranges
 from parts.tub.tub import Tub
 from vehicle.cli import main
 
@@ -29,8 +29,23 @@ def test_info_ls_delete_restore(donkey_tub, capsys):
     assert "outside the tub's records 0..7" in capsys.readouterr().err
 
 
+def test_restore_reports_the_indexes_kept_deleted(tmp_path, capsys):
+    with Tub(tmp_path / "t", ["a"], ["int"]) as tub:
+        tub.write_record({"a": 0})
+        tub.write_record({"a": 4}, index=4)  # 1-3 could not be written
+        tub.write_record({"a": 5}, index=6)  # 5 neither
+        tub.delete_records([0])
+    assert main(["tub", "restore", str(tmp_path / "t"), ":"]) == 0
+    out = capsys.readouterr().out
+    assert "restored 1 records (7 indexes given); 3 records now" in out
+    assert "4 kept deleted: they carry no value (records that could not be written), indexes 1:4,5" in out
+
+
 def test_parse_ranges():
     assert parse_ranges("3, 10:12,18:", 20) == [3, 10, 11, 18, 19]
+    for indexes in ([], [4], [1, 2, 3, 7], [0, 2, 3, 9, 10, 11]):
+        assert parse_ranges(format_ranges(indexes), 20) == indexes
+    assert format_ranges([1, 2, 3, 7]) == "1:4,7"
     assert parse_ranges(":2", 5) == [0, 1]
     with pytest.raises(ValueError, match="bad index range 'x'"):
         parse_ranges("x", 5)
