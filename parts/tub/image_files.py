@@ -5,6 +5,12 @@ write cache (ext4, xfs, btrfs, f2fs; tmpfs has nothing to flush), one ``syncfs()
 commit's images durable: about a third of the cost of fsyncing each file, even with the fsyncs
 issued in parallel (``bench/commit.py``). Elsewhere (FAT and exFAT SD cards or USB sticks, FUSE
 mounts, macOS, Windows) every file is fsynced, in parallel, then the folder.
+
+After a failed sync the pending files are written again before the next one: Linux marks pages
+whose write-back failed clean, and reports the error once, so a plain retry would succeed with
+the images never on the disk. Their bytes are kept until a sync covers them (a few windows of
+~3 KB JPEGs while the disk works); while a disk keeps failing, files beyond ``KEEP_FILES`` are
+read back from the kernel's cache instead, so that memory stays bounded.
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ from parts.tub.pools import submit_or_run
 logger = logging.getLogger(__name__)
 
 FSYNC_THREADS = 8  # fsyncs of many small files issued together share journal commits (~4x faster)
+KEEP_FILES = 10_000  # pending files whose bytes are kept for a rewrite: ~30 MB, 8 min at 20 Hz
 
 # Filesystems whose syncfs() writes everything and flushes the device cache, as fsync does.
 # vfat/exfat write the blocks but send no cache flush; FUSE mounts do not pass syncfs on.
@@ -96,7 +103,9 @@ class ImageFiles:
         self.durable = durable
         self._use_syncfs = use_syncfs
         self._syncfs: Callable[[int], int] | None | bool = False  # False: decided at the first sync
-        self._pending: list[str] = []  # files written, not yet synced (kept until a sync succeeds)
+        # files written, not yet synced (kept until a sync succeeds), with their bytes or None
+        self._pending: list[tuple[str, bytes | None]] = []
+        self._rewrite = False  # the last sync failed: write the pending files again first
         self._pool: ThreadPoolExecutor | None = None
         # The folder, opened once for syncfs; closed by close() or when this object is collected.
         # The lock keeps close() from closing it under a sync that still runs (a writer thread
@@ -128,23 +137,31 @@ class ImageFiles:
 
     def write(self, name: str, data: bytes) -> None:
         path = os.path.join(self.folder, name)
-        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | O_BINARY, 0o644)
-        try:
-            write_all(fd, data)
-        finally:
-            os.close(fd)
+        _write_file(path, data)
         if self.durable:
-            self._pending.append(path)
+            self._pending.append((path, data if len(self._pending) < KEEP_FILES else None))
 
     def sync(self) -> None:
         """Make every file written before this call (and not synced yet) durable, with its folder
         entry. A thread may write further files meanwhile: they stay pending for the next sync.
 
-        On an error nothing is forgotten: the next sync covers these files again.
+        On an error nothing is forgotten: the next sync writes these files again, then syncs them.
         """
         count = len(self._pending)  # files written before the sync began
         if not count:
             return
+        try:
+            self._sync(count)
+        except BaseException:
+            self._rewrite = True
+            raise
+        self._rewrite = False
+        del self._pending[:count]  # in place: write() in another thread appends to this list
+
+    def _sync(self, count: int) -> None:
+        if self._rewrite:
+            for path, data in self._pending[:count]:
+                _write_file(path, _read_file(path) if data is None else data)
         syncfs = self._syncfs_for_folder()
         if syncfs is not None:
             with self._folder_lock:
@@ -157,7 +174,7 @@ class ImageFiles:
         else:
             if self._pool is None:
                 self._pool = ThreadPoolExecutor(max_workers=FSYNC_THREADS, thread_name_prefix="tub-fsync")
-            jobs = [submit_or_run(self._pool, _fsync_file, path) for path in self._pending[:count]]
+            jobs = [submit_or_run(self._pool, _fsync_file, path) for path, _data in self._pending[:count]]
             errors = []
             for job in jobs:  # wait for every job, even after a failure
                 if (exc := job.exception()) is not None:
@@ -165,7 +182,6 @@ class ImageFiles:
             if errors:
                 raise errors[0]
             fsync_dir(self.folder)
-        del self._pending[:count]  # in place: write() in another thread appends to this list
 
     def close(self) -> None:
         """Forget pending files (not synced) and stop the fsync threads."""
@@ -177,6 +193,19 @@ class ImageFiles:
         if self._pool is not None:
             self._pool.shutdown(wait=True)
             self._pool = None
+
+
+def _write_file(path: str, data: bytes) -> None:
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | O_BINARY, 0o644)
+    try:
+        write_all(fd, data)
+    finally:
+        os.close(fd)
+
+
+def _read_file(path: str) -> bytes:
+    with open(path, "rb") as f:
+        return f.read()
 
 
 def _fsync_file(path: str) -> None:

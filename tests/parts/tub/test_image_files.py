@@ -106,6 +106,66 @@ def test_a_failed_fsync_keeps_every_file_pending_for_the_next_sync(tmp_path, mon
     files.close()
 
 
+@pytest.mark.parametrize("use_syncfs", [None, False])
+def test_after_a_failed_sync_the_files_are_written_again_before_the_retry(tmp_path, monkeypatch, use_syncfs):
+    # After a failed write-back Linux marks the pages clean and reports the error once: the
+    # retry must write the bytes again, or it succeeds with the images never on the disk.
+    if use_syncfs is None:
+        if syncfs_function() is None:
+            pytest.skip("no syncfs here (Linux 5.8 or later)")
+        monkeypatch.setattr(image_files, "filesystem_type", lambda path: "ext4")
+    failing = {"on": True}
+
+    def sync_fails(fd: int) -> int:
+        if failing["on"]:
+            # what reached the disk: nothing (the kernel's copy may be dropped later)
+            for name in ("a.jpg", "b.jpg"):
+                (tmp_path / name).write_bytes(b"")
+            raise OSError(5, "I/O error")
+        return 0
+
+    real_fsync = os.fsync
+    monkeypatch.setattr(image_files, "_syncfs", sync_fails)
+    monkeypatch.setattr(os, "fsync", lambda fd: sync_fails(fd) or real_fsync(fd))
+    files = ImageFiles(tmp_path, durable=True, use_syncfs=use_syncfs)
+    assert files.uses_syncfs is (use_syncfs is None)
+    files.write("a.jpg", b"first")
+    files.write("b.jpg", b"second")
+    with pytest.raises(OSError, match="I/O error"):
+        files.sync()
+    files.write("c.jpg", b"third")  # written after the failure: pending, written once
+    failing["on"] = False
+    files.sync()
+    assert [(tmp_path / n).read_bytes() for n in ("a.jpg", "b.jpg", "c.jpg")] == [b"first", b"second", b"third"]
+    assert len(files) == 0
+    (tmp_path / "a.jpg").write_bytes(b"changed")  # a sync that succeeded writes nothing again
+    files.write("d.jpg", b"fourth")
+    files.sync()
+    assert (tmp_path / "a.jpg").read_bytes() == b"changed"
+    files.close()
+
+
+def test_beyond_keep_files_a_rewrite_reads_the_bytes_back(tmp_path, monkeypatch):
+    monkeypatch.setattr(image_files, "KEEP_FILES", 1)
+    files = ImageFiles(tmp_path, durable=True, use_syncfs=False)
+    files.write("a.jpg", b"kept")
+    files.write("b.jpg", b"read back")
+    assert [data for _path, data in files._pending] == [b"kept", None]
+    rewritten: list[tuple[str, bytes]] = []
+    real_write = image_files._write_file
+    monkeypatch.setattr(image_files, "_write_file",
+                        lambda path, data: (rewritten.append((os.path.basename(path), data)), real_write(path, data)))
+    real_fsync = os.fsync
+    monkeypatch.setattr(os, "fsync", lambda fd: (_ for _ in ()).throw(OSError(5, "I/O error")))
+    with pytest.raises(OSError):
+        files.sync()
+    monkeypatch.setattr(os, "fsync", real_fsync)
+    files.sync()
+    assert rewritten == [("a.jpg", b"kept"), ("b.jpg", b"read back")]
+    assert len(files) == 0
+    files.close()
+
+
 def test_not_durable_writes_and_never_syncs(tmp_path, monkeypatch):
     monkeypatch.setattr(os, "fsync", lambda fd: pytest.fail("fsync called"))
     monkeypatch.setattr(image_files, "_syncfs", lambda fd: pytest.fail("syncfs called"))
