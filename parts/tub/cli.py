@@ -143,8 +143,8 @@ def _edit(args: argparse.Namespace, delete: bool) -> int:
     verb = "deleted" if delete else "restored"
     _out(f"{args.tub}: {verb} {abs(before - after)} records ({len(idx)} indexes given); {after} records now")
     if kept:
-        _out(f"{len(kept)} kept deleted: they carry no value (records that could not be written), "
-             f"indexes {format_ranges(kept)}")
+        _out(f"{len(kept)} kept deleted: they have no input value (mostly indexes kept for records "
+             f"that could not be written): {format_ranges(kept)}")
     return 0
 
 

@@ -9,8 +9,9 @@ mounts, macOS, Windows) every file is fsynced, in parallel, then the folder.
 After a failed sync the pending files are written again before the next one: Linux marks pages
 whose write-back failed clean, and reports the error once, so a plain retry would succeed with
 the images never on the disk. Their bytes are kept until a sync covers them (a few windows of
-~3 KB JPEGs while the disk works); while a disk keeps failing, files beyond ``KEEP_FILES`` are
-read back from the kernel's cache instead, so that memory stays bounded.
+~3 KB JPEGs while the disk works). While a disk keeps failing, memory stays bounded: beyond
+``KEEP_BYTES`` only the sizes are kept, and those files are read back for their rewrite, which is
+best effort (the kernel may have dropped its copy; a file whose size changed is not rewritten).
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ from parts.tub.pools import submit_or_run
 logger = logging.getLogger(__name__)
 
 FSYNC_THREADS = 8  # fsyncs of many small files issued together share journal commits (~4x faster)
-KEEP_FILES = 10_000  # pending files whose bytes are kept for a rewrite: ~30 MB, 8 min at 20 Hz
+KEEP_BYTES = 64 << 20  # bytes of pending images kept for a rewrite after a failed sync (~20k JPEGs)
 
 # Filesystems whose syncfs() writes everything and flushes the device cache, as fsync does.
 # vfat/exfat write the blocks but send no cache flush; FUSE mounts do not pass syncfs on.
@@ -103,8 +104,9 @@ class ImageFiles:
         self.durable = durable
         self._use_syncfs = use_syncfs
         self._syncfs: Callable[[int], int] | None | bool = False  # False: decided at the first sync
-        # files written, not yet synced (kept until a sync succeeds), with their bytes or None
-        self._pending: list[tuple[str, bytes | None]] = []
+        # files written, not yet synced (kept until a sync succeeds), with their bytes, or their
+        # size once KEEP_BYTES are held (only a failed sync trims: the list is short otherwise)
+        self._pending: list[tuple[str, bytes | int]] = []
         self._rewrite = False  # the last sync failed: write the pending files again first
         self._pool: ThreadPoolExecutor | None = None
         # The folder, opened once for syncfs; closed by close() or when this object is collected.
@@ -139,7 +141,7 @@ class ImageFiles:
         path = os.path.join(self.folder, name)
         _write_file(path, data)
         if self.durable:
-            self._pending.append((path, data if len(self._pending) < KEEP_FILES else None))
+            self._pending.append((path, data))
 
     def sync(self) -> None:
         """Make every file written before this call (and not synced yet) durable, with its folder
@@ -154,14 +156,25 @@ class ImageFiles:
             self._sync(count)
         except BaseException:
             self._rewrite = True
+            self._trim_kept_bytes()
             raise
         self._rewrite = False
         del self._pending[:count]  # in place: write() in another thread appends to this list
 
     def _sync(self, count: int) -> None:
         if self._rewrite:
+            lost = []
             for path, data in self._pending[:count]:
-                _write_file(path, _read_file(path) if data is None else data)
+                if isinstance(data, int):
+                    data = _read_back(path, data)
+                if data is None:
+                    lost.append(path)
+                else:
+                    _write_file(path, data)
+            if lost:
+                logger.error("%s: %d images written while the disk failed could not be written again "
+                             "(gone, or changed size), e.g. %s; readers report them if they are damaged",
+                             self.folder, len(lost), os.path.basename(lost[0]))
         syncfs = self._syncfs_for_folder()
         if syncfs is not None:
             with self._folder_lock:
@@ -183,6 +196,18 @@ class ImageFiles:
                 raise errors[0]
             fsync_dir(self.folder)
 
+    def _trim_kept_bytes(self) -> None:
+        """Keep the bytes of the oldest pending files up to KEEP_BYTES, the sizes of the others.
+
+        Runs in the syncing thread only; writers append meanwhile, which leaves items in place.
+        """
+        kept = 0
+        for i, (path, data) in enumerate(self._pending):
+            if isinstance(data, bytes):
+                kept += len(data)
+                if kept > KEEP_BYTES:
+                    self._pending[i] = (path, len(data))
+
     def close(self) -> None:
         """Forget pending files (not synced) and stop the fsync threads."""
         self._pending = []
@@ -203,14 +228,22 @@ def _write_file(path: str, data: bytes) -> None:
         os.close(fd)
 
 
-def _read_file(path: str) -> bytes:
-    with open(path, "rb") as f:
-        return f.read()
+def _read_back(path: str, size: int) -> bytes | None:
+    """The bytes of a file written earlier, or None when it is gone or its size changed."""
+    try:
+        with open(path, "rb") as f:
+            data = f.read()
+    except FileNotFoundError:
+        return None
+    return data if len(data) == size else None
 
 
 def _fsync_file(path: str) -> None:
     # opened for writing: Windows flushes only handles with write access
-    fd = os.open(path, os.O_WRONLY | O_BINARY)
+    try:
+        fd = os.open(path, os.O_WRONLY | O_BINARY)
+    except FileNotFoundError:  # removed meanwhile (by hand): nothing to sync, readers report it
+        return
     try:
         os.fsync(fd)
     finally:

@@ -43,8 +43,7 @@ def parse_ranges(spec: str, end: int) -> list[int]:
 
 
 def format_ranges(indexes: list[int]) -> str:
-    """Sorted indexes -> the shortest spec :func:`parse_ranges` reads back: ``[1, 2, 3, 7]`` ->
-    ``"1:4,7"``."""
+    """Sorted indexes -> a spec :func:`parse_ranges` reads back: ``[1, 2, 3, 7]`` -> ``"1:4,7"``."""
     parts: list[str] = []
     i = 0
     while i < len(indexes):

@@ -396,9 +396,9 @@ class Tub:
             logger.info("%s: deleted %d records (%d..%d)", self.path, len(idx), min(idx), max(idx))
 
     def restore_records(self, indexes: int | Iterable[int]) -> list[int]:
-        """Undo soft deletes; returns the deleted indexes kept deleted because their records carry
-        no value: the indexes of records that could not be written (``write_record``), which no
-        reader could use (DonkeyCar's training would fail on them)."""
+        """Undo soft deletes; returns the indexes kept deleted because their records have no input
+        value: mostly the indexes kept for records that could not be written (``write_record``).
+        No reader could use them (DonkeyCar's training would fail on them)."""
         self._check_writable()
         idx = self._check_indexes(indexes) & self.manifest.deleted_indexes
         inputs = set(self.inputs)
@@ -407,8 +407,8 @@ class Tub:
         self.manifest.deleted_indexes -= idx - empty
         self.flush()
         if empty:
-            logger.warning("%s: %d records kept deleted: they carry no value (records that could not "
-                           "be written), e.g. %d", self.path, len(empty), min(empty))
+            logger.info("%s: %d records kept deleted: they have no input value, e.g. %d", self.path,
+                        len(empty), min(empty))
         return sorted(empty)
 
     def delete_last_n_records(self, n: int) -> list[int]:

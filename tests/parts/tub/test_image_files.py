@@ -133,7 +133,7 @@ def test_after_a_failed_sync_the_files_are_written_again_before_the_retry(tmp_pa
     files.write("b.jpg", b"second")
     with pytest.raises(OSError, match="I/O error"):
         files.sync()
-    files.write("c.jpg", b"third")  # written after the failure: pending, written once
+    files.write("c.jpg", b"third")  # written after the failure: part of the retry, rewritten too
     failing["on"] = False
     files.sync()
     assert [(tmp_path / n).read_bytes() for n in ("a.jpg", "b.jpg", "c.jpg")] == [b"first", b"second", b"third"]
@@ -145,23 +145,27 @@ def test_after_a_failed_sync_the_files_are_written_again_before_the_retry(tmp_pa
     files.close()
 
 
-def test_beyond_keep_files_a_rewrite_reads_the_bytes_back(tmp_path, monkeypatch):
-    monkeypatch.setattr(image_files, "KEEP_FILES", 1)
+def test_beyond_keep_bytes_a_failed_sync_keeps_sizes_and_the_rewrite_reads_back(tmp_path, monkeypatch, caplog):
+    monkeypatch.setattr(image_files, "KEEP_BYTES", 10)
     files = ImageFiles(tmp_path, durable=True, use_syncfs=False)
-    files.write("a.jpg", b"kept")
-    files.write("b.jpg", b"read back")
-    assert [data for _path, data in files._pending] == [b"kept", None]
-    rewritten: list[tuple[str, bytes]] = []
-    real_write = image_files._write_file
-    monkeypatch.setattr(image_files, "_write_file",
-                        lambda path, data: (rewritten.append((os.path.basename(path), data)), real_write(path, data)))
+    for name, data in (("a.jpg", b"kept"), ("b.jpg", b"read"), ("c.jpg", b"gone"), ("d.jpg", b"grows")):
+        files.write(name, data)
     real_fsync = os.fsync
     monkeypatch.setattr(os, "fsync", lambda fd: (_ for _ in ()).throw(OSError(5, "I/O error")))
     with pytest.raises(OSError):
         files.sync()
+    # 4 + 4 bytes fit in KEEP_BYTES; of the later files only the sizes are kept
+    assert [data for _path, data in files._pending] == [b"kept", b"read", 4, 5]
+    rewritten: list[tuple[str, bytes]] = []
+    real_write = image_files._write_file
+    monkeypatch.setattr(image_files, "_write_file",
+                        lambda path, data: (rewritten.append((os.path.basename(path), data)), real_write(path, data)))
+    (tmp_path / "c.jpg").unlink()
+    (tmp_path / "d.jpg").write_bytes(b"grown!")
     monkeypatch.setattr(os, "fsync", real_fsync)
     files.sync()
-    assert rewritten == [("a.jpg", b"kept"), ("b.jpg", b"read back")]
+    assert rewritten == [("a.jpg", b"kept"), ("b.jpg", b"read")]
+    assert "2 images written while the disk failed could not be written again" in caplog.text
     assert len(files) == 0
     files.close()
 

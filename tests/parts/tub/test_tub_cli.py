@@ -38,7 +38,8 @@ def test_restore_reports_the_indexes_kept_deleted(tmp_path, capsys):
     assert main(["tub", "restore", str(tmp_path / "t"), ":"]) == 0
     out = capsys.readouterr().out
     assert "restored 1 records (7 indexes given); 3 records now" in out
-    assert "4 kept deleted: they carry no value (records that could not be written), indexes 1:4,5" in out
+    assert "4 kept deleted: they have no input value (mostly indexes kept for records that could not " \
+        "be written): 1:4,5" in out
 
 
 def test_parse_ranges():
