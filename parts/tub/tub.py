@@ -407,8 +407,9 @@ class Tub:
         self.manifest.deleted_indexes -= idx - empty
         self.flush()
         if empty:
-            logger.info("%s: %d records kept deleted: they have no input value, e.g. %d", self.path,
-                        len(empty), min(empty))
+            # debug: callers get the indexes (the CLI prints them)
+            logger.debug("%s: %d records kept deleted: they have no input value, e.g. %d", self.path,
+                         len(empty), min(empty))
         return sorted(empty)
 
     def delete_last_n_records(self, n: int) -> list[int]:

@@ -187,7 +187,7 @@ def test_indexes_given_ahead_keep_the_skipped_ones_as_deleted_records(tmp_path):
 
 
 def test_restore_keeps_the_indexes_of_records_that_could_not_be_written_deleted(tmp_path, caplog, monkeypatch):
-    caplog.set_level(logging.INFO)
+    caplog.set_level(logging.DEBUG)
     with Tub(tmp_path / "t", ["a", "b"], ["int", "int"]) as tub:
         tub.write_record({"a": 0})
         tub.write_record({"a": 3}, index=3)  # 1 and 2 kept as deleted records without values
