@@ -397,13 +397,13 @@ class Tub:
 
     def restore_records(self, indexes: int | Iterable[int]) -> list[int]:
         """Undo soft deletes; returns the indexes kept deleted because their records have no input
-        value: mostly the indexes kept for records that could not be written (``write_record``).
-        No reader could use them (DonkeyCar's training would fail on them)."""
+        value, only the private fields: mostly the indexes kept for records that could not be
+        written (``write_record``). No reader could use them (DonkeyCar's training would fail on
+        them). Told by the records' own keys, not the schema, which older tubs may name otherwise."""
         self._check_writable()
         idx = self._check_indexes(indexes) & self.manifest.deleted_indexes
-        inputs = set(self.inputs)
         empty = {i for i, rec in self.records(include_deleted=True)
-                 if i in idx and inputs.isdisjoint(rec)} if idx else set()
+                 if i in idx and all(key.startswith("_") for key in rec)} if idx else set()
         self.manifest.deleted_indexes -= idx - empty
         self.flush()
         if empty:

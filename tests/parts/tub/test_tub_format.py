@@ -202,6 +202,16 @@ def test_restore_keeps_the_indexes_of_records_that_could_not_be_written_deleted(
     assert [r.get("a", r.get("b")) for r in Tub(tmp_path / "t", read_only=True)] == [0, 3, 4]
 
 
+def test_restore_tells_records_without_values_by_their_keys_not_the_schema(donkey_tub):
+    path, _ = donkey_tub(3, deleted=(1,))
+    lines = (path / "manifest.json").read_text().splitlines()
+    lines[0] = json.dumps(["cam/image", "angle", "throttle", "mode"])  # names the records do not use
+    (path / "manifest.json").write_text("\n".join(lines) + "\n")
+    with Tub(path) as tub:
+        assert tub.restore_records([1]) == []
+        assert tub.deleted_indexes == set() and len(tub) == 3
+
+
 def test_skipped_indexes_are_deleted_in_the_manifest_before_their_lines_are_written(tmp_path):
     tub = Tub(tmp_path / "t", ["a"], ["int"], fsync_records=20, fsync_ms=60_000)
     tub.write_record({"a": 0})
