@@ -13,6 +13,9 @@ TubRecord.image()). Images: a rendered gradient with noise and a moving shape, s
 JPEG sizes are realistic. Dirty pages are flushed (os.sync) before every timed phase. Prints
 medians over --runs runs and the ratios. DonkeyCar runs in its own
 venv (bench/setup_donkey_venv.sh); without it only our figures are printed.
+
+--paced 20,60 also records at those loop rates (bench/paced.py, once, after the runs): the loop's
+time in each run() call and the process's CPU, ours with and without fsync and DonkeyCar's.
 """
 
 from __future__ import annotations
@@ -72,6 +75,11 @@ if mode in ("read", "both"):
     out["read_s"] = time.perf_counter() - t0
     out["read_n"] = count
     out["first"] = next(iter(Tub(path, read_only=True)))
+if mode == "paced":  # n: the rate in Hz; argv[7]: seconds; argv[8]: bench/ (for paced.py)
+    sys.path.insert(0, sys.argv[8])
+    from paced import paced
+    w = TubWriter(path, inputs=json.loads(sys.argv[5]), types=json.loads(sys.argv[6]))
+    out = paced(w.run, frames, n, float(sys.argv[7]), w.shutdown)
 print(json.dumps(out))
 """
 
@@ -129,6 +137,19 @@ def ours_write_sync(frames: np.ndarray, path: Path, n: int) -> float:
     return time.perf_counter() - t0
 
 
+def ours_paced(frames: np.ndarray, path: Path, rate: int, seconds: float, fsync: bool) -> dict:
+    """Our TubWriter fed by a loop at ``rate`` Hz: what recording costs the drive loop."""
+    from paced import paced
+
+    from parts.tub.writer import TubWriter
+
+    settle()
+    w = TubWriter(path, INPUTS, TYPES, fsync=fsync)
+    out = paced(w.run, frames, rate, seconds, w.shutdown)
+    assert w.stats.written == out["records"], w.stats
+    return out | {"dropped": w.stats.dropped}
+
+
 def ours_read(path: Path, how: str) -> tuple[float, int]:
     """Records with decoded images, three ways: "iter" iterates ``iter_images(iter_records(tub,
     check_images=False))`` (frames decoded by a thread per core up to 4, catalogs parsed meanwhile;
@@ -172,10 +193,12 @@ def create_cost_us(folder: Path, n: int = 200) -> float:
     return statistics.median(times) * 1e6
 
 
-def donkey(python: str, frames_file: Path, path: Path, n: int, mode: str) -> dict:
+def donkey(python: str, frames_file: Path, path: Path, n: int, mode: str, seconds: float = 0.0) -> dict:
+    """Run DonkeyCar's side in its venv: write and/or read ``n`` records, or ("paced") record at
+    ``n`` Hz for ``seconds``."""
     settle()
     res = subprocess.run([python, "-c", DONKEY_SCRIPT, str(frames_file), str(path), str(n), mode,
-                          json.dumps(INPUTS), json.dumps(TYPES)],
+                          json.dumps(INPUTS), json.dumps(TYPES), str(seconds), str(ROOT / "bench")],
                          capture_output=True, text=True, check=False)
     if res.returncode != 0:
         raise RuntimeError(f"DonkeyCar run failed:\n{res.stderr[-3000:]}")
@@ -188,6 +211,9 @@ def main() -> int:
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--donkey-python", default=str(ROOT / ".bench/donkey-venv/bin/python"))
     ap.add_argument("--workdir", default=str(ROOT / ".bench"), help="where temporary tubs go (same disk)")
+    ap.add_argument("--paced", default="", metavar="HZ,HZ",
+                    help="also record at these loop rates (e.g. 20,60): the loop's time in run() and CPU")
+    ap.add_argument("--paced-seconds", type=float, default=10.0, help="seconds recorded per --paced rate")
     args = ap.parse_args()
     n = args.records
     have_donkey = Path(args.donkey_python).exists()
@@ -197,6 +223,7 @@ def main() -> int:
     Path(args.workdir).mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix="tubbench-", dir=args.workdir))
     results: dict[str, list[float]] = {}
+    paced_rows: dict[str, dict] = {}
 
     def add(key: str, value: float) -> None:
         results.setdefault(key, []).append(value)
@@ -238,6 +265,15 @@ def main() -> int:
             # Tubs are removed only at the end: deleting thousands of files (ext4 with `discard`)
             # slows down the file creation of the runs that follow.
             print(f"run {run + 1}/{args.runs} done", file=sys.stderr)
+        for rate in (int(r) for r in args.paced.split(",") if r.strip()):
+            secs = args.paced_seconds
+            paced_rows[f"{rate} Hz, ours, durability window"] = ours_paced(frames, work / f"paced_{rate}", rate,
+                                                                         secs, True)
+            paced_rows[f"{rate} Hz, ours, fsync=False"] = ours_paced(frames, work / f"paced_nf_{rate}", rate,
+                                                                   secs, False)
+            if have_donkey:
+                paced_rows[f"{rate} Hz, DonkeyCar 5.3"] = donkey(args.donkey_python, frames_file,
+                                                                 work / f"paced_dk_{rate}", rate, "paced", secs)
     finally:
         shutil.rmtree(work, ignore_errors=True)
         os.sync()  # ext4 without a journal skips freed inodes 1 minute if on clean blocks, else 6
@@ -262,6 +298,12 @@ def main() -> int:
                 r = results[k]
                 print(f"  {k[6:]:42s} {med[k]:.2f}x (min {min(r):.2f}, max {max(r):.2f})")
         print(f"  {'bytes/record ours / DonkeyCar':42s} {med['ours bytes/record'] / med['donkey bytes/record']:.2f}")
+    if paced_rows:
+        print(f"\nrecording at a loop rate, {args.paced_seconds:g} s each: the loop's time in run() (µs) and the "
+              "process's CPU (% of one core, all threads)")
+        for k, r in paced_rows.items():
+            print(f"  {k:36s} run() p50 {r['p50_us']:7.0f}  p99 {r['p99_us']:7.0f}  max {r['max_us']:7.0f}  "
+                  f"CPU {r['cpu_pct']:5.1f}%  records {r['records']}  dropped {r.get('dropped', 0)}")
     return 0
 
 
