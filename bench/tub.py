@@ -1,6 +1,7 @@
 """Tub write/read throughput and bytes per record: ours vs DonkeyCar 5.3 in the same run.
 
     .venv/bin/python bench/tub.py [--records 2000] [--runs 5] [--donkey-python .bench/donkey-venv/bin/python]
+                                  [--workdir DIR] [--paced 20,60 [--paced-seconds 10]]
 
 Write: records/s through the recording part (ours: TubWriter.run() for every record, waiting
 while its queue of 100 is full, then shutdown() which waits until all is on disk; DonkeyCar:
@@ -76,10 +77,11 @@ if mode in ("read", "both"):
     out["read_n"] = count
     out["first"] = next(iter(Tub(path, read_only=True)))
 if mode == "paced":  # n: the rate in Hz; argv[7]: seconds; argv[8]: bench/ (for paced.py)
-    sys.path.insert(0, sys.argv[8])
+    sys.path.append(sys.argv[8])  # appended: bench/'s scripts must not shadow DonkeyCar's imports
     from paced import paced
     w = TubWriter(path, inputs=json.loads(sys.argv[5]), types=json.loads(sys.argv[6]))
     out = paced(w.run, frames, n, float(sys.argv[7]), w.shutdown)
+    out["in_tub"] = len(Tub(path, read_only=True))
 print(json.dumps(out))
 """
 
@@ -137,17 +139,25 @@ def ours_write_sync(frames: np.ndarray, path: Path, n: int) -> float:
     return time.perf_counter() - t0
 
 
-def ours_paced(frames: np.ndarray, path: Path, rate: int, seconds: float, fsync: bool) -> dict:
+def ours_paced(frames: np.ndarray, path: Path, rate: int, seconds: float, fsync: bool) -> dict[str, float]:
     """Our TubWriter fed by a loop at ``rate`` Hz: what recording costs the drive loop."""
-    from paced import paced
-
+    from bench.paced import paced
     from parts.tub.writer import TubWriter
 
     settle()
     w = TubWriter(path, INPUTS, TYPES, fsync=fsync)
     out = paced(w.run, frames, rate, seconds, w.shutdown)
-    assert w.stats.written == out["records"], w.stats
+    if w.stats.written + w.stats.dropped != out["records"]:
+        raise RuntimeError(f"paced recording at {rate} Hz lost records: {w.stats}")
     return out | {"dropped": w.stats.dropped}
+
+
+def rates(text: str) -> list[int]:
+    """``--paced`` value: loop rates in Hz, comma-separated ("20,60")."""
+    try:
+        return [int(r) for r in text.split(",") if r.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected whole rates in Hz separated by commas, got {text!r}") from None
 
 
 def ours_read(path: Path, how: str) -> tuple[float, int]:
@@ -194,8 +204,8 @@ def create_cost_us(folder: Path, n: int = 200) -> float:
 
 
 def donkey(python: str, frames_file: Path, path: Path, n: int, mode: str, seconds: float = 0.0) -> dict:
-    """Run DonkeyCar's side in its venv: write and/or read ``n`` records, or ("paced") record at
-    ``n`` Hz for ``seconds``."""
+    """Run DonkeyCar's side in its venv: write and/or read ``n`` records, or (mode "paced") record
+    at ``n`` Hz for ``seconds``."""
     settle()
     res = subprocess.run([python, "-c", DONKEY_SCRIPT, str(frames_file), str(path), str(n), mode,
                           json.dumps(INPUTS), json.dumps(TYPES), str(seconds), str(ROOT / "bench")],
@@ -211,7 +221,7 @@ def main() -> int:
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--donkey-python", default=str(ROOT / ".bench/donkey-venv/bin/python"))
     ap.add_argument("--workdir", default=str(ROOT / ".bench"), help="where temporary tubs go (same disk)")
-    ap.add_argument("--paced", default="", metavar="HZ,HZ",
+    ap.add_argument("--paced", type=rates, default=[], metavar="HZ,HZ",
                     help="also record at these loop rates (e.g. 20,60): the loop's time in run() and CPU")
     ap.add_argument("--paced-seconds", type=float, default=10.0, help="seconds recorded per --paced rate")
     args = ap.parse_args()
@@ -223,7 +233,7 @@ def main() -> int:
     Path(args.workdir).mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix="tubbench-", dir=args.workdir))
     results: dict[str, list[float]] = {}
-    paced_rows: dict[str, dict] = {}
+    paced_rows: dict[str, dict[str, float]] = {}
 
     def add(key: str, value: float) -> None:
         results.setdefault(key, []).append(value)
@@ -265,15 +275,16 @@ def main() -> int:
             # Tubs are removed only at the end: deleting thousands of files (ext4 with `discard`)
             # slows down the file creation of the runs that follow.
             print(f"run {run + 1}/{args.runs} done", file=sys.stderr)
-        for rate in (int(r) for r in args.paced.split(",") if r.strip()):
+        for rate in args.paced:
             secs = args.paced_seconds
-            paced_rows[f"{rate} Hz, ours, durability window"] = ours_paced(frames, work / f"paced_{rate}", rate,
-                                                                         secs, True)
-            paced_rows[f"{rate} Hz, ours, fsync=False"] = ours_paced(frames, work / f"paced_nf_{rate}", rate,
-                                                                   secs, False)
+            for label, fsync in (("durability window", True), ("fsync=False", False)):
+                paced_rows[f"{rate} Hz, ours, {label}"] = ours_paced(frames, work / f"paced_{rate}_{fsync}", rate,
+                                                                     secs, fsync)
             if have_donkey:
-                paced_rows[f"{rate} Hz, DonkeyCar 5.3"] = donkey(args.donkey_python, frames_file,
-                                                                 work / f"paced_dk_{rate}", rate, "paced", secs)
+                r = donkey(args.donkey_python, frames_file, work / f"paced_dk_{rate}", rate, "paced", secs)
+                if r["in_tub"] != r["records"]:
+                    raise RuntimeError(f"DonkeyCar's paced tub holds {r['in_tub']} of {r['records']} records")
+                paced_rows[f"{rate} Hz, DonkeyCar 5.3"] = r
     finally:
         shutil.rmtree(work, ignore_errors=True)
         os.sync()  # ext4 without a journal skips freed inodes 1 minute if on clean blocks, else 6
@@ -302,8 +313,9 @@ def main() -> int:
         print(f"\nrecording at a loop rate, {args.paced_seconds:g} s each: the loop's time in run() (µs) and the "
               "process's CPU (% of one core, all threads)")
         for k, r in paced_rows.items():
+            dropped = r.get("dropped", "-")  # DonkeyCar's run() writes before it returns: it cannot drop
             print(f"  {k:36s} run() p50 {r['p50_us']:7.0f}  p99 {r['p99_us']:7.0f}  max {r['max_us']:7.0f}  "
-                  f"CPU {r['cpu_pct']:5.1f}%  records {r['records']}  dropped {r.get('dropped', 0)}")
+                  f"CPU {r['cpu_pct']:5.1f}%  records {r['records']}  overruns {r['overruns']}  dropped {dropped}")
     return 0
 
 
