@@ -76,9 +76,9 @@ if mode in ("read", "both"):
     out["read_s"] = time.perf_counter() - t0
     out["read_n"] = count
     out["first"] = next(iter(Tub(path, read_only=True)))
-if mode == "paced":  # n: the rate in Hz; argv[7]: seconds; argv[8]: bench/ (for paced.py)
-    sys.path.append(sys.argv[8])  # appended: bench/'s scripts must not shadow DonkeyCar's imports
-    from paced import paced
+if mode == "paced":  # n: the rate in Hz; argv[7]: seconds; argv[8]: the project root
+    sys.path.append(sys.argv[8])  # appended: the project must not shadow DonkeyCar's imports
+    from bench.paced import paced
     w = TubWriter(path, inputs=json.loads(sys.argv[5]), types=json.loads(sys.argv[6]))
     out = paced(w.run, frames, n, float(sys.argv[7]), w.shutdown)
     out["in_tub"] = len(Tub(path, read_only=True))
@@ -208,7 +208,7 @@ def donkey(python: str, frames_file: Path, path: Path, n: int, mode: str, second
     at ``n`` Hz for ``seconds``."""
     settle()
     res = subprocess.run([python, "-c", DONKEY_SCRIPT, str(frames_file), str(path), str(n), mode,
-                          json.dumps(INPUTS), json.dumps(TYPES), str(seconds), str(ROOT / "bench")],
+                          json.dumps(INPUTS), json.dumps(TYPES), str(seconds), str(ROOT)],
                          capture_output=True, text=True, check=False)
     if res.returncode != 0:
         raise RuntimeError(f"DonkeyCar run failed:\n{res.stderr[-3000:]}")
