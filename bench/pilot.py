@@ -184,14 +184,14 @@ def print_inference(rows: list[dict]) -> None:
 
 
 def training(records: int, epochs: int, threads_list: list[int], folder: Path) -> list[dict]:
-    """samples/s of the linear model trained by the training loop (parts.pilots.trainer.fit) on the
+    """samples/s of the linear model trained by the training loop (parts.pilots.fit.fit) on the
     real data path vs on the same batches already in memory."""
     from torch.utils.data import DataLoader, TensorDataset
 
     from parts.pilots.dataset import read_drive_data
-    from parts.pilots.train import prepare_data
-    from parts.pilots.trainer import FitSettings, fit
-    from parts.sim.record import record_expert
+    from parts.pilots.fit import FitSettings, fit
+    from parts.pilots.training import prepare_data
+    from vehicle.app.record import record_expert
 
     cfg = Config.defaults(CAR_PATH=str(folder))
     t = time.perf_counter()

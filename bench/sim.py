@@ -35,9 +35,9 @@ except ImportError:
     pass
 
 from parts.sim.camera import Camera  # noqa: E402
-from parts.sim.evaluate import evaluate  # noqa: E402
 from parts.sim.expert import Expert  # noqa: E402
-from parts.sim.simcar import SimCar, load_world  # noqa: E402
+from parts.sim.simulator import SimCar, load_world  # noqa: E402
+from vehicle.app.evaluate import evaluate  # noqa: E402
 from vehicle.config import Config  # noqa: E402
 
 

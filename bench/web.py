@@ -30,7 +30,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from parts.web.devtools import Chromium, find_chromium  # noqa: E402
-from vehicle import Vehicle, assembly  # noqa: E402
+from vehicle import Vehicle  # noqa: E402
+from vehicle.app import assembly  # noqa: E402
 from vehicle.config import Config  # noqa: E402
 
 

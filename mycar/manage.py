@@ -13,8 +13,9 @@ your own, insert a V.add(...) between two helper calls in drive().
 
 from pathlib import Path
 
-from parts.sim.record import record_expert
-from vehicle import Vehicle, assembly, car
+from vehicle import Vehicle
+from vehicle.app import assembly, manage
+from vehicle.app.record import record_expert
 from vehicle.clock import SimulatedClock
 from vehicle.errors import UserError
 
@@ -30,7 +31,7 @@ def drive(cfg, args):
         assembly.add_pilot(V, cfg, args.model)  # cam/image_array -> pilot/angle, pilot/throttle
     assembly.add_drive_mode(V, cfg)  # user/* or pilot/* -> angle, throttle
     assembly.add_tub_writer(V, cfg)  # records every loop while `recording` is on
-    return car.run(V, cfg, args.max_loops)
+    return manage.run(V, cfg, args.max_loops)
 
 
 def record_demonstrations(cfg, args):
@@ -43,16 +44,15 @@ def record_demonstrations(cfg, args):
 
 
 def main(argv=None):
-    parser = car.command_parser(__doc__)
-    d = car.add_command(parser, "drive", drive, "drive the simulated car and record tubs")
+    parser = manage.command_parser(__doc__)
+    d = manage.add_command(parser, "drive", drive, "drive the simulated car and record tubs")
     d.add_argument("--model", help="trained pilot to drive with (a models/*.pt file)")
     d.add_argument("--expert", action="store_true", help="let the built-in expert drive and record (simulated time)")
     d.add_argument("--record-records", type=int, metavar="N", help="with --expert: records to write")
-    d.add_argument("--tracks", type=car.int_list, metavar="SEEDS", help="track seeds, e.g. 1,2,3")
+    d.add_argument("--tracks", type=manage.int_list, metavar="SEEDS", help="track seeds, e.g. 1,2,3")
     d.add_argument("--max-loops", type=int, metavar="N", help="stop after N loops")
-    t = car.add_command(parser, "train", assembly.train, "train a pilot from this car's tubs")
-    assembly.add_train_arguments(t)
-    return car.main(parser, Path(__file__).resolve().parent, argv)
+    manage.add_train_command(parser)  # the options of `vehicle train`, on this car's data/
+    return manage.main(parser, Path(__file__).resolve().parent, argv)
 
 
 if __name__ == "__main__":

@@ -6,6 +6,9 @@ import os
 
 import pytest
 
+# fixtures shared by several folders (tests/ is on sys.path: this conftest.py lives there)
+pytest_plugins = ("fixtures.sim", "fixtures.pilots", "fixtures.tubs", "fixtures.gamepads")
+
 # pygame parts must never try to open a window in tests.
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")

@@ -2,6 +2,6 @@
 
 import sys
 
-from vehicle.cli import main
+from vehicle.app.cli import main
 
 sys.exit(main())

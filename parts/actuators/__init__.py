@@ -4,7 +4,7 @@
 - :mod:`parts.actuators.pwm`: DonkeyCar-compatible [-1, 1] -> ticks mapping and the drivetrain part.
 - :mod:`parts.actuators.esc`: throttle slew limit and the reverse double-tap state machine.
 - :mod:`parts.actuators.watchdog`: the command watchdog thread.
-- :mod:`parts.actuators.calibrate`: the interactive ``vehicle calibrate`` session.
+- :mod:`parts.actuators.pwm_calibration`: the interactive ``vehicle calibrate`` session.
 - :mod:`parts.actuators.config_writer`: writing found values into a car's myconfig.py.
 - :mod:`parts.actuators.fake_pca9685`, :mod:`parts.actuators.fake_i2c_dev`: the hardware-free board.
 

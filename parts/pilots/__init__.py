@@ -16,7 +16,7 @@ def load_pilot(path: str | Path, *, backend: str = "auto", **options: Any) -> Pi
     """The :class:`parts.pilots.pilot.Pilot` part for a model file (.pt, .onnx or .ts).
 
     ``backend="auto"`` runs a sibling ``.onnx`` export when onnxruntime is installed and the export
-    matches the .pt (see :mod:`parts.pilots.runners`); other options go to ``Pilot``
+    matches the .pt (see :mod:`parts.pilots.backends`); other options go to ``Pilot``
     (``speed_control``, ``speed_key``, ``onnx_threads``, ``models_dir``).
     """
     from parts.pilots.pilot import Pilot

@@ -1,6 +1,6 @@
 """Tub records -> training samples: filters, labels, continuity, side cameras, and the torch Dataset.
 
-Flow (see :func:`parts.pilots.train.prepare_data`)::
+Flow (see :func:`parts.pilots.training.prepare_data`)::
 
     load_records(paths) -> read_drive_data (filter modes + TRAIN_FILTER, labels, continuity)
         -> split_train_val (sessions / blocks) -> balance (train only) -> build_samples

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from parts.pilots.runners import Backend, Runner, open_runner
+from parts.pilots.backends import Backend, Runner, open_runner
 
 logger = logging.getLogger(__name__)
 

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from parts.sim.simcar import SimCar
+from parts.sim.simulator import SimCar
 from parts.sim.track import Track
 
 logger = logging.getLogger(__name__)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from parts.sim.car import CarState
+from parts.sim.kinematics import CarState
 from parts.sim.track import Track
 
 

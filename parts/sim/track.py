@@ -177,7 +177,7 @@ def track_from_points(points: np.ndarray, *, seed: int, width: float = 0.8, lane
     """A track from your own closed centre line (``(N, 2)`` metres, in driving order).
 
     The points are resampled at equal arc length; ``seed`` is the number the track is known by
-    (register it with :func:`parts.sim.simcar.register_track`). Checks that the road does not
+    (register it with :func:`parts.sim.simulator.register_track`). Checks that the road does not
     overlap itself and, when given, that no turn is tighter than ``min_radius`` metres.
 
     Raises:

@@ -9,8 +9,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from parts.tub.codec import decode_image, looks_whole_jpeg
 from parts.tub.format import IMAGE_TYPES
-from parts.tub.imaging import decode_image, looks_whole_jpeg
 from parts.tub.tub import Tub
 
 logger = logging.getLogger(__name__)

@@ -21,9 +21,9 @@ from typing import Any, Literal
 
 import numpy as np
 
+from parts.tub.codec import decode_image
 from parts.tub.errors import CorruptRecord, TubError
 from parts.tub.format import CATALOG_RE, IMAGE_TYPES, IMAGES, MANIFEST, O_BINARY
-from parts.tub.imaging import decode_image
 from parts.tub.tub import Tub
 
 logger = logging.getLogger(__name__)

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from parts.tub.catalog import CatalogFile, parse_line, record_index, scan_catalog
+from parts.tub.codec import encode_image
 from parts.tub.committer import Committer
 from parts.tub.errors import TubError, TubSchemaError
 from parts.tub.format import (
@@ -38,7 +39,6 @@ from parts.tub.format import (
     image_file_name,
 )
 from parts.tub.image_files import ImageFiles
-from parts.tub.imaging import encode_image
 from parts.tub.manifest import Manifest, parse_metadata
 from parts.tub.recovery import inspect_tub
 

@@ -12,7 +12,8 @@ insert a V.add(...) between two helper calls in drive().
 
 from pathlib import Path
 
-from vehicle import Vehicle, assembly, car
+from vehicle import Vehicle
+from vehicle.app import assembly, manage
 
 
 def drive(cfg, args):
@@ -29,17 +30,16 @@ def drive(cfg, args):
     assembly.add_drivetrain(V, cfg)  # angle, throttle -> PCA9685 pulses
     assembly.add_recording_rules(V, cfg)  # auto-record on throttle, no recording in autopilot
     assembly.add_tub_writer(V, cfg)  # records every loop while `recording` is on
-    return car.run(V, cfg, args.max_loops)
+    return manage.run(V, cfg, args.max_loops)
 
 
 def main(argv=None):
-    parser = car.command_parser(__doc__)
-    d = car.add_command(parser, "drive", drive, "drive the car and record tubs")
+    parser = manage.command_parser(__doc__)
+    d = manage.add_command(parser, "drive", drive, "drive the car and record tubs")
     d.add_argument("--model", help="trained pilot to drive with (a models/*.pt file)")
     d.add_argument("--max-loops", type=int, metavar="N", help="stop after N loops")
-    t = car.add_command(parser, "train", assembly.train, "train a pilot from this car's tubs")
-    assembly.add_train_arguments(t)
-    return car.main(parser, Path(__file__).resolve().parent, argv)
+    manage.add_train_command(parser)  # the options of `vehicle train`, on this car's data/
+    return manage.main(parser, Path(__file__).resolve().parent, argv)
 
 
 if __name__ == "__main__":

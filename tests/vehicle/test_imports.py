@@ -11,8 +11,8 @@ HEAVY = ("torch", "cv2", "pygame", "smbus2", "socketio", "aiohttp", "onnxruntime
 
 def test_core_and_cli_import_light():
     code = (
-        "import sys, json, vehicle, vehicle.assembly, vehicle.config, vehicle.cli;"
-        "vehicle.cli.build_parser();"
+        "import sys, json, vehicle, vehicle.app.assembly, vehicle.config, vehicle.app.cli;"
+        "vehicle.app.cli.build_parser();"
         f"print(json.dumps(sorted(m for m in sys.modules if m.split('.')[0] in {HEAVY!r})))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

@@ -14,7 +14,7 @@ SCRIPT = textwrap.dedent("""
     import sys
     from pathlib import Path
     from vehicle import Vehicle
-    from vehicle.car import run
+    from vehicle.app.manage import run
     from vehicle.config import Config
 
     log = Path(sys.argv[1])

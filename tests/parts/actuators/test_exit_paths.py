@@ -12,7 +12,7 @@ import pytest
 
 from parts.actuators.fake_pca9685 import OFF, FakeI2C, read_trace_file
 from vehicle import Vehicle
-from vehicle.assembly.drivetrain import add_drivetrain
+from vehicle.app.assembly.drivetrain import add_drivetrain
 from vehicle.clock import SimulatedClock
 from vehicle.config import Config
 from vehicle.errors import PartError
@@ -100,8 +100,8 @@ def test_watchdog_neutral_when_the_loop_stalls():
 SCRIPT = textwrap.dedent("""
     import sys
     from vehicle import Vehicle
-    from vehicle.assembly.drivetrain import add_drivetrain
-    from vehicle.car import run
+    from vehicle.app.assembly.drivetrain import add_drivetrain
+    from vehicle.app.manage import run
     from vehicle.config import Config
 
     class Driver:

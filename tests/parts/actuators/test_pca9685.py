@@ -103,7 +103,7 @@ def test_bad_channel_values_are_refused(driver, board, kwargs, message):
 
 def test_constructor_touches_no_hardware_and_smbus2_is_imported_lazily():
     PCA9685(1, 0x40, 60, bus_factory=lambda n: pytest.fail("constructor opened the bus"))
-    code = ("import sys, parts.actuators.pca9685, parts.actuators.pwm, vehicle.assembly.drivetrain; "
+    code = ("import sys, parts.actuators.pca9685, parts.actuators.pwm, vehicle.app.assembly.drivetrain; "
             "print('smbus2' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"

@@ -105,7 +105,7 @@ def test_bad_arguments():
 
 def test_add_camera_per_type(tmp_path, red_blue_video, image_folder):
     from vehicle import Vehicle
-    from vehicle.assembly.camera import add_camera, make_frame_source
+    from vehicle.app.assembly.camera import add_camera, make_frame_source
     from vehicle.config import Config
     from vehicle.errors import UserError
 

@@ -41,7 +41,7 @@ def load_manage(car):
 
 
 def test_basic_car_drives_records_and_stops_on_fakes(tmp_path):
-    from vehicle.createcar import create_car, templates
+    from vehicle.app.commands.createcar import create_car, templates
 
     if "basic" not in templates():
         pytest.skip("the basic template is not there yet")

@@ -89,7 +89,7 @@ def test_preview_grid_layout(image):
 def test_preview_aug_command_writes_png(tiny_tub, tmp_path):
     import cv2
 
-    from vehicle.cli import main
+    from vehicle.app.cli import main
 
     out = tmp_path / "aug.png"
     assert main(["train", "preview-aug", "--tubs", str(tiny_tub), "--out", str(out), "--rows", "3",

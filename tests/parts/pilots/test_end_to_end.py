@@ -12,7 +12,7 @@ import sys
 
 import pytest
 
-from vehicle.cli import main
+from vehicle.app.cli import main
 
 pytestmark = pytest.mark.slow
 

@@ -10,7 +10,7 @@ import pytest
 
 from parts.pilots import load_pilot
 from parts.pilots.export import export_model
-from vehicle.cli import main
+from vehicle.app.cli import main
 
 # every kind of input: plain, extra from memory (behaviour), fed-back history, frame sequence,
 # decoded outputs (categorical argmax, derived throttle)
@@ -71,8 +71,8 @@ def test_onnx_session_uses_one_thread_by_default(make_model_file):
 def test_cli_export(make_model_file, tmp_path, capsys):
     path = make_model_file("linear")
     (tmp_path / "myconfig.py").write_text("")
+    from parts.pilots.model_db import register_model
     from parts.pilots.modelfile import read_meta
-    from parts.pilots.registry import register_model
 
     register_model(path, read_meta(path))
     assert main(["models", "export", "linear", "--format", "torchscript", "--car", str(tmp_path)]) == 0

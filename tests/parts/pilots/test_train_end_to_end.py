@@ -10,7 +10,8 @@ import torch
 
 from parts.pilots.distributed import resolve_device
 from parts.pilots.modelfile import ModelFileError, load_model
-from parts.pilots.train import add_train_arguments, train
+from parts.pilots.training import train
+from vehicle.app.commands.train import add_train_arguments
 from vehicle.config import Config
 
 FAST = {"BATCH_SIZE": 16, "MAX_EPOCHS": 3, "AUGMENTATIONS": [], "TRAIN_SEED": 0}
@@ -33,7 +34,7 @@ def test_train_writes_model_metrics_plot_and_registry(tiny_tub, tmp_path, torch_
     assert saved["val_loss"] == pytest.approx(metrics["val_loss"]) and saved["type"] == "linear"
     png = (tmp_path / "models" / "pilot.loss.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 5000
-    from parts.pilots.registry import ModelRegistry
+    from parts.pilots.model_db import ModelRegistry
 
     entry = ModelRegistry.for_models_dir(tmp_path / "models").get("pilot")
     assert entry.type == "linear" and entry.comment == "first try"
@@ -100,8 +101,8 @@ def test_progress_bar_shows_live_loss_when_asked(tiny_tub, tmp_path, capsys, tor
 
 
 def test_manage_py_and_vehicle_train_share_arguments(tiny_tub, tmp_path, capsys, torch_one_thread):
-    from vehicle.assembly.pilot import train as assembly_train
-    from vehicle.cli import main
+    from vehicle.app.cli import main
+    from vehicle.app.commands.train import train_car as assembly_train
 
     (tmp_path / "data").mkdir()
     parser = argparse.ArgumentParser()

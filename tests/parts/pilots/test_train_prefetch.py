@@ -7,7 +7,7 @@ import threading
 import pytest
 
 from parts.pilots.prefetch import Prefetcher
-from parts.pilots.train import train
+from parts.pilots.training import train
 from vehicle.config import Config
 
 
@@ -49,7 +49,7 @@ def test_workers_see_each_epochs_augmentation_draws(tiny_tub):
     from parts.pilots.distributed import DistInfo
     from parts.pilots.framecache import FrameCache
     from parts.pilots.preprocess import Preprocess
-    from parts.pilots.train import PreparedData, _loaders
+    from parts.pilots.training import PreparedData, _loaders
 
     data = read_drive_data([tiny_tub])
     cache = FrameCache(data.records, ["cam/image_array"])

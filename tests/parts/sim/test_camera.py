@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from parts.sim.camera import Camera, ImageJitter
-from parts.sim.simcar import load_world
+from parts.sim.simulator import load_world
 
 
 @pytest.fixture

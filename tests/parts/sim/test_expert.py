@@ -3,10 +3,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from parts.sim.evaluate import evaluate
 from parts.sim.expert import Expert, NoiseInjector, speed_profile
-from parts.sim.simcar import SimCar
+from parts.sim.simulator import SimCar
 from parts.sim.track import make_track
+from vehicle.app.evaluate import evaluate
 
 
 def test_expert_drives_every_track_without_intervention(cfg):

@@ -2,7 +2,7 @@ from __future__ import annotations
 
 import pytest
 
-from parts.sim.car import CarState
+from parts.sim.kinematics import CarState
 from parts.sim.telemetry import LapTracker
 from parts.sim.track import make_track
 

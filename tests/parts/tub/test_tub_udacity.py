@@ -8,7 +8,7 @@ import pytest
 
 from parts.tub.reader import load_records
 from parts.tub.udacity import _rebuild, import_udacity, read_driving_log, timestamp_from_name
-from vehicle.cli import main
+from vehicle.app.cli import main
 
 NAMES = ["2016_12_01_13_30_48_287", "2016_12_01_13_30_48_404", "2016_12_01_13_30_48_520"]
 

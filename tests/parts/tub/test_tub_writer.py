@@ -163,7 +163,7 @@ def test_wrong_arguments_raise(tmp_path):
 
 def test_add_tub_writer_in_a_vehicle(tmp_path, image):
     from vehicle import Vehicle
-    from vehicle.assembly.tub import add_tub_writer
+    from vehicle.app.assembly.tub import add_tub_writer
     from vehicle.clock import SimulatedClock
 
     cfg = Config.defaults(CAR_PATH=str(tmp_path), METADATA=["driver:test"])
@@ -199,7 +199,7 @@ def test_add_tub_writer_in_a_vehicle(tmp_path, image):
 
 def test_add_tub_writer_inputs_follow_config_and_available_keys(tmp_path, image):
     from vehicle import Vehicle
-    from vehicle.assembly.tub import add_tub_writer
+    from vehicle.app.assembly.tub import add_tub_writer
     from vehicle.errors import UserError
 
     cfg = Config.defaults(CAR_PATH=str(tmp_path), RECORD_DURING_AI=True, AUTO_CREATE_NEW_TUB=False)

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from parts.web.part import WebController
+from parts.web.controller import WebController
 
 pytest.importorskip("socketio")
 pytest.importorskip("aiohttp")

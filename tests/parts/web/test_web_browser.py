@@ -11,8 +11,8 @@ import pytest
 
 from parts.web.devtools import Chromium, find_chromium
 from vehicle import Vehicle
-from vehicle.assembly.controller import add_controller
-from vehicle.assembly.modes import add_drive_mode
+from vehicle.app.assembly.controller import add_controller
+from vehicle.app.assembly.drive import add_drive_mode
 from vehicle.config import Config
 
 pytestmark = [
@@ -183,7 +183,7 @@ def test_page_without_the_pairing_token_is_refused(tmp_path, arun):
 def test_newcomer_drives_the_simulator_by_keyboard_and_records_a_tub(tmp_path, arun):
     """The simulator car as manage.py drive assembles it: keys drive, R records a tub."""
     from parts.tub.reader import load_records
-    from vehicle import assembly
+    from vehicle.app import assembly
 
     cfg = Config.defaults(CAR_PATH=str(tmp_path), WEB_CONTROL_PORT=0)
     V = Vehicle()

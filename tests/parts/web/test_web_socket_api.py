@@ -109,7 +109,7 @@ def test_deadman_stops_a_silent_driver(web, loop_side, client_cls, arun):
 
 
 def test_heartbeats_keep_the_car_driving(web_factory, client_cls, arun):
-    from parts.web.part import WebController
+    from parts.web.controller import WebController
 
     web = web_factory(deadman_s=2.0)
 
@@ -171,7 +171,7 @@ def test_pages_of_other_sites_cannot_connect(web, client_cls, arun):
 
 
 def test_network_interface_needs_a_token():
-    from parts.web.part import WebController
+    from parts.web.controller import WebController
 
     assert WebController(host="127.0.0.1", port=0).token is None
     lan = WebController(host="0.0.0.0", port=0)  # not started: nothing is bound

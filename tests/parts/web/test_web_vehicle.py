@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from vehicle import Vehicle
-from vehicle.assembly.controller import add_controller
+from vehicle.app.assembly.controller import add_controller
 from vehicle.config import Config
 from vehicle.errors import UserError
 
@@ -32,7 +32,7 @@ def build(tmp_path, **overrides):
     V = Vehicle()
     V.add(FakeCamera(), outputs=["cam/image_array"])
     web = add_controller(V, cfg)
-    from vehicle.assembly.modes import add_drive_mode
+    from vehicle.app.assembly.drive import add_drive_mode
 
     add_drive_mode(V, cfg)
     return V, web

@@ -1,0 +1,285 @@
+"""Train a pilot from tubs: ``manage.py train`` and ``vehicle train`` both end up in :func:`train`.
+
+Data (:mod:`parts.pilots.dataset`) -> model (:mod:`parts.pilots.models`) -> loop
+(:mod:`parts.pilots.fit`) -> model file (:mod:`parts.pilots.modelfile`) with the loss curve
+``NAME.loss.png`` and ``NAME.metrics.json`` next to it, and an entry in the car's model registry.
+Runs on the GPU when there is one and on several GPUs/machines under torchrun.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch.utils.data import DataLoader, DistributedSampler
+
+from parts.pilots.augment import Augmenter, AugmentSettings
+from parts.pilots.balance import balance_by_steering
+from parts.pilots.dataset import IMAGE_KEY, DriveData, PilotDataset, build_samples, read_drive_data
+from parts.pilots.distributed import DistInfo, init_distributed, shutdown_distributed
+from parts.pilots.fit import FitSettings, fit
+from parts.pilots.framecache import FrameCache
+from parts.pilots.modelfile import load_model, save_model
+from parts.pilots.models import PilotModel, create_model, model_type
+from parts.pilots.preprocess import Preprocess, preprocess_from_config
+from parts.pilots.split import split_train_val
+from parts.pilots.train_report import plot_losses, sidecar, write_metrics
+
+__all__ = ["default_model_path", "prepare_data", "train"]
+
+logger = logging.getLogger(__name__)
+
+
+def default_model_path(models_dir: Path) -> Path:
+    """``models/pilot_YY-MM-DD_N.pt`` with the first free N (DonkeyCar's naming)."""
+    day = datetime.now().strftime("%y-%m-%d")
+    n = 1
+    while (models_dir / f"pilot_{day}_{n}.pt").exists():
+        n += 1
+    return models_dir / f"pilot_{day}_{n}.pt"
+
+
+def model_options(cfg: Any, type_name: str, data: DriveData) -> dict[str, Any]:
+    """Options of ``type_name`` that follow the car's config or the data."""
+    cls = model_type(type_name)
+    opts: dict[str, Any] = {}
+    if "seq_length" in cls.defaults:
+        opts["seq_length"] = cfg.SEQUENCE_LENGTH
+    if "mem_length" in cls.defaults:
+        opts["mem_length"] = cfg.SEQUENCE_LENGTH
+    if "throttle_range" in cls.defaults:
+        opts["throttle_range"] = float(cfg.MODEL_CATEGORICAL_MAX_THROTTLE_RANGE)
+    if "num_behaviors" in cls.defaults:
+        key = cls.extra_inputs[0]
+        value = data.records[0].data.get(key)
+        if value is None:
+            raise ValueError(f"the records have no {key!r}: record with behaviours (BEHAVIOR_LIST) to train "
+                             "a behavior model")
+        opts["num_behaviors"] = len(value)
+    return opts
+
+
+@dataclass
+class PreparedData:
+    """What :func:`prepare_data` builds: datasets, their preprocessing, and figures for the metadata."""
+
+    data: DriveData
+    train: PilotDataset
+    val: PilotDataset | None
+    preprocess: Preprocess
+    image_shape: tuple[int, int, int]
+    info: dict[str, Any]
+
+
+def prepare_data(cfg: Any, data: DriveData, model: PilotModel, preprocess: Preprocess,
+                 augmentations: Sequence[str] | None = None, progress: bool = False) -> PreparedData:
+    """Split, balance, expand side cameras, cache frames and wrap everything as datasets."""
+    train_pos, val_pos = split_train_val(data.segments, cfg.TRAIN_TEST_SPLIT, cfg.TRAIN_SPLIT_BY,
+                                         cfg.TRAIN_SPLIT_BLOCK, cfg.TRAIN_SEED)
+    n_split = len(train_pos)
+    if cfg.TRAIN_BALANCE:
+        train_pos = balance_by_steering(data.angles, train_pos, cfg.TRAIN_BALANCE_BINS,
+                                        cfg.TRAIN_BALANCE_MAX_PER_BIN, cfg.TRAIN_SEED)
+        logger.info("balanced by steering: %d of %d training records kept", len(train_pos), n_split)
+    side = dict(cfg.TRAIN_SIDE_CAMERAS)
+    keys = [IMAGE_KEY, *side]
+    offsets = [0.0, *(float(v) for v in side.values())]
+    depth = max(model.frames - 1, model.command_history)
+    train_s = build_samples(data, train_pos, n_keys=len(keys), depth=depth)
+    val_s = build_samples(data, val_pos, n_keys=1, depth=depth)  # validate on what the car sees: centre
+    cache = FrameCache(data.records, keys, enabled=cfg.TRAIN_CACHE_IMAGES, max_mb=cfg.TRAIN_CACHE_MAX_MB)
+    bad = cache.fill(np.union1d(train_s.positions(), val_s.positions()), progress=progress)
+    if bad.size:
+        train_s = train_s.subset(~np.isin(train_s.chain, bad).any(axis=1))
+        val_s = val_s.subset(~np.isin(val_s.chain, bad).any(axis=1))
+    if len(train_s) == 0:
+        raise ValueError(f"no training samples left from {len(data)} records (sequence models need "
+                         f"{depth} consecutive records before each sample); record more data")
+    names = cfg.AUGMENTATIONS if augmentations is None else list(augmentations)
+    aug_settings = AugmentSettings.from_config(cfg, names)
+    augmenter = Augmenter(aug_settings) if aug_settings.names else None
+    common = {"frames": model.frames, "command_history": model.command_history,
+              "extra_key": model.extra_inputs[0] if model.extra_inputs else None,
+              "extra_size": model.extra_size}
+    train_ds = PilotDataset(data, train_s, cache, preprocess, key_offsets=offsets, augmenter=augmenter,
+                            seed=cfg.TRAIN_SEED, **common)
+    val_ds = PilotDataset(data, val_s, cache, preprocess, **common) if len(val_s) else None
+    info = {"records": len(data), "train_records": int(len(train_pos)), "val_records": int(len(val_pos)),
+            "train_samples": len(train_s), "val_samples": len(val_s), "camera_keys": keys,
+            "side_camera_offsets": side, "frames_cached": cache.cached, "cache_mb": round(cache.nbytes / 1e6, 1),
+            "augmentations": aug_settings.to_dict()}
+    return PreparedData(data, train_ds, val_ds, preprocess, tuple(cache.get(int(train_s.chain[0, 0])).shape),
+                        info)
+
+
+def _loaders(prep: PreparedData, batch_size: int, workers: int, dist_info: DistInfo, device: torch.device,
+             seed: int) -> tuple[DataLoader, DataLoader | None]:
+    # Workers are not persistent: each epoch forks them afresh with the dataset's current epoch (the
+    # augmentation draws depend on it) and the frame cache shared copy-on-write.
+    common: dict[str, Any] = {"batch_size": batch_size, "num_workers": workers,
+                              "pin_memory": device.type == "cuda"}
+    if dist_info.enabled:
+        train_sampler = DistributedSampler(prep.train, num_replicas=dist_info.world_size, rank=dist_info.rank,
+                                           shuffle=True, seed=seed)
+        train = DataLoader(prep.train, sampler=train_sampler, drop_last=False, **common)
+        val = None
+        if prep.val is not None:
+            val_sampler = DistributedSampler(prep.val, num_replicas=dist_info.world_size, rank=dist_info.rank,
+                                             shuffle=False)
+            val = DataLoader(prep.val, sampler=val_sampler, **common)
+        return train, val
+    gen = torch.Generator()
+    gen.manual_seed(seed)
+    train = DataLoader(prep.train, shuffle=True, generator=gen, **common)
+    val = DataLoader(prep.val, shuffle=False, **common) if prep.val is not None else None
+    return train, val
+
+
+def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os.PathLike[str], *,
+          model_type_name: str | None = None, transfer: str | os.PathLike[str] | None = None,
+          epochs: int | None = None, batch_size: int | None = None, learning_rate: float | None = None,
+          device: str | None = None, workers: int | None = None, augmentations: Sequence[str] | None = None,
+          comment: str | None = None, register: bool = True, progress: bool | None = None) -> dict[str, Any]:
+    """Train a model on ``tubs`` and write it to ``model_path``; returns the metrics.
+
+    Arguments left None take the car's settings (MAX_EPOCHS, BATCH_SIZE, LEARNING_RATE,
+    TRAIN_DEVICE, TRAIN_NUM_WORKERS, AUGMENTATIONS, DEFAULT_MODEL_TYPE).
+
+    Raises:
+        ValueError: bad settings or no usable data (the message says what to change).
+        parts.pilots.modelfile.ModelFileError: ``transfer`` is not a usable model file.
+    """
+    started = time.time()
+    epochs = cfg.MAX_EPOCHS if epochs is None else epochs
+    batch_size = cfg.BATCH_SIZE if batch_size is None else batch_size
+    learning_rate = cfg.LEARNING_RATE if learning_rate is None else learning_rate
+    workers = cfg.TRAIN_NUM_WORKERS if workers is None else workers
+    for name, value in (("epochs", epochs), ("batch size", batch_size)):
+        if value < 1:
+            raise ValueError(f"{name} must be >= 1, got {value}")
+    if not learning_rate > 0:
+        raise ValueError(f"learning rate must be > 0, got {learning_rate}")
+    model_path = Path(model_path)
+    if model_path.suffix != ".pt":
+        raise ValueError(f"model file {model_path} must end in .pt (e.g. models/mypilot.pt)")
+    dist_info, dev = init_distributed(device or cfg.TRAIN_DEVICE)
+    clean = False
+    try:
+        torch.manual_seed(cfg.TRAIN_SEED)
+        old_meta: dict[str, Any] | None = None
+        if transfer is not None:
+            model, old_meta = load_model(transfer)
+            old_type = old_meta["model"]["type"]
+            if model_type_name is not None and model_type_name != old_type:
+                raise ValueError(f"--transfer {transfer} is a {old_type!r} model but --type {model_type_name} "
+                                 "was asked; leave out --type or transfer from a model of that type")
+            model_type_name = old_type
+        type_name = model_type_name or cfg.DEFAULT_MODEL_TYPE
+        model_type(type_name)  # unknown types fail before reading any data
+        data = read_drive_data(tubs, modes=cfg.TRAIN_MODES, record_filter=cfg.TRAIN_FILTER)
+        image_shape = tuple(int(v) for v in data.records[0].image(IMAGE_KEY).shape)
+        if old_meta is not None:
+            preprocess = Preprocess.from_dict(old_meta["preprocess"])
+            if preprocess.image_shape is not None and preprocess.image_shape != image_shape:
+                raise ValueError(f"--transfer model was trained on {preprocess.image_shape} frames, these tubs "
+                                 f"hold {image_shape} frames")
+        else:
+            preprocess = preprocess_from_config(cfg, type_name, image_shape)
+            model = create_model(type_name, preprocess.output_shape(image_shape),
+                                 **model_options(cfg, type_name, data))
+        prep = prepare_data(cfg, data, model, preprocess, augmentations,
+                            progress=dist_info.is_main and (progress if progress is not None else _tty()))
+        model.to(dev)
+        n_params = sum(p.numel() for p in model.parameters())
+        if dist_info.is_main:
+            logger.info("training %s model (%d parameters) on %s: %d training / %d validation samples",
+                        type_name, n_params, dev, prep.info["train_samples"], prep.info["val_samples"])
+            if cfg.PRINT_MODEL_SUMMARY:
+                logger.info("%s", model)
+        train_model: torch.nn.Module = model
+        if dist_info.enabled:
+            ids = [dev.index] if dev.type == "cuda" else None
+            train_model = torch.nn.parallel.DistributedDataParallel(model, device_ids=ids)
+        train_loader, val_loader = _loaders(prep, batch_size, workers, dist_info, dev, cfg.TRAIN_SEED)
+        training = {"epochs": epochs, "batch_size": batch_size, "learning_rate": learning_rate,
+                    "weight_decay": cfg.TRAIN_WEIGHT_DECAY, "early_stop_patience":
+                    cfg.EARLY_STOP_PATIENCE if cfg.USE_EARLY_STOP else None, "min_delta": cfg.MIN_DELTA,
+                    "train_test_split": cfg.TRAIN_TEST_SPLIT, "split_by": cfg.TRAIN_SPLIT_BY,
+                    "split_block": cfg.TRAIN_SPLIT_BLOCK, "seed": cfg.TRAIN_SEED, "modes": list(cfg.TRAIN_MODES),
+                    "filter": getattr(cfg.TRAIN_FILTER, "__name__", None) if cfg.TRAIN_FILTER else None,
+                    "balance": {"bins": cfg.TRAIN_BALANCE_BINS, "max_per_bin": cfg.TRAIN_BALANCE_MAX_PER_BIN}
+                    if cfg.TRAIN_BALANCE else None,
+                    "device": str(dev), "world_size": dist_info.world_size, "parameters": n_params,
+                    **{k: v for k, v in prep.info.items() if k not in ("records",)}}
+        base_meta = {"type": type_name, "preprocess": preprocess.to_dict(), "training": training,
+                     "datasets": data.tubs, "transfer": str(transfer) if transfer else None,
+                     "comment": comment, "created": datetime.now(UTC).isoformat(timespec="seconds")}
+
+        def save_best(epoch: int, history: Any) -> None:
+            if dist_info.is_main:
+                save_model(model_path, model, {**base_meta, "metrics": _metrics(history, prep, started)})
+
+        settings = FitSettings(epochs=epochs, learning_rate=learning_rate, weight_decay=cfg.TRAIN_WEIGHT_DECAY,
+                               patience=cfg.EARLY_STOP_PATIENCE if cfg.USE_EARLY_STOP else None,
+                               min_delta=cfg.MIN_DELTA, progress=progress)
+        history = fit(train_model, train_loader, val_loader, preprocess, dev, settings, dist_info, save_best)
+        # every rank got through the last collective: from here each leaves through the barrier,
+        # rank 0 even when its own file writing below fails, so no peer waits for it in vain
+        clean = True
+        metrics = _metrics(history, prep, started)
+        if dist_info.is_main:
+            _finish(model_path, base_meta, metrics, history, type_name, cfg.SHOW_PLOT, register, comment)
+        return metrics
+    finally:
+        shutdown_distributed(clean=clean)
+
+
+def _tty() -> bool:
+    import sys
+
+    return sys.stderr.isatty()
+
+
+def _metrics(history: Any, prep: PreparedData, started: float) -> dict[str, Any]:
+    h = history.as_dict()
+    best = h["best_epoch"]
+    return {**h, "best_val_loss": h["val_loss"][best - 1] if best else None,
+            "best_train_loss": h["train_loss"][best - 1] if best else None,
+            "train_samples": prep.info["train_samples"], "val_samples": prep.info["val_samples"],
+            "wall_seconds": round(time.time() - started, 2)}
+
+
+def _finish(model_path: Path, base_meta: dict[str, Any], metrics: dict[str, Any], history: Any, type_name: str,
+            show_plot: bool, register: bool, comment: str | None) -> None:
+    """Final metadata into the best model file, the metrics JSON, the loss plot and the registry."""
+    if not model_path.exists():
+        raise ValueError("training produced no model (no epoch had a finite loss)")
+    model, meta = load_model(model_path)
+    meta = {**{k: v for k, v in meta.items() if k != "model"}, "metrics": metrics}
+    save_model(model_path, model, meta)
+    write_metrics(sidecar(model_path, ".metrics.json"), {"model": str(model_path), "type": type_name, **metrics})
+    if show_plot:
+        try:
+            plot_losses(sidecar(model_path, ".loss.png"), history.train_loss, history.val_loss,
+                        f"{model_path.name} ({type_name})", history.best_epoch)
+        except ImportError:
+            logger.warning("matplotlib is not installed: no loss plot (pip install matplotlib)")
+    if register:
+        try:
+            from parts.pilots.model_db import register_model
+
+            register_model(model_path, meta, comment=comment)
+        except Exception as exc:  # the model is written; a registry problem must not lose it
+            logger.warning("model saved but not registered: %s", exc)
+    best = metrics.get("best_val_loss")
+    logger.info("saved %s (best epoch %d, val_loss %s)", model_path, metrics["best_epoch"],
+                f"{best:.5f}" if isinstance(best, float) and math.isfinite(best) else "n/a")

@@ -1,0 +1,51 @@
+from __future__ import annotations
+
+import json
+
+import cv2
+import pytest
+
+from vehicle.app.cli import main
+
+
+@pytest.fixture
+def car(tmp_path, monkeypatch):
+    """A car folder with a coarse texture, as the current directory."""
+    (tmp_path / "myconfig.py").write_text("SIM_TEXTURE_RES = 0.02\n")
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+def test_sim_track_draws_png_and_camera_view(car, capsys):
+    assert main(["sim", "track", "--seed", "7", "--png", "t.png", "--camera", "c.png", "--size", "300"]) == 0
+    assert cv2.imread(str(car / "t.png")).shape == (300, 300, 3)
+    assert cv2.imread(str(car / "c.png")).shape == (120, 160, 3)
+    assert "track 7" in capsys.readouterr().out
+
+
+def test_sim_eval_expert_prints_table_and_writes_reports(car, capsys):
+    rc = main(["sim", "eval", "--pilot", "expert", "--tracks", "11,12", "--laps", "1",
+               "--json", "r.json", "--png", "r.png"])
+    assert rc == 0
+    out = capsys.readouterr().out
+    assert "autonomy" in out and "success rate 100 %" in out
+    report = json.loads((car / "r.json").read_text())
+    assert report["seeds"] == [11, 12] and report["overall"]["autonomy"] == 100.0
+    assert (car / "r.png").stat().st_size > 1000
+
+
+def test_sim_cli_errors_exit_2(car, capsys):
+    assert main(["sim", "eval", "--pilot", "missing.pt", "--tracks", "1"]) == 2
+    assert "no such model file" in capsys.readouterr().err
+    assert main(["sim", "eval", "--pilot", "expert", "--tracks", "1", "--laps", "0"]) == 2
+    with pytest.raises(SystemExit):
+        main(["sim", "eval", "--pilot", "expert", "--tracks", "a,b"])
+    (car / "myconfig.py").write_text("SIM_ROAD_WIDHT = 1.0\n")
+    assert main(["sim", "track", "--seed", "1", "--png", "x.png"]) == 2
+    assert "SIM_ROAD_WIDTH" in capsys.readouterr().err
+
+
+def test_sim_record_command(car, capsys):
+    assert main(["sim", "record", "--records", "25", "--tracks", "2", "--tub", "data/demo"]) == 0
+    assert "recorded 25 records" in capsys.readouterr().out
+    assert len((car / "data/demo/catalog_0.catalog").read_text().splitlines()) == 25

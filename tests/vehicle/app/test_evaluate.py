@@ -1,0 +1,120 @@
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from parts.sim.eval_report import format_table, write_json, write_png
+from vehicle.app.evaluate import evaluate
+
+
+class SteerRight:
+    """A bad pilot: full right at fixed throttle."""
+
+    inputs = ["cam/image_array", "sim/speed"]
+
+    def __init__(self):
+        self.frames = 0
+
+    def run(self, image, speed):
+        assert image.shape == (120, 160, 3) and speed >= 0
+        self.frames += 1
+        return 1.0, 0.5
+
+
+class StandStill:
+    def run(self, image):
+        return 0.0, 0.0
+
+
+def test_bad_pilot_gets_interventions_and_dave2_autonomy(cfg):
+    pilot = SteerRight()
+    r = evaluate(pilot, [11], laps=1, cfg=cfg, max_time=20.0)
+    t = r["tracks"][0]
+    assert pilot.frames == t["frames"] > 0
+    assert t["interventions"] >= 2
+    expected = max(0.0, 1 - t["interventions"] * 6.0 / t["elapsed_s"]) * 100
+    assert t["autonomy"] == pytest.approx(expected, abs=0.01)
+    assert t["autonomy"] < 100.0 and not t["success"]
+    assert len(t["off_track_at"]) == t["interventions"]
+    assert t["steering_smoothness"] == 0.0  # constant steering
+    assert t["max_abs_cte"] <= cfg.SIM_OFF_TRACK_CTE  # autonomous frames only
+
+
+def test_episode_is_bounded_by_max_time(cfg):
+    r = evaluate(StandStill(), [11, 12], laps=2, cfg=cfg, max_time=3.0)
+    for t in r["tracks"]:
+        assert t["timed_out"] and t["elapsed_s"] == pytest.approx(3.0)
+        assert t["laps_completed"] == 0 and t["autonomy"] == 100.0
+        assert t["mean_speed"] == 0.0 and t["off_track_per_lap"] is None
+    assert r["overall"]["elapsed_s"] == pytest.approx(6.0)
+
+
+def test_fixed_throttle_and_metric_definitions(cfg):
+    class Gentle:
+        def __init__(self):
+            self.i = 0
+
+        def run(self, image):
+            self.i += 1
+            return (0.1 if self.i % 2 else -0.1), None  # alternating steering, no throttle
+
+    r = evaluate(Gentle(), [12], laps=1, cfg=cfg, max_time=4.0, fixed_throttle=0.4, penalty_s=10.0)
+    t = r["tracks"][0]
+    assert t["mean_speed"] > 0.3  # the fixed throttle drove the car
+    # |delta steer| = 0.2 every step of 0.05 s -> 4 per second
+    assert t["steering_smoothness"] == pytest.approx(0.2 * cfg.DRIVE_LOOP_HZ)
+    assert r["settings"]["penalty_s"] == 10.0
+
+
+def test_inputs_must_exist(cfg):
+    class NeedsBehavior:
+        inputs = ["cam/image_array", "behavior/one_hot_state_array"]
+
+        def run(self, image, state):
+            assert state == [1.0, 0.0]
+            return 0.0, 0.3
+
+    with pytest.raises(ValueError, match="behavior/one_hot_state_array"):
+        evaluate(NeedsBehavior(), [11], laps=1, cfg=cfg, max_time=1.0)
+    r = evaluate(NeedsBehavior(), [11], laps=1, cfg=cfg, max_time=1.0,
+                 extra_inputs={"behavior/one_hot_state_array": [1.0, 0.0]})
+    assert r["tracks"][0]["frames"] == 20
+
+
+def test_argument_checks(cfg, tmp_path):
+    with pytest.raises(ValueError, match="laps"):
+        evaluate("expert", [1], laps=0, cfg=cfg)
+    with pytest.raises(ValueError, match="seeds"):
+        evaluate("expert", [], cfg=cfg)
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        evaluate(tmp_path / "missing.pt", [1], cfg=cfg)
+    with pytest.raises(TypeError, match="pilot"):
+        evaluate(42, [1], cfg=cfg)
+
+
+def test_reports_json_png_and_table(cfg, tmp_path):
+    r = evaluate("expert", [11, 12], laps=1, cfg=cfg)
+    table = format_table(r)
+    lines = table.splitlines()
+    assert lines[0].split()[:3] == ["track", "autonomy", "%"]
+    assert lines[2].split()[:3] == ["11", "100.0", "1"] and lines[4].split()[0] == "all"
+    js = json.loads(write_json(r, tmp_path / "out" / "r.json").read_text())
+    assert js["overall"]["laps_completed"] == 2 and len(js["tracks"][0]["trajectory"]) > 100
+    import cv2
+
+    png = cv2.imread(str(write_png(r, tmp_path / "r.png", cfg, panel=200)))
+    assert png.shape == (200, 400, 3)
+    # the trajectory is drawn in its own colour (BGR (255, 200, 0) after conversion)
+    assert np.any(np.all(np.abs(png.astype(int) - [255, 200, 0]) < 30, axis=2))
+
+
+def test_pilot_throttle_is_scaled_like_local_mode(cfg):
+    class Straight:
+        def run(self, image):
+            return 0.0, 0.6
+
+    fast = evaluate(Straight(), [12], laps=1, cfg=cfg, max_time=2.0)["tracks"][0]
+    slow = evaluate(Straight(), [12], laps=1, cfg=cfg.replace(AI_THROTTLE_MULT=0.5), max_time=2.0)["tracks"][0]
+    assert slow["distance_m"] < 0.6 * fast["distance_m"]

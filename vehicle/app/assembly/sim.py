@@ -1,0 +1,50 @@
+"""Assembly of the built-in simulator: the simulated car, the expert driver and its noise.
+
+Order in a simulator car's loop: ``add_simulator`` first (it produces the camera frame), then a
+controller or ``add_expert``, drive mode, then ``add_expert_noise`` (it perturbs the executed
+``angle`` after drive mode, so the tub records the expert's clean ``user/angle``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+
+def add_simulator(V: Any, cfg: Any, seeds: Sequence[int] | None = None) -> Any:
+    """Add the simulated car: in ``angle``, ``throttle``, ``sim/reset``; out ``cam/image_array``,
+    ``cam/timestamp``, ``sim/*`` telemetry and ``enc/speed``. Drives the tracks of SIM_TRACK_SEEDS
+    unless ``seeds``. A part that sets ``sim/reset`` True (e.g. a button) puts the car back on the
+    start line."""
+    from parts.sim.simulator import OUTPUTS, SimCar
+
+    sim = SimCar.from_config(cfg, seeds=seeds)
+    for key, value in (("angle", 0.0), ("throttle", 0.0), ("sim/reset", False)):
+        if key not in V.mem:
+            # seeded: the first loop runs before any controller has produced a command
+            V.mem[key] = value
+    V.add(sim, inputs=["angle", "throttle", "sim/reset"], outputs=list(OUTPUTS))
+    return sim
+
+
+def add_expert(V: Any, cfg: Any, sim: Any) -> Any:
+    """Add the pure-pursuit expert driving ``sim``: out ``user/angle``, ``user/throttle``,
+    ``user/mode`` (always "user") and ``recording`` (always True)."""
+    from parts.sim.expert import Expert
+
+    expert = Expert.from_config(cfg, sim)
+    V.add(expert, inputs=[], outputs=list(Expert.outputs))
+    return expert
+
+
+def add_expert_noise(V: Any, cfg: Any, inputs: Sequence[str] = ("angle", "throttle")) -> Any | None:
+    """Add noise injection on the executed commands (after drive mode); None when SIM_EXPERT_NOISE
+    is 0. ``inputs`` are the command keys it reads; it always writes ``angle``, ``throttle``."""
+    if cfg.SIM_EXPERT_NOISE <= 0:
+        return None
+    from parts.sim.expert import NoiseInjector
+
+    noise = NoiseInjector(cfg.SIM_EXPERT_NOISE, cfg.SIM_EXPERT_NOISE_EVERY, cfg.SIM_EXPERT_NOISE_DURATION,
+                          dt=1.0 / cfg.DRIVE_LOOP_HZ, seed=cfg.SIM_SEED)
+    V.add(noise, inputs=list(inputs), outputs=["angle", "throttle"])
+    return noise

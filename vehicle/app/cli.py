@@ -1,0 +1,61 @@
+"""The ``vehicle`` command: one root command whose subcommands live in their rooms."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+from collections.abc import Sequence
+
+from vehicle.errors import UserError
+
+logger = logging.getLogger(__name__)
+
+# Each module defines register(subparsers); handlers return an exit code.
+COMMAND_MODULES: tuple[str, ...] = (
+    "vehicle.app.commands.createcar",
+    "vehicle.app.commands.models",
+    "vehicle.app.commands.demo",
+    "vehicle.app.commands.train",
+    "vehicle.app.commands.calibrate",
+    "vehicle.app.commands.createjs",
+    "vehicle.app.commands.sim",
+    "vehicle.app.commands.tub",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser with every subcommand registered."""
+    parser = argparse.ArgumentParser(prog="vehicle", description=__doc__,
+                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv: debug)")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for module in COMMAND_MODULES:
+        importlib.import_module(module).register(sub)
+    return parser
+
+
+def configure_logging(verbosity: int) -> None:
+    """Log to stderr; INFO by default, DEBUG with -vv."""
+    level = logging.DEBUG if verbosity >= 2 else logging.INFO
+    logging.basicConfig(level=level, format="%(asctime)s %(levelname)-7s %(name)s: %(message)s",
+                        datefmt="%H:%M:%S")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``vehicle`` console script."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    configure_logging(args.verbose)
+    try:
+        return int(args.func(args) or 0)
+    except UserError as exc:
+        print(f"error: {exc}", file=sys.stderr)  # noqa: T201 - the CLI's own output
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,82 @@
+"""``vehicle demo``: record → train → evaluate on unseen tracks on a CPU (see :mod:`vehicle.app.demo`)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from vehicle.app.demo import DEFAULTS
+from vehicle.errors import UserError
+
+
+def _seeds(text: str) -> list[int]:
+    try:
+        seeds = [int(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected track seeds like 1,2,3, got {text!r}") from None
+    if not seeds:
+        raise argparse.ArgumentTypeError("give at least one track seed")
+    return seeds
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``demo`` command."""
+    p = subparsers.add_parser("demo", help="record, train and evaluate a pilot in the simulator (CPU, minutes)",
+                              description=_demo_doc(), formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--out", default="demo", metavar="DIR", help="working folder (a car folder; default ./demo)")
+    p.add_argument("--records", type=int, default=DEFAULTS["records"], help="expert records to train on")
+    p.add_argument("--epochs", type=int, default=DEFAULTS["epochs"], help="most training epochs")
+    p.add_argument("--noise", type=float, default=DEFAULTS["noise"],
+                   help="steering noise injected while the expert drives (0 = off)")
+    p.add_argument("--train-tracks", type=_seeds, default=DEFAULTS["train_tracks"], metavar="SEEDS",
+                   help="track seeds to record on, e.g. 1,2,3,4,5,6,7,8")
+    p.add_argument("--eval-tracks", type=_seeds, default=DEFAULTS["eval_tracks"], metavar="SEEDS",
+                   help="track seeds to evaluate on (never trained on)")
+    p.add_argument("--laps", type=int, default=DEFAULTS["laps"], help="laps per evaluation track")
+    p.add_argument("--type", dest="model_type", default="linear", help="model type to train")
+    p.add_argument("--threads", type=int, default=None, help="torch threads (default: all cores)")
+    p.set_defaults(func=_cmd_demo)
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    import torch
+
+    if args.threads is not None:
+        if args.threads < 1:
+            raise UserError(f"--threads must be >= 1, got {args.threads}")
+        torch.set_num_threads(args.threads)
+    from vehicle.app.demo import run_demo
+    from vehicle.app.demo import say as _say
+
+    started = time.perf_counter()
+    try:
+        result = run_demo(Path(args.out), records=args.records, epochs=args.epochs, noise=args.noise,
+                          train_tracks=args.train_tracks, eval_tracks=args.eval_tracks, laps=args.laps,
+                          model_type=args.model_type)
+    except ValueError as exc:
+        raise UserError(f"demo: {exc}") from exc
+    total = time.perf_counter() - started
+    overall = result["pilot"]["overall"]
+    laps_needed = args.laps * len(args.eval_tracks)
+    steps = ", ".join(f"{k} {v:.0f} s" for k, v in result["seconds"].items())
+    _say(f"\ndemo finished in {total:.0f} s ({steps}); torch threads: {torch.get_num_threads()}")
+    # a lap only counts as driven by the pilot when nobody had to put the car back on the road
+    done = overall["laps_completed"] >= laps_needed and overall["interventions"] == 0
+    verdict = "completed" if done else "did NOT complete"
+    _say(f"the trained pilot {verdict} its {laps_needed} laps on unseen tracks on its own "
+         f"({overall['laps_completed']} laps, {overall['interventions']} interventions, "
+         f"autonomy {overall['autonomy']:.1f} %)")
+    out = Path(args.out)
+    _say(f"next: vehicle models --car {out}  |  vehicle sim eval --pilot {result['model']}  |  "
+         f"reports in {out / 'eval'}")
+    sys.stdout.flush()
+    return 0
+
+
+def _demo_doc() -> str:
+    import vehicle.app.demo
+
+    return vehicle.app.demo.__doc__ or ""

@@ -1,0 +1,166 @@
+"""``vehicle models``: list, show, comment, export and remove the car's trained models.
+
+    vehicle models [list] [--car DIR] [--json]
+    vehicle models show NAME [--car DIR]
+    vehicle models comment NAME "works on track 3"
+    vehicle models export NAME|FILE --format onnx|torchscript [--out FILE]
+    vehicle models rm NAME [--delete-files]
+
+The registry is ``<car>/<MODELS_PATH>/models.sqlite3`` (training fills it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+from pathlib import Path
+from typing import Any
+
+from vehicle.errors import UserError
+
+logger = logging.getLogger(__name__)
+
+
+def _out(text: str) -> None:
+    print(text)  # noqa: T201 - the command's own output
+
+
+def _car_options() -> argparse.ArgumentParser:
+    # SUPPRESS: `--car` may be given before or after the subcommand without one resetting the other.
+    parent = argparse.ArgumentParser(add_help=False)
+    parent.add_argument("--car", metavar="DIR", default=argparse.SUPPRESS,
+                        help="car folder (default: the current directory)")
+    return parent
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``models`` command and its subcommands."""
+    car = _car_options()
+    parser = subparsers.add_parser("models", parents=[car], help="list and manage the car's trained models",
+                                   description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--json", action="store_true", default=argparse.SUPPRESS,
+                        help="print the list as JSON")
+    parser.set_defaults(func=_cmd_list)
+    sub = parser.add_subparsers(dest="models_command", metavar="SUBCOMMAND")
+
+    p = sub.add_parser("list", parents=[car], help="list the registered models (the default)")
+    p.add_argument("--json", action="store_true", default=argparse.SUPPRESS, help="print as JSON")
+    p.set_defaults(func=_cmd_list)
+
+    p = sub.add_parser("show", parents=[car], help="everything the registry knows about one model")
+    p.add_argument("name", help="model name (file name without .pt) or path")
+    p.set_defaults(func=_cmd_show)
+
+    p = sub.add_parser("comment", parents=[car], help="set the comment of a model ('' clears it)")
+    p.add_argument("name")
+    p.add_argument("text")
+    p.set_defaults(func=_cmd_comment)
+
+    p = sub.add_parser("export", parents=[car], help="export a model to ONNX or TorchScript")
+    p.add_argument("name", help="model name or path of a .pt file")
+    p.add_argument("--format", choices=("onnx", "torchscript"), default="onnx")
+    p.add_argument("--out", metavar="FILE", default=None,
+                   help="output file (default: next to the model, .onnx or .ts)")
+    p.set_defaults(func=_cmd_export)
+
+    p = sub.add_parser("rm", parents=[car], help="remove a model from the registry")
+    p.add_argument("name")
+    p.add_argument("--delete-files", action="store_true",
+                   help="also delete the model file and its exports, loss plot and metrics")
+    p.set_defaults(func=_cmd_rm)
+
+
+def _registry(args: argparse.Namespace) -> Any:
+    from parts.pilots.model_db import ModelRegistry
+    from vehicle.config import ConfigError, load_config
+
+    car = Path(getattr(args, "car", ".") or ".")
+    if not car.is_dir():
+        raise UserError(f"--car {car}: no such folder. Pass the folder that holds the car's myconfig.py.")
+    try:
+        cfg = load_config(car_path=car)
+    except ConfigError as exc:
+        raise UserError(str(exc)) from exc
+    return ModelRegistry.for_models_dir(cfg.path("MODELS_PATH"))
+
+
+def _short(mapping: dict[str, Any], keys: tuple[str, ...]) -> str:
+    parts = []
+    for key in keys:
+        value = mapping.get(key)
+        if isinstance(value, bool) or not isinstance(value, int | float | str):
+            continue  # per-epoch lists and the like: `vehicle models show NAME` prints them
+        parts.append(f"{key}={value:.4g}" if isinstance(value, float) else f"{key}={value}")
+    return " ".join(parts)
+
+
+def format_table(entries: list[Any]) -> str:
+    """The ``vehicle models`` table: one row per model."""
+    header = ("NAME", "TYPE", "CREATED", "DATASETS", "METRICS", "COMMENT")
+    rows = [header]
+    for e in entries:
+        name = e.name if e.exists else f"{e.name} (missing)"
+        datasets = ",".join(Path(d).name for d in e.datasets)
+        metrics = _short(e.metrics, ("best_val_loss", "val_loss", "best_epoch", "epochs"))
+        rows.append((name, e.type, e.created.replace("+00:00", "Z"), datasets, metrics, e.comment or ""))
+    widths = [max(len(r[i]) for r in rows) for i in range(len(header) - 1)]
+    return "\n".join("  ".join(c.ljust(w) for c, w in zip(r[:-1], widths, strict=True)) + "  " + r[-1]
+                     for r in rows).rstrip()
+
+
+def _cmd_list(args: argparse.Namespace) -> int:
+    registry = _registry(args)
+    entries = registry.list()
+    if getattr(args, "json", False):
+        _out(json.dumps([e.as_dict() for e in entries], indent=2))
+    elif not entries:
+        _out(f"no models registered in {registry.db_path} (train one: manage.py train)")
+    else:
+        _out(format_table(entries))
+    return 0
+
+
+def _cmd_show(args: argparse.Namespace) -> int:
+    entry = _registry(args).get(args.name)
+    _out(json.dumps(entry.as_dict(), indent=2))
+    return 0
+
+
+def _cmd_comment(args: argparse.Namespace) -> int:
+    entry = _registry(args).set_comment(args.name, args.text)
+    _out(f"{entry.name}: comment {'set' if entry.comment else 'cleared'}")
+    return 0
+
+
+def _cmd_rm(args: argparse.Namespace) -> int:
+    deleted = _registry(args).remove(args.name, delete_files=args.delete_files)
+    _out(f"removed {args.name} from the registry" + (f"; deleted {len(deleted)} files" if deleted else ""))
+    return 0
+
+
+def _model_file(args: argparse.Namespace) -> Path:
+    path = Path(args.name)
+    if path.is_file():
+        return path
+    from parts.pilots.model_db import RegistryError
+
+    try:
+        entry = _registry(args).get(args.name)
+    except RegistryError as exc:
+        raise UserError(f"{args.name}: not a file and {exc}") from exc
+    if not entry.exists:
+        raise UserError(f"model {entry.name}: its file {entry.path} is missing")
+    return entry.path
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    from parts.pilots.export import export_model
+
+    source = _model_file(args)
+    try:
+        out = export_model(source, args.format, args.out)
+    except (ValueError, FileNotFoundError, ImportError) as exc:
+        raise UserError(f"export of {source} failed: {exc}") from exc
+    _out(f"wrote {out}")
+    return 0

@@ -1,0 +1,169 @@
+"""``vehicle train``: train a pilot outside a car folder (or inside one with ``--car``).
+
+    vehicle train --tubs data/tub_1 data/tub_2 --model models/mypilot.pt [--type pilotnet]
+                  [--transfer models/old.pt] [--epochs 20] [--batch-size 64] [--lr 1e-3] [--aug flip shift]
+    torchrun --nproc_per_node 2 -m vehicle train --tubs data --model models/ddp.pt
+    vehicle train preview-aug --tubs data/tub_1 [--out aug.png] [--rows 4] [--variants 5]
+
+Settings come from ``<car>/myconfig.py`` when there is one (``--car``, default the current
+folder), else the defaults; the options override them. ``manage.py train`` takes the same options.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from vehicle.errors import UserError
+
+
+def _config(args: argparse.Namespace) -> Any:
+    from vehicle.config import Config, ConfigError, load_config
+
+    car = Path(getattr(args, "car", None) or ".")
+    myconfig = getattr(args, "myconfig", None)
+    try:
+        if myconfig or (car / "myconfig.py").is_file():
+            return load_config(myconfig, car_path=car)
+        return Config.defaults(CAR_PATH=str(car.resolve()))
+    except ConfigError as exc:
+        raise UserError(str(exc)) from exc
+
+
+def register(subparsers: Any) -> None:
+    """Add ``vehicle train`` and ``vehicle train preview-aug``."""
+    parser = subparsers.add_parser("train", help="train a pilot model from tubs",
+                                   description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--car", metavar="DIR", help="car folder whose myconfig.py to use (default: .)")
+    parser.add_argument("--myconfig", metavar="FILE", help="config file (default: <car>/myconfig.py)")
+    add_train_arguments(parser)
+    parser.set_defaults(func=_cmd_train)
+    sub = parser.add_subparsers(dest="train_command", metavar="SUBCOMMAND")
+    prev = sub.add_parser("preview-aug", help="write a PNG grid of augmented training frames")
+    prev.add_argument("--tubs", nargs="+", metavar="PATH", help="tubs or folders of tubs (default: data/)")
+    prev.add_argument("--out", default="augmentations.png", help="PNG file to write")
+    prev.add_argument("--rows", type=int, default=4, help="frames (rows) to show")
+    prev.add_argument("--variants", type=int, default=5, help="augmented copies per frame")
+    prev.add_argument("--aug", nargs="*", metavar="NAME", dest="augmentations",
+                      help="augmentations to show (default: AUGMENTATIONS)")
+    prev.add_argument("--seed", type=int, default=0, help="random seed of the draws")
+    prev.add_argument("--car", metavar="DIR", default=argparse.SUPPRESS)
+    prev.add_argument("--myconfig", metavar="FILE", default=argparse.SUPPRESS)
+    prev.set_defaults(func=_cmd_preview)
+
+
+def _cmd_train(args: argparse.Namespace) -> int:
+    return run_from_args(_config(args), args)
+
+
+def _cmd_preview(args: argparse.Namespace) -> int:
+    cfg = _config(args)
+    out = write_preview(cfg, _tubs(args, cfg), Path(args.out), rows=args.rows, variants=args.variants,
+                        augmentations=args.augmentations, seed=args.seed)
+    print(f"wrote {out}")  # noqa: T201 - the command's own output
+    return 0
+
+
+def _tubs(args: argparse.Namespace, cfg: Any) -> list[str]:
+    return tub_list(args.tubs) or [str(cfg.path("DATA_PATH"))]
+
+
+def write_preview(cfg: Any, tubs: list[str], out: Path, rows: int = 4, variants: int = 5,
+                  augmentations: list[str] | None = None, seed: int = 0) -> Path:
+    """Write a PNG grid: ``rows`` frames spread over the tubs, each with ``variants`` augmented copies."""
+    import cv2
+    import numpy as np
+
+    from parts.pilots.augment import Augmenter, AugmentSettings, preview_grid
+    from parts.pilots.dataset import IMAGE_KEY, read_drive_data
+
+    if rows < 1 or variants < 1:
+        raise UserError("--rows and --variants must be >= 1")
+    try:
+        data = read_drive_data(tubs, modes=None)
+        settings = AugmentSettings.from_config(cfg, augmentations)
+    except ValueError as exc:
+        raise UserError(str(exc)) from exc
+    picks = np.unique(np.linspace(0, len(data) - 1, min(rows, len(data))).round().astype(int))
+    frames = [data.records[i].image(IMAGE_KEY) for i in picks]
+    grid = preview_grid(frames, [float(data.angles[i]) for i in picks], Augmenter(settings), variants, seed)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if not cv2.imwrite(str(out), cv2.cvtColor(grid, cv2.COLOR_RGB2BGR)):
+        raise UserError(f"cannot write {out}; check the folder and the .png extension")
+    return out
+
+
+def add_train_arguments(parser: argparse.ArgumentParser) -> None:
+    """The training options shared by ``manage.py train`` and ``vehicle train``."""
+    parser.add_argument("--tubs", nargs="+", metavar="PATH",
+                        help="tubs or folders of tubs (comma-separated also accepted); default: the car's data/")
+    parser.add_argument("--model", metavar="FILE.pt", help="model file to write (default models/pilot_<date>.pt)")
+    parser.add_argument("--type", dest="model_type", metavar="TYPE",
+                        help="model type: linear (default), categorical, inferred, pilotnet, memory, behavior, "
+                             "rnn, 3d")
+    parser.add_argument("--transfer", metavar="OLD.pt", help="start from the weights of an earlier model")
+    parser.add_argument("--epochs", type=int, help="most epochs (MAX_EPOCHS)")
+    parser.add_argument("--batch-size", type=int, help="samples per step (BATCH_SIZE)")
+    parser.add_argument("--lr", type=float, dest="learning_rate", help="Adam learning rate (LEARNING_RATE)")
+    parser.add_argument("--device", help="auto, cpu, cuda, cuda:1 (TRAIN_DEVICE)")
+    parser.add_argument("--workers", type=int, help="DataLoader worker processes (TRAIN_NUM_WORKERS)")
+    parser.add_argument("--aug", nargs="*", metavar="NAME", dest="augmentations",
+                        help="augmentations to use (AUGMENTATIONS); --aug with no name turns them off")
+    parser.add_argument("--comment", help="free text stored with the model in the registry")
+    parser.add_argument("--no-register", action="store_true", help="do not add the model to the registry")
+
+
+def tub_list(values: Sequence[str] | None) -> list[str]:
+    """``--tubs`` values as a flat list (each value may also be a comma-separated list)."""
+    out: list[str] = []
+    for v in values or ():
+        out += [p for p in str(v).split(",") if p]
+    return out
+
+
+def run_from_args(cfg: Any, args: argparse.Namespace) -> int:
+    """Train with the options of :func:`add_train_arguments`; prints where the results went.
+
+    Returns the exit code (0); bad input raises :class:`vehicle.errors.UserError`.
+    """
+    from parts.pilots.fit import TrainingDiverged
+    from parts.pilots.train_report import sidecar
+    from parts.pilots.training import default_model_path, train
+
+    tubs = tub_list(args.tubs) or [str(cfg.path("DATA_PATH"))]
+    model_path = Path(args.model) if args.model else default_model_path(cfg.path("MODELS_PATH"))
+    try:
+        metrics = train(cfg, tubs, model_path, model_type_name=args.model_type, transfer=args.transfer,
+                        epochs=args.epochs, batch_size=args.batch_size, learning_rate=args.learning_rate,
+                        device=args.device, workers=args.workers, augmentations=args.augmentations,
+                        comment=args.comment, register=not args.no_register)
+    except UserError:
+        raise
+    except (ValueError, TrainingDiverged) as exc:
+        raise UserError(f"training failed: {exc}") from exc
+    if int(os.environ.get("RANK", "0")) == 0:
+        best = metrics.get("best_val_loss")
+        loss = f"{best:.5f}" if isinstance(best, float) else "n/a"
+        print(f"saved {model_path} (best epoch {metrics['best_epoch']} of {metrics['epochs']}, "  # noqa: T201
+              f"val_loss {loss}); metrics: {sidecar(model_path, '.metrics.json')}")
+    return 0
+
+
+def train_car(cfg: Any, args: argparse.Namespace) -> int:
+    """``manage.py train``: train a model on the car's tubs (default ``data/``) and write it to
+    ``--model`` (default ``models/pilot_<date>_<n>.pt``), with the loss curve, the metrics JSON and
+    an entry in the car's model registry. Returns the exit code.
+
+    Relative ``--tubs`` that do not exist in the current folder are looked up in the car folder.
+    """
+    tubs = []
+    for tub in tub_list(getattr(args, "tubs", None)):
+        path = Path(tub)
+        if not path.is_absolute() and not path.exists() and (Path(cfg.CAR_PATH) / path).exists():
+            path = Path(cfg.CAR_PATH) / path
+        tubs.append(str(path))
+    args.tubs = tubs or None
+    return run_from_args(cfg, args)

@@ -1,0 +1,211 @@
+"""``vehicle tub ...``: inspect, clean, check/repair, plot, film and import tubs (docs/tub.md)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from vehicle.errors import UserError
+
+
+def _out(text: str) -> None:
+    """The command's own output (results), on stdout."""
+    print(text)  # noqa: T201 - CLI output
+
+
+def _tty() -> bool:
+    return sys.stderr.isatty()
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``tub`` command and its subcommands."""
+    tub = subparsers.add_parser("tub", help="inspect, clean, check, plot and import tubs",
+                                description=__doc__)
+    sub = tub.add_subparsers(dest="tub_command", metavar="SUBCOMMAND", required=True)
+
+    p = sub.add_parser("info", help="records, sessions, time span, fields, size, deleted count")
+    p.add_argument("tubs", nargs="+", help="tub folders or folders of tubs")
+    p.set_defaults(func=cmd_info)
+
+    p = sub.add_parser("ls", help="list records")
+    p.add_argument("tub")
+    p.add_argument("--range", default=None, help="indexes to list, e.g. 0:50 (default: all)")
+    p.add_argument("--deleted", action="store_true", help="include deleted records (marked D)")
+    p.add_argument("--fields", default=None,
+                   help="comma-separated fields (default: every non-image field)")
+    p.set_defaults(func=cmd_ls)
+
+    for name, verb in (("delete", "soft-delete"), ("restore", "restore deleted")):
+        p = sub.add_parser(name, help=f"{verb} records by index ranges")
+        p.add_argument("tub")
+        p.add_argument("ranges", help="e.g. 3,10:20,95: (A:B means A..B-1, as in Python)")
+        p.set_defaults(func=cmd_delete if name == "delete" else cmd_restore)
+
+    p = sub.add_parser("check", help="report problems; --repair fixes them")
+    p.add_argument("tubs", nargs="+")
+    p.add_argument("--repair", action="store_true",
+                   help="rewrite the manifest, cut torn lines, soft-delete records with bad images")
+    p.add_argument("--no-decode", action="store_true", help="do not decode images (faster)")
+    p.set_defaults(func=cmd_check)
+
+    p = sub.add_parser("hist", help="PNG histograms of steering/throttle")
+    p.add_argument("tubs", nargs="+")
+    p.add_argument("--out", default=None, help="PNG file (default: <first tub>_hist.png)")
+    p.add_argument("--fields", default="user/angle,user/throttle", help="comma-separated fields")
+    p.add_argument("--bins", type=int, default=50)
+    p.set_defaults(func=cmd_hist)
+
+    p = sub.add_parser("movie", help="MP4 of the images with steering/throttle overlay")
+    p.add_argument("tub")
+    p.add_argument("--out", default=None, help="MP4 file (default: <tub>.mp4)")
+    p.add_argument("--start", type=int, default=0)
+    p.add_argument("--end", type=int, default=None)
+    p.add_argument("--fps", type=float, default=20.0)
+    p.add_argument("--scale", type=int, default=2, help="integer upscale of the frames")
+    p.set_defaults(func=cmd_movie)
+
+    p = sub.add_parser("import-udacity", help="import a Udacity simulator recording (driving_log.csv)")
+    p.add_argument("source", help="driving_log.csv or the folder holding it (with IMG/)")
+    p.add_argument("tub", help="tub folder to create (or append to)")
+    p.add_argument("--max-catalog-len", type=int, default=1000)
+    p.set_defaults(func=cmd_import_udacity)
+
+
+def _errors() -> tuple[type[BaseException], ...]:
+    from parts.tub.errors import TubError
+
+    return (TubError, ValueError, OSError)
+
+
+def _user_error(exc: BaseException) -> UserError:
+    return UserError(str(exc))
+
+
+def _tubs(paths: list[str]) -> list[Path]:
+    from parts.tub.reader import find_tubs
+
+    try:
+        return find_tubs(paths)
+    except _errors() as exc:
+        raise _user_error(exc) from exc
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    from parts.tub.tools import tub_info
+
+    for i, path in enumerate(_tubs(args.tubs)):
+        try:
+            info = tub_info(path)
+        except _errors() as exc:
+            raise _user_error(exc) from exc
+        _out(("\n" if i else "") + "\n".join(info.lines()))
+    return 0
+
+
+def cmd_ls(args: argparse.Namespace) -> int:
+    from parts.tub.format import IMAGE_TYPES
+    from parts.tub.tools import format_header, format_record, parse_ranges
+    from parts.tub.tub import Tub
+
+    try:
+        tub = Tub(args.tub, read_only=True)
+        wanted = set(parse_ranges(args.range, tub.current_index)) if args.range else None
+    except _errors() as exc:
+        raise _user_error(exc) from exc
+    fields = args.fields.split(",") if args.fields else \
+        [k for k, t in zip(tub.inputs, tub.types, strict=True) if t not in IMAGE_TYPES]
+    _out(format_header(fields))
+    deleted = tub.manifest.deleted_indexes
+    for index, rec in tub.records(include_deleted=args.deleted):
+        if wanted is None or index in wanted:
+            _out(format_record(index, rec, index in deleted, fields))
+    return 0
+
+
+def _edit(args: argparse.Namespace, delete: bool) -> int:
+    from parts.tub.tools import format_ranges, parse_ranges
+    from parts.tub.tub import Tub
+
+    try:
+        with Tub(args.tub) as tub:
+            idx = parse_ranges(args.ranges, tub.current_index)
+            before = len(tub)
+            kept: list[int] = []  # restore: indexes that stay deleted
+            if delete:
+                tub.delete_records(idx)
+            else:
+                kept = tub.restore_records(idx)
+            after = len(tub)
+    except _errors() as exc:
+        raise _user_error(exc) from exc
+    verb = "deleted" if delete else "restored"
+    _out(f"{args.tub}: {verb} {abs(before - after)} records ({len(idx)} indexes given); {after} records now")
+    if kept:
+        _out(f"{len(kept)} kept deleted: they have no input value (mostly indexes kept for records "
+             f"that could not be written): {format_ranges(kept)}")
+    return 0
+
+
+def cmd_delete(args: argparse.Namespace) -> int:
+    return _edit(args, True)
+
+
+def cmd_restore(args: argparse.Namespace) -> int:
+    return _edit(args, False)
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    from parts.tub.check import check_tub
+
+    bad = 0
+    for path in _tubs(args.tubs):
+        try:
+            report = check_tub(path, repair=args.repair, decode=not args.no_decode, progress=_tty())
+        except _errors() as exc:
+            raise _user_error(exc) from exc
+        _out("\n".join(report.lines()))
+        bad += 0 if report.ok or report.repaired else 1
+    return 1 if bad else 0
+
+
+def cmd_hist(args: argparse.Namespace) -> int:
+    from parts.tub.visualize import write_histograms
+
+    tubs = _tubs(args.tubs)
+    out = Path(args.out) if args.out else tubs[0].with_name(f"{tubs[0].name}_hist.png")
+    try:
+        path = write_histograms(tubs, out, [f for f in args.fields.split(",") if f], bins=args.bins)
+    except _errors() as exc:
+        raise _user_error(exc) from exc
+    _out(f"wrote {path}")
+    return 0
+
+
+def cmd_movie(args: argparse.Namespace) -> int:
+    from parts.tub.visualize import write_movie
+
+    tub = Path(args.tub)
+    out = Path(args.out) if args.out else tub.with_name(f"{tub.name}.mp4")
+    try:
+        path, frames = write_movie(tub, out, start=args.start, end=args.end, fps=args.fps,
+                                   scale=args.scale, progress=_tty())
+    except _errors() as exc:
+        raise _user_error(exc) from exc
+    _out(f"wrote {path} ({frames} frames)")
+    return 0
+
+
+def cmd_import_udacity(args: argparse.Namespace) -> int:
+    from parts.tub.udacity import import_udacity
+
+    try:
+        report = import_udacity(args.source, args.tub, max_catalog_len=args.max_catalog_len,
+                                progress=_tty())
+    except _errors() as exc:
+        raise _user_error(exc) from exc
+    _out(f"{report.tub}: imported {report.imported} records, skipped {len(report.skipped)}")
+    for line in report.skipped[:10]:
+        _out(f"  skipped {line}")
+    return 0 if report.imported else 1

@@ -1,0 +1,116 @@
+"""What a car's manage.py uses: its command line, config loading and how a drive ends.
+
+A ``manage.py`` stays short and editable: it declares its commands with :func:`command_parser`
+and :func:`add_command`, builds the vehicle with ``vehicle.app.assembly`` helpers, and hands control
+to :func:`main`, which loads the config, runs the command and turns every way of stopping into an
+exit code with a message.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from vehicle.app.cli import configure_logging
+from vehicle.config import Config, ConfigError, load_config
+from vehicle.errors import PartError, UserError, VehicleStopped, WiringError
+
+logger = logging.getLogger(__name__)
+
+Command = Callable[[Config, argparse.Namespace], int | None]
+
+
+def command_parser(doc: str | None) -> argparse.ArgumentParser:
+    """The manage.py parser: ``--myconfig``, ``-v`` and a subcommand slot."""
+    parser = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--myconfig", default=None,
+                        help="override file to load instead of myconfig.py (relative to the car folder)")
+    parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv: debug)")
+    parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    return parser
+
+
+def add_command(parser: argparse.ArgumentParser, name: str, func: Command, help: str) -> argparse.ArgumentParser:
+    """Add a subcommand that runs ``func(cfg, args)``; returns its parser for more arguments."""
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    p = sub.add_parser(name, help=help, description=help)
+    p.add_argument("--myconfig", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
+    p.set_defaults(func=func)
+    return p
+
+
+def add_train_command(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """Add ``train``: the options of ``vehicle train`` on this car's tubs (default ``data/``)."""
+    from vehicle.app.commands.train import add_train_arguments, train_car
+
+    p = add_command(parser, "train", train_car, "train a pilot from this car's tubs")
+    add_train_arguments(p)
+    return p
+
+
+def main(parser: argparse.ArgumentParser, car_path: str | Path, argv: Sequence[str] | None = None) -> int:
+    """Parse ``argv``, load the car's config and run the chosen command; returns the exit code."""
+    args = parser.parse_args(argv)
+    configure_logging(args.verbose)
+    try:
+        cfg = load_config(args.myconfig, car_path=car_path)
+        return int(args.func(cfg, args) or 0)
+    except (ConfigError, UserError, WiringError) as exc:
+        print(f"error: {exc}", file=sys.stderr)  # noqa: T201 - the CLI's own output
+        return 2
+
+
+def int_list(text: str) -> list[int]:
+    """Parse ``"1,2,3"`` (an argparse type) into ``[1, 2, 3]``."""
+    try:
+        return [int(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated integers like 1,2,3, got {text!r}") from None
+
+
+class StopAfter:
+    """A part that stops the vehicle once a memory value reaches a limit (e.g. records written)."""
+
+    def __init__(self, V: Any, limit: int) -> None:
+        self.V = V
+        self.limit = limit
+
+    def run(self, value: Any) -> None:
+        """Ask the vehicle to stop when ``value >= limit``."""
+        if value is not None and value >= self.limit:
+            self.V.stop()
+
+
+def stop_after(V: Any, key: str, limit: int) -> StopAfter:
+    """Stop ``V`` once memory ``key`` reaches ``limit``."""
+    part = StopAfter(V, limit)
+    V.add(part, inputs=[key])
+    return part
+
+
+def run(V: Any, cfg: Config, max_loops: int | None = None) -> int:
+    """Start the vehicle at DRIVE_LOOP_HZ and map how it stopped to an exit code.
+
+    The vehicle has already put actuators to neutral and shut every part down when this returns.
+    0: max loops reached or stopped by a part; 1: a part failed; 130: Ctrl-C; 128+N: signal N.
+    """
+    loops = max_loops if max_loops is not None else cfg.MAX_LOOPS
+    logger.info("starting %d parts at %d Hz%s\n%s", len(V.parts), cfg.DRIVE_LOOP_HZ,
+                f" for {loops} loops" if loops else " (Ctrl-C to stop)", V.describe())
+    try:
+        V.start(rate_hz=cfg.DRIVE_LOOP_HZ, max_loop_count=loops)
+    except VehicleStopped as exc:
+        logger.warning("vehicle stopped by %s: throttle set to neutral", exc.signal_name)
+        return 128 + exc.signum
+    except KeyboardInterrupt:
+        logger.info("vehicle stopped by Ctrl-C: throttle set to neutral")
+        return 130
+    except PartError as exc:
+        logger.error("vehicle stopped because %s; throttle set to neutral", exc,
+                     exc_info=exc.__cause__)
+        return 1
+    return 0

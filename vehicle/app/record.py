@@ -1,0 +1,114 @@
+"""Record expert demonstrations in the simulator into a tub, in simulated time.
+
+The vehicle is the simulator car's usual loop: sim car → expert (user/angle, user/throttle,
+recording=True) → executed command (optionally perturbed by noise injection) → tub writer. The
+tub stores the expert's clean command as the label, so with SIM_EXPERT_NOISE > 0 the data shows
+how to recover from the perturbed poses.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+logger = logging.getLogger(__name__)
+
+#: what a demonstration record holds (memory key, tub type); cam/timestamp becomes _timestamp_ms
+RECORD_FIELDS: tuple[tuple[str, str], ...] = (
+    ("cam/image_array", "image_array"),
+    ("user/angle", "float"),
+    ("user/throttle", "float"),
+    ("user/mode", "str"),
+    ("cam/timestamp", "float"),
+    ("sim/cte", "float"),
+    ("sim/speed", "float"),
+    ("sim/track", "int"),
+)
+
+
+class _Backpressure:
+    """Part: in simulated time the loop outruns the disk; wait (wall time) until the writer keeps up."""
+
+    def __init__(self, writer: Any) -> None:
+        self.writer = writer
+        self.limit = max(1, int(getattr(writer, "queue_size", 100)) // 2)
+
+    def run(self) -> None:
+        while self.writer.pending() >= self.limit:
+            time.sleep(0.001)
+
+
+def _as_config(cfg_or_car: Any) -> Any:
+    if isinstance(cfg_or_car, str | os.PathLike):
+        from vehicle.config import load_config
+
+        return load_config(car_path=cfg_or_car)
+    if cfg_or_car is None:
+        from vehicle.config import Config
+
+        return Config.defaults()
+    return cfg_or_car
+
+
+def record_expert(cfg: Any, seeds: Sequence[int] | None, n_records: int, tub_path: str | os.PathLike[str] | None = None,
+                  *, noise: float | None = None) -> Path:
+    """Let the expert drive and record ``n_records`` records; returns the tub's path.
+
+    Args:
+        cfg: the car's Config (or a car folder, loaded with its myconfig.py).
+        seeds: track seeds (None: SIM_TRACK_SEEDS); the records are spread evenly over them.
+        n_records: records to write (one per loop of 1 / DRIVE_LOOP_HZ simulated seconds).
+        tub_path: the tub folder to write (created; an existing tub is appended to). None: a new tub
+            in the car's data folder, as ``manage.py drive`` records.
+        noise: steering noise amplitude for noise injection (None: SIM_EXPERT_NOISE).
+
+    Raises:
+        ValueError: n_records < 1 or bad seeds.
+    """
+    from vehicle.app.assembly.sim import add_expert, add_expert_noise, add_simulator
+    from vehicle.clock import SimulatedClock
+    from vehicle.vehicle import Vehicle
+
+    if not isinstance(n_records, int) or isinstance(n_records, bool) or n_records < 1:
+        raise ValueError(f"n_records must be an int >= 1, got {n_records!r}")
+    cfg = _as_config(cfg)
+    seeds = list(seeds) if seeds is not None else list(cfg.SIM_TRACK_SEEDS)
+    overrides: dict[str, Any] = {
+        "SIM_REALTIME": False,
+        "METADATA": [*cfg.METADATA, "source:sim expert", f"tracks:{','.join(map(str, seeds))}"]}
+    if noise is not None:
+        overrides["SIM_EXPERT_NOISE"] = float(noise)
+    cfg = cfg.replace(**overrides)
+
+    V = Vehicle(clock=SimulatedClock())
+    sim = add_simulator(V, cfg, seeds=seeds)
+    if len(seeds) > 1:
+        sim.switch_every = math.ceil(n_records / len(seeds))
+    add_expert(V, cfg, sim)
+    if add_expert_noise(V, cfg, inputs=("user/angle", "user/throttle")) is None:
+        V.add(_passthrough, inputs=["user/angle", "user/throttle"], outputs=["angle", "throttle"])
+    keys = [k for k, _ in RECORD_FIELDS]
+    types = [t for _, t in RECORD_FIELDS]
+    if tub_path is not None:  # record exactly there: the data folder is the tub
+        cfg = cfg.replace(DATA_PATH=str(Path(tub_path).expanduser().absolute()), AUTO_CREATE_NEW_TUB=False)
+    from vehicle.app.assembly.tub import add_tub_writer
+
+    writer = add_tub_writer(V, cfg, inputs=keys, types=types)
+    # the writer is last in the loop: wait for it before the next loop's frame is queued
+    V.add(_Backpressure(writer))
+    t0 = time.perf_counter()
+    V.start(rate_hz=cfg.DRIVE_LOOP_HZ, max_loop_count=n_records)
+    path = Path(writer.path)
+    logger.info("recorded %d expert records on tracks %s into %s in %.1f s (%d laps, %d resets)",
+                n_records, seeds, path, time.perf_counter() - t0, sim.tracker.laps, sim.resets)
+    return path
+
+
+def _passthrough(angle: float, throttle: float) -> tuple[float, float]:
+    """The expert's command is executed as is (no noise injection)."""
+    return angle, throttle
