@@ -15,9 +15,13 @@ import types
 import typing
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
+from enum import Enum
 from functools import cache
 from pathlib import Path
 from typing import Any
+
+from vehicle.errors import VehicleError
+from vehicle.keys import Mode
 
 logger = logging.getLogger(__name__)
 
@@ -27,7 +31,7 @@ DEFAULTS_MODULE = Path(__file__).with_name("config_defaults.py")
 RENAMED: dict[str, str] = {"WEB_INIT_MODE": "DEFAULT_MODE"}
 
 
-class ConfigError(ValueError):
+class ConfigError(VehicleError, ValueError):
     """A setting is unknown, of the wrong type, or the override file cannot be read."""
 
 
@@ -73,7 +77,7 @@ def _is_section(line: str) -> bool:
     return s.startswith("# ==") and s.endswith("==")
 
 
-_TYPE_NAMESPACE = {"Literal": typing.Literal, "Callable": Callable, "Any": Any}
+_TYPE_NAMESPACE = {"Literal": typing.Literal, "Callable": Callable, "Any": Any, "Mode": Mode}
 
 
 @cache
@@ -93,6 +97,8 @@ def _matches(value: Any, tp: Any) -> bool:
         return any(_matches(value, a) for a in args)
     if origin is typing.Literal:
         return value in args
+    if isinstance(tp, type) and issubclass(tp, Enum):
+        return isinstance(value, str) and value in {m.value for m in tp}
     if tp is float:
         return isinstance(value, int | float) and not isinstance(value, bool)
     if tp is int:
@@ -114,6 +120,12 @@ def _matches(value: Any, tp: Any) -> bool:
     return isinstance(value, origin or tp)
 
 
+def describe_type(annotation: str) -> str:
+    """The annotation as users read it: the drive-mode type spelt as its values."""
+    modes = " | ".join(f'"{m.value}"' for m in Mode)
+    return annotation.replace("list[Mode]", f"list[{modes}]").replace("Mode", modes)
+
+
 def check_value(name: str, value: Any, where: str = "") -> None:
     """Raise ConfigError unless ``name`` is a known setting and ``value`` fits its type."""
     known = settings()
@@ -125,7 +137,7 @@ def check_value(name: str, value: Any, where: str = "") -> None:
     setting = known[name]
     if not _matches(value, _type_of(setting.annotation)):
         raise ConfigError(f"{where}{name} = {value!r} has type {type(value).__name__}, "
-                          f"expected {setting.annotation}.")
+                          f"expected {describe_type(setting.annotation)}.")
 
 
 class Config(Mapping[str, Any]):

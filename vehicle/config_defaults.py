@@ -17,6 +17,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any, Literal
 
+from vehicle.keys import Mode
+
 # == Paths ==
 
 # Folder of the car. Set by the loader to the folder that holds myconfig.py.
@@ -82,7 +84,7 @@ CAMERA_REPLAY_LOOP: bool = True
 
 # Mode at start: "user" (human drives), "local_angle" (pilot steers), "local" (pilot drives).
 # The web page, the gamepad and the drive-mode part all start from it (DonkeyCar: WEB_INIT_MODE).
-DEFAULT_MODE: Literal["user", "local_angle", "local"] = "user"
+DEFAULT_MODE: Mode = "user"
 # Pilot throttle is multiplied by this in "local" mode (1.0 = as predicted).
 AI_THROTTLE_MULT: float = 1.0
 
@@ -94,7 +96,7 @@ DEFAULT_MODEL_TYPE: str = "linear"
 # It receives the record's catalog fields (dict: user/angle, user/throttle, user/mode, ...).
 TRAIN_FILTER: Callable[[dict[str, Any]], bool] | None = None
 # Train only on records whose user/mode is listed (records driven by a pilot teach nothing new).
-TRAIN_MODES: list[str] = ["user"]
+TRAIN_MODES: list[Mode] = ["user"]
 # Samples per training step.
 BATCH_SIZE: int = 128
 # Fraction of the records used for training; the rest validates. The split takes whole sessions or

@@ -7,7 +7,7 @@ import ast
 import sys
 from pathlib import Path
 
-from vehicle.config import settings
+from vehicle.config import describe_type, settings
 
 DOC_PATH = Path(__file__).resolve().parent.parent / "docs" / "config.md"
 
@@ -27,7 +27,8 @@ def render() -> str:
             section = s.section
             out += ["", f"## {section}", "", "| Setting | Type | Default | Meaning |", "|---|---|---|---|"]
         default = ast.unparse(s.expression).replace("|", "\\|")
-        out.append(f"| `{s.name}` | `{s.annotation.replace('|', '&#124;')}` | `{default}` | {s.doc} |")
+        kind = describe_type(s.annotation).replace("|", "&#124;")
+        out.append(f"| `{s.name}` | `{kind}` | `{default}` | {s.doc} |")
     return "\n".join(out).replace("\n\n\n", "\n\n") + "\n"
 
 

@@ -1,13 +1,27 @@
-"""Errors of the core, each with a message that says how to fix the problem."""
+"""Errors of the core, each with a message that says how to fix the problem.
+
+:class:`VehicleError` is the base of every error whose message is written for the user: one line
+that says what was wrong and how to fix it (file, line, setting, valid range). Each library room
+has its own subclasses (``ConfigError``, ``WiringError``, ``TubError``, ``ModelFileError``,
+``TrackError`` ...); the command line prints any of them as ``error: <message>`` and exits 2,
+never with a traceback.
+"""
 
 from __future__ import annotations
 
 
-class UserError(Exception):
-    """Bad input from the user (command line, config, files): the CLI prints it and exits 2."""
+class VehicleError(Exception):
+    """Base of the errors whose message is meant for the user (one line, says how to fix it)."""
 
 
-class WiringError(ValueError):
+class UserError(VehicleError):
+    """Bad input to the application (command-line options, a car folder); raised by ``vehicle.app`` only.
+
+    Library code (``parts/``) raises its own :class:`VehicleError` subclasses instead.
+    """
+
+
+class WiringError(VehicleError, ValueError):
     """The parts of a vehicle do not fit together (unknown input key, bad arguments to add)."""
 
 

@@ -1,13 +1,51 @@
-"""The standard memory keys: one place that names every value parts exchange.
+"""The vocabulary parts share: the standard memory keys and the drive modes.
 
 Names follow DonkeyCar where it has one, so tubs and parts interoperate. New keys get a
-namespace (``sim/...``, ``web/...``). Each entry is ``KEY: (type, meaning)``; parts may still use
-any other string key, these are the ones the library itself produces or consumes.
+namespace (``sim/...``, ``web/...``): ``<namespace>/<name>`` in lower case. Each entry of
+:data:`STANDARD_KEYS` is ``KEY: (type, meaning)``; a user's own parts may use any other string
+key, these are the ones the library itself produces or consumes.
+
+Part classes declare the keys they read and write once, as class attributes ``INPUTS`` and
+``OUTPUTS`` (and ``OPTIONAL_INPUTS`` / ``FEEDBACK``, see :meth:`vehicle.Vehicle.add`); a car that
+needs other keys renames them with :func:`rename`.
 """
 
 from __future__ import annotations
 
+import logging
+import re
+from collections.abc import Mapping, Sequence
+from enum import StrEnum
 from typing import NamedTuple
+
+logger = logging.getLogger(__name__)
+
+
+class Mode(StrEnum):
+    """The three drive modes; values are DonkeyCar's strings, as recorded in tubs (``user/mode``)."""
+
+    USER = "user"  # the human steers and sets the throttle
+    LOCAL_ANGLE = "local_angle"  # the pilot steers, the human sets the throttle
+    LOCAL = "local"  # the pilot steers and sets the throttle
+
+    def next(self) -> Mode:
+        """The mode after this one, cycling user -> local_angle -> local -> user."""
+        order = list(Mode)
+        return order[(order.index(self) + 1) % len(order)]
+
+
+#: the drive modes' strings, in cycling order
+MODES: tuple[str, ...] = tuple(m.value for m in Mode)
+
+
+def parse_mode(value: object) -> Mode:
+    """Mode from a stored value; unknown or missing values mean user mode (the safe choice)."""
+    try:
+        return Mode(value)
+    except ValueError:
+        if value is not None:
+            logger.warning("unknown drive mode %r: using user mode", value)
+        return Mode.USER
 
 
 class KeyInfo(NamedTuple):
@@ -77,3 +115,28 @@ STANDARD_KEYS: dict[str, KeyInfo] = {
 def describe(key: str) -> KeyInfo | None:
     """Return what ``key`` holds, or None for a key outside the standard list."""
     return STANDARD_KEYS.get(key)
+
+
+#: keys at the top level of the namespace (DonkeyCar's names)
+ROOT_KEYS: frozenset[str] = frozenset(k for k in STANDARD_KEYS if "/" not in k)
+_NAMESPACED = re.compile(r"^[a-z][a-z0-9_]*(/[a-z0-9_]+)+$")
+
+
+def is_valid_key(key: str) -> bool:
+    """Whether ``key`` is a standard key or follows the namespace rule (``sim/cte``, ``web/angle``)."""
+    return key in STANDARD_KEYS or bool(_NAMESPACED.match(key))
+
+
+def rename(keys: Sequence[str], mapping: Mapping[str, str]) -> tuple[str, ...]:
+    """``keys`` with some renamed, for a car that wires a part to other keys.
+
+    >>> rename(("user/angle", "user/throttle", "tub/erase"), {"user/angle": "js/angle"})
+    ('js/angle', 'user/throttle', 'tub/erase')
+
+    Raises:
+        ValueError: a key of ``mapping`` is not among ``keys`` (a typo would silently do nothing).
+    """
+    stray = [k for k in mapping if k not in keys]
+    if stray:
+        raise ValueError(f"cannot rename {stray}: not among the keys {list(keys)}")
+    return tuple(mapping.get(k, k) for k in keys)

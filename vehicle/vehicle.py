@@ -38,6 +38,8 @@ class _Entry:
     outputs: tuple[str, ...]
     threaded: bool
     run_condition: str | None
+    optional: frozenset[str] = frozenset()  # inputs no part may produce: they read None
+    feedback: frozenset[str] = frozenset()  # inputs read from the previous loop, on purpose
     call: Any = None  # bound run or run_threaded
     timing: TimingRing = field(default_factory=TimingRing)
     thread: threading.Thread | None = None
@@ -67,27 +69,42 @@ class Vehicle:
         self._last_loop_start = 0.0
 
     # -- building ---------------------------------------------------------------------------------
-    def add(self, part: Any, inputs: Sequence[str] = (), outputs: Sequence[str] = (),
-            threaded: bool = False, run_condition: str | None = None) -> None:
+    def add(self, part: Any, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None,
+            threaded: bool = False, run_condition: str | None = None,
+            optional_inputs: Sequence[str] | None = None, feedback: Sequence[str] | None = None) -> None:
         """Register a part; parts run in the order added.
 
         Args:
             part: an object with ``run(*inputs)`` (and ``update()`` + ``run_threaded()`` if threaded),
                 or a plain function, which is wrapped in :class:`vehicle.part.Lambda`.
-            inputs: memory keys passed to the part, in order.
-            outputs: memory keys that receive the part's return value(s).
+            inputs: memory keys passed to the part, in order. Default: the part's declared
+                ``INPUTS`` (see :mod:`vehicle.part`), else none.
+            outputs: memory keys that receive the part's return value(s). Default: the part's
+                ``OUTPUTS``, else none.
             threaded: run ``part.update()`` in its own thread; the loop calls ``run_threaded()``.
             run_condition: a memory key; the part runs only in loops where that value is truthy.
+            optional_inputs: inputs that may be produced by no part of this vehicle (they read
+                None). Default: the part's ``OPTIONAL_INPUTS``.
+            feedback: inputs the part reads from the previous loop on purpose, because a part
+                added later produces them (they read None in the first loop unless seeded).
+                Default: the part's ``FEEDBACK``.
 
         Raises:
             TypeError: an argument has the wrong type or the part lacks a required method.
-            ValueError: an output key is listed twice.
+            ValueError: an output key is listed twice, or an optional/feedback key is not an input.
         """
         if not threaded and not hasattr(part, "run") and callable(part):
             part = Lambda(part)
         name = self._unique_name(part_name(part))
-        keys = {}
-        for label, value in (("inputs", inputs), ("outputs", outputs)):
+        given = {"inputs": inputs, "outputs": outputs, "optional_inputs": optional_inputs, "feedback": feedback}
+        declared = {"inputs": "INPUTS", "outputs": "OUTPUTS", "optional_inputs": "OPTIONAL_INPUTS",
+                    "feedback": "FEEDBACK"}
+        keys: dict[str, tuple[str, ...]] = {}
+        from_class: set[str] = set()
+        for label, value in given.items():
+            if value is None:
+                value = getattr(part, declared[label], ())
+                from_class.add(label)
             if isinstance(value, str) or not isinstance(value, list | tuple):
                 raise TypeError(f"part {name!r}: {label} must be a list of memory keys, "
                                 f"got {type(value).__name__} {value!r}")
@@ -103,14 +120,30 @@ class Vehicle:
         dupes = sorted({k for k in keys["outputs"] if keys["outputs"].count(k) > 1})
         if dupes:
             raise ValueError(f"part {name!r}: output keys listed more than once: {dupes}")
+        readable = set(keys["inputs"]) | ({run_condition} if run_condition else set())
+        for label in ("optional_inputs", "feedback"):
+            stray = [k for k in keys[label] if k not in readable]
+            if label in from_class:  # a declaration covers the part's own keys, not renamed ones
+                keys[label] = tuple(k for k in keys[label] if k in readable)
+            elif stray:
+                raise ValueError(f"part {name!r}: {label} {stray} are not among its inputs {list(keys['inputs'])}")
         needed = ("update", "run_threaded") if threaded else ("run",)
         missing = [m for m in needed if not callable(getattr(part, m, None))]
         if missing:
             how = "threaded=True needs update() and run_threaded()" if threaded else "a part needs run()"
             raise TypeError(f"part {name!r} ({type(part).__name__}) has no {', '.join(missing)}(): {how}")
-        entry = _Entry(part, name, keys["inputs"], keys["outputs"], threaded, run_condition)
+        entry = _Entry(part, name, keys["inputs"], keys["outputs"], threaded, run_condition,
+                       frozenset(keys["optional_inputs"]), frozenset(keys["feedback"]))
         entry.call = part.run_threaded if threaded else part.run
         self.parts.append(entry)
+
+    def find(self, cls: type) -> list[Any]:
+        """The parts added so far that are instances of ``cls``, in run order."""
+        return [e.part for e in self.parts if isinstance(e.part, cls)]
+
+    def produces(self, key: str) -> bool:
+        """Whether a part added so far writes ``key`` (the vehicle's own ``loop/*`` keys included)."""
+        return key in LOOP_KEYS or any(key in e.outputs for e in self.parts)
 
     def _unique_name(self, base: str) -> str:
         taken = {e.name for e in self.parts}
@@ -122,20 +155,38 @@ class Vehicle:
         return f"{base}#{n}"
 
     def check_wiring(self) -> None:
-        """Raise WiringError if a part reads a key that no part produces and nobody seeded."""
-        available = set(self.mem.keys()) | set(LOOP_KEYS)
+        """Raise WiringError if a part reads a key that is not there when it runs.
+
+        A part may read a key seeded in memory before ``start``, a ``loop/*`` key, or an output of
+        a part added before it. Reading the output of a part added *after* it is a one-loop lag:
+        allowed only when declared as ``feedback``. A key that no part produces must be declared
+        in ``optional_inputs`` (it reads None).
+        """
+        seeded = set(self.mem.keys()) | set(LOOP_KEYS)
+        producers: dict[str, str] = {}
         for e in self.parts:
-            available.update(e.outputs)
+            for key in e.outputs:
+                producers.setdefault(key, e.name)
+        everything = sorted(seeded | set(producers))
+        available = set(seeded)
         problems = []
         for e in self.parts:
             wanted = list(e.inputs) + ([e.run_condition] if e.run_condition else [])
             for key in wanted:
-                if key not in available:
-                    close = difflib.get_close_matches(key, sorted(available), n=1)
+                role = "run_condition" if key == e.run_condition else "input"
+                if key in available:
+                    continue
+                if key in producers:
+                    if key not in e.feedback:
+                        problems.append(f"part {e.name!r} {role} {key!r} is read before part {producers[key]!r} "
+                                        f"produces it (a one-loop lag): add {e.name!r} after {producers[key]!r}, "
+                                        f"or declare feedback=[{key!r}] if the lag is intended")
+                elif key not in e.optional:
+                    close = difflib.get_close_matches(key, everything, n=1)
                     hint = f" (did you mean {close[0]!r}?)" if close else ""
-                    role = "run_condition" if key == e.run_condition else "input"
-                    problems.append(f"part {e.name!r} {role} {key!r} is produced by no part "
-                                    f"and not seeded in memory{hint}")
+                    problems.append(f"part {e.name!r} {role} {key!r} is produced by no part and not seeded "
+                                    f"in memory{hint}; declare it in optional_inputs if it may be absent")
+            available.update(e.outputs)
         if problems:
             raise WiringError("; ".join(problems))
 

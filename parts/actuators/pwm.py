@@ -19,7 +19,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, ClassVar
 
 from parts.actuators.esc import ReverseStateMachine, SlewLimiter
 from parts.actuators.watchdog import CommandWatchdog
@@ -165,6 +165,9 @@ class PWMSteeringThrottle:
 
     Writes happen only when a channel's ticks change (one 4-byte block write each).
     """
+
+    INPUTS: ClassVar[tuple[str, ...]] = ("angle", "throttle")
+    OUTPUTS: ClassVar[tuple[str, ...]] = ()
 
     #: |throttle| at or below this counts as "at neutral" for arming and re-arming
     NEUTRAL_BAND = 0.05

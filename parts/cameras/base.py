@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import logging
 import time
-from typing import Any, NamedTuple, Protocol
+from typing import Any, ClassVar, NamedTuple, Protocol
 
 import numpy as np
 
@@ -75,6 +75,10 @@ class Camera(ThreadedPart):
         vflip, hflip: flip the image vertically / horizontally (camera mounted upside down).
         timeout_s: no frame for this long means ``cam/ok`` False (CAMERA_TIMEOUT_S).
     """
+
+    #: no inputs: the frame source is the camera's own
+    INPUTS: ClassVar[tuple[str, ...]] = ()
+    OUTPUTS: ClassVar[tuple[str, ...]] = OUTPUTS
 
     def __init__(self, source: FrameSource, width: int = 160, height: int = 120, fps: float = 20.0,
                  vflip: bool = False, hflip: bool = False, timeout_s: float = 1.0) -> None:

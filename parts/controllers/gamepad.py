@@ -10,7 +10,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from typing import Any, Protocol
+from typing import Any, ClassVar, Protocol
 
 from parts.controllers.events import Caps, DeviceLost, PadEvent
 from parts.controllers.layouts import Layout
@@ -46,6 +46,9 @@ class Gamepad(ThreadedPart):
         read_timeout_s: longest a read blocks (bounds how fast shutdown is noticed).
         clock: monotonic seconds (tests inject a fake).
     """
+
+    INPUTS: ClassVar[tuple[str, ...]] = ()
+    OUTPUTS: ClassVar[tuple[str, ...]] = OUTPUTS
 
     def __init__(self, reader: PadReader, layout: Layout, settings: GamepadSettings | None = None,
                  retry_s: float = 3.0, read_timeout_s: float = 0.1,

@@ -25,10 +25,10 @@ from typing import NamedTuple
 
 from parts.controllers.events import AXIS, AXIS_MAX, BUTTON, PadEvent
 from parts.controllers.layouts import BUTTON_ACTIONS, AxisControl, Layout
+from vehicle.keys import MODES
 
 logger = logging.getLogger(__name__)
 
-MODES = ("user", "local_angle", "local")
 #: |rest| beyond this fraction of full scale marks an axis as a trigger (it rests at one end)
 TRIGGER_REST_FRACTION = 0.5
 #: an axis half counts as a pressed button past this fraction of travel

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
+from typing import ClassVar
 
 logger = logging.getLogger(__name__)
 
@@ -20,6 +21,11 @@ class BehaviorState:
     Input: ``behavior/step`` (+1 next, -1 previous, 0/None nothing; optional).
     Outputs: ``behavior/state, behavior/label, behavior/one_hot_state_array``.
     """
+
+    INPUTS: ClassVar[tuple[str, ...]] = ("behavior/step",)
+    #: a car without behaviour buttons has no step: the state stays where it is
+    OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("behavior/step",)
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("behavior/state", "behavior/label", "behavior/one_hot_state_array")
 
     def __init__(self, behaviors: Sequence[str], initial: int | str = 0) -> None:
         names = list(behaviors)

@@ -2,34 +2,10 @@
 
 from __future__ import annotations
 
-import logging
 import math
-from enum import StrEnum
+from typing import ClassVar
 
-logger = logging.getLogger(__name__)
-
-
-class Mode(StrEnum):
-    """The three drive modes; values are DonkeyCar's strings, as recorded in tubs."""
-
-    USER = "user"  # the human steers and sets the throttle
-    LOCAL_ANGLE = "local_angle"  # the pilot steers, the human sets the throttle
-    LOCAL = "local"  # the pilot steers and sets the throttle
-
-    def next(self) -> Mode:
-        """The mode after this one, cycling user -> local_angle -> local -> user."""
-        order = list(Mode)
-        return order[(order.index(self) + 1) % len(order)]
-
-
-def parse_mode(value: object) -> Mode:
-    """Mode from a stored string; unknown or missing values mean user mode (the safe choice)."""
-    try:
-        return Mode(value)
-    except ValueError:
-        if value is not None:
-            logger.warning("unknown drive mode %r: using user mode", value)
-        return Mode.USER
+from vehicle.keys import Mode, parse_mode
 
 
 def _finite(value: object) -> float:
@@ -50,6 +26,12 @@ class DriveMode:
     every mode. A missing pilot value (pilot not loaded yet) means centre steering and zero
     throttle, never the last human command.
     """
+
+    INPUTS: ClassVar[tuple[str, ...]] = ("user/mode", "user/angle", "user/throttle", "pilot/angle",
+                                         "pilot/throttle", "estop")
+    #: a car may have no pilot (None: centre, no throttle) and no emergency stop button
+    OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("pilot/angle", "pilot/throttle", "estop")
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("angle", "throttle")
 
     def __init__(self, ai_throttle_mult: float = 1.0) -> None:
         if not math.isfinite(ai_throttle_mult) or ai_throttle_mult < 0:
@@ -74,6 +56,9 @@ class DriveMode:
 
 class PilotCondition:
     """``run_pilot`` is True when the pilot must run: any mode but user."""
+
+    INPUTS: ClassVar[tuple[str, ...]] = ("user/mode",)
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("run_pilot",)
 
     def run(self, mode: object) -> bool:
         """Whether the pilot runs this loop."""

@@ -10,12 +10,20 @@
 from __future__ import annotations
 
 import logging
+from typing import ClassVar
 
 logger = logging.getLogger(__name__)
 
 
 class RecordingRules:
     """Inputs: ``user/mode, recording, throttle[, estop]``; output: ``recording``."""
+
+    INPUTS: ClassVar[tuple[str, ...]] = ("user/mode", "recording", "throttle", "estop")
+    #: a car may have no e-stop button
+    OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("estop",)
+    #: without a record button (no controller writes ``recording``) it reads its own last decision
+    FEEDBACK: ClassVar[tuple[str, ...]] = ("recording",)
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("recording",)
 
     def __init__(self, auto_record_on_throttle: bool = True, record_during_ai: bool = False,
                  deadzone: float = 0.01) -> None:

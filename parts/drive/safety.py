@@ -9,12 +9,16 @@ when frames come back).
 from __future__ import annotations
 
 import logging
+from typing import ClassVar
 
 logger = logging.getLogger(__name__)
 
 
 class CameraWatchdog:
     """Inputs: ``cam/ok, user/mode, user/throttle``; outputs: ``user/mode, user/throttle``."""
+
+    INPUTS: ClassVar[tuple[str, ...]] = ("cam/ok", "user/mode", "user/throttle")
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("user/mode", "user/throttle")
 
     def __init__(self) -> None:
         self.tripped = False

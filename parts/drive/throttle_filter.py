@@ -9,9 +9,14 @@ brakes, then reverses. Any command >= 0 re-arms it. Use it, or the drivetrain's
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 
 class ThrottleFilter:
     """Input: ``throttle``; output: ``throttle``."""
+
+    INPUTS: ClassVar[tuple[str, ...]] = ("throttle",)
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("throttle",)
 
     def __init__(self) -> None:
         self.reverse_triggered = False

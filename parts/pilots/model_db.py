@@ -28,7 +28,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from vehicle.errors import UserError
+from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
 
@@ -61,7 +61,7 @@ CREATE TABLE IF NOT EXISTS model_datasets (
 """
 
 
-class RegistryError(UserError):
+class RegistryError(VehicleError):
     """A model is not in the registry, or the registry file is not a model registry."""
 
 

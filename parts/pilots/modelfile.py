@@ -25,13 +25,13 @@ import torch
 from torch import nn
 
 from parts.pilots.models import PilotModel, create_model
-from vehicle.errors import UserError
+from vehicle.errors import VehicleError
 
 FORMAT = "vehicle-pilot"
 FORMAT_VERSION = 1
 
 
-class ModelFileError(UserError, ValueError):
+class ModelFileError(VehicleError, ValueError):
     """A model file is missing, corrupt, unsafe (pickled objects) or does not fit this version."""
 
 

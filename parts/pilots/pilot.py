@@ -24,7 +24,7 @@ import threading
 import time
 from collections import deque
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -125,7 +125,17 @@ class Pilot:
             keys += [self.speed_key, SPEED_LIMIT_KEY]
         return keys
 
-    outputs: tuple[str, str] = ("pilot/angle", "pilot/throttle")
+    @property
+    def INPUTS(self) -> tuple[str, ...]:  # noqa: N802 - the part declaration read by Vehicle.add
+        """The part's inputs (:attr:`inputs`), as the declaration Vehicle.add reads."""
+        return tuple(self.inputs)
+
+    @property
+    def OPTIONAL_INPUTS(self) -> tuple[str, ...]:  # noqa: N802 - as INPUTS
+        """The speed limit: a car without the web page has none (PILOT_SPEED_LIMIT applies)."""
+        return (SPEED_LIMIT_KEY,) if self.speed_control is not None else ()
+
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("pilot/angle", "pilot/throttle")
 
     # -- the loop -------------------------------------------------------------------------------
     def run(self, image: np.ndarray | None, *rest: Any) -> tuple[float, float]:
@@ -258,6 +268,11 @@ class ModelSwitch:
     the pilot takes over. A request that equals the last one is ignored; a request made while a
     load is running is retried on the next loops.
     """
+
+    INPUTS: ClassVar[tuple[str, ...]] = ("pilot/model_request",)
+    #: a car without the web page's model picker never asks for a switch
+    OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("pilot/model_request",)
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("pilot/model",)
 
     def __init__(self, pilot: Pilot) -> None:
         self.pilot = pilot

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -59,7 +59,9 @@ class Expert:
         speed_gain: throttle per m/s of speed error.
     """
 
-    outputs = ("user/angle", "user/throttle", "user/mode", "recording")
+    INPUTS: ClassVar[tuple[str, ...]] = ()
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("user/angle", "user/throttle", "user/mode", "recording")
+
 
     def __init__(self, sim: SimCar, *, speed: float = 2.0, lat_accel: float = 2.5, lookahead: float = 0.5,
                  lookahead_time: float = 0.25, lane: str = "auto", speed_gain: float = 0.6) -> None:
@@ -127,6 +129,9 @@ class NoiseInjector:
     ``dt / every`` per step, lasts ``duration`` seconds, peaks at ±U(0.5, 1)·``amplitude`` half-way.
     Throttle passes through unchanged.
     """
+
+    INPUTS: ClassVar[tuple[str, ...]] = ("angle", "throttle")
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("angle", "throttle")
 
     def __init__(self, amplitude: float, every: float = 3.0, duration: float = 0.8, dt: float = 0.05,
                  seed: int = 0) -> None:

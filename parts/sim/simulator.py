@@ -12,7 +12,7 @@ import math
 import time
 from collections import OrderedDict
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -93,7 +93,14 @@ class SimCar:
             after each lap (spreads a recording evenly over the tracks).
     """
 
-    outputs = OUTPUTS
+    INPUTS: ClassVar[tuple[str, ...]] = ("angle", "throttle", "sim/reset")
+    #: the commands come from parts added after the simulator (controller, drive mode): it applies
+    #: the previous loop's commands, as a real car's actuators act after its camera captured
+    FEEDBACK: ClassVar[tuple[str, ...]] = ("angle", "throttle")
+    #: a car may have no reset button
+    OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("sim/reset",)
+    OUTPUTS: ClassVar[tuple[str, ...]] = OUTPUTS
+
 
     def __init__(self, seeds: Sequence[int] = (1,), *, dt: float = 0.05, camera: Camera | None = None,
                  car_params: CarParams | None = None, world: dict[str, Any] | None = None,

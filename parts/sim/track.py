@@ -15,6 +15,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from vehicle.errors import VehicleError
+
 logger = logging.getLogger(__name__)
 
 #: arc-length spacing of the centre-line samples, metres
@@ -23,7 +25,7 @@ SAMPLE_SPACING = 0.05
 MAX_ATTEMPTS = 400
 
 
-class TrackError(ValueError):
+class TrackError(VehicleError, ValueError):
     """The track parameters cannot give a valid track."""
 
 

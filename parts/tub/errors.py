@@ -4,8 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from vehicle.errors import VehicleError
 
-class TubError(Exception):
+
+class TubError(VehicleError):
     """A tub cannot be opened or changed as asked (not a tub, schema mismatch, closed ...)."""
 
 

@@ -21,7 +21,7 @@ import time
 from collections.abc import Callable, Iterable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -178,6 +178,13 @@ class TubWriter:
     ``run()`` returns the number of records in the tub counting queued ones (``tub/num_records``);
     ``shutdown()`` writes what is queued, commits and closes. Usable without a Vehicle.
     """
+
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("tub/num_records",)
+
+    @property
+    def INPUTS(self) -> tuple[str, ...]:  # noqa: N802 - the part declaration read by Vehicle.add
+        """The recorded keys, in the tub's order."""
+        return tuple(self.inputs)
 
     def __init__(self, base_path: str | os.PathLike[str], inputs: list[str], types: list[str],
                  metadata: Mapping[str, Any] | Iterable[str] | None = None, max_catalog_len: int = 1000,
@@ -345,6 +352,9 @@ class TubWiper:
 
     ``target`` is a TubWriter (deletion happens in its thread, queued records included) or a Tub.
     """
+
+    INPUTS: ClassVar[tuple[str, ...]] = ("tub/erase",)
+    OUTPUTS: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, target: TubWriter | Tub, num_records: int = 100) -> None:
         if num_records < 1:

@@ -18,7 +18,7 @@ from __future__ import annotations
 import logging
 from typing import Any, Final
 
-from parts.web.protocol import MODES
+from vehicle.keys import MODES
 
 logger = logging.getLogger(__name__)
 

@@ -70,6 +70,10 @@ class WebController(ThreadedPart):
     INPUTS: Final = ("cam/image_array", "user/mode", "recording", "estop", "tub/num_records",
                      "angle", "throttle", "pilot/angle", "pilot/throttle", "pilot/model",
                      "sim/speed", "enc/speed", "loop/rate_hz", "loop/overruns")
+    #: every input is telemetry for the page: it may be absent (None) and is the last loop's value
+    #: when a part added after the controller produces it (drive mode, pilot, tub writer ...)
+    OPTIONAL_INPUTS: Final = INPUTS
+    FEEDBACK: Final = INPUTS
     #: memory keys the part writes, in this order
     OUTPUTS: Final = ("user/angle", "user/throttle", "user/mode", "recording", "estop",
                       "user/speed_limit", "pilot/model_request")

@@ -22,8 +22,9 @@ from __future__ import annotations
 import math
 from typing import Any, Final
 
+from vehicle.keys import MODES
+
 #: drive modes, DonkeyCar's names: human drives, pilot steers, pilot drives.
-MODES: Final = ("user", "local_angle", "local")
 #: what the page shows for each mode
 MODE_LABELS: Final = {"user": "User", "local_angle": "Auto steer", "local": "Full auto"}
 #: largest message a browser may send, bytes of JSON (a drive message is ~40 bytes)

@@ -44,7 +44,7 @@ def test_wrong_type_names_expected_type(tmp_path):
 def test_enum_and_optional_and_callable_types():
     assert Config.defaults(MAX_LOOPS=None).MAX_LOOPS is None
     assert Config.defaults(AI_THROTTLE_MULT=1).AI_THROTTLE_MULT == 1  # an int is a valid float
-    expected = r"DEFAULT_MODE = 'auto' .* expected Literal\['user', 'local_angle', 'local'\]"
+    expected = r"DEFAULT_MODE = 'auto' .* expected \"user\" \| \"local_angle\" \| \"local\""
     with pytest.raises(ConfigError, match=expected):
         Config.defaults(DEFAULT_MODE="auto")
     with pytest.raises(ConfigError, match="expected int"):

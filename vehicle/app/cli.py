@@ -8,7 +8,7 @@ import logging
 import sys
 from collections.abc import Sequence
 
-from vehicle.errors import UserError
+from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
 
@@ -50,7 +50,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     configure_logging(args.verbose)
     try:
         return int(args.func(args) or 0)
-    except UserError as exc:
+    except VehicleError as exc:
         print(f"error: {exc}", file=sys.stderr)  # noqa: T201 - the CLI's own output
         return 2
     except KeyboardInterrupt:

@@ -16,8 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from vehicle.app.cli import configure_logging
-from vehicle.config import Config, ConfigError, load_config
-from vehicle.errors import PartError, UserError, VehicleStopped, WiringError
+from vehicle.config import Config, load_config
+from vehicle.errors import PartError, VehicleError, VehicleStopped
 
 logger = logging.getLogger(__name__)
 
@@ -59,7 +59,7 @@ def main(parser: argparse.ArgumentParser, car_path: str | Path, argv: Sequence[s
     try:
         cfg = load_config(args.myconfig, car_path=car_path)
         return int(args.func(cfg, args) or 0)
-    except (ConfigError, UserError, WiringError) as exc:
+    except VehicleError as exc:
         print(f"error: {exc}", file=sys.stderr)  # noqa: T201 - the CLI's own output
         return 2
 

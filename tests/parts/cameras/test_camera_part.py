@@ -111,7 +111,7 @@ def test_add_camera_per_type(tmp_path, red_blue_video, image_folder):
 
     V = Vehicle()
     cam = add_camera(V, Config.defaults(CAMERA_TYPE="MOCK", IMAGE_W=80, IMAGE_H=60))
-    assert V.mem["cam/ok"] is False and cam.width == 80
+    assert cam.run_threaded()[2] is False and cam.width == 80  # cam/ok False until the first frame
     assert V.parts[0].outputs == ("cam/image_array", "cam/timestamp", "cam/ok") and V.parts[0].threaded
     cfg = Config.defaults(CAMERA_TYPE="VIDEO", CAR_PATH=str(tmp_path), CAMERA_VIDEO_PATH="clip.avi")
     assert make_frame_source(cfg).path == red_blue_video

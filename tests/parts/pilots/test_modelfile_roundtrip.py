@@ -10,7 +10,7 @@ import torch
 
 from parts.pilots.modelfile import FORMAT, ModelFileError, load_model, read_meta, save_model
 from parts.pilots.models import create_model
-from vehicle.errors import UserError
+from vehicle.errors import VehicleError
 
 TYPES = ["linear", "categorical", "inferred", "pilotnet", "memory", "behavior", "rnn", "3d"]
 
@@ -53,7 +53,7 @@ def test_pickled_object_is_refused(tmp_path):
     with pytest.raises(ModelFileError, match="refused: the file contains pickled Python objects") as exc:
         load_model(path)
     assert "PurePosixPath" in str(exc.value)
-    assert isinstance(exc.value, UserError)  # the CLI prints it and exits 2
+    assert isinstance(exc.value, VehicleError)  # the CLI prints it and exits 2
 
 
 def test_whole_pickled_module_is_refused(tmp_path):

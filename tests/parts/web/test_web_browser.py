@@ -199,7 +199,7 @@ def test_newcomer_drives_the_simulator_by_keyboard_and_records_a_tub(tmp_path, a
             await page.wait_for(CONNECTED.format("driver"))
             await page.key("r")
             await page.key("ArrowUp")
-            await car.until(lambda m: (m["tub/num_records"] or 0) >= 20 and (m["sim/speed"] or 0) > 0,
+            await car.until(lambda m: (m.d.get("tub/num_records") or 0) >= 20 and (m["sim/speed"] or 0) > 0,
                             timeout=15, what="records while driving")
             await page.key("ArrowUp", down=False)
             await page.key("r")

@@ -10,8 +10,6 @@ from vehicle.errors import UserError
 
 logger = logging.getLogger(__name__)
 
-CAMERA_OUTPUTS = ["cam/image_array", "cam/timestamp", "cam/ok"]
-
 
 def make_frame_source(cfg: Config) -> Any:
     """The frame source for ``cfg.CAMERA_TYPE`` (not opened yet)."""
@@ -52,9 +50,9 @@ def make_frame_source(cfg: Config) -> Any:
 def add_camera(V: Any, cfg: Config) -> Any:
     """Add the camera (threaded): -> ``cam/image_array``, ``cam/timestamp``, ``cam/ok``.
 
-    ``cam/ok`` is seeded False (no frame yet); :func:`vehicle.app.assembly.drive.add_camera_watchdog`
-    uses it to keep pilots from driving without frames. The CSI pipeline flips on the GPU, every
-    other source is flipped by the Camera part.
+    ``cam/ok`` is False until the first frame and whenever frames stop;
+    :func:`vehicle.app.assembly.drive.add_camera_watchdog` uses it to keep pilots from driving blind.
+    The CSI pipeline flips on the GPU, every other source is flipped by the Camera part.
     """
     from parts.cameras.base import Camera
 
@@ -63,7 +61,6 @@ def add_camera(V: Any, cfg: Config) -> Any:
     camera = Camera(source, cfg.IMAGE_W, cfg.IMAGE_H, fps=cfg.CAMERA_FRAMERATE,
                     vflip=cfg.CAMERA_VFLIP and not gpu_flips, hflip=cfg.CAMERA_HFLIP and not gpu_flips,
                     timeout_s=cfg.CAMERA_TIMEOUT_S)
-    V.mem["cam/ok"] = False
-    V.add(camera, inputs=[], outputs=CAMERA_OUTPUTS, threaded=True)
+    V.add(camera, threaded=True)
     logger.info("camera: %s (%dx%d)", cfg.CAMERA_TYPE, cfg.IMAGE_W, cfg.IMAGE_H)
     return camera

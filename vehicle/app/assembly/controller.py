@@ -7,12 +7,15 @@ from typing import Any
 
 from vehicle.config import Config
 from vehicle.errors import UserError
+from vehicle.keys import rename
 
 logger = logging.getLogger(__name__)
 
-#: where the web page's commands go when a gamepad drives too (the arbiter merges them)
-WEB_ARBITRATED_OUTPUTS = ("web/angle", "web/throttle", "web/mode", "web/recording", "web/estop",
-                          "user/speed_limit", "pilot/model_request")
+#: with a gamepad too, each controller writes its own keys and the arbiter merges them into user/*
+TO_WEB_KEYS = {"user/angle": "web/angle", "user/throttle": "web/throttle", "user/mode": "web/mode",
+               "recording": "web/recording", "estop": "web/estop"}
+TO_GAMEPAD_KEYS = {"user/angle": "js/angle", "user/throttle": "js/throttle", "user/mode": "js/mode",
+                   "recording": "js/recording", "estop": "js/estop"}
 
 
 def add_controller(V: Any, cfg: Config) -> Any:
@@ -22,8 +25,8 @@ def add_controller(V: Any, cfg: Config) -> Any:
       threaded) on ``WEB_HOST:WEB_CONTROL_PORT``; outputs ``user/angle, user/throttle, user/mode,
       recording, estop, user/speed_limit, pilot/model_request``.
     - ``USE_JOYSTICK_AS_DEFAULT``: the gamepad (``vehicle.app.assembly.gamepad.add_gamepad``).
-    - both: the page writes ``web/*`` keys and a :class:`parts.web.arbiter.ControllerArbiter`
-      merges them with the gamepad's (``js/*``) into the ``user/*`` keys, as
+    - both: the page writes ``web/*`` keys, the gamepad ``js/*`` keys, and a
+      :class:`parts.web.arbiter.ControllerArbiter` merges them into the ``user/*`` keys, as
       ``CONTROLLER_PRIORITY`` says.
 
     Returns the web controller when there is one (its ``url`` is the page), else the gamepad.
@@ -41,28 +44,19 @@ def add_controller(V: Any, cfg: Config) -> Any:
         from parts.web.controller import WebController
 
         web = WebController.from_config(cfg)
-        outputs = WEB_ARBITRATED_OUTPUTS if use_pad else WebController.OUTPUTS
-        _seed(V, WebController.INPUTS, exclude=WebController.OUTPUTS)
-        # the page reads the effective mode/recording of the previous loop, so it runs before the
-        # gamepad and the arbiter
-        V.add(web, inputs=list(WebController.INPUTS), outputs=list(outputs), threaded=True)
+        # the page shows the effective mode/recording of the previous loop (declared FEEDBACK), so
+        # it runs before the gamepad and the arbiter
+        V.add(web, outputs=rename(WebController.OUTPUTS, TO_WEB_KEYS) if use_pad else None, threaded=True)
     if not use_pad:
         return web
 
-    from parts.web.arbiter import ControllerArbiter
+    from parts.controllers.gamepad import Gamepad
     from vehicle.app.assembly.gamepad import add_gamepad
 
-    pad = add_gamepad(V, cfg, outputs=[*ControllerArbiter.INPUTS[:5], "tub/erase", "behavior/step"]
-                      if web is not None else None)
+    pad = add_gamepad(V, cfg, outputs=rename(Gamepad.OUTPUTS, TO_GAMEPAD_KEYS) if web is not None else None)
     if web is None:
         return pad
-    arbiter = ControllerArbiter(cfg.CONTROLLER_PRIORITY, initial_mode=cfg.DEFAULT_MODE)
-    V.add(arbiter, inputs=list(ControllerArbiter.INPUTS), outputs=list(ControllerArbiter.OUTPUTS))
+    from parts.web.arbiter import ControllerArbiter
+
+    V.add(ControllerArbiter(cfg.CONTROLLER_PRIORITY, initial_mode=cfg.DEFAULT_MODE))
     return web
-
-
-def _seed(V: Any, keys: tuple[str, ...], exclude: tuple[str, ...]) -> None:
-    """Seed telemetry keys no part may produce (no pilot, no encoder...) with None."""
-    for key in keys:
-        if key not in exclude and not key.startswith("loop/") and key not in V.mem:
-            V.mem[key] = None

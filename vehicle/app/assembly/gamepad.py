@@ -3,15 +3,13 @@
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from typing import Any
 
 from vehicle.config import Config
 from vehicle.errors import UserError
 
 logger = logging.getLogger(__name__)
-
-GAMEPAD_OUTPUTS = ["user/angle", "user/throttle", "user/mode", "recording", "estop", "tub/erase",
-                   "behavior/step"]
 
 
 def load_gamepad_layout(cfg: Config) -> Any:
@@ -55,22 +53,22 @@ def gamepad_settings(cfg: Config) -> Any:
         raise UserError(str(exc)) from exc
 
 
-def add_gamepad(V: Any, cfg: Config, outputs: list[str] | None = None) -> Any:
+def add_gamepad(V: Any, cfg: Config, outputs: Sequence[str] | None = None) -> Any:
     """Add the gamepad (threaded) -> ``user/angle, user/throttle, user/mode, recording, estop,
     tub/erase, behavior/step``.
 
-    ``outputs`` renames the keys (same order), e.g. ``js/angle ...`` when a controller arbiter
-    combines the gamepad with the web page. The pad may be absent at start: it is opened again
-    every JOYSTICK_RETRY_S and gives throttle 0 and user mode meanwhile.
+    ``outputs`` renames the keys (same order; see :func:`vehicle.keys.rename`), e.g. ``js/angle``
+    ... when a controller arbiter combines the gamepad with the web page. The pad may be absent
+    at start: it is opened again every JOYSTICK_RETRY_S and gives throttle 0 and user mode
+    meanwhile.
     """
     from parts.controllers.gamepad import Gamepad
 
-    keys = list(outputs) if outputs is not None else list(GAMEPAD_OUTPUTS)
-    if len(keys) != len(GAMEPAD_OUTPUTS):
-        raise ValueError(f"add_gamepad outputs needs {len(GAMEPAD_OUTPUTS)} keys in the order "
-                         f"{GAMEPAD_OUTPUTS}, got {keys}")
+    if outputs is not None and len(outputs) != len(Gamepad.OUTPUTS):
+        raise ValueError(f"add_gamepad outputs needs {len(Gamepad.OUTPUTS)} keys in the order "
+                         f"{list(Gamepad.OUTPUTS)}, got {list(outputs)}")
     layout = load_gamepad_layout(cfg)
     part = Gamepad(make_reader(cfg, layout), layout, gamepad_settings(cfg), retry_s=cfg.JOYSTICK_RETRY_S)
-    V.add(part, inputs=[], outputs=keys, threaded=True)
+    V.add(part, outputs=outputs, threaded=True)
     logger.info("gamepad: %s layout on %s", layout.name, part.reader.path)
     return part

@@ -1,8 +1,9 @@
 """Assembly of the built-in simulator: the simulated car, the expert driver and its noise.
 
-Order in a simulator car's loop: ``add_simulator`` first (it produces the camera frame), then a
-controller or ``add_expert``, drive mode, then ``add_expert_noise`` (it perturbs the executed
-``angle`` after drive mode, so the tub records the expert's clean ``user/angle``).
+Order in a simulator car's loop: ``add_simulator`` first (it produces the camera frame and applies
+the commands of the previous loop, declared as feedback), then a controller or ``add_expert``,
+drive mode, then ``add_expert_noise`` (it perturbs the executed ``angle`` after drive mode, so the
+tub records the expert's clean ``user/angle``).
 """
 
 from __future__ import annotations
@@ -16,14 +17,10 @@ def add_simulator(V: Any, cfg: Any, seeds: Sequence[int] | None = None) -> Any:
     ``cam/timestamp``, ``sim/*`` telemetry and ``enc/speed``. Drives the tracks of SIM_TRACK_SEEDS
     unless ``seeds``. A part that sets ``sim/reset`` True (e.g. a button) puts the car back on the
     start line."""
-    from parts.sim.simulator import OUTPUTS, SimCar
+    from parts.sim.simulator import SimCar
 
     sim = SimCar.from_config(cfg, seeds=seeds)
-    for key, value in (("angle", 0.0), ("throttle", 0.0), ("sim/reset", False)):
-        if key not in V.mem:
-            # seeded: the first loop runs before any controller has produced a command
-            V.mem[key] = value
-    V.add(sim, inputs=["angle", "throttle", "sim/reset"], outputs=list(OUTPUTS))
+    V.add(sim)
     return sim
 
 
@@ -33,7 +30,7 @@ def add_expert(V: Any, cfg: Any, sim: Any) -> Any:
     from parts.sim.expert import Expert
 
     expert = Expert.from_config(cfg, sim)
-    V.add(expert, inputs=[], outputs=list(Expert.outputs))
+    V.add(expert)
     return expert
 
 
@@ -46,5 +43,5 @@ def add_expert_noise(V: Any, cfg: Any, inputs: Sequence[str] = ("angle", "thrott
 
     noise = NoiseInjector(cfg.SIM_EXPERT_NOISE, cfg.SIM_EXPERT_NOISE_EVERY, cfg.SIM_EXPERT_NOISE_DURATION,
                           dt=1.0 / cfg.DRIVE_LOOP_HZ, seed=cfg.SIM_SEED)
-    V.add(noise, inputs=list(inputs), outputs=["angle", "throttle"])
+    V.add(noise, inputs=list(inputs))
     return noise

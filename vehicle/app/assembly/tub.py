@@ -28,8 +28,8 @@ def tub_path(cfg: Any) -> Path:
 
 
 def _produced(V: Any, key: str) -> bool:
-    """Whether a part already added outputs ``key`` or it is seeded in memory."""
-    return key in V.mem or any(key in getattr(e, "outputs", ()) for e in getattr(V, "parts", []))
+    """Whether a part already added outputs ``key`` or the user seeded it in memory."""
+    return V.produces(key) or key in V.mem
 
 
 def add_tub_writer(V: Any, cfg: Any, inputs: list[str] | None = None, types: list[str] | None = None) -> Any:
@@ -68,7 +68,7 @@ def add_tub_writer(V: Any, cfg: Any, inputs: list[str] | None = None, types: lis
                            remove_if_empty=cfg.AUTO_CREATE_NEW_TUB)
     except (TubError, ValueError) as exc:
         raise UserError(f"cannot record into {path}: {exc}") from exc
-    V.add(writer, inputs=inputs, outputs=["tub/num_records"], run_condition="recording")
+    V.add(writer, run_condition="recording")
     if _produced(V, ERASE_KEY):
-        V.add(TubWiper(writer, getattr(cfg, "ERASE_LAST_N_RECORDS", 100)), inputs=[ERASE_KEY])
+        V.add(TubWiper(writer, cfg.ERASE_LAST_N_RECORDS))
     return writer

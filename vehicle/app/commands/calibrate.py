@@ -9,6 +9,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from vehicle.app.carconfig import add_car_options, car_folder, load_for_command
 from vehicle.errors import UserError
 
 if TYPE_CHECKING:
@@ -43,25 +44,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "THROTTLE_STOPPED_PWM on the throttle channel, the steering midpoint on the steering "
                    "channel, else 370)")
     p.add_argument("--step", type=int, default=10, help="ticks moved by + and -")
-    p.add_argument("--car", default=".", help="car folder whose myconfig.py is read and written")
+    add_car_options(p)
     p.add_argument("--save", action="store_true", help="write the recorded values into myconfig.py "
                    "without asking")
     p.add_argument("--mock", action="store_true", help="use a simulated PCA9685 (try the tool without "
                    "hardware)")
     p.set_defaults(func=_calibrate)
-
-
-def _load(car: Path) -> Config:
-    from vehicle.config import Config, ConfigError, load_config
-
-    if (car / "myconfig.py").is_file():
-        try:
-            return load_config(car_path=car)
-        except ConfigError as exc:
-            # calibrating needs only bus, address and channels: do not let another setting block it
-            print(f"warning: {exc}\nwarning: using the default settings; pass --bus/--address/--freq "  # noqa: T201
-                  "if yours differ", file=sys.stderr)
-    return Config.defaults(CAR_PATH=str(car))
 
 
 def _default_neutral(cfg: Config, channel: int) -> int:
@@ -109,8 +97,17 @@ def _calibrate(args: argparse.Namespace) -> int:
         raise UserError(f"--channel {args.channel}: a PCA9685 has channels 0-15")
     if not 1 <= args.step <= 100:
         raise UserError(f"--step {args.step}: use 1-100 ticks")
-    car = Path(args.car).expanduser().resolve()
-    cfg = _load(car)
+    from vehicle.config import Config, ConfigError
+
+    try:
+        cfg = load_for_command(args)
+    except ConfigError as exc:
+        # calibrating needs only bus, address and channels: a bad setting elsewhere (often the very
+        # PWM value being calibrated) must not block it
+        print(f"warning: {exc}\nwarning: using the default settings; pass --bus/--address/--freq "  # noqa: T201
+              "if yours differ", file=sys.stderr)
+        cfg = Config.defaults(CAR_PATH=str(car_folder(args)))
+    car = Path(cfg.CAR_PATH)
     bus = busnum(cfg) if args.bus is None else args.bus
     address = cfg.PCA9685_I2C_ADDR if args.address is None else args.address
     freq = cfg.PWM_FREQ if args.freq is None else args.freq

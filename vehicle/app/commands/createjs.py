@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from vehicle.app.carconfig import add_car_options
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the createjs subcommand."""
@@ -20,7 +22,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--index", type=int, default=0, help="with --pygame: pad index")
     p.add_argument("--out", default=None,
                    help="mapping file to write (default: JOYSTICK_MAPPING_PATH of the car)")
-    p.add_argument("--car", default=".", help="car folder whose myconfig.py gives the defaults")
+    add_car_options(p)
     p.add_argument("--timeout", type=float, default=30.0, help="seconds each question waits")
     p.set_defaults(func=_createjs)
 
@@ -30,16 +32,11 @@ def _createjs(args: argparse.Namespace) -> int:
 
     from parts.controllers.layouts import load_layout
     from parts.controllers.mapping_wizard import CreateJsWizard, WizardError, save_layout
-    from vehicle.config import ConfigError, load_config
+    from vehicle.app.carconfig import load_for_command
     from vehicle.errors import UserError
 
-    car = Path(args.car).expanduser()
-    try:
-        cfg = load_config(car_path=car) if (car / "myconfig.py").is_file() else None
-    except ConfigError as exc:
-        raise UserError(str(exc)) from exc
-    out = Path(args.out) if args.out else (cfg.path("JOYSTICK_MAPPING_PATH") if cfg else
-                                           Path("joystick_mapping.json"))
+    cfg = load_for_command(args)
+    out = Path(args.out) if args.out else cfg.path("JOYSTICK_MAPPING_PATH")
     if args.pygame:
         from parts.controllers.pygame_js import PygameJoystick
 
@@ -47,7 +44,7 @@ def _createjs(args: argparse.Namespace) -> int:
     else:
         from parts.controllers.linux_js import LinuxJoystick
 
-        device = args.device or (str(cfg.path("JOYSTICK_DEVICE_FILE")) if cfg else "/dev/input/js0")
+        device = args.device or str(cfg.path("JOYSTICK_DEVICE_FILE"))
         # a FIFO/recording cannot be queried: assume the common xpad-style code order
         reader = LinuxJoystick(device, fallback_caps=load_layout("generic").caps)
     if args.timeout <= 0:

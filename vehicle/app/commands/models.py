@@ -17,6 +17,7 @@ import logging
 from pathlib import Path
 from typing import Any
 
+from vehicle.app.carconfig import add_car_options, load_for_command
 from vehicle.errors import UserError
 
 logger = logging.getLogger(__name__)
@@ -29,8 +30,7 @@ def _out(text: str) -> None:
 def _car_options() -> argparse.ArgumentParser:
     # SUPPRESS: `--car` may be given before or after the subcommand without one resetting the other.
     parent = argparse.ArgumentParser(add_help=False)
-    parent.add_argument("--car", metavar="DIR", default=argparse.SUPPRESS,
-                        help="car folder (default: the current directory)")
+    add_car_options(parent, suppress=True)
     return parent
 
 
@@ -73,15 +73,8 @@ def register(subparsers: Any) -> None:
 
 def _registry(args: argparse.Namespace) -> Any:
     from parts.pilots.model_db import ModelRegistry
-    from vehicle.config import ConfigError, load_config
 
-    car = Path(getattr(args, "car", ".") or ".")
-    if not car.is_dir():
-        raise UserError(f"--car {car}: no such folder. Pass the folder that holds the car's myconfig.py.")
-    try:
-        cfg = load_config(car_path=car)
-    except ConfigError as exc:
-        raise UserError(str(exc)) from exc
+    cfg = load_for_command(args)
     return ModelRegistry.for_models_dir(cfg.path("MODELS_PATH"))
 
 

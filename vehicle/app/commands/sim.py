@@ -7,6 +7,7 @@ import logging
 from pathlib import Path
 from typing import Any
 
+from vehicle.app.carconfig import add_car_options, load_for_command
 from vehicle.errors import UserError
 
 logger = logging.getLogger(__name__)
@@ -24,7 +25,7 @@ def register(subparsers: Any) -> None:
     track.add_argument("--png", required=True, help="output PNG file")
     track.add_argument("--camera", metavar="PNG", help="also write the camera's view from the start line")
     track.add_argument("--size", type=int, default=800, help="image size in pixels")
-    _config_args(track)
+    add_car_options(track)
     track.set_defaults(func=cmd_track)
 
     ev = sub.add_parser("eval", help="closed-loop evaluation of a pilot on simulated tracks", formatter_class=fmt)
@@ -35,7 +36,7 @@ def register(subparsers: Any) -> None:
     ev.add_argument("--throttle", type=float, help="fixed throttle: use only the pilot's steering")
     ev.add_argument("--json", help="write the full report (metrics and trajectories) here")
     ev.add_argument("--png", help="write the driven trajectories over the track maps here")
-    _config_args(ev)
+    add_car_options(ev)
     ev.set_defaults(func=cmd_eval)
 
     rec = sub.add_parser("record", help="record expert demonstrations into a tub", formatter_class=fmt)
@@ -43,14 +44,8 @@ def register(subparsers: Any) -> None:
     rec.add_argument("--tracks", type=_seeds, help="comma-separated track seeds (default SIM_TRACK_SEEDS)")
     rec.add_argument("--tub", help="tub folder (default: a new tub in the car's data folder)")
     rec.add_argument("--noise", type=float, help="steering noise injection amplitude (default SIM_EXPERT_NOISE)")
-    _config_args(rec)
+    add_car_options(rec)
     rec.set_defaults(func=cmd_record)
-
-
-def _config_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--car", help="car folder whose myconfig.py to use (default: the current folder "
-                                 "if it holds a myconfig.py, else the package defaults)")
-    p.add_argument("--myconfig", help="override file to use instead of <car>/myconfig.py")
 
 
 def _seeds(text: str) -> list[int]:
@@ -64,20 +59,6 @@ def _seeds(text: str) -> list[int]:
     return seeds
 
 
-def load_cli_config(args: argparse.Namespace) -> Any:
-    """The config of --car/--myconfig, of ./myconfig.py when present, else the defaults."""
-    from vehicle.config import Config, ConfigError, load_config
-
-    try:
-        if args.car or args.myconfig:
-            return load_config(args.myconfig, args.car)
-        if Path("myconfig.py").is_file():
-            return load_config(car_path=".")
-        return Config.defaults()
-    except ConfigError as exc:
-        raise UserError(str(exc)) from exc
-
-
 def cmd_track(args: argparse.Namespace) -> int:
     """Draw one track (and optionally the camera view from its start)."""
     import cv2
@@ -85,7 +66,7 @@ def cmd_track(args: argparse.Namespace) -> int:
     from parts.sim.eval_report import track_image, write_panels
     from parts.sim.track import TrackError
 
-    cfg = load_cli_config(args)
+    cfg = load_for_command(args)
     if args.size < 64:
         raise UserError(f"--size {args.size} is too small: use at least 64 pixels")
     try:
@@ -111,7 +92,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     from parts.sim.eval_report import format_table, write_json, write_png
     from vehicle.app.evaluate import evaluate
 
-    cfg = load_cli_config(args)
+    cfg = load_for_command(args)
     seeds = args.tracks or list(cfg.SIM_EVAL_TRACK_SEEDS)
     laps = args.laps if args.laps is not None else cfg.SIM_EVAL_LAPS
     if laps < 1:
@@ -136,7 +117,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     """Record expert demonstrations."""
     from vehicle.app.record import record_expert
 
-    cfg = load_cli_config(args)
+    cfg = load_for_command(args)
     if args.records < 1:
         raise UserError(f"--records {args.records}: give at least 1 record")
     try:

@@ -17,28 +17,15 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from vehicle.app.carconfig import add_car_options, load_for_command
 from vehicle.errors import UserError
-
-
-def _config(args: argparse.Namespace) -> Any:
-    from vehicle.config import Config, ConfigError, load_config
-
-    car = Path(getattr(args, "car", None) or ".")
-    myconfig = getattr(args, "myconfig", None)
-    try:
-        if myconfig or (car / "myconfig.py").is_file():
-            return load_config(myconfig, car_path=car)
-        return Config.defaults(CAR_PATH=str(car.resolve()))
-    except ConfigError as exc:
-        raise UserError(str(exc)) from exc
 
 
 def register(subparsers: Any) -> None:
     """Add ``vehicle train`` and ``vehicle train preview-aug``."""
     parser = subparsers.add_parser("train", help="train a pilot model from tubs",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--car", metavar="DIR", help="car folder whose myconfig.py to use (default: .)")
-    parser.add_argument("--myconfig", metavar="FILE", help="config file (default: <car>/myconfig.py)")
+    add_car_options(parser)
     add_train_arguments(parser)
     parser.set_defaults(func=_cmd_train)
     sub = parser.add_subparsers(dest="train_command", metavar="SUBCOMMAND")
@@ -50,17 +37,16 @@ def register(subparsers: Any) -> None:
     prev.add_argument("--aug", nargs="*", metavar="NAME", dest="augmentations",
                       help="augmentations to show (default: AUGMENTATIONS)")
     prev.add_argument("--seed", type=int, default=0, help="random seed of the draws")
-    prev.add_argument("--car", metavar="DIR", default=argparse.SUPPRESS)
-    prev.add_argument("--myconfig", metavar="FILE", default=argparse.SUPPRESS)
+    add_car_options(prev, suppress=True)
     prev.set_defaults(func=_cmd_preview)
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
-    return run_from_args(_config(args), args)
+    return run_from_args(load_for_command(args), args)
 
 
 def _cmd_preview(args: argparse.Namespace) -> int:
-    cfg = _config(args)
+    cfg = load_for_command(args)
     out = write_preview(cfg, _tubs(args, cfg), Path(args.out), rows=args.rows, variants=args.variants,
                         augmentations=args.augmentations, seed=args.seed)
     print(f"wrote {out}")  # noqa: T201 - the command's own output

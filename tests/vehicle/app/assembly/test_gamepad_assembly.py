@@ -7,12 +7,15 @@ import json
 import pytest
 
 from parts.controllers.events import AXIS_MAX
+from parts.controllers.gamepad import Gamepad
 from parts.controllers.layouts import load_layout
 from vehicle import Vehicle
-from vehicle.app.assembly.gamepad import GAMEPAD_OUTPUTS, add_gamepad, load_gamepad_layout
+from vehicle.app.assembly.gamepad import add_gamepad, load_gamepad_layout
 from vehicle.clock import SimulatedClock
 from vehicle.config import Config
 from vehicle.errors import UserError
+
+GAMEPAD_OUTPUTS = Gamepad.OUTPUTS
 
 
 def test_add_gamepad_reads_a_recording_file_in_a_vehicle(tmp_path, stream_for):

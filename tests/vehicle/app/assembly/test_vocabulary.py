@@ -1,0 +1,88 @@
+"""The cars the assembly helpers build use only standard or namespaced keys, in a valid order."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+from vehicle import Vehicle
+from vehicle.app import assembly
+from vehicle.clock import SimulatedClock
+from vehicle.config import Config
+from vehicle.errors import WiringError
+from vehicle.keys import STANDARD_KEYS, is_valid_key
+
+ASSEMBLY = Path(assembly.__file__).parent
+
+
+def basic_car(tmp_path: Path, **settings) -> Vehicle:
+    """The basic template's drive(), on the simulated board and camera."""
+    cfg = Config.defaults(CAR_PATH=str(tmp_path), CAMERA_TYPE="MOCK", DRIVE_TRAIN_TYPE="MOCK",
+                          TRAIN_BEHAVIORS=True, **settings)
+    V = Vehicle(clock=SimulatedClock())
+    assembly.add_camera(V, cfg)
+    assembly.add_controller(V, cfg)
+    assembly.add_camera_watchdog(V, cfg)
+    assembly.add_behavior(V, cfg)
+    assembly.add_drive_mode(V, cfg)
+    assembly.add_throttle_filter(V, cfg)
+    assembly.add_drivetrain(V, cfg)
+    assembly.add_recording_rules(V, cfg)
+    assembly.add_tub_writer(V, cfg)
+    return V
+
+
+def sim_car(tmp_path: Path) -> Vehicle:
+    cfg = Config.defaults(CAR_PATH=str(tmp_path), SIM_TEXTURE_RES=0.02)
+    V = Vehicle(clock=SimulatedClock())
+    assembly.add_simulator(V, cfg, seeds=[3])
+    assembly.add_controller(V, cfg)
+    assembly.add_drive_mode(V, cfg)
+    assembly.add_tub_writer(V, cfg)
+    return V
+
+
+@pytest.mark.parametrize("build", [
+    lambda p: basic_car(p),
+    lambda p: basic_car(p, USE_JOYSTICK_AS_DEFAULT=True, CONTROLLER_TYPE="generic",
+                        JOYSTICK_DEVICE_FILE=str(p / "no-js0")),
+    sim_car,
+], ids=["basic", "basic+gamepad", "simulator"])
+def test_assembled_cars_use_standard_or_namespaced_keys_and_wire_cleanly(tmp_path, build):
+    V = build(tmp_path)
+    V.check_wiring()
+    keys = {k for e in V.parts for k in (*e.inputs, *e.outputs, *([e.run_condition] if e.run_condition else []))}
+    assert keys and sorted(k for k in keys if not is_valid_key(k)) == []
+    assert not any(k in V.mem for k in keys if not k.startswith("loop/")), "helpers must not seed memory"
+    for e in V.parts:
+        shutdown = getattr(e.part, "shutdown", None)
+        if callable(shutdown):
+            shutdown()
+
+
+def test_every_key_literal_in_the_assembly_code_is_valid():
+    literals = set()
+    for path in ASSEMBLY.glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Constant) and isinstance(node.value, str) and "/" in node.value \
+                    and " " not in node.value and not node.value.endswith((".py", ".json", ".mp4")):
+                literals.add(node.value)
+    assert "cam/timestamp" in literals and "js/angle" in literals  # the scan sees the keys
+    assert sorted(k for k in literals if not is_valid_key(k)) == []
+
+
+def test_standard_keys_follow_the_rule():
+    assert sorted(k for k in STANDARD_KEYS if not is_valid_key(k)) == []
+
+
+def test_drive_mode_before_the_controller_is_a_wiring_error(tmp_path):
+    cfg = Config.defaults(CAR_PATH=str(tmp_path), SIM_TEXTURE_RES=0.02)
+    V = Vehicle(clock=SimulatedClock())
+    assembly.add_simulator(V, cfg, seeds=[3])
+    assembly.add_drive_mode(V, cfg)  # moved above add_controller: it would act on last loop's commands
+    web = assembly.add_controller(V, cfg)
+    with pytest.raises(WiringError, match="'DriveMode' input 'user/mode' is read before part 'WebController'"):
+        V.check_wiring()
+    web.shutdown()

@@ -1,0 +1,112 @@
+"""Declared inputs and outputs, optional inputs, feedback, and the order check of the wiring."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import pytest
+
+from vehicle import Vehicle
+from vehicle.clock import SimulatedClock
+from vehicle.errors import WiringError
+from vehicle.keys import is_valid_key, rename
+
+
+class Source:
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("user/angle",)
+
+    def __init__(self) -> None:
+        self.n = 0
+
+    def run(self) -> float:
+        self.n += 1
+        return float(self.n)
+
+
+class Follower:
+    """Reads the angle; the pilot's value may be absent."""
+
+    INPUTS: ClassVar[tuple[str, ...]] = ("user/angle", "pilot/angle")
+    OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("pilot/angle",)
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("angle",)
+
+    def __init__(self) -> None:
+        self.seen: list[tuple[object, object]] = []
+
+    def run(self, user: object, pilot: object) -> object:
+        self.seen.append((user, pilot))
+        return user
+
+
+def test_add_uses_the_part_declarations():
+    V = Vehicle(clock=SimulatedClock())
+    V.add(Source())
+    follower = Follower()
+    V.add(follower)
+    assert V.parts[1].inputs == ("user/angle", "pilot/angle") and V.parts[1].outputs == ("angle",)
+    assert V.parts[1].optional == {"pilot/angle"}
+    V.start(rate_hz=20, max_loop_count=2)
+    assert follower.seen == [(1.0, None), (2.0, None)]
+    assert V.mem["angle"] == 2.0 and "pilot/angle" not in V.mem
+
+
+def test_reading_before_the_producer_is_an_error_unless_declared_feedback():
+    V = Vehicle(clock=SimulatedClock())
+    V.add(Follower())  # added before the part producing user/angle: a one-loop lag
+    V.add(Source())
+    with pytest.raises(WiringError, match=r"'Follower' input 'user/angle' is read before part 'Source' "
+                                          r"produces it .*feedback=\['user/angle'\]"):
+        V.check_wiring()
+
+    V = Vehicle(clock=SimulatedClock())
+    follower = Follower()
+    V.add(follower, feedback=["user/angle"])
+    V.add(Source())
+    V.start(rate_hz=20, max_loop_count=3)
+    assert [user for user, _ in follower.seen] == [None, 1.0, 2.0]  # the previous loop's value
+
+
+def test_an_input_nobody_produces_must_be_optional():
+    V = Vehicle(clock=SimulatedClock())
+    V.add(Follower(), optional_inputs=[])
+    with pytest.raises(WiringError, match="'user/angle' is produced by no part and not seeded"):
+        V.check_wiring()
+    V = Vehicle(clock=SimulatedClock())
+    V.add(Source())
+    V.add(Follower(), optional_inputs=[])
+    with pytest.raises(WiringError, match="'pilot/angle' is produced by no part .*optional_inputs"):
+        V.check_wiring()
+
+
+def test_seeded_keys_count_as_produced_and_feedback_must_be_an_input():
+    V = Vehicle(clock=SimulatedClock())
+    V.mem["user/angle"] = 0.5
+    V.add(Follower())
+    V.check_wiring()
+    with pytest.raises(ValueError, match=r"feedback \['throttle'\] are not among its inputs"):
+        V.add(Follower(), feedback=["throttle"])
+
+
+def test_declared_optional_keys_follow_renamed_inputs():
+    V = Vehicle(clock=SimulatedClock())
+    V.add(Source())
+    V.add(Follower(), inputs=["user/angle", "js/angle"])  # the declaration names pilot/angle only
+    assert V.parts[1].optional == frozenset()
+    with pytest.raises(WiringError, match="'js/angle' is produced by no part"):
+        V.check_wiring()
+
+
+def test_produces_and_find():
+    V = Vehicle()
+    assert V.produces("loop/count") and not V.produces("user/angle")
+    source = Source()
+    V.add(source)
+    assert V.produces("user/angle") and V.find(Source) == [source] and V.find(Follower) == []
+
+
+def test_rename_and_key_rules():
+    assert rename(("user/angle", "recording"), {"recording": "js/recording"}) == ("user/angle", "js/recording")
+    with pytest.raises(ValueError, match=r"cannot rename \['user/angel'\]"):
+        rename(("user/angle",), {"user/angel": "js/angle"})
+    assert is_valid_key("angle") and is_valid_key("sim/cte") and is_valid_key("behavior/one_hot_state_array")
+    assert not is_valid_key("Angle") and not is_valid_key("steering") and not is_valid_key("sim/")
