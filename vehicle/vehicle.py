@@ -201,8 +201,12 @@ class Vehicle:
 
     # -- running ----------------------------------------------------------------------------------
     def start(self, rate_hz: float = 10, max_loop_count: int | None = None,
-              verbose: bool = False) -> tuple[int, float]:
+              verbose: bool = False, log_summary: bool = True) -> tuple[int, float]:
         """Run the loop until stopped or ``max_loop_count`` loops; returns (loops, seconds).
+
+        ``verbose`` logs the timing summary every 200 loops; ``log_summary`` logs it once at the
+        end (off for loops run many times in a row, e.g. evaluation episodes; :attr:`summary`
+        holds it either way).
 
         Raises:
             WiringError: before anything starts, if the wiring is wrong.
@@ -251,7 +255,8 @@ class Vehicle:
                 self._safe_stop(failure)
             finally:
                 self._restore_signal_handlers(previous)
-            logger.info("vehicle stopped\n%s", self.summary.format())
+            if log_summary:
+                logger.info("vehicle stopped\n%s", self.summary.format())
         return loops, elapsed
 
     def _run_once(self) -> None:

@@ -137,6 +137,13 @@ class Pilot:
 
     OUTPUTS: ClassVar[tuple[str, ...]] = ("pilot/angle", "pilot/throttle")
 
+    def reset(self) -> None:
+        """Forget the frames and commands remembered for sequence models: a new episode starts
+        (an evaluation track, a car put back on the start line). Also resets the speed controller."""
+        self._active = _Active(self._active.runner)
+        if self.speed_control is not None and callable(getattr(self.speed_control, "reset", None)):
+            self.speed_control.reset()
+
     # -- the loop -------------------------------------------------------------------------------
     def run(self, image: np.ndarray | None, *rest: Any) -> tuple[float, float]:
         """``(angle, throttle)`` for the current frame (and extra inputs, see :attr:`inputs`)."""

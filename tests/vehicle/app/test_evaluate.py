@@ -118,3 +118,56 @@ def test_pilot_throttle_is_scaled_like_local_mode(cfg):
     fast = evaluate(Straight(), [12], laps=1, cfg=cfg, max_time=2.0)["tracks"][0]
     slow = evaluate(Straight(), [12], laps=1, cfg=cfg.replace(AI_THROTTLE_MULT=0.5), max_time=2.0)["tracks"][0]
     assert slow["distance_m"] < 0.6 * fast["distance_m"]
+
+
+class NaNPilot:
+    """A broken pilot: NaN steering and throttle (a diverged model)."""
+
+    def run(self, image):
+        return float("nan"), float("nan")
+
+
+def test_a_nan_from_the_pilot_gives_the_same_command_as_on_the_car(cfg):
+    from parts.drive.modes import PilotCondition
+    from vehicle import Vehicle
+    from vehicle.app import assembly
+    from vehicle.app.evaluate import Engaged, run_episode
+    from vehicle.clock import SimulatedClock
+
+    # on the car: the simulator car with the pilot in full auto, wired as manage.py drive --model
+    V = Vehicle(clock=SimulatedClock())
+    assembly.add_simulator(V, cfg, seeds=[11])
+    V.add(Engaged())
+    V.add(PilotCondition())
+    V.add(NaNPilot(), inputs=["cam/image_array"], outputs=["pilot/angle", "pilot/throttle"], run_condition="run_pilot")
+    assembly.add_drive_mode(V, cfg)
+    V.start(rate_hz=20, max_loop_count=5, log_summary=False)
+    on_the_car = (V.mem["angle"], V.mem["throttle"])
+    assert on_the_car == (0.0, 0.0)  # DriveMode: centre and no throttle
+
+    # in evaluation: every executed command is the same, and the car stands still on the road
+    metrics = run_episode(NaNPilot(), 11, 1, cfg, max_time=1.0, penalty_s=6.0)
+    assert set(metrics.trace.angle) == {on_the_car[0]}
+    assert metrics.trace.distance == 0.0 and metrics.result()["interventions"] == 0
+
+
+def test_tracks_are_scored_independently(cfg):
+    class Weaving:
+        """Remembers its frames like a sequence model; reset() starts a new episode."""
+
+        def __init__(self):
+            self.i = 0
+            self.resets = 0
+
+        def reset(self):
+            self.i = 0
+            self.resets += 1
+
+        def run(self, image):
+            self.i += 1
+            return 0.3 * np.sin(self.i / 7.0), 0.4
+
+    both = evaluate(Weaving(), [11, 12], laps=1, cfg=cfg, max_time=3.0)["tracks"]
+    pilot = Weaving()
+    alone = evaluate(pilot, [12], laps=1, cfg=cfg, max_time=3.0)["tracks"]
+    assert pilot.resets == 1 and both[1] == alone[0]

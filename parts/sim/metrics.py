@@ -1,0 +1,218 @@
+"""Closed-loop driving metrics of one episode, as a part that reads a simulator's telemetry.
+
+:class:`EpisodeMetrics` runs last in an evaluation loop: it reads the executed command (``angle``,
+DriveMode's output) and the telemetry keys every simulator part writes (``sim/cte``,
+``sim/off_track``, ``sim/speed``, ``sim/pos``, ``sim/lap``, ``sim/lap_time``, ``sim/progress``),
+and asks the loop to stop once the episode has driven its laps or used its time. Definitions
+follow docs/simulator.md and protocols.md §4 (DAVE-2 autonomy, |CTE| over autonomous frames, ...).
+A simulator that reports no CTE (stock Udacity) gives None for the CTE metrics, never zeros.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+#: most trajectory points kept per episode (for the PNG; positions are subsampled beyond this)
+MAX_TRAJECTORY_POINTS = 3000
+
+
+@dataclass
+class _Trace:
+    """What one episode records, step by step."""
+
+    cte: list[float] = field(default_factory=list)  # NaN where the simulator reports none
+    off: list[bool] = field(default_factory=list)
+    speed: list[float] = field(default_factory=list)
+    angle: list[float] = field(default_factory=list)
+    pos: list[tuple[float, float]] = field(default_factory=list)
+    events: list[tuple[float, float]] = field(default_factory=list)  # where the car left the road
+    lap_times: list[float] = field(default_factory=list)
+    distance: float = 0.0  # odometer, m
+    laps: int = 0
+    laps_driven: float = 0.0  # most forward progress reached, in laps
+    progress: float = 0.0
+
+
+class EpisodeMetrics:
+    """Part: scores one episode and stops the loop when it is over.
+
+    Args:
+        dt: seconds per loop (1 / DRIVE_LOOP_HZ).
+        laps: laps to drive; the episode ends when they are completed ...
+        max_time: ... or after this many seconds.
+        penalty_s: seconds charged per intervention (DAVE-2: 6).
+        stop: called once when the episode is over (``Vehicle.stop``).
+        seed, track_length: the track, for the report.
+        on_step: called after every recorded step (e.g. to show frames).
+    """
+
+    INPUTS: ClassVar[tuple[str, ...]] = ("angle", "sim/cte", "sim/off_track", "sim/speed", "sim/pos", "sim/lap",
+                                         "sim/lap_time", "sim/progress")
+    #: simulators differ in what they report (stock Udacity: no CTE, position or laps)
+    OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = INPUTS[1:]
+    OUTPUTS: ClassVar[tuple[str, ...]] = ()
+
+    def __init__(self, dt: float, laps: int, max_time: float, penalty_s: float, *,
+                 stop: Callable[[], None] | None = None, seed: int | None = None,
+                 track_length: float | None = None, on_step: Callable[[], None] | None = None) -> None:
+        self.dt, self.laps, self.max_time, self.penalty = float(dt), int(laps), float(max_time), float(penalty_s)
+        self.stop, self.seed, self.track_length, self.on_step = stop, seed, track_length, on_step
+        self.trace = _Trace()
+        self.time = 0.0
+        self.done = False
+        self._was_off = False
+        self._last_pos: tuple[float, float] | None = None
+        self._progress: float | None = None
+        self._unwrapped = 0.0  # laps of forward progress since the first step
+
+    def run(self, angle: Any, cte: Any, off_track: Any, speed: Any, pos: Any, lap: Any, lap_time: Any,
+            progress: Any) -> None:
+        """Record this loop's step; ask the loop to stop when the episode is over."""
+        if self.done:
+            return
+        tr = self.trace
+        self.time += self.dt
+        off = bool(off_track)
+        if off and not self._was_off:  # off-track event: the rising edge (the simulator re-centres)
+            tr.events.append(self._last_pos if self._last_pos is not None else _pair(pos))
+        self._was_off = off
+        v = float(speed) if speed is not None else math.nan
+        tr.distance += abs(v) * self.dt if math.isfinite(v) else 0.0
+        tr.cte.append(float(cte) if cte is not None else math.nan)
+        tr.off.append(off)
+        tr.speed.append(v)
+        tr.angle.append(float(angle) if angle is not None else 0.0)
+        if pos is not None:
+            tr.pos.append(_pair(pos))
+            self._last_pos = tr.pos[-1]
+        if lap is not None and int(lap) > tr.laps:
+            tr.laps = int(lap)
+            if lap_time is not None:
+                tr.lap_times.append(float(lap_time))
+        if progress is not None:
+            # unwrap the lap fraction (it jumps 0.99 -> 0 at the start line, and reads ~1.0 or ~0.0
+            # for a car standing on it) into forward progress; the best of it counts
+            p = float(progress)
+            if self._progress is not None:
+                delta = p - self._progress
+                self._unwrapped += delta - round(delta)
+            self._progress = p
+            tr.progress = p
+            tr.laps_driven = max(tr.laps_driven, self._unwrapped)
+        if self.on_step is not None:
+            self.on_step()
+        if tr.laps >= self.laps or self.time >= self.max_time - 1e-9:
+            self.done = True
+            if self.stop is not None:
+                self.stop()
+
+    # -- results ----------------------------------------------------------------------------------
+    def autonomous_abs_cte(self) -> np.ndarray:
+        """|CTE| of the frames on the road (NaN-free), for percentiles over several episodes."""
+        cte = np.asarray(self.trace.cte, float)
+        keep = ~np.asarray(self.trace.off, bool) & np.isfinite(cte)
+        return np.abs(cte[keep])
+
+    def result(self) -> dict[str, Any]:
+        """Per-track metrics (docs/simulator.md gives the definitions)."""
+        tr, t = self.trace, self.time
+        n_int = len(tr.events)
+        off = np.asarray(tr.off, bool)
+        speed = np.asarray(tr.speed, float)
+        auto = ~off  # autonomous frames: the car is on the road under the pilot's control
+        cte = np.asarray(tr.cte, float)
+        steer = np.asarray(tr.angle, float)
+        km = tr.distance / 1000.0
+        step = max(1, math.ceil(len(tr.pos) / MAX_TRAJECTORY_POINTS))
+        auto_speed = speed[auto & np.isfinite(speed)]
+        lap_times = tr.lap_times
+        return {
+            "seed": self.seed,
+            "track_length_m": _r(self.track_length, 2),
+            "elapsed_s": _r(t, 3),
+            "interventions": n_int,
+            "autonomy": _r(max(0.0, 1.0 - n_int * self.penalty / t) * 100.0 if t > 0 else 0.0, 2),
+            "laps_completed": tr.laps,
+            "laps_driven": _r(tr.laps_driven, 3),
+            "success": tr.laps >= self.laps and n_int == 0,
+            "timed_out": tr.laps < self.laps,
+            **cte_stats(cte[auto]),
+            "off_track_per_lap": _r(n_int / tr.laps_driven, 3) if tr.laps_driven > 0.01 else None,
+            "off_track_per_km": _r(n_int / km, 3) if km > 0 else None,
+            "distance_m": _r(tr.distance, 2),
+            "mean_distance_between_interventions_m": _r(tr.distance / n_int, 2) if n_int else None,
+            "lap_times_s": [_r(x, 3) for x in lap_times],
+            "best_lap_s": _r(min(lap_times), 3) if lap_times else None,
+            "mean_lap_s": _r(float(np.mean(lap_times)), 3) if lap_times else None,
+            "std_lap_s": _r(float(np.std(lap_times)), 3) if lap_times else None,
+            "mean_speed": _r(float(auto_speed.mean()), 3) if auto_speed.size else None,
+            "steering_smoothness": _r(float(np.abs(np.diff(steer)).mean() / self.dt), 4) if steer.size > 1 else None,
+            "progress": _r(tr.progress, 3),
+            "frames": int(off.size),
+            "autonomous_frames": int(auto.sum()),
+            "trajectory": [[_r(x, 3), _r(y, 3)] for x, y in tr.pos[::step]],
+            "off_track_at": [[_r(x, 3), _r(y, 3)] for x, y in tr.events],
+        }
+
+
+def cte_stats(values: np.ndarray) -> dict[str, float | None]:
+    """Mean/RMS/p95/max |CTE| of signed CTE values (None where there are none, e.g. no CTE reported)."""
+    values = values[np.isfinite(values)]
+    if values.size == 0:
+        return {"mean_abs_cte": None, "rms_cte": None, "p95_abs_cte": None, "max_abs_cte": None}
+    a = np.abs(values)
+    return {"mean_abs_cte": _r(a.mean()), "rms_cte": _r(np.sqrt((values**2).mean())),
+            "p95_abs_cte": _r(np.percentile(a, 95)), "max_abs_cte": _r(a.max())}
+
+
+def overall(results: Sequence[dict[str, Any]], penalty: float, abs_cte: np.ndarray) -> dict[str, Any]:
+    """Aggregate over tracks: sums, and means weighted by frames / time / distance."""
+    t = sum(r["elapsed_s"] for r in results)
+    n_int = sum(r["interventions"] for r in results)
+    laps_driven = sum(r["laps_driven"] for r in results)
+    dist = sum(r["distance_m"] for r in results)
+    auto_frames = sum(r["autonomous_frames"] for r in results if r["rms_cte"] is not None)
+    frames = sum(r["frames"] for r in results)
+
+    def weighted(key: str, weight: str) -> float | None:
+        pairs = [(r[key], r[weight]) for r in results if r[key] is not None and r[weight]]
+        total = sum(w for _, w in pairs)
+        return _r(sum(v * w for v, w in pairs) / total) if total else None
+
+    lap_times = [x for r in results for x in r["lap_times_s"]]
+    return {
+        "tracks": len(results),
+        "elapsed_s": _r(t, 3),
+        "interventions": n_int,
+        "autonomy": _r(max(0.0, 1.0 - n_int * penalty / t) * 100.0 if t > 0 else 0.0, 2),
+        "laps_completed": sum(r["laps_completed"] for r in results),
+        "success_rate": _r(sum(r["success"] for r in results) / len(results), 3),
+        "mean_abs_cte": weighted("mean_abs_cte", "autonomous_frames"),
+        "rms_cte": _r(math.sqrt(sum((r["rms_cte"] or 0) ** 2 * r["autonomous_frames"] for r in results)
+                                / auto_frames)) if auto_frames else None,
+        "p95_abs_cte": _r(np.percentile(abs_cte, 95)) if abs_cte.size else None,
+        "max_abs_cte": _r(max((r["max_abs_cte"] for r in results if r["max_abs_cte"] is not None),
+                              default=None)),
+        "off_track_per_lap": _r(n_int / laps_driven, 3) if laps_driven > 0.01 else None,
+        "off_track_per_km": _r(n_int / (dist / 1000.0), 3) if dist > 0 else None,
+        "distance_m": _r(dist, 2),
+        "mean_distance_between_interventions_m": _r(dist / n_int, 2) if n_int else None,
+        "mean_lap_s": _r(float(np.mean(lap_times)), 3) if lap_times else None,
+        "best_lap_s": _r(min(lap_times), 3) if lap_times else None,
+        "mean_speed": weighted("mean_speed", "autonomous_frames"),
+        "steering_smoothness": weighted("steering_smoothness", "frames"),
+        "frames": frames,
+    }
+
+
+def _pair(pos: Any) -> tuple[float, float]:
+    return (float(pos[0]), float(pos[1])) if pos is not None else (math.nan, math.nan)
+
+
+def _r(x: float | None, nd: int = 4) -> float | None:
+    return None if x is None or not math.isfinite(float(x)) else round(float(x), nd)
