@@ -92,7 +92,7 @@ class TubRecord:
     def image(self, key: str = IMAGE_KEY, out: np.ndarray | None = None) -> np.ndarray:
         """The decoded image, HxWx3 uint8 RGB; CorruptRecord naming tub, index and file if bad.
 
-        ``out``: an array to decode into when the frame fits (see ``imaging.decode_image``).
+        ``out``: an array to decode into when the frame fits (see ``codec.decode_image``).
         """
         data = self.image_bytes(key)
         img = decode_image(data, out)

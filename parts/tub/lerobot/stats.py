@@ -72,7 +72,15 @@ class RunningStats:
         for d in np.flatnonzero(grow):
             self._rebin(d)
         for d in range(self.dim):
-            self._hist[d] += np.histogram(x[:, d], bins=self.bins, range=(self._lo[d], self._hi[d]))[0]
+            self._hist[d] += np.bincount(self._bin_of(x[:, d], d), minlength=self.bins)
+
+    def _bin_of(self, values: np.ndarray, d: int) -> np.ndarray:
+        """The histogram bin of each value (a range too narrow for floats: everything in bin 0)."""
+        width = self._hi[d] - self._lo[d]
+        if not width > 0:
+            return np.zeros(len(values), dtype=np.intp)
+        idx = np.floor((values - self._lo[d]) / width * self.bins)
+        return np.clip(idx, 0, self.bins - 1).astype(np.intp)
 
     def _rebin(self, d: int) -> None:
         """Widen dimension d's histogram to the new min/max, moving each bin's count to the new bin
@@ -80,11 +88,8 @@ class RunningStats:
         old = np.linspace(self._lo[d], self._hi[d], self.bins + 1)
         centres = (old[:-1] + old[1:]) / 2
         pad = (self._max[d] - self._min[d]) * 1e-10
-        lo, hi = self._min[d] - pad, self._max[d] + pad
-        new = np.linspace(lo, hi, self.bins + 1)
-        idx = np.clip(np.searchsorted(new, centres) - 1, 0, self.bins - 1)
-        self._hist[d] = np.bincount(idx, weights=self._hist[d], minlength=self.bins)
-        self._lo[d], self._hi[d] = lo, hi
+        self._lo[d], self._hi[d] = self._min[d] - pad, self._max[d] + pad
+        self._hist[d] = np.bincount(self._bin_of(centres, d), weights=self._hist[d], minlength=self.bins)
 
     def _quantile(self, d: int, q: float) -> float:
         hist = self._hist[d]
