@@ -360,7 +360,8 @@ class _Exporter:
             else:
                 data = rec.image_bytes(col.key)
                 self.row_bytes += len(data)
-                rows[col.name].append({"bytes": data, "path": f"frame-{frame_index:06d}{os.path.splitext(rec[col.key])[1]}"})
+                suffix = os.path.splitext(rec[col.key])[1]  # not pathlib: a Path per record grows sys.intern's table
+                rows[col.name].append({"bytes": data, "path": f"frame-{frame_index:06d}{suffix}"})
         rows[CAPTURE_FEATURE].append(capture)
         rows["timestamp"].append(frame_index / self.fps)
         rows["frame_index"].append(frame_index)

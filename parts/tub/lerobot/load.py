@@ -28,8 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from parts.tub.format import check_new_folder, new_folder_tmp, replace_folder
 from parts.tub.codec import decode_image, looks_whole_jpeg
+from parts.tub.format import check_new_folder, new_folder_tmp, replace_folder
 from parts.tub.lerobot.columns import CAMERA_PREFIX, Column, Part, column_from_spec
 from parts.tub.lerobot.format import (
     DEFAULT_FEATURES,

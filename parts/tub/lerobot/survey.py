@@ -16,7 +16,7 @@ from typing import Any
 
 from parts.tub.errors import CorruptRecord, TubError
 from parts.tub.format import IMAGE_TYPES, SESSION, TIMESTAMP
-from parts.tub.reader import ANGLE_KEYS, TubRecord, find_tubs, iter_records
+from parts.tub.reader import TubRecord, find_tubs, iter_records
 from parts.tub.tub import Tub
 
 logger = logging.getLogger(__name__)

@@ -13,18 +13,18 @@ from typing import Any
 
 import numpy as np
 import pytest
+from fixtures.tubs import gradient_image
+
+from parts.tub.errors import TubError
+from parts.tub.lerobot import export_lerobot, import_lerobot
+from parts.tub.lerobot.format import LeRobotFormatError
+from parts.tub.lerobot.stats import ImageStats, RunningStats
+from parts.tub.reader import load_records
+from parts.tub.tub import Tub
 
 pa = pytest.importorskip("pyarrow")
+pq = pytest.importorskip("pyarrow.parquet")
 av = pytest.importorskip("av")
-import pyarrow.parquet as pq  # noqa: E402
-
-from fixtures.tubs import gradient_image  # noqa: E402
-from parts.tub.errors import TubError  # noqa: E402
-from parts.tub.lerobot import export_lerobot, import_lerobot  # noqa: E402
-from parts.tub.lerobot.format import LeRobotFormatError  # noqa: E402
-from parts.tub.lerobot.stats import ImageStats, RunningStats  # noqa: E402
-from parts.tub.reader import load_records  # noqa: E402
-from parts.tub.tub import Tub  # noqa: E402
 
 FIXTURES = Path(__file__).parent / "fixtures"
 H, W = 48, 64
