@@ -254,6 +254,8 @@ def import_lerobot(source: str | os.PathLike[str], tub_path: str | os.PathLike[s
             bar.close()
         for reader in readers.values():
             reader.close()
+        if not report.records:
+            raise LeRobotFormatError(f"{root}: its data files hold no frames; nothing to import")
         report.episodes = len(seen_episodes)
         replace_folder(tmp, out)
     except BaseException:

@@ -88,7 +88,9 @@ class VideoFiles:
         os.environ.setdefault("SVT_LOG", "1")
         self._path = self.root / chunk_file_path(VIDEO_PATH, self.chunk, self.file, video_key=self.key)
         self._path.parent.mkdir(parents=True, exist_ok=True)
-        self._container = self._av.open(str(self._path), "w")
+        # faststart: the index goes before the frames (as LeRobot's files), so players and the Hub's
+        # viewer can start without reading the whole file
+        self._container = self._av.open(str(self._path), "w", options={"movflags": "faststart"})
         stream = self._container.add_stream(self.codec, rate=self.fps, options=self.options)
         stream.pix_fmt = PIX_FMT
         stream.width, stream.height = self.width, self.height

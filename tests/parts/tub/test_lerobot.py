@@ -456,6 +456,15 @@ def test_bad_input_is_one_clear_error_and_nothing_is_lost(source, exported, tmp_
     assert not list(tmp_path.glob(".*partial*"))
 
 
+def test_frames_of_another_size_stop_the_export_and_leave_nothing(donkey_tub, tmp_path):
+    a, _ = donkey_tub(3, name="a", image_size=(48, 64))
+    donkey_tub(3, name="b", image_size=(60, 80))
+    with pytest.raises(LeRobotFormatError, match="must all have one size"):
+        export_lerobot(tmp_path, tmp_path.parent / f"{tmp_path.name}-ds")
+    assert not (tmp_path.parent / f"{tmp_path.name}-ds").exists()
+    assert not list(tmp_path.parent.glob(f".{tmp_path.name}-ds.partial*"))
+
+
 def test_missing_pyarrow_says_how_to_install(source, tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "pyarrow", None)
     with pytest.raises(LeRobotFormatError, match=r"pyarrow is not installed.*pip install 'vehicle-rc\[datasets\]'"):

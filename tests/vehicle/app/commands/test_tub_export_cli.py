@@ -86,9 +86,15 @@ def test_export_udacity_for_seed_001_scripts(donkey_tub, tmp_path, capsys):
             images.append((out / "IMG" / row[0].split("/")[-1]).read_bytes())
     assert steering == [r["user/angle"] for r in written]
     assert images == [(path / "images" / r["cam/image_array"]).read_bytes() for r in written]
-    shutil.rmtree(out)
-    assert main(["tub", "export-udacity", str(path), "--out", str(out)]) == 0
-    assert main(["tub", "import-udacity", str(out), str(tmp_path / "back")]) == 0
-    back = load_records(tmp_path / "back")
-    assert [r.angle for r in back] == [r["user/angle"] for r in written]
-    assert [r.timestamp_ms for r in back] == [r["_timestamp_ms"] for r in written]
+    for style in ("semicolon", "simulator", "sample"):  # import-udacity reads every style back
+        shutil.rmtree(out)
+        assert main(["tub", "export-udacity", str(path), "--out", str(out), "--style", style]) == 0
+        first = (out / "driving_log.csv").read_text().splitlines()[0]
+        assert first.startswith("center") == (style != "simulator")
+        assert main(["tub", "import-udacity", str(out), str(tmp_path / style)]) == 0
+        back = load_records(tmp_path / style)
+        assert [r.angle for r in back] == [r["user/angle"] for r in written]
+        assert [r.throttle for r in back] == [r["user/throttle"] for r in written]
+        assert [r.timestamp_ms for r in back] == [r["_timestamp_ms"] for r in written]
+        assert [r.image_bytes() for r in back] == [(path / "images" / r["cam/image_array"]).read_bytes()
+                                                   for r in written]
