@@ -89,10 +89,6 @@ class Column:
     def dtype(self) -> str:
         return self.feature["dtype"]
 
-    @property
-    def keys(self) -> list[str]:
-        return [p.key for p in self.parts] if self.kind == "vector" else [self.key]
-
     def read(self, data: dict[str, Any]) -> Any:
         """The column's value for one record's fields (vector: list of floats; text: str)."""
         if self.kind == "vector":
@@ -122,6 +118,10 @@ class Column:
                 record[self.key] = value if self.encoding == "plain" else json.loads(value)
         else:
             record[self.key] = value
+
+    def fields(self) -> list[tuple[str, str]]:
+        """(tub key, tub type) of every field behind the column."""
+        return [(p.key, p.type) for p in self.parts] if self.kind == "vector" else [(self.key, self.type)]
 
     def spec(self) -> dict[str, Any]:
         out: dict[str, Any] = {"feature": self.name, "kind": self.kind}

@@ -257,7 +257,6 @@ class _Exporter:
         self.features: dict[str, dict[str, Any]] = {c.name: dict(c.feature) for c in columns}
         self.features[CAPTURE_FEATURE] = {"dtype": "float64", "shape": [1], "names": None}
         self.features.update({k: dict(v) for k, v in DEFAULT_FEATURES.items()})
-        self.numeric = [k for k, f in self.features.items() if f["dtype"] not in ("string", "video", "image")]
         self.videos = {c.name: VideoFiles(root, c.name, fps, c.feature["shape"][1], c.feature["shape"][0],
                                           codec=codec, crf=crf)
                        for c in self.cameras if c.dtype == "video"}
@@ -430,7 +429,7 @@ class _Exporter:
         known = set(self.survey.skipped)
         self.report.skipped.extend(r for r in map(short, errors) if r not in known)
 
-    def finish(self, survey: Survey, columns: list[Column], task: dict[str, Any]) -> None:
+    def finish(self) -> None:
         """Write info.json, stats.json, tasks.parquet, the sidecar and the dataset card."""
         pa = pyarrow()
         for name, video in self.videos.items():
@@ -444,11 +443,11 @@ class _Exporter:
         write_json(self.root / SIDECAR_PATH, {
             "format": 1, "codebase_version": CODEBASE_VERSION,
             "tubs": [{"name": t.path.name, "inputs": t.inputs, "types": t.types, "metadata": t.metadata}
-                     for t in survey.tubs],
-            "columns": [c.spec() for c in columns], "task": task,
+                     for t in self.survey.tubs],
+            "columns": [c.spec() for c in self.columns], "task": self.task,
             "capture_feature": CAPTURE_FEATURE,
         })
-        (self.root / "README.md").write_text(_card(info, [t.path.name for t in survey.tubs]), encoding="utf-8")
+        (self.root / "README.md").write_text(_card(info, [t.path.name for t in self.survey.tubs]), encoding="utf-8")
         self.report.tasks = list(self.tasks)
         self.report.features = list(self.features)
         self.report.frames = self.frames
@@ -516,7 +515,7 @@ def export_lerobot(tubs: Sequence[str | os.PathLike[str]] | str | os.PathLike[st
         exporter.run(None if max_gap_s is None else max_gap_s * 1000.0)
         if exporter.frames == 0:
             raise TubError(f"{', '.join(map(str, paths))}: no record could be read ({len(report.skipped)} skipped)")
-        exporter.finish(survey, columns, task_from)
+        exporter.finish()
         report.skipped[:0] = survey.skipped
         replace_folder(tmp, out)
     except BaseException:

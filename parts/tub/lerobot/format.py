@@ -51,7 +51,6 @@ DEFAULT_FEATURES: dict[str, dict[str, Any]] = {
 }
 CAMERA_NAMES = ["height", "width", "channels"]
 QUANTILES = (0.01, 0.10, 0.50, 0.90, 0.99)  # LeRobot's DEFAULT_QUANTILES, keys q01 .. q99
-NUMERIC_DTYPES = frozenset({"float32", "float64", "int64", "int32", "bool"})
 
 INSTALL_HINT = "pip install 'vehicle-rc[datasets]'"
 

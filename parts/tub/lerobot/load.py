@@ -49,6 +49,7 @@ from parts.tub.tub import Tub
 logger = logging.getLogger(__name__)
 
 BATCH_ROWS = 512        # data rows read at a time
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 EPISODE_GAP_S = 1.0     # datasets without capture times: their episodes are laid 1 s apart
 
 
@@ -100,7 +101,7 @@ def _own_mapping(sidecar: dict[str, Any], features: dict[str, dict[str, Any]], s
                                  "remove it to import the dataset by convention") from exc
     # fields the exported records held beyond the manifests' inputs (edited tubs)
     for col in columns:
-        for key, tp in ([(p.key, p.type) for p in col.parts] if col.kind == "vector" else [(col.key, col.type)]):
+        for key, tp in col.fields():
             if key not in inputs:
                 inputs.append(key)
                 types.append(tp)
@@ -137,7 +138,7 @@ def _generic_mapping(features: dict[str, dict[str, Any]]) -> _Mapping:
     inputs: list[str] = []
     types: list[str] = []
     for col in columns:
-        for key, tp in ([(p.key, p.type) for p in col.parts] if col.kind == "vector" else [(col.key, col.type)]):
+        for key, tp in col.fields():
             inputs.append(key)
             types.append(tp)
     inputs += ["lerobot/task", "lerobot/episode_index"]
@@ -160,12 +161,14 @@ def _episodes(root: Path) -> dict[int, dict[str, Any]]:
     return out
 
 
-def _image_value(value: Any, col: Column, jpeg_ok: bool) -> Any:
-    """An image column's parquet value -> what the tub stores (JPEG bytes kept, others decoded)."""
+def _image_value(value: Any, col: Column) -> Any:
+    """An image column's parquet value -> what the tub stores: the file's bytes when they are what
+    the tub keeps (JPEG for image_array, PNG for gray16_array), else the decoded frame."""
     data = value.get("bytes") if isinstance(value, dict) else value
     if not data:
         raise LeRobotFormatError(f"feature {col.name}: a row has no image bytes")
-    if jpeg_ok and looks_whole_jpeg(data):
+    if col.type == "gray16_array" and bytes(data[:8]) == PNG_SIGNATURE or \
+            col.type == "image_array" and looks_whole_jpeg(data):
         return bytes(data)
     img = decode_image(bytes(data))
     if img is None:
@@ -242,7 +245,7 @@ def import_lerobot(source: str | os.PathLike[str], tub_path: str | os.PathLike[s
                                     t = float(ep[f"videos/{col.name}/from_timestamp"]) + float(row["timestamp"])
                                     record[col.key] = readers[col.name].frame(file, t)
                                 else:
-                                    record[col.key] = _image_value(row[col.name], col, col.type == "image_array")
+                                    record[col.key] = _image_value(row[col.name], col)
                             else:
                                 col.restore(row[col.name], record)
                         if mapping.task_key:

@@ -456,6 +456,27 @@ def test_bad_input_is_one_clear_error_and_nothing_is_lost(source, exported, tmp_
     assert not list(tmp_path.glob(".*partial*"))
 
 
+def test_depth_frames_gray16_go_both_ways_exactly(tmp_path):
+    """A gray16_array field (16-bit PNG): an image feature [H, W, 1] beside the video, stats of one
+    channel scaled to [0, 1] by 65535, the same PNGs back."""
+    depth = [(np.arange(H * W, dtype=np.uint16).reshape(H, W) * (i + 1)) % 60000 for i in range(4)]
+    with Tub(tmp_path / "t", ["cam/image_array", "cam/depth_array", "user/angle", "user/throttle"],
+             ["image_array", "gray16_array", "float", "float"], fsync=False) as tub:
+        for i in range(4):
+            tub.write_record({"cam/image_array": frame(i), "cam/depth_array": depth[i], "user/angle": 0.0,
+                              "user/throttle": 0.5}, timestamp_ms=T0 + 50 * i)
+    export_lerobot(tmp_path / "t", tmp_path / "ds")
+    ds = read_dataset(tmp_path / "ds")
+    ft = ds["info"]["features"]["observation.images.cam_depth_array"]
+    assert ft == {"dtype": "image", "shape": [H, W, 1], "names": ["height", "width", "channels"]}
+    stats = ds["stats"]["observation.images.cam_depth_array"]
+    assert np.asarray(stats["max"]).tolist() == [[[np.stack(depth).max() / 65535]]]
+    import_lerobot(tmp_path / "ds", tmp_path / "back")
+    for rec, original in zip(load_records(tmp_path / "back"), load_records(tmp_path / "t"), strict=True):
+        assert rec.image_bytes("cam/depth_array") == original.image_bytes("cam/depth_array")
+    assert np.array_equal(load_records(tmp_path / "back")[2].image("cam/depth_array"), depth[2])
+
+
 def test_frames_of_another_size_stop_the_export_and_leave_nothing(donkey_tub, tmp_path):
     a, _ = donkey_tub(3, name="a", image_size=(48, 64))
     donkey_tub(3, name="b", image_size=(60, 80))
