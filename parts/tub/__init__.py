@@ -1,7 +1,9 @@
 """Tubs: the DonkeyCar tub v2 data store, written crash-safe.
 
 ``Tub`` opens, writes and edits one tub; ``TubWriter`` is the drive-loop part that records off the
-loop thread; ``parts.tub.reader`` reads many tubs for training. See docs/data-format.md.
+loop thread; ``parts.tub.reader`` reads many tubs for training; ``parts.tub.udacity`` and
+``parts.tub.lerobot`` convert to and from Udacity recordings and LeRobot v3.0 datasets. See
+docs/data-format.md.
 Submodules are imported lazily so that ``import parts.tub`` stays light.
 """
 

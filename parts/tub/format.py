@@ -162,3 +162,34 @@ def write_all(fd: int, data: bytes) -> None:
     view = memoryview(data)
     while view:
         view = view[os.write(fd, view):]
+
+
+def check_new_folder(out: Path) -> None:
+    """``out`` must not exist or be an empty folder (exports and imports never overwrite)."""
+    from parts.tub.errors import TubError
+
+    if out.exists():
+        if not out.is_dir():
+            raise TubError(f"{out} is a file; give a new folder")
+        if any(out.iterdir()):
+            raise TubError(f"{out} exists and is not empty; give a new folder (nothing was written)")
+
+
+def new_folder_tmp(out: Path) -> Path:
+    """A fresh hidden folder beside ``out`` to build it in; :func:`replace_folder` puts it in place,
+    so an interrupted export or import never leaves a half-written ``out``."""
+    import shutil
+
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.parent / f".{out.name}.partial-{os.getpid()}"
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir()
+    return tmp
+
+
+def replace_folder(tmp: Path, out: Path) -> None:
+    """Rename the finished ``tmp`` to ``out`` (replacing an empty ``out``), durably."""
+    if out.is_dir():
+        out.rmdir()
+    os.replace(tmp, out)
+    fsync_dir(out.parent)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import logging
 import os
 from collections import deque
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any, Literal
@@ -92,7 +92,7 @@ class TubRecord:
     def image(self, key: str = IMAGE_KEY, out: np.ndarray | None = None) -> np.ndarray:
         """The decoded image, HxWx3 uint8 RGB; CorruptRecord naming tub, index and file if bad.
 
-        ``out``: an array to decode into when the frame fits (see ``imaging.decode_image``).
+        ``out``: an array to decode into when the frame fits (see ``codec.decode_image``).
         """
         data = self.image_bytes(key)
         img = decode_image(data, out)
@@ -246,18 +246,35 @@ def iter_images(records: Iterable[TubRecord], key: str = IMAGE_KEY, *, workers: 
     without a stat of every image beforehand (its own reports of bad catalog lines may then come
     up to ``prefetch`` records ahead of the frames).
     """
+    frames = iter_frames(records, (key,), workers=workers, on_error=on_error, prefetch=prefetch)
+    try:
+        for rec, images in frames:
+            yield rec, images[0]
+    finally:  # stopped early: end the decoding threads now, not when the generator is collected
+        frames.close()
+
+
+def iter_frames(records: Iterable[TubRecord], keys: Sequence[str], *, workers: int | None = None,
+                on_error: OnError = "skip", prefetch: int | None = None,
+                errors: list[CorruptRecord] | None = None) -> Iterator[tuple[TubRecord, list[np.ndarray]]]:
+    """:func:`iter_images` for several image keys: (record, [image of each key]) in order.
+
+    A record any of whose images is bad is reported (tub, index, file) and skipped as a whole;
+    ``errors``, if given, collects the reports.
+    """
     if workers is None:
         workers = max(1, min(4, os.cpu_count() or 1))
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     if prefetch is None:  # two tasks per worker, so none idles between tasks; frames held: <= 128
         prefetch = min(2 * workers * _CHUNK, 4 * _CHUNK)
+    keys = tuple(keys)
 
-    def load(chunk: list[TubRecord]) -> list[np.ndarray | CorruptRecord]:
-        out: list[np.ndarray | CorruptRecord] = []
+    def load(chunk: list[TubRecord]) -> list[list[np.ndarray] | CorruptRecord]:
+        out: list[list[np.ndarray] | CorruptRecord] = []
         for rec in chunk:
             try:
-                out.append(rec.image(key))
+                out.append([rec.image(key) for key in keys])
             except CorruptRecord as exc:
                 out.append(exc)
         return out
@@ -273,11 +290,11 @@ def iter_images(records: Iterable[TubRecord], key: str = IMAGE_KEY, *, workers: 
                 window.append((chunk, pool.submit(load, chunk)))
                 chunk = []
                 if len(window) * _CHUNK >= prefetch:
-                    yield from _take(window, on_error)
+                    yield from _take(window, on_error, errors)
         if chunk:
             window.append((chunk, pool.submit(load, chunk)))
         while window:
-            yield from _take(window, on_error)
+            yield from _take(window, on_error, errors)
     finally:  # the consumer may stop early (break, an error): drop the tasks not started yet
         pool.shutdown(wait=True, cancel_futures=True)
 
@@ -285,11 +302,11 @@ def iter_images(records: Iterable[TubRecord], key: str = IMAGE_KEY, *, workers: 
 _CHUNK = 32  # records per task: a task hand-off costs about as much as decoding a frame
 
 
-def _take(window: deque[tuple[list[TubRecord], Future[Any]]], on_error: OnError
-          ) -> Iterator[tuple[TubRecord, np.ndarray]]:
+def _take(window: deque[tuple[list[TubRecord], Future[Any]]], on_error: OnError,
+          errors: list[CorruptRecord] | None) -> Iterator[tuple[TubRecord, list[np.ndarray]]]:
     chunk, fut = window.popleft()
     for rec, result in zip(chunk, fut.result(), strict=True):
         if isinstance(result, CorruptRecord):
-            _report(result, on_error, None)
+            _report(result, on_error, errors)
         else:
             yield rec, result

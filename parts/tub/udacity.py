@@ -1,4 +1,5 @@
-"""Import a Udacity self-driving-car simulator recording (driving_log.csv + IMG/) into a tub.
+"""Udacity self-driving-car simulator recordings (driving_log.csv + IMG/): import into a tub, export
+from tubs (``export_udacity``, for behavioural-cloning scripts written for the simulator).
 
 Both forms of driving_log.csv are read:
 
@@ -25,6 +26,7 @@ import itertools
 import logging
 import os
 import re
+import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -210,4 +212,105 @@ def import_udacity(source: str | os.PathLike[str], tub_path: str | os.PathLike[s
             report.imported += 1
     if report.skipped:
         logger.warning("%s: %d rows skipped, first: %s", csv_path, len(report.skipped), report.skipped[0])
+    return report
+
+
+# -- export ----------------------------------------------------------------------------------------
+
+#: driving_log.csv layouts: (header, separator, image paths absolute)
+STYLES: dict[str, tuple[bool, str, bool]] = {
+    "simulator": (False, ",", True),   # what the simulator writes: no header, absolute paths
+    "sample": (True, ", ", False),     # Udacity's sample data.zip: header, ", ", IMG/... paths
+    "semicolon": (True, ";", False),   # header, ";" (spreadsheet exports; seed 001's script reads it)
+}
+SIDES = (("center", "cam/image_array"), ("left", "cam/image_array_left"), ("right", "cam/image_array_right"))
+SPEED_KEYS = ("enc/speed", "sim/speed")
+
+
+@dataclass
+class UdacityExportReport:
+    """What ``export_udacity`` wrote."""
+
+    out: Path
+    rows: int = 0
+    cameras: list[str] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)  # "tub: record N: reason"
+
+
+def _stamp(ms: int, images: Path) -> str:
+    """The simulator's file-name time ``yyyy_MM_dd_HH_mm_ss_fff`` (local time); a millisecond
+    whose frame is already written is moved on by 1 ms, so that no two frames share a name."""
+    while True:
+        stamp = time.strftime("%Y_%m_%d_%H_%M_%S", time.localtime(ms // 1000)) + f"_{ms % 1000:03d}"
+        if not (images / f"center_{stamp}.jpg").exists():
+            return stamp
+        ms += 1
+
+
+def _csv_field(text: str, sep: str) -> str:
+    if sep.strip() in text or '"' in text:
+        return '"' + text.replace('"', '""') + '"'
+    return text
+
+
+def export_udacity(tubs: list[str | os.PathLike[str]] | str | os.PathLike[str], out: str | os.PathLike[str], *,
+                   style: str = "simulator", progress: bool = False) -> UdacityExportReport:
+    """Write the live records of ``tubs`` as a Udacity recording: ``out/driving_log.csv`` + ``out/IMG/``.
+
+    Each record gives one row ``center,left,right,steering,throttle,brake,speed``: the JPEGs of
+    ``cam/image_array`` (and ``cam/image_array_left``/``_right`` where the tub has them; empty
+    columns otherwise) copied as ``IMG/{center|left|right}_<capture time>.jpg``, ``user/angle``,
+    ``user/throttle`` (negative = reverse, as the tub has it), ``user/brake`` (0 without it) and
+    the speed in mph from ``enc/speed`` or ``sim/speed`` (m/s; 0 without either). ``style``: one of
+    :data:`STYLES`. ``import-udacity`` reads every style back.
+    """
+    from tqdm import tqdm
+
+    from parts.tub.format import check_new_folder, new_folder_tmp, replace_folder
+    from parts.tub.reader import find_tubs, iter_records
+
+    if style not in STYLES:
+        raise TubError(f"unknown driving_log style {style!r}; choose one of {', '.join(STYLES)}")
+    header, sep, absolute = STYLES[style]
+    final = Path(os.path.expanduser(os.fspath(out))).absolute()
+    check_new_folder(final)
+    paths = find_tubs(tubs)
+    report = UdacityExportReport(final)
+    tmp = new_folder_tmp(final)
+    errors: list = []
+    try:
+        (tmp / "IMG").mkdir()
+        lines = [sep.strip().join(COLUMNS)] if header else []  # the sample's header has no spaces
+        for rec in tqdm(iter_records(paths, errors=errors), desc="export", unit="rec", disable=not progress,
+                        leave=False):
+            angle, throttle = rec.angle, rec.throttle
+            if not isinstance(angle, int | float) or not isinstance(throttle, int | float):
+                report.skipped.append(f"{rec.tub}: record {rec.index}: no user/angle or user/throttle value")
+                continue
+            ts = rec.timestamp_ms
+            stamp = _stamp(int(ts) if isinstance(ts, int | float) else int(time.time() * 1000), tmp / "IMG")
+            images = []
+            for side, key in SIDES:
+                if rec.get(key) is None:
+                    images.append("")
+                    continue
+                name = f"{side}_{stamp}.jpg"
+                (tmp / "IMG" / name).write_bytes(rec.image_bytes(key))
+                images.append(str(final / "IMG" / name) if absolute else f"IMG/{name}")
+                if side not in report.cameras:
+                    report.cameras.append(side)
+            speed = next((rec.get(k) for k in SPEED_KEYS if isinstance(rec.get(k), int | float)), 0.0)
+            brake = rec.get("user/brake")
+            numbers = [float(angle), float(throttle), float(brake) if isinstance(brake, int | float) else 0.0,
+                       float(speed) / MPH_TO_MS]
+            lines.append(sep.join([_csv_field(p, sep) for p in images] + [repr(v) for v in numbers]))
+            report.rows += 1
+        report.skipped.extend(str(e) for e in errors)
+        if not report.rows:
+            raise TubError(f"{', '.join(map(str, paths))}: no records to export")
+        (tmp / "driving_log.csv").write_text("".join(line + "\n" for line in lines), encoding="utf-8")
+        replace_folder(tmp, final)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
     return report

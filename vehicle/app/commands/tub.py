@@ -1,4 +1,4 @@
-"""``vehicle tub ...``: inspect, clean, check/repair, plot, film and import tubs (docs/tub.md)."""
+"""``vehicle tub ...``: inspect, clean, check/repair, plot, film, import and export tubs (docs/tub.md)."""
 
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ def _tty() -> bool:
 
 def register(subparsers: Any) -> None:
     """Add the ``tub`` command and its subcommands."""
-    tub = subparsers.add_parser("tub", help="inspect, clean, check, plot and import tubs",
+    tub = subparsers.add_parser("tub", help="inspect, clean, check, plot, import and export tubs",
                                 description=__doc__)
     sub = tub.add_subparsers(dest="tub_command", metavar="SUBCOMMAND", required=True)
 
@@ -71,6 +71,41 @@ def register(subparsers: Any) -> None:
     p.add_argument("tub", help="tub folder to create (or append to)")
     p.add_argument("--max-catalog-len", type=int, default=1000)
     p.set_defaults(func=cmd_import_udacity)
+
+    p = sub.add_parser("export-udacity", help="write tubs as a Udacity recording (driving_log.csv + IMG/)")
+    p.add_argument("tubs", nargs="+", help="tub folders or folders of tubs")
+    p.add_argument("--out", required=True, help="new folder for driving_log.csv and IMG/")
+    p.add_argument("--style", choices=("simulator", "sample", "semicolon"), default="simulator",
+                   help="simulator: no header, ',' and absolute paths; sample: header, ', ' and IMG/ paths "
+                        "(Udacity's data.zip); semicolon: header and ';'")
+    p.set_defaults(func=cmd_export_udacity)
+
+    p = sub.add_parser("export-lerobot", help="write tubs as a LeRobot v3.0 dataset (needs the datasets extra)")
+    p.add_argument("tubs", nargs="+", help="tub folders or folders of tubs")
+    p.add_argument("--out", required=True, help="new folder for the dataset")
+    p.add_argument("--fps", type=int, default=None,
+                   help="nominal frame rate (default: measured from the capture times)")
+    frames = p.add_mutually_exclusive_group()
+    frames.add_argument("--video", dest="video", action="store_true", default=True,
+                        help="camera frames as MP4 videos (default, as LeRobot)")
+    frames.add_argument("--images", dest="video", action="store_false",
+                        help="camera frames as the tub's JPEGs inside the parquet files")
+    p.add_argument("--vcodec", choices=("libsvtav1", "h264", "hevc"), default="libsvtav1",
+                   help="video codec (libsvtav1 = AV1, LeRobot's default)")
+    p.add_argument("--crf", type=int, default=30, help="video quality, 0-63, lower is better (LeRobot: 30)")
+    p.add_argument("--task", default=None,
+                   help="task text of frames without behaviour label or simulator track "
+                        "(default: 'drive along the track')")
+    p.add_argument("--max-gap", type=float, default=1.0, metavar="SECONDS",
+                   help="a longer gap between capture times starts a new episode (0: never)")
+    p.set_defaults(func=cmd_export_lerobot)
+
+    p = sub.add_parser("import-lerobot", help="read a LeRobot v3.0 dataset into a new tub (needs the datasets extra)")
+    p.add_argument("dataset", help="the dataset folder (holding meta/info.json)")
+    p.add_argument("--out", required=True, help="new tub folder")
+    p.add_argument("--jpeg-quality", type=int, default=95,
+                   help="JPEG quality of frames decoded from videos (1-100)")
+    p.set_defaults(func=cmd_import_lerobot)
 
 
 def _errors() -> tuple[type[BaseException], ...]:
@@ -209,3 +244,43 @@ def cmd_import_udacity(args: argparse.Namespace) -> int:
     for line in report.skipped[:10]:
         _out(f"  skipped {line}")
     return 0 if report.imported else 1
+
+
+def cmd_export_udacity(args: argparse.Namespace) -> int:
+    from parts.tub.udacity import export_udacity
+
+    try:
+        report = export_udacity(args.tubs, args.out, style=args.style, progress=_tty())
+    except _errors() as exc:
+        raise _user_error(exc) from exc
+    _out(f"{report.out}: {report.rows} rows ({', '.join(report.cameras)} camera"
+         f"{'s' if len(report.cameras) > 1 else ''}), skipped {len(report.skipped)}")
+    for line in report.skipped[:10]:
+        _out(f"  skipped {line}")
+    return 0
+
+
+def cmd_export_lerobot(args: argparse.Namespace) -> int:
+    from parts.tub.lerobot.export import DEFAULT_TASK, export_lerobot
+
+    try:
+        report = export_lerobot(args.tubs, args.out, fps=args.fps, video=args.video, codec=args.vcodec,
+                                crf=args.crf, task=args.task or DEFAULT_TASK, max_gap_s=args.max_gap,
+                                progress=_tty())
+    except _errors() as exc:
+        raise _user_error(exc) from exc
+    _out("\n".join(report.lines()))
+    for line in report.skipped[:10]:
+        _out(f"  skipped {line}")
+    return 0
+
+
+def cmd_import_lerobot(args: argparse.Namespace) -> int:
+    from parts.tub.lerobot.load import import_lerobot
+
+    try:
+        report = import_lerobot(args.dataset, args.out, jpeg_quality=args.jpeg_quality, progress=_tty())
+    except _errors() as exc:
+        raise _user_error(exc) from exc
+    _out("\n".join(report.lines()))
+    return 0
