@@ -136,9 +136,9 @@ PRINT_MODEL_SUMMARY: bool = False
 # Balance the training set by steering: cut the range into TRAIN_BALANCE_BINS bins and keep at most
 # TRAIN_BALANCE_MAX_PER_BIN random records per bin (straight driving otherwise dominates).
 TRAIN_BALANCE: bool = False
-# Number of equal-width steering bins for balancing (the trainer seed's num_bins).
+# Number of equal-width steering bins for balancing (Track Driver AI's trainer: num_bins).
 TRAIN_BALANCE_BINS: int = 25
-# Most training records kept per steering bin (the trainer seed's max_samples_per_bin).
+# Most training records kept per steering bin (Track Driver AI's trainer: max_samples_per_bin).
 TRAIN_BALANCE_MAX_PER_BIN: int = 400
 # Udacity-style side cameras: image key -> steering offset added to the label of that camera's frame
 # (e.g. {"cam/left_image_array": 0.15, "cam/right_image_array": -0.15}: the left camera sees the road
@@ -316,7 +316,7 @@ PILOT_BACKEND: Literal["auto", "torch", "onnx", "torchscript"] = "auto"
 PILOT_ONNX_THREADS: int = 1
 # Speed control that replaces the model's throttle while a speed limit is set: "off", "pi" (PI
 # controller with the limit as target speed, the Udacity seed) or "limit" (throttle =
-# 1 - speed / limit, the trainer seed).
+# 1 - speed / limit, Track Driver AI's driver).
 PILOT_SPEED_CONTROL: Literal["off", "pi", "limit"] = "off"
 # Speed limit (target) in m/s while the web page sets none (`user/speed_limit` is None); None =
 # no limit, the model's throttle drives.

@@ -1,7 +1,7 @@
 """Errors of the core, each with a message that says how to fix the problem.
 
 :class:`VehicleError` is the base of every error whose message is written for the user: one line
-that says what was wrong and how to fix it (file, line, setting, valid range). Each library room
+that says what was wrong and how to fix it (file, line, setting, valid range). Each library package
 has its own subclasses (``ConfigError``, ``WiringError``, ``TubError``, ``ModelFileError``,
 ``TrackError`` ...); the command line prints any of them as ``error: <message>`` and exits 2,
 never with a traceback.

@@ -1,10 +1,10 @@
 """Interactive PWM calibration of one PCA9685 channel (``vehicle calibrate``).
 
-The procedure of the thesis and DonkeyCar's docs, with the car on a stand: start from neutral,
-try values in steps of about 10 ticks, and note the full-left / full-right steering values and the
-forward / stopped / reverse throttle values. Values are range-checked before they reach the
-board, and the channel returns to neutral whenever the session ends: ``q``, end of input, Ctrl-C,
-a signal turned into SystemExit, or an error.
+The procedure of Oršolić's thesis (Building a self-driving RC car, 2020) and DonkeyCar's docs,
+with the car on a stand: start from neutral, try values in steps of about 10 ticks, and note the
+full-left / full-right steering values and the forward / stopped / reverse throttle values.
+Values are range-checked before they reach the board, and the channel returns to neutral whenever
+the session ends: ``q``, end of input, Ctrl-C, a signal turned into SystemExit, or an error.
 """
 
 from __future__ import annotations

@@ -1,9 +1,9 @@
 """Speed control for pilots: the two controllers of the seeds, as loop parts.
 
-- :class:`PIController` – the Udacity behavioural-cloning seed's ``SimplePIController`` (a PI
+- :class:`PIController` – ``SimplePIController`` of the Udacity behavioural-cloning project's drive.py (a PI
   controller that drives the measured speed to a set point), with a time step, output limits and
   anti-windup so that a long stall cannot wind the integral up.
-- :func:`limit_throttle` – the trainer/driver seed's rule ``throttle = 1 - speed / limit``: full
+- :func:`limit_throttle` – Track Driver AI's driver rule ``throttle = 1 - speed / limit``: full
   throttle at standstill, falling linearly to 0 at the limit.
 
 :class:`SpeedControl` wraps either as a part. It takes the pilot's throttle, the measured speed
@@ -55,7 +55,7 @@ class PIController:
         self.integral = 0.0  # integral of the error, error units x seconds
 
     def set_desired(self, desired: float) -> None:
-        """Change the set point (the seed's name for it)."""
+        """Change the set point (drive.py's name for it)."""
         self.set_point = float(desired)
 
     def reset(self) -> None:
@@ -83,12 +83,12 @@ class PIController:
 
 
 def limit_throttle(speed: float, limit: float, max_throttle: float = 1.0) -> float:
-    """The trainer seed's rule ``throttle = 1 - speed / limit``, clamped to ``[0, max_throttle]``.
+    """Track Driver AI's rule ``throttle = 1 - speed / limit``, clamped to ``[0, max_throttle]``.
 
     Args:
         speed: measured speed, m/s.
         limit: speed limit, m/s (> 0).
-        max_throttle: the throttle at standstill (1.0 in the seed).
+        max_throttle: the throttle at standstill (1.0 in Track Driver AI).
     """
     if limit <= 0:
         raise ValueError(f"limit_throttle: the speed limit must be > 0 m/s, got {limit}")

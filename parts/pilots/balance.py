@@ -1,4 +1,4 @@
-"""Balancing the training set by a steering histogram (the trainer seed's num_bins / max_samples_per_bin).
+"""Balancing the training set by a steering histogram (Track Driver AI's num_bins / max_samples_per_bin).
 
 Driving data is mostly straight ahead: a model trained on it learns to go straight. Cutting every
 steering bin to at most ``max_per_bin`` random records evens the distribution.

@@ -1,10 +1,10 @@
 """The car's registry of trained models: an SQLite database next to the models.
 
-The trainer seed's "model manager" on the command line (``vehicle models``). Training registers
+Track Driver AI's "model manager" on the command line (``vehicle models``). Training registers
 each model it writes; the registry keeps what the file name does not say: the model type, the
 datasets (tubs) it was trained on, the training parameters, the metrics and a free comment.
 
-Schema (normalised as in the seed, but many-to-many because a model trains on several tubs)::
+Schema (normalised as in Track Driver AI's database, but many-to-many because a model trains on several tubs)::
 
     models(id, name UNIQUE, path, type, parameters JSON, metrics JSON, comment, transfer, created)
     datasets(id, path UNIQUE)

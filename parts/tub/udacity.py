@@ -221,7 +221,7 @@ def import_udacity(source: str | os.PathLike[str], tub_path: str | os.PathLike[s
 STYLES: dict[str, tuple[bool, str, bool]] = {
     "simulator": (False, ",", True),   # what the simulator writes: no header, absolute paths
     "sample": (True, ", ", False),     # Udacity's sample data.zip: header, ", ", IMG/... paths
-    "semicolon": (True, ";", False),   # header, ";" (spreadsheet exports; seed 001's script reads it)
+    "semicolon": (True, ";", False),   # header, ";" (spreadsheet exports; read by behavioural-cloning scripts)
 }
 SIDES = (("center", "cam/image_array"), ("left", "cam/image_array_left"), ("right", "cam/image_array_right"))
 SPEED_KEYS = ("enc/speed", "sim/speed")

@@ -1,4 +1,4 @@
-"""The ``vehicle`` command: one root command whose subcommands live in their rooms."""
+"""The ``vehicle`` command: one root command; each verb group is a module of vehicle.app.commands."""
 
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 
 Each helper takes the vehicle and the car's config, adds its part(s) with the standard memory
 keys, and returns the main part it added, so a user can insert a part between two calls. Helpers
-live in the module of their room and are imported on first use, so ``import vehicle.app.assembly``
+live in one module per concern and are imported on first use, so ``import vehicle.app.assembly``
 loads no hardware library and no torch.
 """
 

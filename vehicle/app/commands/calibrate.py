@@ -59,7 +59,7 @@ def _default_neutral(cfg: Config, channel: int) -> int:
         from parts.actuators.pwm import map_range
 
         return map_range(0.0, -1.0, 1.0, cfg.STEERING_LEFT_PWM, cfg.STEERING_RIGHT_PWM)
-    return 370  # the thesis' starting value
+    return 370  # the starting value of Oršolić's thesis (Building a self-driving RC car, 2020)
 
 
 @contextmanager
