@@ -86,3 +86,36 @@ def test_drive_mode_before_the_controller_is_a_wiring_error(tmp_path):
     with pytest.raises(WiringError, match="'DriveMode' input 'user/mode' is read before part 'WebController'"):
         V.check_wiring()
     web.shutdown()
+
+
+def declared_parts() -> dict[str, type]:
+    """Every class in parts/ that declares its keys (INPUTS or OUTPUTS as a class attribute)."""
+    import importlib
+    import pkgutil
+
+    import parts
+
+    found = {}
+    for info in pkgutil.walk_packages(parts.__path__, "parts."):
+        module = importlib.import_module(info.name)
+        for obj in vars(module).values():
+            if isinstance(obj, type) and obj.__module__ == info.name and (
+                    isinstance(vars(obj).get("INPUTS"), tuple) or isinstance(vars(obj).get("OUTPUTS"), tuple)):
+                found[f"{info.name}.{obj.__name__}"] = obj
+    return found
+
+
+def test_every_part_declaration_uses_valid_keys_and_consistent_lists():
+    found = declared_parts()
+    assert {"parts.drive.modes.DriveMode", "parts.sim.simulator.SimCar", "parts.web.controller.WebController",
+            "parts.cameras.base.Camera"} <= set(found)
+    bad = {}
+    for name, cls in found.items():
+        declared = {label: getattr(cls, label, ()) for label in ("INPUTS", "OUTPUTS", "OPTIONAL_INPUTS", "FEEDBACK")}
+        keys = [k for label, value in declared.items() if isinstance(value, tuple) for k in value]
+        wrong = [k for k in keys if not is_valid_key(k)]
+        stray = [k for label in ("OPTIONAL_INPUTS", "FEEDBACK") if isinstance(declared[label], tuple)
+                 for k in declared[label] if isinstance(declared["INPUTS"], tuple) and k not in declared["INPUTS"]]
+        if wrong or stray:
+            bad[name] = {"invalid keys": wrong, "optional/feedback not among INPUTS": stray}
+    assert bad == {}
