@@ -315,7 +315,7 @@ PILOT_BACKEND: Literal["auto", "torch", "onnx", "torchscript"] = "auto"
 # the drive loop's other parts need the other cores.
 PILOT_ONNX_THREADS: int = 1
 # Speed control that replaces the model's throttle while a speed limit is set: "off", "pi" (PI
-# controller with the limit as target speed, the Udacity seed) or "limit" (throttle =
+# controller with the limit as target speed, as Udacity's drive.py) or "limit" (throttle =
 # 1 - speed / limit, Track Driver AI's driver).
 PILOT_SPEED_CONTROL: Literal["off", "pi", "limit"] = "off"
 # Speed limit (target) in m/s while the web page sets none (`user/speed_limit` is None); None =

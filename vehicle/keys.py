@@ -107,6 +107,10 @@ STANDARD_KEYS: dict[str, KeyInfo] = {
     "sim/pos": KeyInfo("tuple[float, float], m", "car position in track coordinates"),
     "sim/track": KeyInfo("int", "seed of the track the simulated car is on"),
     "sim/reset": KeyInfo("bool", "rising edge puts the simulated car back on its start line"),
+    # -- the loop itself (written by the Vehicle every loop)
+    "loop/rate_hz": KeyInfo("float, Hz", "achieved loop rate over the last second"),
+    "loop/overruns": KeyInfo("int", "loops that started late so far"),
+    "loop/count": KeyInfo("int", "loops run so far"),
     # -- speed
     "enc/speed": KeyInfo("float, m/s", "measured speed (encoder or simulator)"),
 }

@@ -4,6 +4,16 @@ A part is any object with ``run(*inputs)`` returning one value, a tuple (one ite
 or None. Optional: ``shutdown()``; ``update()`` + ``run_threaded(*inputs)`` for parts added with
 ``threaded=True``; ``neutral()`` for actuators (called first on every stop path). This is
 DonkeyCar's contract, so existing Donkey parts run unmodified.
+
+A part class may also declare the memory keys it reads and writes, as class attributes (or
+properties) that :meth:`vehicle.Vehicle.add` uses when it is not given them:
+
+- ``INPUTS`` / ``OUTPUTS``: tuples of keys, in the order of ``run``'s arguments / return values;
+- ``OPTIONAL_INPUTS``: inputs that may be produced by no part of a car (they read None);
+- ``FEEDBACK``: inputs produced by a part added after this one, read from the previous loop on
+  purpose.
+
+Key names follow :mod:`vehicle.keys`.
 """
 
 from __future__ import annotations

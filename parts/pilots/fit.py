@@ -18,13 +18,14 @@ from parts.pilots.distributed import DistInfo, all_sum
 from parts.pilots.models import PilotModel
 from parts.pilots.prefetch import Prefetcher
 from parts.pilots.preprocess import Preprocess
+from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
 
 _SINGLE = DistInfo()  # one process, rank 0
 
 
-class TrainingDiverged(RuntimeError):
+class TrainingDiverged(VehicleError, RuntimeError):
     """The loss became NaN or infinite."""
 
 

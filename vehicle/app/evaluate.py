@@ -67,9 +67,12 @@ class Lent:
         self.pilot = pilot
         self.name = part_name(pilot)
         self.run = pilot.run
-        self.INPUTS = tuple(getattr(pilot, "INPUTS", None) or getattr(pilot, "inputs", None)  # noqa: N815
-                            or DEFAULT_PILOT_INPUTS)
+        inputs = getattr(pilot, "INPUTS", None)
+        if inputs is None:
+            inputs = getattr(pilot, "inputs", None)
+        self.INPUTS = tuple(DEFAULT_PILOT_INPUTS if inputs is None else inputs)  # noqa: N815
         self.OPTIONAL_INPUTS = tuple(getattr(pilot, "OPTIONAL_INPUTS", ()))  # noqa: N815
+        self.FEEDBACK = tuple(getattr(pilot, "FEEDBACK", ()))  # noqa: N815
         self.OUTPUTS = ("pilot/angle", "pilot/throttle")  # noqa: N815
 
 
@@ -79,8 +82,12 @@ def _default_config() -> Any:
     return Config.defaults()
 
 
-def resolve_pilot(pilot: Any) -> tuple[Any, str, bool]:
-    """(pilot part or "expert", display name, whether we loaded it and must shut it down)."""
+def resolve_pilot(pilot: Any, cfg: Any = None) -> tuple[Any, str, bool]:
+    """(pilot part or "expert", display name, whether we loaded it and must shut it down).
+
+    A model file is loaded as ``manage.py drive --model`` loads it, with the car's back-end and
+    speed-control settings (``cfg``; default: the package defaults).
+    """
     if isinstance(pilot, str) and pilot == "expert":
         return "expert", "expert", False
     if isinstance(pilot, str | Path):
@@ -88,9 +95,10 @@ def resolve_pilot(pilot: Any) -> tuple[Any, str, bool]:
         if not path.exists():
             raise FileNotFoundError(f"pilot model {path} does not exist: pass 'expert' or the path of a "
                                     "trained model file (see `manage.py train`)")
-        from parts.pilots import load_pilot
+        from vehicle.app.assembly.pilot import make_pilot
 
-        return load_pilot(path), path.name, True
+        cfg = cfg if cfg is not None else _default_config()
+        return make_pilot(cfg, path, measured_speed_key="sim/speed"), path.name, True
     if callable(getattr(pilot, "run", None)):
         return pilot, getattr(pilot, "name", None) or type(pilot).__name__, False
     raise TypeError(f"pilot must be 'expert', a model path or an object with run(), got {type(pilot).__name__}")
@@ -136,7 +144,7 @@ def evaluate(pilot: Any, seeds: Sequence[int], laps: int = 2, *, cfg: Any = None
     if fixed_throttle is not None and not -1.0 <= fixed_throttle <= 1.0:
         raise ValueError(f"fixed_throttle must be in [-1, 1], got {fixed_throttle}")
 
-    driver, name, owned = resolve_pilot(pilot)
+    driver, name, owned = resolve_pilot(pilot, cfg)
     started = time.perf_counter()
     results = []
     pooled: list[np.ndarray] = []  # |cte| of autonomous frames, for the overall percentile

@@ -99,7 +99,7 @@ def run(V: Any, cfg: Config, max_loops: int | None = None) -> int:
     0: max loops reached or stopped by a part; 1: a part failed; 130: Ctrl-C; 128+N: signal N.
     """
     loops = max_loops if max_loops is not None else cfg.MAX_LOOPS
-    logger.info("starting %d parts at %d Hz%s\n%s", len(V.parts), cfg.DRIVE_LOOP_HZ,
+    logger.info("starting at %d Hz%s\n%s", cfg.DRIVE_LOOP_HZ,
                 f" for {loops} loops" if loops else " (Ctrl-C to stop)", V.describe())
     try:
         V.start(rate_hz=cfg.DRIVE_LOOP_HZ, max_loop_count=loops)

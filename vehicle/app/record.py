@@ -1,9 +1,9 @@
 """Record expert demonstrations in the simulator into a tub, in simulated time.
 
 The vehicle is the simulator car's usual loop: sim car → expert (user/angle, user/throttle,
-recording=True) → executed command (optionally perturbed by noise injection) → tub writer. The
-tub stores the expert's clean command as the label, so with SIM_EXPERT_NOISE > 0 the data shows
-how to recover from the perturbed poses.
+recording=True) → DriveMode → executed command (optionally perturbed by noise injection) → tub
+writer. The tub stores the expert's clean command as the label, so with SIM_EXPERT_NOISE > 0 the
+data shows how to recover from the perturbed poses.
 """
 
 from __future__ import annotations
@@ -70,6 +70,7 @@ def record_expert(cfg: Any, seeds: Sequence[int] | None, n_records: int, tub_pat
     Raises:
         ValueError: n_records < 1 or bad seeds.
     """
+    from vehicle.app.assembly.drive import add_drive_mode
     from vehicle.app.assembly.sim import add_expert, add_expert_noise, add_simulator
     from vehicle.clock import SimulatedClock
     from vehicle.vehicle import Vehicle
@@ -90,8 +91,8 @@ def record_expert(cfg: Any, seeds: Sequence[int] | None, n_records: int, tub_pat
     if len(seeds) > 1:
         sim.switch_every = math.ceil(n_records / len(seeds))
     add_expert(V, cfg, sim)
-    if add_expert_noise(V, cfg, inputs=("user/angle", "user/throttle")) is None:
-        V.add(_passthrough, inputs=["user/angle", "user/throttle"], outputs=["angle", "throttle"])
+    add_drive_mode(V, cfg)  # user mode: the expert's command, clamped, as on the car
+    add_expert_noise(V, cfg)  # perturbs the executed command; the tub keeps the expert's label
     keys = [k for k, _ in RECORD_FIELDS]
     types = [t for _, t in RECORD_FIELDS]
     if tub_path is not None:  # record exactly there: the data folder is the tub
@@ -108,7 +109,3 @@ def record_expert(cfg: Any, seeds: Sequence[int] | None, n_records: int, tub_pat
                 n_records, seeds, path, time.perf_counter() - t0, sim.tracker.laps, sim.resets)
     return path
 
-
-def _passthrough(angle: float, throttle: float) -> tuple[float, float]:
-    """The expert's command is executed as is (no noise injection)."""
-    return angle, throttle

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from vehicle.app.carconfig import add_car_options, load_for_command
-from vehicle.errors import UserError
+from vehicle.errors import PartError, UserError
 
 logger = logging.getLogger(__name__)
 
@@ -105,6 +105,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
                           fixed_throttle=args.throttle)
     except (ValueError, FileNotFoundError) as exc:
         raise UserError(str(exc)) from exc
+    except PartError as exc:  # e.g. a model made for another image size: the loop stopped safely
+        raise UserError(f"evaluation stopped: {exc}") from exc
     print(format_table(report))  # noqa: T201 - CLI output
     if args.json:
         print(f"wrote {write_json(report, args.json)}")  # noqa: T201
