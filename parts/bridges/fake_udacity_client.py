@@ -45,6 +45,8 @@ from typing import Any
 
 import numpy as np
 
+from parts.bridges.fake_road import road_view
+
 logger = logging.getLogger(__name__)
 
 MAX_STEER_DEG = 25.0  # m_MaximumSteerAngle
@@ -82,22 +84,8 @@ class CarModel:
         self.lateral += self.speed * math.sin(self.heading) * dt
 
     def image(self) -> np.ndarray:
-        """A 320x160 RGB view: sky, grass and the road shifted by the car's offset and heading."""
-        import cv2
-
-        img = np.empty((IMAGE_H, IMAGE_W, 3), np.uint8)
-        horizon = 60
-        img[:horizon] = (135, 180, 225)
-        img[horizon:] = (70, 120, 60)
-        vanish_x = IMAGE_W / 2 - math.tan(self.heading) * 220
-        shift = -self.lateral * 60  # pixels at the bottom row per metre of offset
-        half_bottom = 150
-        road = np.array([[vanish_x - 4, horizon], [vanish_x + 4, horizon],
-                         [IMAGE_W / 2 + shift + half_bottom, IMAGE_H], [IMAGE_W / 2 + shift - half_bottom, IMAGE_H]])
-        cv2.fillPoly(img, [road.round().astype(np.int32)], (105, 105, 105))
-        line = np.array([[vanish_x, horizon], [IMAGE_W / 2 + shift, IMAGE_H]]).round().astype(np.int32)
-        cv2.line(img, tuple(line[0]), tuple(line[1]), (230, 230, 90), 3)
-        return img
+        """A 320x160 RGB view of the road from the car (the road is 4 m wide)."""
+        return road_view(IMAGE_W, IMAGE_H, self.lateral / 2.0, self.heading)
 
 
 def n4(value: float, comma: bool = False) -> str:
