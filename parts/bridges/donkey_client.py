@@ -537,7 +537,7 @@ def _decode(encoded: Any, width: int, height: int) -> np.ndarray | None:
     if not isinstance(encoded, str) or not encoded:
         return None
     from parts.cameras.base import fit_frame
-    from parts.tub.imaging import decode_image
+    from parts.tub.codec import decode_image
 
     try:
         image = decode_image(base64.b64decode(encoded))

@@ -419,7 +419,7 @@ def _comma_floats(text: str) -> str:
 
 def _jpeg(car: FakeCar) -> str:
     from parts.bridges.fake_road import road_view
-    from parts.tub.imaging import encode_image
+    from parts.tub.codec import encode_image
 
     picture = road_view(car.img_w, car.img_h, car.right / ROAD_HALF_WIDTH, car.heading)
     data, _ = encode_image(picture, "image_array", 75)

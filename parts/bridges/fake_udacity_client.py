@@ -272,7 +272,7 @@ class FakeUdacityClient:
             ws.send('42["telemetry",null]')
             self.null_telemetry_sent += 1
             return
-        from parts.tub.imaging import encode_image
+        from parts.tub.codec import encode_image
 
         jpeg, _ = encode_image(self.car.image(), "image_array", JPEG_QUALITY)
         self.sent_images.append(jpeg)

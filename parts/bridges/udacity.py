@@ -434,7 +434,7 @@ class UdacitySim(ThreadedPart):
 
     def _parse(self, sid: str, data: Any) -> Telemetry:
         """Telemetry from the event's data; ValueError says what is wrong with it."""
-        from parts.tub.imaging import decode_image
+        from parts.tub.codec import decode_image
 
         if not isinstance(data, dict):
             raise ValueError(f"expected an object, got {type(data).__name__}")
