@@ -45,7 +45,7 @@ import socket
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any, Final
+from typing import Any, ClassVar, Final
 
 import numpy as np
 
@@ -128,13 +128,15 @@ class DonkeySim(ThreadedPart):
         exit_scene: send ``exit_scene`` on shutdown (back to the menu). Default True.
     """
 
-    #: memory keys the part reads, in this order (``sim/reset`` may be absent)
-    INPUTS: Final = ("angle", "throttle", "sim/reset")
-    OPTIONAL_INPUTS: Final = ("sim/reset",)
+    #: memory keys the part reads, in this order: the commands of the previous loop, and a reset
+    #: request that a car may not have
+    INPUTS: ClassVar[tuple[str, ...]] = ("angle", "throttle", "sim/reset")
+    FEEDBACK: ClassVar[tuple[str, ...]] = ("angle", "throttle")
+    OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("sim/reset",)
     #: memory keys the part writes, in this order
-    OUTPUTS: Final = ("cam/image_array", "cam/timestamp", "cam/ok", "sim/speed", "enc/speed", "sim/cte",
-                      "sim/hit", "sim/off_track", "sim/lap", "sim/lap_time", "sim/progress", "sim/pos",
-                      "sim/time", "sim/extra")
+    OUTPUTS: ClassVar[tuple[str, ...]] = (
+        "cam/image_array", "cam/timestamp", "cam/ok", "sim/speed", "enc/speed", "sim/cte", "sim/hit", "sim/off_track",
+        "sim/lap", "sim/lap_time", "sim/progress", "sim/pos", "sim/time", "sim/extra")
 
     def __init__(self, host: str = "127.0.0.1", port: int = proto.DEFAULT_PORT, *, scene: str = "generated_track",
                  image_w: int = 160, image_h: int = 120, look: CarLook | None = None,

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from vehicle.errors import UserError
+from vehicle.errors import VehicleError
 
 
-class BridgeError(UserError):
+class BridgeError(VehicleError):
     """A simulator bridge cannot work as configured (port taken, unsupported library, bad scene)."""

@@ -28,7 +28,7 @@ Outputs: ``cam/image_array`` (160x320x3 RGB), ``cam/timestamp``, ``cam/ok``, ``s
 from mph), ``enc/speed`` (the same), ``sim/steering_deg`` (degrees, ±25, positive = right),
 ``sim/throttle``, ``sim/manual``, ``sim/cte`` and ``sim/lap`` (research forks' ``cte`` and
 ``lapNumber``; None from the stock simulator), ``sim/extra`` (every other key a fork sends, parsed),
-then ``sim/<key>`` for each name in ``extra_keys``.
+then ``sim/<key>`` for each name in ``extra_keys`` (in snake case: ``lapNumber`` -> ``sim/lap_number``).
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ import time
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Final
+from typing import Any, ClassVar, Final
 
 import numpy as np
 
@@ -91,6 +91,13 @@ def parse_number(value: Any) -> float | None:
     return out if math.isfinite(out) else None
 
 
+def extra_key(name: str) -> str:
+    """The memory key of a fork's telemetry key: ``sim/`` + snake case (``currentWayPoint`` ->
+    ``sim/current_way_point``)."""
+    snake = re.sub(r"(?<=[a-z0-9])([A-Z])", r"_\1", name).lower()
+    return "sim/" + re.sub(r"[^a-z0-9_]+", "_", snake).strip("_")
+
+
 def format_command(value: Any, decimal: str = ".") -> str:
     """A steer value as the simulator parses it: a string, fixed point, no exponent; 0 for junk."""
     number = parse_number(value)
@@ -129,10 +136,11 @@ class UdacitySim(ThreadedPart):
         start_timeout: seconds :meth:`start` waits for the server to listen. Default 10.
     """
 
-    #: memory keys the part reads, in this order
-    INPUTS: Final = ("angle", "throttle")
-    #: memory keys the part writes, in this order (then ``sim/<key>`` per extra key)
-    OUTPUTS: Final = ("cam/image_array", "cam/timestamp", "cam/ok", "sim/speed", "enc/speed",
+    #: memory keys the part reads, in this order: the commands of the previous loop
+    INPUTS: ClassVar[tuple[str, ...]] = ("angle", "throttle")
+    FEEDBACK: ClassVar[tuple[str, ...]] = ("angle", "throttle")
+    #: memory keys the part writes, in this order (an instance adds ``sim/<key>`` per extra key)
+    OUTPUTS: tuple[str, ...] = ("cam/image_array", "cam/timestamp", "cam/ok", "sim/speed", "enc/speed",
                       "sim/steering_deg", "sim/throttle", "sim/manual", "sim/cte", "sim/lap", "sim/extra")
 
     def __init__(self, host: str = "127.0.0.1", port: int = 4567, *, timeout_s: float = 1.0,
@@ -157,7 +165,7 @@ class UdacitySim(ThreadedPart):
         self.command_timeout_s = float(command_timeout_s)
         self.decimal = decimal
         self.extra_keys = tuple(extra_keys)
-        self.outputs = self.OUTPUTS + tuple(f"sim/{k}" for k in self.extra_keys)
+        self.OUTPUTS = type(self).OUTPUTS + tuple(extra_key(k) for k in self.extra_keys)
         self.start_timeout = start_timeout
         self.join_timeout = 5.0
         self._ready = threading.Event()

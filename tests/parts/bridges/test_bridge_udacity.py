@@ -37,7 +37,7 @@ class LoopDriver:
     def _run(self) -> None:
         while not self._stop.is_set():
             values = self.part.run_threaded(self.angle, self.throttle)
-            self.outputs = dict(zip(self.part.outputs, values, strict=True))
+            self.outputs = dict(zip(self.part.OUTPUTS, values, strict=True))
             self.history.append(self.outputs)
             if self.outputs["cam/image_array"] is not None:
                 self.angle, self.throttle = self.command(self.outputs)
@@ -71,6 +71,16 @@ def test_parse_number_reads_every_locale() -> None:
     assert parse_number(3) == 3.0
     for junk in ("", "abc", None, True, "nan", "inf", [1]):
         assert parse_number(junk) is None
+
+
+def test_extra_keys_become_namespaced_snake_case_keys() -> None:
+    from parts.bridges.udacity import extra_key
+    from vehicle.keys import is_valid_key
+
+    assert extra_key("lapNumber") == "sim/lap_number"
+    assert extra_key("currentWayPoint") == "sim/current_way_point"
+    assert extra_key("tot_obes") == "sim/tot_obes"
+    assert is_valid_key(extra_key("Weird Key-2"))
 
 
 def test_format_command_is_a_clamped_fixed_point_string() -> None:
@@ -154,7 +164,7 @@ def test_fork_keys_are_passed_through_under_sim() -> None:
     assert outputs["sim/lap"] == 2
     assert outputs["sim/extra"] == {"sim_time": 12.5, "crash": "none"}
     assert outputs["sim/sim_time"] == 12.5
-    assert part.outputs[-1] == "sim/sim_time"
+    assert part.OUTPUTS[-1] == "sim/sim_time"
 
 
 def test_lost_simulator_makes_the_camera_stale_with_one_log_line(caplog: pytest.LogCaptureFixture) -> None:
