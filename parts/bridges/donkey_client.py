@@ -24,7 +24,8 @@ next :meth:`start` connects again. Shutdown sends a neutral, braking ``control``
 ``exit_scene``.
 
 Outputs: ``cam/image_array`` (RGB, resized to image_w x image_h if the simulator sends another
-size), ``cam/timestamp``, ``cam/ok``, ``sim/speed`` and ``enc/speed`` (the simulator's speed),
+size), ``cam/timestamp``, ``cam/ok``, ``cam/frame_id`` (counts telemetry frames), ``sim/speed`` and
+``enc/speed`` (the simulator's speed),
 ``sim/cte`` (positive = right of the path: the simulator's sign is the opposite), ``sim/hit``
 (obstacle name or "none"; a hit is kept until the loop has seen it), ``sim/off_track`` (a hit, or
 |cte| > max_cte as gym-donkeycar decides), ``sim/lap``, ``sim/lap_time`` (from
@@ -69,6 +70,11 @@ class CarLook:
     body_rgb: tuple[int, int, int] = (128, 128, 128)
     car_name: str = ""
     font_size: int = 100
+    # race scenes: who drives (racer_info)
+    racer_name: str = ""
+    country: str = ""
+    bio: str = ""
+    guid: str = ""
 
     def __post_init__(self) -> None:
         if self.body_style not in proto.CAR_BODIES:
@@ -79,12 +85,20 @@ class CarLook:
         object.__setattr__(self, "body_rgb", rgb)
         if not isinstance(self.font_size, int) or self.font_size <= 0:
             raise ValueError(f"font_size must be a positive int, got {self.font_size!r}")
+        for name in ("car_name", "racer_name", "country", "bio", "guid"):
+            if not isinstance(getattr(self, name), str):
+                raise ValueError(f"{name} must be a string, got {getattr(self, name)!r}")
 
     def message(self) -> bytes:
         """The ``car_config`` message."""
         r, g, b = self.body_rgb
         return proto.client_message("car_config", body_style=self.body_style, body_r=r, body_g=g, body_b=b,
                                     car_name=self.car_name, font_size=self.font_size)
+
+    def racer_message(self) -> bytes:
+        """The ``racer_info`` message (race scenes ask for it with ``need_car_config``)."""
+        return proto.client_message("racer_info", racer_name=self.racer_name or self.car_name or "vehicle-rc",
+                                    car_name=self.car_name, bio=self.bio, country=self.country, guid=self.guid)
 
 
 @dataclass
@@ -135,7 +149,8 @@ class DonkeySim(ThreadedPart):
     OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("sim/reset",)
     #: memory keys the part writes, in this order
     OUTPUTS: ClassVar[tuple[str, ...]] = (
-        "cam/image_array", "cam/timestamp", "cam/ok", "sim/speed", "enc/speed", "sim/cte", "sim/hit", "sim/off_track",
+        "cam/image_array", "cam/timestamp", "cam/ok", "cam/frame_id", "sim/speed", "enc/speed", "sim/cte", "sim/hit",
+        "sim/off_track",
         "sim/lap", "sim/lap_time", "sim/progress", "sim/pos", "sim/time", "sim/extra")
 
     def __init__(self, host: str = "127.0.0.1", port: int = proto.DEFAULT_PORT, *, scene: str = "generated_track",
@@ -312,15 +327,15 @@ class DonkeySim(ThreadedPart):
         elif ok:
             self._stale_reported = False
         if record is None:
-            return (None, None, False) + (None,) * (len(self.OUTPUTS) - 3)
+            return (None, None, False, 0) + (None,) * (len(self.OUTPUTS) - 4)
         with self._io:
             hit, self._hit_unseen = self._hit_unseen, None
         hit = hit or record["hit"]
         cte = record["cte"]
         off = hit != "none" or (self.max_cte is not None and cte is not None
                                 and self.max_cte < abs(cte) <= 2 * self.max_cte)
-        return (record["image"], record["timestamp"], ok, record["speed"], record["speed"], cte, hit, off,
-                record["lap"], record["lap_time"], record["progress"], record["pos"], record["time"],
+        return (record["image"], record["timestamp"], ok, record["frame"], record["speed"], record["speed"], cte, hit,
+                off, record["lap"], record["lap_time"], record["progress"], record["pos"], record["time"],
                 record["extra"])
 
     # -- the client thread ------------------------------------------------------------------------
@@ -367,6 +382,16 @@ class DonkeySim(ThreadedPart):
         self._send_now(proto.client_message("cam_config", img_w=self.image_w, img_h=self.image_h, img_enc="JPG"))
         if self.synchronous:
             self._send_now(proto.client_message("step_mode", step_mode="synchronous", time_step=self.time_step))
+            self._drain_realtime_telemetry()
+
+    def _drain_realtime_telemetry(self, quiet_s: float = 0.2, longest_s: float = 3.0) -> None:
+        """Read until telemetry has stopped for ``quiet_s``: the frames pushed before synchronous
+        mode took effect must not be taken for the answers to the first controls."""
+        end = time.monotonic() + longest_s
+        quiet_since = time.monotonic()
+        while time.monotonic() < end and time.monotonic() - quiet_since < quiet_s:
+            if any(m.get("msg_type") == "telemetry" for m in self._read(0.05)):
+                quiet_since = time.monotonic()
 
     def _wait_for(self, kinds: set[str], timeout: float, *, what: str = "",
                   required: bool = True) -> dict[str, Any] | None:
@@ -482,9 +507,7 @@ class DonkeySim(ThreadedPart):
                 logger.info("Donkey simulator: lap %d in %.2f s", self._laps.count, self._laps.last_time or 0.0)
         elif kind == "need_car_config":
             with self._io:
-                self._outbox.append(proto.client_message(
-                    "racer_info", racer_name=self.look.car_name or "vehicle-rc", car_name=self.look.car_name,
-                    bio="", country="", guid=""))
+                self._outbox.append(self.look.racer_message())
                 self._outbox.append(self.look.message())
         elif kind in ("race_start", "race_stop", "DQ", "missed_checkpoint", "cross_start"):
             logger.info("Donkey simulator: %s %s", kind, {k: v for k, v in msg.items() if k != "msg_type"})
@@ -507,7 +530,8 @@ class DonkeySim(ThreadedPart):
         pos_x, pos_z = proto.number(msg.get("pos_x")), proto.number(msg.get("pos_z"))
         extra = {k: v for k, v in msg.items() if k not in _OWN_FIELDS}
         self.publish({
-            "image": image, "timestamp": time.time(), "speed": proto.number(msg.get("speed")),
+            "image": image, "timestamp": time.time(), "frame": self.telemetry_count,
+            "speed": proto.number(msg.get("speed")),
             "cte": None if cte is None else -cte, "hit": hit, "lap": self._laps.count,
             "lap_time": self._laps.last_time,
             "progress": node / nodes if nodes and node is not None else None,

@@ -24,7 +24,8 @@ Engine.IO v3 dialect) and keeps the lockstep with the drive loop:
   JSON strings, with the decimal separator the simulator parses (it uses ``float.Parse`` in its
   own locale, so a simulator that sends decimal commas gets decimal commas back).
 
-Outputs: ``cam/image_array`` (160x320x3 RGB), ``cam/timestamp``, ``cam/ok``, ``sim/speed`` (m/s,
+Outputs: ``cam/image_array`` (160x320x3 RGB), ``cam/timestamp``, ``cam/ok``, ``cam/frame_id`` (the
+telemetry's number: a new value means a new frame), ``sim/speed`` (m/s,
 from mph), ``enc/speed`` (the same), ``sim/steering_deg`` (degrees, ±25, positive = right),
 ``sim/throttle``, ``sim/manual``, ``sim/cte`` and ``sim/lap`` (research forks' ``cte`` and
 ``lapNumber``; None from the stock simulator), ``sim/extra`` (every other key a fork sends, parsed),
@@ -140,7 +141,7 @@ class UdacitySim(ThreadedPart):
     INPUTS: ClassVar[tuple[str, ...]] = ("angle", "throttle")
     FEEDBACK: ClassVar[tuple[str, ...]] = ("angle", "throttle")
     #: memory keys the part writes, in this order (an instance adds ``sim/<key>`` per extra key)
-    OUTPUTS: tuple[str, ...] = ("cam/image_array", "cam/timestamp", "cam/ok", "sim/speed", "enc/speed",
+    OUTPUTS: tuple[str, ...] = ("cam/image_array", "cam/timestamp", "cam/ok", "cam/frame_id", "sim/speed", "enc/speed",
                       "sim/steering_deg", "sim/throttle", "sim/manual", "sim/cte", "sim/lap", "sim/extra")
 
     def __init__(self, host: str = "127.0.0.1", port: int = 4567, *, timeout_s: float = 1.0,
@@ -295,8 +296,8 @@ class UdacitySim(ThreadedPart):
         extra = tel.extra if tel is not None else {}
         cte = parse_number(extra.get("cte"))
         lap = parse_number(extra.get("lapNumber"))
-        base = (None, None, False, None, None, None, None, manual, None, None, {}) if tel is None else (
-            tel.image, tel.timestamp, ok, tel.speed, tel.speed, tel.steering_deg, tel.throttle, manual,
+        base = (None, None, False, 0, None, None, None, None, manual, None, None, {}) if tel is None else (
+            tel.image, tel.timestamp, ok, tel.seq, tel.speed, tel.speed, tel.steering_deg, tel.throttle, manual,
             cte, int(lap) if lap is not None else None,
             {k: v for k, v in extra.items() if k not in FORK_KEYS})
         return base + tuple(extra.get(k) for k in self.extra_keys)
