@@ -318,6 +318,8 @@ SIM_TIMEOUT_S: float = 1.0
 SIM_HOST: str = "127.0.0.1"
 # TCP port of the Donkey simulator (9091 unless it was started with --port).
 SIM_PORT: int = 9091
+# Seconds a drive keeps trying to reach the Donkey simulator at start (it may still be starting).
+SIM_CONNECT_TIMEOUT_S: float = 10.0
 # Scene the Donkey simulator loads: a gym id (DonkeyCar's setting: donkey-generated-track-v0,
 # donkey-warren-track-v0 ...) or a scene name (generated_track, warren, track_5 on `vehicle sim serve`).
 DONKEY_GYM_ENV_NAME: str = "donkey-generated-track-v0"

@@ -97,9 +97,11 @@ def _donkey(cfg: Any) -> Any:
     try:
         look = CarLook(**{k: tuple(v) if k == "body_rgb" else v for k, v in conf.items()})
         return DonkeySim(cfg.SIM_HOST, cfg.SIM_PORT, scene=cfg.DONKEY_GYM_ENV_NAME, image_w=cfg.IMAGE_W,
-                         image_h=cfg.IMAGE_H, look=look, max_cte=cfg.DONKEY_MAX_CTE, timeout_s=cfg.SIM_TIMEOUT_S)
+                         image_h=cfg.IMAGE_H, look=look, max_cte=cfg.DONKEY_MAX_CTE, timeout_s=cfg.SIM_TIMEOUT_S,
+                         connect_timeout_s=cfg.SIM_CONNECT_TIMEOUT_S)
     except (TypeError, ValueError) as exc:
-        raise UserError(f"{exc} (check SIM_PORT, GYM_CONF, DONKEY_MAX_CTE and SIM_TIMEOUT_S in myconfig.py)") from exc
+        raise UserError(f"{exc} (check SIM_PORT, GYM_CONF, DONKEY_MAX_CTE, SIM_TIMEOUT_S and SIM_CONNECT_TIMEOUT_S "
+                        "in myconfig.py)") from exc
 
 
 def add_expert(V: Any, cfg: Any, sim: Any) -> Any:

@@ -1,4 +1,5 @@
-"""``vehicle sim ...``: draw tracks, evaluate pilots, record expert demonstrations."""
+"""``vehicle sim ...``: draw tracks, evaluate pilots, record expert demonstrations, serve the
+simulator to Donkey-simulator clients (gym-donkeycar, DonkeyCar)."""
 
 from __future__ import annotations
 
@@ -46,6 +47,23 @@ def register(subparsers: Any) -> None:
     rec.add_argument("--noise", type=float, help="steering noise injection amplitude (default SIM_EXPERT_NOISE)")
     add_car_options(rec)
     rec.set_defaults(func=cmd_record)
+
+    serve = sub.add_parser("serve", formatter_class=fmt,
+                           help="serve the simulator over the Donkey simulator's protocol (gym-donkeycar, DonkeyCar)",
+                           description="Serve the built-in simulator over the Donkey simulator's TCP protocol: "
+                                       "gym-donkeycar environments, DonkeyCar's DonkeyGymEnv part and any Donkey "
+                                       "client drive it, headless, one car per connection, faster than real time "
+                                       "when the client asks for step_mode synchronous. See docs/simulators.md.")
+    serve.add_argument("--port", type=int, default=9091, help="TCP port (the Donkey simulator's is 9091)")
+    serve.add_argument("--host", default="127.0.0.1",
+                       help="interface to listen on; 0.0.0.0 lets clients on other machines connect")
+    serve.add_argument("--tracks", type=_seeds,
+                       help="comma-separated track seeds served (default SIM_TRACK_SEEDS); every Donkey scene "
+                            "name maps onto them in turn, and track_<seed> loads a seed")
+    serve.add_argument("--hz", type=float, default=20.0, help="telemetry rate in real-time mode")
+    serve.add_argument("--max-clients", type=int, default=16, help="connections served at once")
+    add_car_options(serve)
+    serve.set_defaults(func=cmd_serve)
 
 
 def _seeds(text: str) -> list[int]:
@@ -125,4 +143,33 @@ def cmd_record(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise UserError(str(exc)) from exc
     print(f"recorded {args.records} records into {path}")  # noqa: T201
+    return 0
+
+
+def cmd_serve(args: argparse.Namespace) -> int:
+    """Serve until Ctrl-C."""
+    from parts.bridges.donkey_server import DonkeyServer, scene_names
+
+    cfg = load_for_command(args)
+    if not 0 < args.port <= 65535:
+        raise UserError(f"--port {args.port}: give a TCP port in 1..65535")
+    if not 0 < args.hz <= 1000:
+        raise UserError(f"--hz {args.hz}: give a telemetry rate in (0, 1000] Hz")
+    if args.max_clients < 1:
+        raise UserError(f"--max-clients {args.max_clients}: give at least 1")
+    seeds = args.tracks or list(cfg.SIM_TRACK_SEEDS)
+    try:
+        server = DonkeyServer(args.host, args.port, seeds=seeds, cfg=cfg, telemetry_hz=args.hz,
+                              max_clients=args.max_clients)
+    except ValueError as exc:
+        raise UserError(str(exc)) from exc
+    server.start()
+    print(f"Donkey-protocol simulator on {args.host}:{server.port} (tracks {','.join(map(str, seeds))}); "  # noqa: T201
+          f"scenes: {', '.join(scene_names(seeds))}. Ctrl-C to stop.", flush=True)
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.stop()
     return 0
