@@ -25,10 +25,10 @@ next :meth:`start` connects again. Shutdown sends a neutral, braking ``control``
 
 Outputs: ``cam/image_array`` (RGB, resized to image_w x image_h if the simulator sends another
 size), ``cam/timestamp``, ``cam/ok``, ``cam/frame_id`` (counts telemetry frames), ``sim/speed`` and
-``enc/speed`` (the simulator's speed),
-``sim/cte`` (positive = right of the path: the simulator's sign is the opposite), ``sim/hit``
-(obstacle name or "none"; a hit is kept until the loop has seen it), ``sim/off_track`` (a hit, or
-|cte| > max_cte as gym-donkeycar decides), ``sim/lap``, ``sim/lap_time`` (from
+``enc/speed`` (the simulator's speed), ``sim/cte`` (positive = right of the path: the simulator's
+sign is the opposite), ``sim/hit`` (obstacle name or "none"; a hit is kept until the loop has seen
+it), ``sim/off_track`` (a hit, or |cte| > max_cte as gym-donkeycar decides), ``sim/lap`` (laps
+completed since the part connected; a reset keeps the count), ``sim/lap_time`` (from
 ``collision_with_starting_line``, gym-donkeycar's rule), ``sim/progress`` (activeNode /
 totalNodes), ``sim/pos`` ((pos_x, pos_z), the ground plane), ``sim/time`` and ``sim/extra`` (every
 other telemetry field: gyro, accel, vel, pitch/yaw/roll, lidar ...).
@@ -110,6 +110,11 @@ class _Laps:
     last_time: float | None = None
     _start: float | None = None
     _index: Any = None
+
+    def restart(self) -> None:
+        """The car was put back (reset_car): the next crossing starts the clock again; laps
+        completed so far still count."""
+        self._start = self._index = None
 
     def crossing(self, index: Any, stamp: float) -> bool:
         """A ``collision_with_starting_line``; True when it completed a lap."""
@@ -312,7 +317,7 @@ class DonkeySim(ThreadedPart):
                 return
             if rising:
                 self._outbox.append(proto.client_message("reset_car"))
-                self._laps = _Laps()
+                self._laps.restart()
             self._control = message
         self._wake()
 

@@ -193,6 +193,7 @@ class Session:
         self.camera_size: tuple[int, int] | None = None  # (w, h) asked with cam_config
         self.level_time = 0.0  # simulated seconds since the scene (re)loaded
         self.steps = 0
+        self.resets = 0
         self.telemetry_sent = 0
         self._restart_pending = True  # send collision_with_starting_line when the car moves off the line
         self._was_off = False
@@ -284,6 +285,7 @@ class Session:
         elif kind == "reset_car":
             if self.sim is not None:
                 self.sim.reset("start")
+                self.resets += 1
                 self._restart()
         elif kind == "exit_scene":
             self.sim, self.scene = None, None

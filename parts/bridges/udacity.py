@@ -173,6 +173,7 @@ class UdacitySim(ThreadedPart):
         self._loop: asyncio.AbstractEventLoop | None = None
         self._sio: Any = None
         self._runner: Any = None
+        self._site: Any = None
         self._stop_server: asyncio.Event | None = None
         # shared with the server thread, under self._state
         self._state = threading.Lock()
@@ -354,9 +355,11 @@ class UdacitySim(ThreadedPart):
         sio.on("telemetry", self._on_telemetry)
         app = web.Application()
         sio.attach(app)
-        runner = web.AppRunner(app, access_log=None, handle_signals=False)
+        # shutdown_timeout: a connection still open at shutdown is dropped after 0.25 s, not 60
+        runner = web.AppRunner(app, access_log=None, handle_signals=False, shutdown_timeout=0.25)
         await runner.setup()
         site = web.TCPSite(runner, self.host, self.port)
+        self._site = site
         try:
             await site.start()
         except BaseException:
@@ -379,7 +382,12 @@ class UdacitySim(ThreadedPart):
         finally:
             watchdog.cancel()
             try:
+                await self._site.stop()  # first stop listening: the simulator reconnects within 5 ms
+                if self._sio.eio.sockets:  # close the simulator's websocket, or cleanup waits for it
+                    await asyncio.wait_for(self._sio.eio.disconnect(), 2.0)
                 await self._sio.shutdown()
+            except (TimeoutError, OSError) as exc:
+                logger.debug("Udacity bridge: closing the connection: %r", exc)
             finally:
                 await self._runner.cleanup()
 

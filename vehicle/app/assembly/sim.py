@@ -69,24 +69,39 @@ def add_simulator(V: Any, cfg: Any, seeds: Sequence[int] | None = None, sim_type
     if seeds:
         logger.warning("--tracks applies to the built-in simulator only; the %s simulator chooses its own "
                        "track%s", kind, " (DONKEY_GYM_ENV_NAME)" if kind == "donkey" else "")
-    sim = _udacity(cfg) if kind == "udacity" else _donkey(cfg)
+    sim = make_bridge(cfg, kind)
     V.add(sim, threaded=True)
     return sim
 
 
-def _udacity(cfg: Any) -> Any:
+def make_bridge(cfg: Any, sim_type: str, **options: Any) -> Any:
+    """The part of an external simulator ("udacity" or "donkey") built from the car's settings,
+    not added to a vehicle; ``options`` go to the part (e.g. ``synchronous=True`` for the Donkey
+    simulator's step mode).
+
+    Raises:
+        UserError: a setting is out of range (the message names it).
+    """
+    if sim_type == "udacity":
+        return _udacity(cfg, **options)
+    if sim_type == "donkey":
+        return _donkey(cfg, **options)
+    raise UserError(f"{sim_type!r} is not an external simulator: use udacity or donkey")
+
+
+def _udacity(cfg: Any, **options: Any) -> Any:
     from parts.bridges.udacity import UdacitySim
 
     try:
         return UdacitySim(cfg.UDACITY_HOST, cfg.UDACITY_PORT, timeout_s=cfg.SIM_TIMEOUT_S,
                           # a stuck loop gets the simulator a neutral steer after 3 loop periods (>= 0.5 s)
                           command_timeout_s=max(0.5, 3.0 / cfg.DRIVE_LOOP_HZ), decimal=cfg.UDACITY_DECIMAL,
-                          extra_keys=tuple(cfg.UDACITY_EXTRA_KEYS))
+                          extra_keys=tuple(cfg.UDACITY_EXTRA_KEYS), **options)
     except ValueError as exc:
         raise UserError(f"{exc} (check UDACITY_PORT, SIM_TIMEOUT_S and UDACITY_EXTRA_KEYS in myconfig.py)") from exc
 
 
-def _donkey(cfg: Any) -> Any:
+def _donkey(cfg: Any, **options: Any) -> Any:
     from parts.bridges.donkey_client import CarLook, DonkeySim
 
     conf = dict(cfg.GYM_CONF)
@@ -98,7 +113,7 @@ def _donkey(cfg: Any) -> Any:
         look = CarLook(**{k: tuple(v) if k == "body_rgb" else v for k, v in conf.items()})
         return DonkeySim(cfg.SIM_HOST, cfg.SIM_PORT, scene=cfg.DONKEY_GYM_ENV_NAME, image_w=cfg.IMAGE_W,
                          image_h=cfg.IMAGE_H, look=look, max_cte=cfg.DONKEY_MAX_CTE, timeout_s=cfg.SIM_TIMEOUT_S,
-                         connect_timeout_s=cfg.SIM_CONNECT_TIMEOUT_S)
+                         connect_timeout_s=cfg.SIM_CONNECT_TIMEOUT_S, **options)
     except (TypeError, ValueError) as exc:
         raise UserError(f"{exc} (check SIM_PORT, GYM_CONF, DONKEY_MAX_CTE, SIM_TIMEOUT_S and SIM_CONNECT_TIMEOUT_S "
                         "in myconfig.py)") from exc

@@ -35,6 +35,11 @@ def register(subparsers: Any) -> None:
     ev.add_argument("--laps", type=int, help="laps per track (default SIM_EVAL_LAPS)")
     ev.add_argument("--max-time", type=float, help="simulated seconds per track at most")
     ev.add_argument("--throttle", type=float, help="fixed throttle: use only the pilot's steering")
+    ev.add_argument("--sim", choices=["builtin", "donkey", "udacity"], default="builtin",
+                    help="simulator to evaluate in: ours, the Donkey simulator (SIM_HOST:SIM_PORT, or `vehicle sim "
+                         "serve`; synchronous steps) or the Udacity simulator (real time, on the track it shows)")
+    ev.add_argument("--scenes", help="with --sim donkey: comma-separated scenes, one episode each (default "
+                                     "DONKEY_GYM_ENV_NAME; --tracks N stands for scene track_N of `vehicle sim serve`)")
     ev.add_argument("--json", help="write the full report (metrics and trajectories) here")
     ev.add_argument("--png", help="write the driven trajectories over the track maps here")
     add_car_options(ev)
@@ -118,9 +123,19 @@ def cmd_eval(args: argparse.Namespace) -> int:
     if args.pilot != "expert" and not Path(args.pilot).exists():
         raise UserError(f"--pilot {args.pilot}: no such model file; pass 'expert' or a trained model "
                         "(e.g. models/mypilot.pt)")
+    if args.sim != "builtin" and args.png:
+        raise UserError("--png draws the built-in simulator's tracks: drop it with --sim " + args.sim)
+    if args.scenes and args.sim != "donkey":
+        raise UserError("--scenes names Donkey simulator scenes: use it with --sim donkey")
+    if args.sim == "udacity" and args.tracks:
+        raise UserError("--tracks: the Udacity simulator drives the track it shows (choose it in its menu)")
+    scenes = None
+    if args.sim == "donkey":
+        scenes = [x.strip() for x in args.scenes.split(",") if x.strip()] if args.scenes else (
+            [f"track_{s}" for s in args.tracks] if args.tracks else None)
     try:
         report = evaluate(args.pilot, seeds, laps, cfg=cfg, max_time=args.max_time,
-                          fixed_throttle=args.throttle)
+                          fixed_throttle=args.throttle, sim=args.sim, scenes=scenes)
     except (ValueError, FileNotFoundError) as exc:
         raise UserError(str(exc)) from exc
     print(format_table(report))  # noqa: T201 - CLI output
