@@ -153,6 +153,7 @@ class FakeUdacityClient:
         self.pings_sent = 0
         self.frames_received: list[str] = []  # every text frame from the server
         self.sent_images: deque[bytes] = deque(maxlen=keep_images)
+        self.sent_fields: deque[dict[str, str]] = deque(maxlen=keep_images)  # telemetry without the image
 
     # -- control ----------------------------------------------------------------------------------
     def start(self) -> FakeUdacityClient:
@@ -287,6 +288,7 @@ class FakeUdacityClient:
             value = value(car) if callable(value) else value
             fields[key] = value if isinstance(value, str) else n4(float(value), self.comma)
         ws.send("42" + json.dumps(["telemetry", fields], separators=(",", ":")))
+        self.sent_fields.append({k: v for k, v in fields.items() if k != "image"})
         self.telemetry_sent += 1
 
 

@@ -102,3 +102,32 @@ def test_udacity_drive_port_in_use_is_one_line(tmp_path, make_model_file, capsys
     assert code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith("error: Udacity bridge cannot listen on 127.0.0.1:")
+
+
+def untrained_udacity_model(tmp_path: Path) -> Path:
+    """An untrained linear model for the simulator's 160x320 frames (sky cropped)."""
+    import torch
+
+    from parts.pilots.modelfile import save_model
+    from parts.pilots.models import create_model
+    from parts.pilots.preprocess import Preprocess
+
+    torch.manual_seed(0)
+    pre = Preprocess(crop=(40, 0, 0, 0), resize=(80, 160), image_shape=(160, 320, 3))
+    model = create_model("linear", pre.output_shape((160, 320, 3)))
+    return save_model(tmp_path / "models" / "raw.pt", model, {"preprocess": pre.to_dict()})
+
+
+def test_udacity_drive_speed_limit_is_the_track_driver_rule(tmp_path, torch_one_thread):
+    """--speed-limit MPH: throttle = 1 - speed / limit, the speed in mph as the simulator reports it."""
+    model = untrained_udacity_model(tmp_path)
+    port = free_port()
+    with FakeUdacityClient(port) as sim:
+        assert main(["udacity", "drive", str(model), "--port", str(port), "--speed-limit", "20",
+                     "--max-loops", "60", "--car", str(tmp_path)]) == 0
+    throttles = [t for s, t in sim.steers if (s, t) != (0.0, 0.0)]
+    assert throttles and throttles[0] == pytest.approx(1.0)  # standing still: full throttle
+    speeds = np.array([float(f["speed"]) for f in sim.sent_fields])
+    for throttle in throttles:  # each is the rule applied to a speed the simulator reported
+        assert np.abs((1 - speeds / 20) - throttle).min() < 1e-3
+    assert min(throttles) < 0.99  # the car sped up and the throttle came down
