@@ -205,6 +205,7 @@ class DonkeySim(ThreadedPart):
         self._last_send = 0.0
         self._neutral = False
         self._reset_input = False
+        self._sent_by_commands = False  # SendCommands sends the loop's command at the end of the loop
         self._lost = False
         self._hit_unseen: str | None = None
         self._laps = _Laps()
@@ -294,31 +295,43 @@ class DonkeySim(ThreadedPart):
 
     # -- the loop's side --------------------------------------------------------------------------
     def run_threaded(self, angle: Any = None, throttle: Any = None, reset: Any = None) -> tuple[Any, ...]:
-        """Send this loop's command (and a reset on a rising ``sim/reset``); return the latest telemetry."""
-        self._command(angle, throttle, reset)
+        """Send the loop's command (and a reset on a rising ``sim/reset``); return the latest telemetry.
+
+        The command is the previous loop's (an input read as feedback), unless
+        :class:`parts.bridges.commands.SendCommands` at the end of the loop sent it already.
+        """
+        self._command(None if self._sent_by_commands else (angle, throttle), reset)
         return self._outputs()
+
+    def command(self, angle: Any, throttle: Any) -> None:
+        """Send this loop's command now (called by SendCommands at the end of the loop)."""
+        self._sent_by_commands = True
+        self._command((angle, throttle), None)
 
     def run(self, angle: Any = None, throttle: Any = None, reset: Any = None) -> tuple[Any, ...]:
         """Lockstep use: send the command, wait for the next telemetry (at most timeout_s), return it."""
         self.start()
         with self._fresh:
             seen = self._version
-        self._command(angle, throttle, reset)
+        self._command((angle, throttle), reset)
         with self._fresh:
             self._fresh.wait_for(lambda: self._version != seen or self.stop_event.is_set(), self.timeout_s)
         return self._outputs()
 
-    def _command(self, angle: Any, throttle: Any, reset: Any) -> None:
-        message = _control(_finite(angle), _finite(throttle), 0.0)
+    def _command(self, command: tuple[Any, Any] | None, reset: Any) -> None:
+        """Queue a control (when ``command`` is given) and a reset on a rising ``reset``."""
+        message = None if command is None else _control(_finite(command[0]), _finite(command[1]), 0.0)
         rising = bool(reset) and not self._reset_input
-        self._reset_input = bool(reset)
+        if reset is not None:
+            self._reset_input = bool(reset)
         with self._io:
             if self._neutral or self._lost:
                 return
             if rising:
                 self._outbox.append(proto.client_message("reset_car"))
                 self._laps.restart()
-            self._control = message
+            if message is not None:
+                self._control = message
         self._wake()
 
     def _outputs(self) -> tuple[Any, ...]:

@@ -154,6 +154,8 @@ class FakeUdacityClient:
         self.frames_received: list[str] = []  # every text frame from the server
         self.sent_images: deque[bytes] = deque(maxlen=keep_images)
         self.sent_fields: deque[dict[str, str]] = deque(maxlen=keep_images)  # telemetry without the image
+        self.round_trips: list[float] = []  # seconds from a telemetry to the steer/manual answering it
+        self._in_flight: deque[float] = deque()  # send times of unanswered telemetries, oldest first
 
     # -- control ----------------------------------------------------------------------------------
     def start(self) -> FakeUdacityClient:
@@ -246,6 +248,7 @@ class FakeUdacityClient:
                 self._on_steer(ws, data)
             elif name == "manual":
                 self.manuals += 1
+                self._answered()
                 self._send_telemetry(ws)
         # '3' PONG, '6' NOOP, '40', '40{..}', '41', ACKs, namespaced events: ignored
 
@@ -263,14 +266,21 @@ class FakeUdacityClient:
             self.stalls += 1
             return
         self.steers.append((steering, throttle))
+        self._answered()
         self.car.apply(steering, throttle, self.dt)
         self._send_telemetry(ws)
+
+    def _answered(self) -> None:
+        """An answer came: the oldest telemetry in flight is answered (the server answers in order)."""
+        if self._in_flight:
+            self.round_trips.append(time.perf_counter() - self._in_flight.popleft())
 
     def _send_telemetry(self, ws: WebSocketClient) -> None:
         with self._lock:
             manual = self._manual
         if manual:
             ws.send('42["telemetry",null]')
+            self._in_flight.append(time.perf_counter())
             self.null_telemetry_sent += 1
             return
         from parts.tub.codec import encode_image
@@ -288,6 +298,7 @@ class FakeUdacityClient:
             value = value(car) if callable(value) else value
             fields[key] = value if isinstance(value, str) else n4(float(value), self.comma)
         ws.send("42" + json.dumps(["telemetry", fields], separators=(",", ":")))
+        self._in_flight.append(time.perf_counter())
         self.sent_fields.append({k: v for k, v in fields.items() if k != "image"})
         self.telemetry_sent += 1
 

@@ -10,8 +10,9 @@ for exactly one ``steer`` or ``manual`` before it sends the next. This part runs
 own thread (python-socketio on aiohttp, with :mod:`parts.bridges.engineio3` for the simulator's
 Engine.IO v3 dialect) and keeps the lockstep with the drive loop:
 
-- a telemetry's frame is handed to the loop at its next run; the steer that answers it is sent
-  at the run after that, with the ``angle``/``throttle`` the loop computed from that frame. The
+- a telemetry's frame is handed to the loop at its next run; the steer that answers it carries
+  the ``angle``/``throttle`` the loop computed from that frame: sent at the end of that loop by
+  :class:`parts.bridges.commands.SendCommands` (added last), else at the start of the next. The
   loop never waits for the simulator, and the simulator never gets a command older than the frame
   it answers;
 - a telemetry the loop does not answer within ``command_timeout_s`` (the loop is stuck) is
@@ -281,16 +282,12 @@ class UdacitySim(ThreadedPart):
         """Answer the telemetries whose frame the loop has seen, and return the latest telemetry."""
         if self.error is not None:
             raise RuntimeError(f"Udacity bridge server failed: {self.error!r}") from self.error
+        self.command(angle, throttle)  # frames of the previous loop not answered by SendCommands yet
         with self._state:
-            replies = []
-            while self._pending and self._pending[0][1] <= self._delivered:
-                replies.append(self._pending.popleft()[0])
             tel = self._telemetry
             self._delivered = tel.seq if tel is not None else 0
             last, manual, connections = self._last_message, self._manual, self._connections
             connected_at = self._connected_at
-        if replies:
-            self._send_threadsafe([(sid, angle, throttle) for sid in replies])
         now = time.monotonic()
         ok = tel is not None and last is not None and now - last <= self.timeout_s
         self._report(ok, now, last, connections, connected_at)
@@ -302,6 +299,20 @@ class UdacitySim(ThreadedPart):
             cte, int(lap) if lap is not None else None,
             {k: v for k, v in extra.items() if k not in FORK_KEYS})
         return base + tuple(extra.get(k) for k in self.extra_keys)
+
+    def command(self, angle: Any, throttle: Any) -> None:
+        """Answer, with these commands, the telemetries whose frame the loop has been given.
+
+        :meth:`run_threaded` does it at the start of the next loop with the loop's previous
+        commands; :class:`parts.bridges.commands.SendCommands` at the end of the loop calls it at
+        once, which saves the simulator a loop period per telemetry.
+        """
+        with self._state:
+            replies = []
+            while self._pending and self._pending[0][1] <= self._delivered:
+                replies.append(self._pending.popleft()[0])
+        if replies:
+            self._send_threadsafe([(sid, angle, throttle) for sid in replies])
 
     def run(self, angle: Any = None, throttle: Any = None) -> tuple[Any, ...]:
         """Non-threaded use: start the server on the first call, then as :meth:`run_threaded`."""

@@ -275,7 +275,7 @@ def run_bridge_episode(driver: Any, sim_type: str, scene: str, laps: int, cfg: A
                        extra_inputs: dict[str, Any] | None = None) -> EpisodeMetrics:
     """One episode on the Donkey simulator (synchronous steps, scene ``scene``) or the Udacity
     simulator (real time): the same loop as :func:`run_episode` around the bridge part."""
-    from vehicle.app.assembly.sim import add_simulator, make_bridge
+    from vehicle.app.assembly.sim import add_simulator, add_simulator_commands, make_bridge
 
     dt = 1.0 / cfg.DRIVE_LOOP_HZ
     if sim_type == "donkey":
@@ -304,6 +304,7 @@ def run_bridge_episode(driver: Any, sim_type: str, scene: str, laps: int, cfg: A
               run_condition="cam/ok")
         waiter = StopIfNoSimulator(UDACITY_WAIT_S, V.stop)
         V.add(waiter)
+        add_simulator_commands(V)
         logger.info("evaluation: start the Udacity simulator in Autonomous Mode on the track to drive")
     V.start(rate_hz=cfg.DRIVE_LOOP_HZ, log_summary=False)
     if waiter is not None and waiter.gave_up:

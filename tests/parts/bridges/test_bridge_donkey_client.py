@@ -266,3 +266,21 @@ def test_client_messages_are_strings_without_newline() -> None:
     assert proto.scene_for("warehouse") == "warehouse"
     with pytest.raises(ValueError, match="non-finite"):
         proto.client_message("control", steering=float("nan"))
+
+
+def test_send_commands_sends_the_loop_command_once() -> None:
+    from parts.bridges.commands import SendCommands
+
+    with FakeDonkeySim(port=0) as sim, client(sim) as part:
+        send = SendCommands(part)
+        send.run(0.0, 0.3)  # from the first loop on, SendCommands sends the loop's commands
+        for i in range(10):
+            outputs(part, 0.9, 0.9, False)  # the previous loop's commands: ignored once SendCommands runs
+            send.run(-0.1 * (i % 2), 0.3)
+            time.sleep(0.06)
+        assert sim.wait_for(lambda f: len([m for m in f.messages(0, "control") if m["brake"] == "0.0"]) >= 8, 5)
+    driven = [m for m in sim.messages(0, "control") if m["brake"] == "0.0"]
+    assert {m["steering"] for m in driven} <= {"-0.1", "0.0", "-0.0"}
+    assert all(m["throttle"] == "0.3" for m in driven)
+    with pytest.raises(TypeError, match="command"):
+        SendCommands(object())

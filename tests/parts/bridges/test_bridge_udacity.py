@@ -252,3 +252,21 @@ def test_n4_formats_like_csharp() -> None:
     assert n4(-0.25, comma=True) == "-0,2500"
     assert n4(30.2 * 1, comma=False) == "30.2000"
     assert MS_PER_MPH == pytest.approx(1 / 2.23693629)
+
+
+def test_send_commands_answers_in_the_loop_that_saw_the_frame() -> None:
+    """With SendCommands last in the loop the steer leaves at once, with this loop's commands."""
+    from parts.bridges.commands import SendCommands
+
+    with udacity(command_timeout_s=30) as part, FakeUdacityClient(part.port) as sim:
+        send = SendCommands(part)
+        assert sim.wait_for(lambda c: c.telemetry_sent >= 2, 15)
+        time.sleep(0.1)
+        part.run_threaded(None, None)  # loop start: both frames handed to the loop, nothing answered
+        assert sim.steers == []
+        send.run(0.25, 0.5)  # loop end: the commands computed from them
+        assert sim.wait_for(lambda c: len(c.steers) >= 2, 5)
+        part.run_threaded(0.25, 0.5)  # the next loop start has nothing left to answer for them
+        time.sleep(0.2)
+    assert sim.steers[:2] == [(0.25, 0.5), (0.25, 0.5)]
+    assert send.name == "UdacitySim.commands"

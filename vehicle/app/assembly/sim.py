@@ -74,6 +74,24 @@ def add_simulator(V: Any, cfg: Any, seeds: Sequence[int] | None = None, sim_type
     return sim
 
 
+def add_simulator_commands(V: Any) -> Any:
+    """Add, last in the loop, the part that sends this loop's ``angle``/``throttle`` to the Udacity
+    or Donkey simulator at once (:class:`parts.bridges.commands.SendCommands`); without it they
+    leave one loop later. Returns the part, or None for the built-in simulator (it applies the
+    commands at its next step, in simulated time) or a car without a simulator.
+    """
+    from parts.bridges.commands import SendCommands
+    from parts.bridges.donkey_client import DonkeySim
+    from parts.bridges.udacity import UdacitySim
+
+    bridges = V.find(UdacitySim) + V.find(DonkeySim)
+    if not bridges:
+        return None
+    part = SendCommands(bridges[0])
+    V.add(part)
+    return part
+
+
 def make_bridge(cfg: Any, sim_type: str, **options: Any) -> Any:
     """The part of an external simulator ("udacity" or "donkey") built from the car's settings,
     not added to a vehicle; ``options`` go to the part (e.g. ``synchronous=True`` for the Donkey

@@ -138,4 +138,5 @@ def cmd_drive(args: argparse.Namespace) -> int:
         logger.info("recording the driven frames into %s", folder)
     else:
         logger.info("not recording this run (give IMAGE_FOLDER to save the driven frames)")
+    assembly.add_simulator_commands(V)  # the answer for a frame leaves in the loop that saw it
     return manage.run(V, cfg, args.max_loops)

@@ -54,7 +54,7 @@ def test_udacity_drive_drives_the_fake_simulator_with_a_trained_pilot(tmp_path, 
     port = free_port()
     run = tmp_path / "run"
     # the simulator is started first and keeps retrying until the server listens, as the real one does
-    with FakeUdacityClient(port) as sim:
+    with FakeUdacityClient(port, keep_images=5000) as sim:
         code = main(["udacity", "drive", str(model), str(run), "--port", str(port), "--max-loops", "120",
                      "--car", str(tmp_path), "--echo"])
     assert code == 0
