@@ -52,7 +52,7 @@ from typing import Any, ClassVar, Final
 import numpy as np
 
 from parts.bridges.errors import BridgeError
-from vehicle.part import ThreadedPart
+from vehicle.part import ThreadedPart, run_event_loop
 
 logger = logging.getLogger(__name__)
 
@@ -247,15 +247,9 @@ class UdacitySim(ThreadedPart):
         if loop is None or loop.is_closed():
             return self.NOTHING
         try:
-            loop.run_until_complete(self._serve_until_stopped())
+            run_event_loop(loop, self._serve_until_stopped())
         finally:
             self.stop_event.set()
-            pending = asyncio.all_tasks(loop)
-            for task in pending:
-                task.cancel()
-            loop.run_until_complete(asyncio.gather(*pending, return_exceptions=True))
-            loop.run_until_complete(loop.shutdown_asyncgens())
-            loop.close()
         return self.NOTHING
 
     def shutdown(self) -> None:

@@ -209,6 +209,17 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
     }
 
 
+def add_engaged_pilot(V: Vehicle, driver: Any, fixed_throttle: float | None) -> None:
+    """The driver engages the pilot (``user/mode`` local, or local_angle with a fixed throttle) and
+    the pilot part runs; a pilot with ``reset()`` (sequence models) starts with no memory of the
+    previous episode."""
+    if callable(getattr(driver, "reset", None)):
+        driver.reset()
+    V.add(Engaged(fixed_throttle))
+    V.add(PilotCondition())
+    V.add(Lent(driver), run_condition="run_pilot")
+
+
 def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float, penalty_s: float,
                 fixed_throttle: float | None = None, extra_inputs: dict[str, Any] | None = None,
                 on_step: Callable[[SimCar], None] | None = None) -> EpisodeMetrics:
@@ -227,11 +238,7 @@ def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float,
         if fixed_throttle is not None:
             V.add(lambda: fixed_throttle, outputs=["user/throttle"])
     else:
-        if callable(getattr(driver, "reset", None)):
-            driver.reset()
-        V.add(Engaged(fixed_throttle))
-        V.add(PilotCondition())
-        V.add(Lent(driver), run_condition="run_pilot")
+        add_engaged_pilot(V, driver, fixed_throttle)
     add_drive_mode(V, cfg)
     metrics = EpisodeMetrics(sim.dt, laps, max_time, penalty_s, stop=V.stop, seed=seed,
                              track_length=sim.track.length,
@@ -287,11 +294,7 @@ def run_bridge_episode(driver: Any, sim_type: str, scene: str, laps: int, cfg: A
         V = Vehicle()  # the Udacity simulator runs in real time
         add_simulator(V, cfg, sim_type="udacity")
     V.mem.update(extra_inputs or {})
-    if callable(getattr(driver, "reset", None)):
-        driver.reset()
-    V.add(Engaged(fixed_throttle))
-    V.add(PilotCondition())
-    V.add(Lent(driver), run_condition="run_pilot")
+    add_engaged_pilot(V, driver, fixed_throttle)
     add_drive_mode(V, cfg)
     metrics = EpisodeMetrics(dt, laps, max_time, penalty_s, stop=V.stop, seed=scene)  # type: ignore[arg-type]
     waiter = None
