@@ -401,6 +401,7 @@ class DonkeySim(ThreadedPart):
         if self.synchronous:
             self._send_now(proto.client_message("step_mode", step_mode="synchronous", time_step=self.time_step))
             self._drain_realtime_telemetry()
+        self._sleep_gap(CONFIG_GAP_S)  # the first control too keeps the configuration's spacing
 
     def _drain_realtime_telemetry(self, quiet_s: float = 0.2, longest_s: float = 3.0) -> None:
         """Read until telemetry has stopped for ``quiet_s``: the frames pushed before synchronous

@@ -84,17 +84,33 @@ def test_telemetry_becomes_memory_values() -> None:
     assert controls and controls[-1]["steering"] == "0.2" and controls[-1]["throttle"] == "0.5"
 
 
-def test_controls_never_share_a_chunk_with_the_strict_simulator() -> None:
-    """The real simulator reads each TCP chunk as one message: nothing may be lost to coalescing."""
+def test_every_message_is_one_send_and_sends_are_spaced(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The real simulator reads each TCP chunk as one message: the client sends one message per
+    send, configuration messages 0.1 s apart and controls at least send_gap_s apart."""
+    sends: list[tuple[float, bytes]] = []
+    original = DonkeySim._send
+
+    def record(self: DonkeySim, data: bytes) -> None:
+        sends.append((time.monotonic(), data))
+        original(self, data)
+
+    monkeypatch.setattr(DonkeySim, "_send", record)
     with FakeDonkeySim(port=0, strict=True) as sim:
-        with client(sim) as part:
+        with client(sim, send_gap_s=0.02) as part:
             for _ in range(40):
                 outputs(part, 0.1, 0.2, False)
                 time.sleep(0.001)  # a loop much faster than the gap: the mailbox keeps only the newest
             drive(part, 0.3)
         assert sim.wait_for(lambda s: s.messages(0, "exit_scene"), 5)
-    assert sim.cars[0].parse_failures == 0
-    assert sim.messages(0)[-1]["msg_type"] == "exit_scene"
+    for _, data in sends:
+        json.loads(data)  # exactly one object per send (two would not parse)
+    kinds = [json.loads(d)["msg_type"] for _, d in sends]
+    gaps = [b[0] - a[0] for a, b in zip(sends, sends[1:], strict=False)]
+    config_end = kinds.index("cam_config") + 1
+    assert min(gaps[:config_end]) >= 0.1 - 1e-3  # the session's messages, as gym-donkeycar spaces them
+    assert min(gaps) >= 0.02 - 1e-3
+    assert len(sends) < 40  # the 40 fast loops did not become 40 controls
+    assert sim.cars[0].received[-1]["msg_type"] == "exit_scene"
 
 
 def test_strict_fake_fails_like_the_real_simulator_on_coalesced_messages() -> None:
