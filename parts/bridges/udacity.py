@@ -338,7 +338,7 @@ class UdacitySim(ThreadedPart):
             return
         if not self._stale_reported:
             self._stale_reported = True
-            logger.warning("Udacity simulator: no telemetry for %.1f s (UDACITY_TIMEOUT_S = %.1f): camera marked "
+            logger.warning("Udacity simulator: no telemetry for %.1f s (SIM_TIMEOUT_S = %.1f): camera marked "
                            "stale, pilot disengaged; check the simulator is running, not paused and still "
                            "in Autonomous Mode%s", now - last, self.timeout_s,
                            "" if connections else " (it disconnected)")

@@ -181,7 +181,7 @@ def test_lost_simulator_makes_the_camera_stale_with_one_log_line(caplog: pytest.
         assert loop.outputs["cam/image_array"] is not None  # the last frame, marked stale
     stale = [r for r in caplog.records if "no telemetry for" in r.getMessage()]
     assert len(stale) == 1
-    assert "UDACITY_TIMEOUT_S" in stale[0].getMessage()
+    assert "SIM_TIMEOUT_S" in stale[0].getMessage()
 
 
 def test_a_stuck_loop_gets_the_simulator_a_neutral_steer() -> None:
