@@ -21,7 +21,11 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from typing import Any, Final
+from collections.abc import Coroutine
+from typing import TYPE_CHECKING, Any, Final
+
+if TYPE_CHECKING:
+    import asyncio
 
 logger = logging.getLogger(__name__)
 
@@ -195,3 +199,19 @@ class ThreadedPart:
         if not self._opened:
             self._opened = True
             self.open()
+
+
+def run_event_loop(loop: asyncio.AbstractEventLoop, main: Coroutine[Any, Any, Any]) -> None:
+    """Run ``main`` on ``loop`` (a part's own event loop, in its thread), then cancel what is left
+    of its tasks and close the loop, so no task is destroyed while pending."""
+    import asyncio
+
+    try:
+        loop.run_until_complete(main)
+    finally:
+        pending = asyncio.all_tasks(loop)
+        for task in pending:
+            task.cancel()
+        loop.run_until_complete(asyncio.gather(*pending, return_exceptions=True))
+        loop.run_until_complete(loop.shutdown_asyncgens())
+        loop.close()

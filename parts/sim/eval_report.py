@@ -43,8 +43,20 @@ def format_table(report: dict[str, Any]) -> str:
     lines.append("  ".join("-" * w for w in widths))
     lines += ["  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
     o = report["overall"]
+    simulator = report.get("simulator", "builtin")
+    success = "-" if o.get("success_rate") is None else f"{o['success_rate'] * 100:.0f} %"
+    clock = "simulated" if simulator == "builtin" or report.get("settings", {}).get("synchronous") else "driven"
     lines.append(f"pilot {report['pilot']}: {report['laps']} lap(s) per track, success rate "
-                 f"{o['success_rate'] * 100:.0f} %, {o['elapsed_s']:.1f} s simulated")
+                 f"{success}, {o['elapsed_s']:.1f} s {clock}" + ("" if simulator == "builtin" else f" ({simulator})"))
+    missing = o.get("unavailable") or {}
+    if missing:
+        headers = {key: header for header, key, _ in _COLUMNS}
+        parts = []
+        for what in missing.values():
+            shown = [headers[m] for m in what["metrics"] if m in headers]
+            parts.append(what["signal"] + (f" ({', '.join(shown)})" if shown else ""))
+        lines.append(f"not available: the {simulator} simulator reports no " + "; no ".join(parts)
+                     + ": '-' above means unknown, not zero")
     return "\n".join(lines)
 
 

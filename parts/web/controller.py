@@ -27,7 +27,7 @@ import numpy as np
 from parts.web.pairing import is_loopback, page_url, resolve_token, terminal_qr
 from parts.web.server import LatestFrame, WebServer
 from parts.web.state import ControlState, Telemetry
-from vehicle.part import ThreadedPart
+from vehicle.part import ThreadedPart, run_event_loop
 
 logger = logging.getLogger(__name__)
 
@@ -158,15 +158,9 @@ class WebController(ThreadedPart):
         loop = self._loop
         assert loop is not None  # open() ran  # noqa: S101
         try:
-            loop.run_until_complete(self.server.serve_until_stopped(self._runner))
+            run_event_loop(loop, self.server.serve_until_stopped(self._runner))
         finally:
             self.stop_event.set()
-            pending = asyncio.all_tasks(loop)
-            for task in pending:
-                task.cancel()
-            loop.run_until_complete(asyncio.gather(*pending, return_exceptions=True))
-            loop.run_until_complete(loop.shutdown_asyncgens())
-            loop.close()
         return self.NOTHING
 
     def shutdown(self) -> None:

@@ -12,6 +12,14 @@ None command becomes centre and zero throttle, AI_THROTTLE_MULT scales the throt
 simulated car applies them. Leaving the road counts as an intervention: the car is re-centred on the
 road next to where it left (what a person would do) and the episode goes on. Metrics:
 :mod:`parts.sim.metrics` (DAVE-2 autonomy, time-weighted |CTE| over autonomous frames, ...).
+
+The same loop drives the other simulators (``sim="donkey"`` / ``"udacity"``): the Donkey simulator
+(or ``vehicle sim serve``) in synchronous steps of 1 / DRIVE_LOOP_HZ, one episode per scene, an
+off-track event answered with ``reset_car`` (back to the start line: the simulator cannot
+re-centre); the Udacity simulator in real time on the track it shows, where the user's manual
+overrides (W/S held) are the interventions and only frames that arrived are scored. What a
+simulator does not report (stock Udacity: CTE, laps, progress, position) is named in the report as
+unavailable, never counted as zero.
 """
 
 from __future__ import annotations
@@ -31,7 +39,7 @@ from parts.sim.simulator import SimCar
 from vehicle import Vehicle
 from vehicle.app.assembly.drive import add_drive_mode
 from vehicle.clock import SimulatedClock
-from vehicle.keys import Mode
+from vehicle.keys import Mode, rename
 from vehicle.part import part_name
 
 logger = logging.getLogger(__name__)
@@ -40,6 +48,10 @@ logger = logging.getLogger(__name__)
 SECONDS_PER_LAP_LIMIT = 60.0
 #: what a pilot reads when it declares nothing
 DEFAULT_PILOT_INPUTS = ("cam/image_array",)
+#: simulators evaluate() drives
+SIMULATORS = ("builtin", "donkey", "udacity")
+#: seconds an evaluation waits for the Udacity simulator to send its first frame
+UDACITY_WAIT_S = 120.0
 
 
 class Engaged:
@@ -104,17 +116,18 @@ def resolve_pilot(pilot: Any, cfg: Any = None) -> tuple[Any, str, bool]:
     raise TypeError(f"pilot must be 'expert', a model path or an object with run(), got {type(pilot).__name__}")
 
 
-def evaluate(pilot: Any, seeds: Sequence[int], laps: int = 2, *, cfg: Any = None,
+def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, cfg: Any = None,
              max_time: float | None = None, penalty_s: float | None = None,
              fixed_throttle: float | None = None, extra_inputs: dict[str, Any] | None = None,
-             on_step: Callable[[SimCar], None] | None = None) -> dict[str, Any]:
+             on_step: Callable[[SimCar], None] | None = None, sim: str = "builtin",
+             scenes: Sequence[str] | None = None) -> dict[str, Any]:
     """Drive ``pilot`` for ``laps`` laps on each track seed and return the report (a JSON-able dict).
 
     Args:
         pilot: "expert", a model file path (loaded with ``parts.pilots.load_pilot``), or a pilot
             part: an object with ``run(*inputs) -> (angle, throttle)`` and optionally ``INPUTS`` (or
             ``inputs``: memory keys, default ``["cam/image_array"]``).
-        seeds: track seeds (use tracks the pilot was not trained on).
+        seeds: track seeds of the built-in simulator (use tracks the pilot was not trained on).
         laps: laps per track.
         cfg: a Config (default: package defaults); SIM_* settings shape tracks, camera and car.
         max_time: simulated seconds per episode at most (default SIM_EVAL_MAX_TIME, else 60 s/lap).
@@ -123,17 +136,30 @@ def evaluate(pilot: Any, seeds: Sequence[int], laps: int = 2, *, cfg: Any = None
             otherwise the pilot drives ("local": its throttle scaled by AI_THROTTLE_MULT).
         extra_inputs: values for memory keys the pilot needs that the simulator does not make.
         on_step: called with the sim car after every step (e.g. to show or record frames).
+        sim: "builtin", "donkey" (SIM_HOST:SIM_PORT) or "udacity" (UDACITY_PORT).
+        scenes: Donkey scenes, one episode each (default DONKEY_GYM_ENV_NAME).
 
     Returns:
-        ``{"pilot", "laps", "seeds", "settings", "tracks": [per-track metrics], "overall": {...}}``.
+        ``{"pilot", "simulator", "laps", "seeds", "settings", "tracks": [per-track metrics],
+        "overall": {...}}``; each track's and the overall ``unavailable`` name the metrics the
+        simulator cannot give.
 
     Raises:
         ValueError: bad arguments, or the pilot reads keys nothing produces (a WiringError).
+        parts.bridges.errors.BridgeError: the Donkey or Udacity simulator cannot be reached.
     """
     cfg = cfg if cfg is not None else _default_config()
-    seeds = [seeds] if isinstance(seeds, int) else list(seeds)
-    if not seeds or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds):
-        raise ValueError(f"seeds must be a non-empty list of ints, got {seeds!r}")
+    if sim not in SIMULATORS:
+        raise ValueError(f"unknown simulator {sim!r}: use one of {', '.join(SIMULATORS)}")
+    if sim == "builtin":
+        seeds = [seeds] if isinstance(seeds, int) else list(seeds or [])
+        if not seeds or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds):
+            raise ValueError(f"seeds must be a non-empty list of ints, got {seeds!r}")
+        episodes: list[Any] = list(seeds)
+    elif sim == "donkey":
+        episodes = list(scenes or [cfg.DONKEY_GYM_ENV_NAME])
+    else:
+        episodes = ["udacity"]  # the track the simulator shows
     if not isinstance(laps, int) or isinstance(laps, bool) or laps < 1:
         raise ValueError(f"laps must be an int >= 1, got {laps!r}")
     if max_time is None:
@@ -145,34 +171,61 @@ def evaluate(pilot: Any, seeds: Sequence[int], laps: int = 2, *, cfg: Any = None
         raise ValueError(f"fixed_throttle must be in [-1, 1], got {fixed_throttle}")
 
     driver, name, owned = resolve_pilot(pilot, cfg)
+    if driver == "expert" and sim != "builtin":
+        raise ValueError(f"the expert drives the built-in simulator only: pass a model file to evaluate on the "
+                         f"{sim} simulator")
     started = time.perf_counter()
     results = []
     pooled: list[np.ndarray] = []  # |cte| of autonomous frames, for the overall percentile
     try:
-        for seed in seeds:
-            metrics = run_episode(driver, seed, laps, cfg, max_time=max_time, penalty_s=penalty,
-                                  fixed_throttle=fixed_throttle, extra_inputs=extra_inputs, on_step=on_step)
+        for episode in episodes:
+            if sim == "builtin":
+                metrics = run_episode(driver, episode, laps, cfg, max_time=max_time, penalty_s=penalty,
+                                      fixed_throttle=fixed_throttle, extra_inputs=extra_inputs, on_step=on_step)
+            else:
+                metrics = run_bridge_episode(driver, sim, episode, laps, cfg, max_time=max_time, penalty_s=penalty,
+                                             fixed_throttle=fixed_throttle, extra_inputs=extra_inputs)
             res = metrics.result()
             pooled.append(metrics.autonomous_abs_cte())
-            logger.info("eval %s on track %d: autonomy %.1f %%, %d/%d laps, mean |cte| %.3f m, %d off-track",
-                        name, seed, res["autonomy"], res["laps_completed"], laps, res["mean_abs_cte"] or 0.0,
-                        res["interventions"])
+            logger.info("eval %s on %s: autonomy %.1f %%, %s/%d laps, mean |cte| %s, %d interventions",
+                        name, episode, res["autonomy"], res["laps_completed"], laps,
+                        "-" if res["mean_abs_cte"] is None else f"{res['mean_abs_cte']:.3f}", res["interventions"])
             results.append(res)
     finally:
         if owned and callable(getattr(driver, "shutdown", None)):
             driver.shutdown()
+    settings: dict[str, Any] = {"dt": 1.0 / cfg.DRIVE_LOOP_HZ, "penalty_s": penalty, "max_time_s": max_time,
+                                "fixed_throttle": fixed_throttle}
+    if sim == "builtin":
+        settings.update({"road_width_m": cfg.SIM_ROAD_WIDTH, "lanes": cfg.SIM_LANES,
+                         "image": [cfg.SIM_CAMERA_W, cfg.SIM_CAMERA_H], "off_track_cte_m": cfg.SIM_OFF_TRACK_CTE,
+                         "track_size_m": cfg.SIM_TRACK_SIZE})
+    elif sim == "donkey":
+        settings.update({"host": cfg.SIM_HOST, "port": cfg.SIM_PORT, "synchronous": True,
+                         "max_cte": cfg.DONKEY_MAX_CTE, "image": [cfg.IMAGE_W, cfg.IMAGE_H]})
+    else:
+        settings.update({"port": cfg.UDACITY_PORT, "realtime": True, "interventions": "manual overrides"})
     return {
         "pilot": name,
+        "simulator": sim,
         "laps": laps,
-        "seeds": seeds,
-        "settings": {"dt": 1.0 / cfg.DRIVE_LOOP_HZ, "penalty_s": penalty, "max_time_s": max_time,
-                     "fixed_throttle": fixed_throttle, "road_width_m": cfg.SIM_ROAD_WIDTH,
-                     "lanes": cfg.SIM_LANES, "image": [cfg.SIM_CAMERA_W, cfg.SIM_CAMERA_H],
-                     "off_track_cte_m": cfg.SIM_OFF_TRACK_CTE, "track_size_m": cfg.SIM_TRACK_SIZE},
+        "seeds": episodes,
+        "settings": settings,
         "tracks": results,
         "overall": overall(results, penalty, np.concatenate(pooled)),
         "wall_time_s": round(time.perf_counter() - started, 3),
     }
+
+
+def add_engaged_pilot(V: Vehicle, driver: Any, fixed_throttle: float | None) -> None:
+    """The driver engages the pilot (``user/mode`` local, or local_angle with a fixed throttle) and
+    the pilot part runs; a pilot with ``reset()`` (sequence models) starts with no memory of the
+    previous episode."""
+    if callable(getattr(driver, "reset", None)):
+        driver.reset()
+    V.add(Engaged(fixed_throttle))
+    V.add(PilotCondition())
+    V.add(Lent(driver), run_condition="run_pilot")
 
 
 def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float, penalty_s: float,
@@ -193,15 +246,79 @@ def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float,
         if fixed_throttle is not None:
             V.add(lambda: fixed_throttle, outputs=["user/throttle"])
     else:
-        if callable(getattr(driver, "reset", None)):
-            driver.reset()
-        V.add(Engaged(fixed_throttle))
-        V.add(PilotCondition())
-        V.add(Lent(driver), run_condition="run_pilot")
+        add_engaged_pilot(V, driver, fixed_throttle)
     add_drive_mode(V, cfg)
     metrics = EpisodeMetrics(sim.dt, laps, max_time, penalty_s, stop=V.stop, seed=seed,
                              track_length=sim.track.length,
                              on_step=(lambda: on_step(sim)) if on_step is not None else None)
     V.add(metrics)
     V.start(rate_hz=cfg.DRIVE_LOOP_HZ, log_summary=False)
+    return metrics
+
+
+class ResetOnOffTrack:
+    """Part: an off-track event asks the Donkey simulator for ``reset_car`` (rising ``sim/reset``),
+    as a person would put the car back; the simulator puts it on the start line."""
+
+    INPUTS: ClassVar[tuple[str, ...]] = ("sim/off_track",)
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("sim/reset",)
+
+    def run(self, off_track: Any) -> bool:
+        return bool(off_track)
+
+
+class StopIfNoSimulator:
+    """Part: stops the loop when no frame arrived within ``wait_s`` seconds of the start."""
+
+    INPUTS: ClassVar[tuple[str, ...]] = ("cam/ok",)
+
+    def __init__(self, wait_s: float, stop: Callable[[], None]) -> None:
+        self.wait_s, self.stop = wait_s, stop
+        self.started = time.monotonic()
+        self.seen = False
+        self.gave_up = False
+
+    def run(self, ok: Any) -> None:
+        self.seen = self.seen or bool(ok)
+        if not self.seen and time.monotonic() - self.started > self.wait_s:
+            self.gave_up = True
+            self.stop()
+
+
+def run_bridge_episode(driver: Any, sim_type: str, scene: str, laps: int, cfg: Any, *, max_time: float,
+                       penalty_s: float, fixed_throttle: float | None = None,
+                       extra_inputs: dict[str, Any] | None = None) -> EpisodeMetrics:
+    """One episode on the Donkey simulator (synchronous steps, scene ``scene``) or the Udacity
+    simulator (real time): the same loop as :func:`run_episode` around the bridge part."""
+    from vehicle.app.assembly.sim import add_simulator, add_simulator_commands, make_bridge
+
+    dt = 1.0 / cfg.DRIVE_LOOP_HZ
+    if sim_type == "donkey":
+        V = Vehicle(clock=SimulatedClock())  # each loop is one synchronous simulator step
+        bridge = make_bridge(cfg.replace(DONKEY_GYM_ENV_NAME=scene), "donkey", synchronous=True, time_step=dt)
+        bridge.start()  # connect now: an unreachable simulator is an error, not a failed loop
+        V.add(bridge, feedback=("angle", "throttle", "sim/reset"))  # run(): send, then wait for the step
+    else:
+        V = Vehicle()  # the Udacity simulator runs in real time
+        add_simulator(V, cfg, sim_type="udacity")
+    V.mem.update(extra_inputs or {})
+    add_engaged_pilot(V, driver, fixed_throttle)
+    add_drive_mode(V, cfg)
+    metrics = EpisodeMetrics(dt, laps, max_time, penalty_s, stop=V.stop, seed=scene)  # type: ignore[arg-type]
+    waiter = None
+    if sim_type == "donkey":
+        V.add(metrics)
+        V.add(ResetOnOffTrack())
+    else:
+        # score only frames that arrived; the user's manual overrides are the interventions
+        V.add(metrics, inputs=list(rename(EpisodeMetrics.INPUTS, {"sim/off_track": "sim/manual"})),
+              run_condition="cam/ok")
+        waiter = StopIfNoSimulator(UDACITY_WAIT_S, V.stop)
+        V.add(waiter)
+        add_simulator_commands(V)
+        logger.info("evaluation: start the Udacity simulator in Autonomous Mode on the track to drive")
+    V.start(rate_hz=cfg.DRIVE_LOOP_HZ, log_summary=False)
+    if waiter is not None and waiter.gave_up:
+        raise ValueError(f"no frame from the Udacity simulator within {UDACITY_WAIT_S:.0f} s: start it, choose "
+                         f"Autonomous Mode, and check it connects to port {cfg.UDACITY_PORT}")
     return metrics

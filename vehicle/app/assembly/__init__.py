@@ -15,6 +15,8 @@ from typing import Any
 HELPERS: dict[str, str] = {
     "add_drive_mode": "drive",
     "add_simulator": "sim",
+    "sim_clock": "sim",
+    "add_simulator_commands": "sim",
     "add_expert": "sim",
     "add_expert_noise": "sim",
     "add_camera": "camera",

@@ -1,4 +1,5 @@
-"""``vehicle sim ...``: draw tracks, evaluate pilots, record expert demonstrations."""
+"""``vehicle sim ...``: draw tracks, evaluate pilots, record expert demonstrations, serve the
+simulator to Donkey-simulator clients (gym-donkeycar, DonkeyCar)."""
 
 from __future__ import annotations
 
@@ -34,6 +35,11 @@ def register(subparsers: Any) -> None:
     ev.add_argument("--laps", type=int, help="laps per track (default SIM_EVAL_LAPS)")
     ev.add_argument("--max-time", type=float, help="simulated seconds per track at most")
     ev.add_argument("--throttle", type=float, help="fixed throttle: use only the pilot's steering")
+    ev.add_argument("--sim", choices=["builtin", "donkey", "udacity"], default="builtin",
+                    help="simulator to evaluate in: ours, the Donkey simulator (SIM_HOST:SIM_PORT, or `vehicle sim "
+                         "serve`; synchronous steps) or the Udacity simulator (real time, on the track it shows)")
+    ev.add_argument("--scenes", help="with --sim donkey: comma-separated scenes, one episode each (default "
+                                     "DONKEY_GYM_ENV_NAME; --tracks N stands for scene track_N of `vehicle sim serve`)")
     ev.add_argument("--json", help="write the full report (metrics and trajectories) here")
     ev.add_argument("--png", help="write the driven trajectories over the track maps here")
     add_car_options(ev)
@@ -46,6 +52,23 @@ def register(subparsers: Any) -> None:
     rec.add_argument("--noise", type=float, help="steering noise injection amplitude (default SIM_EXPERT_NOISE)")
     add_car_options(rec)
     rec.set_defaults(func=cmd_record)
+
+    serve = sub.add_parser("serve", formatter_class=fmt,
+                           help="serve the simulator over the Donkey simulator's protocol (gym-donkeycar, DonkeyCar)",
+                           description="Serve the built-in simulator over the Donkey simulator's TCP protocol: "
+                                       "gym-donkeycar environments, DonkeyCar's DonkeyGymEnv part and any Donkey "
+                                       "client drive it, headless, one car per connection, faster than real time "
+                                       "when the client asks for step_mode synchronous. See docs/simulators.md.")
+    serve.add_argument("--port", type=int, default=9091, help="TCP port (the Donkey simulator's is 9091)")
+    serve.add_argument("--host", default="127.0.0.1",
+                       help="interface to listen on; 0.0.0.0 lets clients on other machines connect")
+    serve.add_argument("--tracks", type=_seeds,
+                       help="comma-separated track seeds served (default SIM_TRACK_SEEDS); every Donkey scene "
+                            "name maps onto them in turn, and track_<seed> loads a seed")
+    serve.add_argument("--hz", type=float, default=20.0, help="telemetry rate in real-time mode")
+    serve.add_argument("--max-clients", type=int, default=16, help="connections served at once")
+    add_car_options(serve)
+    serve.set_defaults(func=cmd_serve)
 
 
 def _seeds(text: str) -> list[int]:
@@ -100,9 +123,19 @@ def cmd_eval(args: argparse.Namespace) -> int:
     if args.pilot != "expert" and not Path(args.pilot).exists():
         raise UserError(f"--pilot {args.pilot}: no such model file; pass 'expert' or a trained model "
                         "(e.g. models/mypilot.pt)")
+    if args.sim != "builtin" and args.png:
+        raise UserError("--png draws the built-in simulator's tracks: drop it with --sim " + args.sim)
+    if args.scenes and args.sim != "donkey":
+        raise UserError("--scenes names Donkey simulator scenes: use it with --sim donkey")
+    if args.sim == "udacity" and args.tracks:
+        raise UserError("--tracks: the Udacity simulator drives the track it shows (choose it in its menu)")
+    scenes = None
+    if args.sim == "donkey":
+        scenes = [x.strip() for x in args.scenes.split(",") if x.strip()] if args.scenes else (
+            [f"track_{s}" for s in args.tracks] if args.tracks else None)
     try:
         report = evaluate(args.pilot, seeds, laps, cfg=cfg, max_time=args.max_time,
-                          fixed_throttle=args.throttle)
+                          fixed_throttle=args.throttle, sim=args.sim, scenes=scenes)
     except (ValueError, FileNotFoundError) as exc:
         raise UserError(str(exc)) from exc
     except PartError as exc:  # e.g. a model made for another image size: the loop stopped safely
@@ -127,4 +160,33 @@ def cmd_record(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise UserError(str(exc)) from exc
     print(f"recorded {args.records} records into {path}")  # noqa: T201
+    return 0
+
+
+def cmd_serve(args: argparse.Namespace) -> int:
+    """Serve until Ctrl-C."""
+    from parts.bridges.donkey_server import DonkeyServer, scene_names
+
+    cfg = load_for_command(args)
+    if not 0 < args.port <= 65535:
+        raise UserError(f"--port {args.port}: give a TCP port in 1..65535")
+    if not 0 < args.hz <= 1000:
+        raise UserError(f"--hz {args.hz}: give a telemetry rate in (0, 1000] Hz")
+    if args.max_clients < 1:
+        raise UserError(f"--max-clients {args.max_clients}: give at least 1")
+    seeds = args.tracks or list(cfg.SIM_TRACK_SEEDS)
+    try:
+        server = DonkeyServer(args.host, args.port, seeds=seeds, cfg=cfg, telemetry_hz=args.hz,
+                              max_clients=args.max_clients)
+    except ValueError as exc:
+        raise UserError(str(exc)) from exc
+    server.start()
+    print(f"Donkey-protocol simulator on {args.host}:{server.port} (tracks {','.join(map(str, seeds))}); "  # noqa: T201
+          f"scenes: {', '.join(scene_names(seeds))}. Ctrl-C to stop.", flush=True)
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.stop()
     return 0
