@@ -80,6 +80,50 @@ CAMERA_IMAGE_PATH: str | None = None
 # False after CAMERA_TIMEOUT_S).
 CAMERA_REPLAY_LOOP: bool = True
 
+# == Vision ==
+
+# Remove lens distortion from every camera frame with the car's calibration (Undistort part, one
+# precomputed remap per frame). Make the calibration first: `vehicle camera calibrate`.
+CAMERA_UNDISTORT: bool = False
+# The camera calibration file (camera matrix, distortion coefficients, reprojection error),
+# relative to CAR_PATH; written by `vehicle camera calibrate`.
+CAMERA_CALIBRATION_PATH: str = "camera_calibration.json"
+# Undistorted view: 0 = zoom so that only valid pixels show (no black border), 1 = keep every
+# source pixel (black corners with a wide lens).
+CAMERA_UNDISTORT_ALPHA: float = 0.0
+# Chessboard used for calibration: inner corners per row and per column (where four squares
+# meet; the thesis's board: 10 x 7, an 11 x 8 squares print). The counts must differ.
+CAMERA_CALIB_BOARD: tuple[int, int] = (10, 7)
+# Side of one chessboard square as printed, in millimetres (only the board poses depend on it).
+CAMERA_CALIB_SQUARE_MM: float = 25.0
+# Distortion model fitted: "standard" = k1, k2, p1, p2, k3 (the thesis's code); "rational" adds
+# k4..k6 for very wide lenses (the thesis's equation 6.3).
+CAMERA_CALIB_MODEL: Literal["standard", "rational"] = "standard"
+# Lane extraction (thesis chapter 7), used by the `lanes` model type and the LaneExtraction part:
+# the region of interest on the road as four (x, y) pixel points of a LANE_POINTS_SIZE frame,
+# bottom left, top left, top right, bottom right. Default: the thesis's points for its 320x180
+# simulator camera; tune them for your camera with `vehicle lanes preview`.
+LANE_SOURCE_POINTS: list[tuple[float, float]] = [(0.0, 180.0), (112.5, 87.5), (200.0, 87.5), (307.5, 180.0)]
+# Where the source points go in the bird's-eye image, same order and frame size (the thesis's).
+LANE_DESTINATION_POINTS: list[tuple[float, float]] = [(80.0, 180.0), (80.0, 0.25), (230.0, 0.25), (230.0, 180.0)]
+# (width, height) of the frame the lane points are given for; they are scaled to the real
+# camera size (same field of view assumed).
+LANE_POINTS_SIZE: tuple[int, int] = (320, 180)
+# HLS saturation range of lane pixels after the warp: S in (low, high] (thesis: 65, 255, i.e.
+# S > 65); None leaves the S threshold out (then LANE_COLOR_MASK must be set).
+LANE_S_THRESHOLD: tuple[int, int] | None = (65, 255)
+# Also count white and/or yellow pixels as lane pixels: white tape has almost no saturation, so
+# the S threshold alone misses it. None, "white", "yellow" or "white_yellow".
+LANE_COLOR_MASK: Literal["white", "yellow", "white_yellow"] | None = None
+# HLS lightness (0-255, after LANE_NORMALIZE) from which a pixel is white (LANE_COLOR_MASK).
+LANE_WHITE_MIN_LIGHTNESS: int = 200
+# OpenCV hue range (0-180) of yellow lane pixels (LANE_COLOR_MASK).
+LANE_YELLOW_HUE: tuple[int, int] = (15, 35)
+# Least HLS saturation (0-255) of a yellow lane pixel (LANE_COLOR_MASK).
+LANE_YELLOW_MIN_SATURATION: int = 80
+# Stretch the warped image to the full 0-255 range before thresholding (the thesis does).
+LANE_NORMALIZE: bool = True
+
 # == Drive modes ==
 
 # Mode at start: "user" (human drives), "local_angle" (pilot steers), "local" (pilot drives).
@@ -289,6 +333,14 @@ SIM_EXPERT_LOOKAHEAD_TIME: float = 0.25
 # Which line the expert follows: "auto" (centre on one lane, right lane on two), "center",
 # "left" or "right".
 SIM_EXPERT_LANE: Literal["auto", "center", "left", "right"] = "auto"
+# Two-lane tracks with TRAIN_BEHAVIORS: the expert keeps to the lane of the active behaviour
+# (BEHAVIOR_LIST names with Left/Right) and changes lane along a smooth path of this many metres.
+SIM_EXPERT_LANE_CHANGE_DISTANCE: float = 2.0
+# A lane change starts only where the road ahead curves less than this (1/m; 0.4 = radius 2.5 m):
+# the expert delays the manoeuvre in tight corners, as the thesis's drivers did.
+SIM_EXPERT_LANE_CHANGE_MAX_CURVATURE: float = 0.4
+# Longest wait (seconds) for a straighter road before a lane change starts anyway.
+SIM_EXPERT_LANE_CHANGE_MAX_DELAY: float = 3.0
 # Noise injection: amplitude of the steering perturbation added to the executed command while
 # the expert's clean label is recorded, so demonstrations contain recoveries (0 = off). Used when
 # the expert drives (manage.py drive --expert, vehicle sim record), never in evaluation.

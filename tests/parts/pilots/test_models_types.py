@@ -9,8 +9,9 @@ from parts.pilots.dataset import PilotDataset, build_samples, read_drive_data
 from parts.pilots.framecache import FrameCache
 from parts.pilots.models import create_model, model_type, model_type_names
 from parts.pilots.preprocess import Preprocess
+from parts.vision.lanes import LaneSettings
 
-ALL_TYPES = ["linear", "categorical", "inferred", "pilotnet", "memory", "behavior", "rnn", "3d"]
+ALL_TYPES = ["linear", "categorical", "inferred", "pilotnet", "memory", "behavior", "rnn", "3d", "lanes"]
 
 
 def test_registry_lists_every_type():
@@ -55,9 +56,10 @@ def test_declared_inputs_outputs(name):
     controls = model.controls(out)
     assert controls.shape == (n, 2)
     assert model.describe()["type"] == name
-    expected_extra = {"memory": 6, "behavior": 3}.get(name, 0)
+    expected_extra = {"memory": 6, "behavior": 3, "lanes": 2}.get(name, 0)
     assert model.extra_size == expected_extra
-    assert model.extra_inputs == (("behavior/one_hot_state_array",) if name == "behavior" else ())
+    behavior_types = ("behavior", "lanes")
+    assert model.extra_inputs == (("behavior/one_hot_state_array",) if name in behavior_types else ())
     assert model.frames == (3 if name in ("rnn", "3d") else 1)
     assert model.command_history == (3 if name == "memory" else 0)
 
@@ -83,8 +85,9 @@ def test_inferred_throttle_slows_in_curves():
 def test_each_type_learns_on_a_tiny_tub(name, tiny_tub, torch_one_thread):
     torch.manual_seed(0)
     data = read_drive_data([tiny_tub])
-    pre = Preprocess(image_shape=(64, 64, 3))
-    options = {"num_behaviors": 2} if name == "behavior" else {}
+    lanes = LaneSettings(color_mask="yellow").to_dict() if name == "lanes" else None  # the bar is yellow
+    pre = Preprocess(image_shape=(64, 64, 3), lanes=lanes)
+    options = {"num_behaviors": 2} if name in ("behavior", "lanes") else {}
     model = create_model(name, pre.output_shape((64, 64, 3)), **options)
     depth = max(model.frames - 1, model.command_history)
     samples = build_samples(data, range(len(data)), depth=depth)
