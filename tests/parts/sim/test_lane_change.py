@@ -9,7 +9,7 @@ import pytest
 from parts.drive.behavior import BehaviorSchedule, BehaviorState, behavior_lane, random_change_times
 from parts.sim.expert import Expert
 from parts.sim.lane_metrics import LaneCommand, lane_metrics, overall_lane_metrics
-from parts.sim.simcar import SimCar
+from parts.sim.simulator import SimCar
 
 
 @pytest.fixture
