@@ -510,8 +510,8 @@ USE_THROTTLE_FILTER: bool = True
 # == Behaviour ==
 
 # Drive with behaviour states (e.g. which lane to keep): adds behavior/state, behavior/label and
-# behavior/one_hot_state_array to the memory (record them by adding them to TUB_INPUTS with the
-# types int, str, vector); the gamepad's behaviour buttons step through BEHAVIOR_LIST.
+# behavior/one_hot_state_array to the memory, and every tub records them (as DonkeyCar does); the
+# gamepad's behaviour buttons and the web page's "change lane" button step through BEHAVIOR_LIST.
 TRAIN_BEHAVIORS: bool = False
 # Names of the behaviours in order; the one-hot array has one entry per name.
 BEHAVIOR_LIST: list[str] = ["Left_Lane", "Right_Lane"]

@@ -22,13 +22,14 @@ logger = logging.getLogger(__name__)
 class BehaviorState:
     """The active behaviour of ``behaviors``.
 
-    Input: ``behavior/step`` (+1 next, -1 previous, 0/None nothing; optional).
+    Inputs: ``behavior/step`` (gamepad buttons, a schedule) and ``web/behavior_step`` (the web
+    page's "change lane" button): +1 next, -1 previous, 0/None nothing; their sum is applied.
     Outputs: ``behavior/state, behavior/label, behavior/one_hot_state_array``.
     """
 
-    INPUTS: ClassVar[tuple[str, ...]] = ("behavior/step",)
-    #: a car without behaviour buttons has no step: the state stays where it is
-    OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("behavior/step",)
+    INPUTS: ClassVar[tuple[str, ...]] = ("behavior/step", "web/behavior_step")
+    #: a car without behaviour buttons (or without the web page) has no step: the state stays
+    OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("behavior/step", "web/behavior_step")
     OUTPUTS: ClassVar[tuple[str, ...]] = ("behavior/state", "behavior/label", "behavior/one_hot_state_array")
 
     def __init__(self, behaviors: Sequence[str], initial: int | str = 0) -> None:
@@ -69,10 +70,12 @@ class BehaviorState:
         """One-hot encoding of the active behaviour."""
         return [1.0 if i == self.state else 0.0 for i in range(len(self.behaviors))]
 
-    def run(self, step: int | None = None) -> tuple[int, str, list[float]]:
-        """Apply a step request, then return (state, label, one_hot)."""
-        if step:
-            if step > 0:
+    def run(self, step: int | None = None, *more_steps: int | None) -> tuple[int, str, list[float]]:
+        """Apply the step requests (several controllers' steps add up), then return (state, label,
+        one_hot)."""
+        total = sum(int(s) for s in (step, *more_steps) if s)
+        for _ in range(abs(total)):
+            if total > 0:
                 self.increment_state()
             else:
                 self.decrement_state()

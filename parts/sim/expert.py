@@ -149,11 +149,17 @@ class Expert:
         lane = self.lane if self.lane != "auto" else ("right" if track.lanes == 2 else "center")
         self._offset = track.lane_offset(lane)
         self._track = track
-        # a new track (or a reset onto one) starts in the lane asked for, with no change under way
-        self._from = self._to = self._offset_of(self._target_lane) if self._target_lane else self._offset
-        self._start = -math.inf
+        # on a new track the car moves (smoothly) from where it was placed to the lane asked for
         self._waiting_since = None
         self._last_s = None
+        self._move_to(self._offset_of(self._target_lane) if self._target_lane else self._offset)
+
+    def _move_to(self, offset: float) -> None:
+        """Plan a smooth move from the car's lateral position to ``offset`` starting now."""
+        st = self.sim.car.state
+        assert self._track is not None
+        here = -self._track.project((st.x, st.y)).cte
+        self._from, self._to, self._start = here, offset, self._odo
 
     def _offset_of(self, lane: str) -> float:
         assert self._track is not None
@@ -179,9 +185,9 @@ class Expert:
             return
         if lane == self._target_lane:
             return
-        if self._target_lane is None:  # first state seen: take that lane at once (start of a run)
+        if self._target_lane is None:  # first state seen (start of a run): go to that lane now
             self._target_lane = lane
-            self._from = self._to = self._offset_of(lane)
+            self._move_to(self._offset_of(lane))
             return
         if self._waiting_since is None:
             self._waiting_since = self.sim.time

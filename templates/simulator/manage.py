@@ -5,6 +5,8 @@
     python manage.py drive --model models/pilot.pt    # let a trained pilot drive
     python manage.py drive --expert --record-records 3000 --tracks 1,2,3
                                                       # record demonstrations, no human needed
+    python manage.py drive --expert --record-records 6000 --lane-changes 40
+                                                      # ... changing lanes (SIM_LANES = 2)
     python manage.py train --tubs data --model models/pilot.pt
 
 Settings live in myconfig.py (overrides of the defaults; see docs/config.md). To add a part of
@@ -27,6 +29,7 @@ def drive(cfg, args):
     V = Vehicle(clock=None if cfg.SIM_REALTIME else SimulatedClock())  # simulated time: as fast as the CPU allows
     assembly.add_simulator(V, cfg, seeds=args.tracks)  # angle, throttle -> cam/image_array, sim/*
     assembly.add_controller(V, cfg)  # web page (and gamepad) -> user/angle, user/throttle, user/mode
+    assembly.add_behavior(V, cfg)  # TRAIN_BEHAVIORS: lane buttons -> behavior/state, behavior/one_hot_state_array
     if args.model:
         assembly.add_pilot(V, cfg, args.model)  # cam/image_array -> pilot/angle, pilot/throttle
     assembly.add_drive_mode(V, cfg)  # user/* or pilot/* -> angle, throttle
@@ -38,7 +41,7 @@ def record_demonstrations(cfg, args):
     """Let the built-in expert drive in simulated time and record --record-records N records."""
     if not args.record_records:
         raise UserError("--expert records demonstrations: add --record-records N (e.g. 3000)")
-    tub = record_expert(cfg, args.tracks, args.record_records)
+    tub = record_expert(cfg, args.tracks, args.record_records, lane_changes=args.lane_changes)
     print(f"recorded {args.record_records} expert records into {tub}")
     return 0
 
@@ -49,6 +52,7 @@ def main(argv=None):
     d.add_argument("--model", help="trained pilot to drive with (a models/*.pt file)")
     d.add_argument("--expert", action="store_true", help="let the built-in expert drive and record (simulated time)")
     d.add_argument("--record-records", type=int, metavar="N", help="with --expert: records to write")
+    d.add_argument("--lane-changes", type=int, metavar="N", help="with --expert: change lanes N times at random")
     d.add_argument("--tracks", type=manage.int_list, metavar="SEEDS", help="track seeds, e.g. 1,2,3")
     d.add_argument("--max-loops", type=int, metavar="N", help="stop after N loops")
     manage.add_train_command(parser)  # the options of `vehicle train`, on this car's data/

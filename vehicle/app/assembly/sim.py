@@ -26,11 +26,14 @@ def add_simulator(V: Any, cfg: Any, seeds: Sequence[int] | None = None) -> Any:
 
 def add_expert(V: Any, cfg: Any, sim: Any) -> Any:
     """Add the pure-pursuit expert driving ``sim``: out ``user/angle``, ``user/throttle``,
-    ``user/mode`` (always "user") and ``recording`` (always True)."""
+    ``user/mode`` (always "user") and ``recording`` (always True). On two-lane tracks with
+    TRAIN_BEHAVIORS it reads ``behavior/state`` (add the behaviour part first) and keeps to, or
+    changes to, the lane of the active behaviour."""
     from parts.sim.expert import Expert
 
     expert = Expert.from_config(cfg, sim)
-    V.add(expert)
+    # following behaviours, it reads the active one (add_behavior before add_expert)
+    V.add(expert, inputs=["behavior/state"] if expert.behavior_lanes is not None else None)
     return expert
 
 

@@ -44,6 +44,9 @@ def register(subparsers: Any) -> None:
     rec.add_argument("--tracks", type=_seeds, help="comma-separated track seeds (default SIM_TRACK_SEEDS)")
     rec.add_argument("--tub", help="tub folder (default: a new tub in the car's data folder)")
     rec.add_argument("--noise", type=float, help="steering noise injection amplitude (default SIM_EXPERT_NOISE)")
+    rec.add_argument("--lane-changes", type=int, metavar="N",
+                     help="two-lane tracks (SIM_LANES = 2): switch the behaviour (Left_Lane / Right_Lane) N times at "
+                          "random; the expert changes lanes and the records carry the behaviour")
     add_car_options(rec)
     rec.set_defaults(func=cmd_record)
 
@@ -120,8 +123,11 @@ def cmd_record(args: argparse.Namespace) -> int:
     cfg = load_for_command(args)
     if args.records < 1:
         raise UserError(f"--records {args.records}: give at least 1 record")
+    if args.lane_changes is not None and args.lane_changes < 0:
+        raise UserError(f"--lane-changes {args.lane_changes}: give 0 or more")
     try:
-        path = record_expert(cfg, args.tracks, args.records, args.tub, noise=args.noise)
+        path = record_expert(cfg, args.tracks, args.records, args.tub, noise=args.noise,
+                             lane_changes=args.lane_changes)
     except ValueError as exc:
         raise UserError(str(exc)) from exc
     print(f"recorded {args.records} records into {path}")  # noqa: T201
