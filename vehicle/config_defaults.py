@@ -290,6 +290,10 @@ SIM_CAMERA_PITCH: float = 20.0
 SIM_CAMERA_FOV: float = 100.0
 # Camera position ahead of the rear axle in metres.
 SIM_CAMERA_FORWARD: float = 0.2
+# Lens distortion of the simulated camera, OpenCV's coefficients (k1, k2, p1, p2[, k3]; k1 < 0 is
+# a wide-angle barrel lens), or None for an ideal pinhole. With it the simulator's frames need
+# calibrating and undistorting like a real camera's (`vehicle camera calibrate --sim`).
+SIM_CAMERA_DISTORTION: list[float] | None = None
 # Width of the rendered image in pixels; follows IMAGE_W unless set (e.g. 320 like the Udacity
 # simulator).
 SIM_CAMERA_W: int = IMAGE_W

@@ -14,11 +14,13 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import cv2
 import numpy as np
 
 from parts.sim.texture import TrackTexture
+from parts.vision.lens import LensError, undistort_grid
 
 logger = logging.getLogger(__name__)
 
@@ -66,7 +68,10 @@ class Camera:
         #: size of the pinhole image rendered before the lens bends it (the output size without lens)
         self.canvas_size = (width, height)
         if self.distortion is not None:
-            und = undistort_grid(self.intrinsics, self.distortion, width, height)
+            try:
+                und = undistort_grid(self.intrinsics, self.distortion, width, height)
+            except LensError as exc:
+                raise ValueError(f"{exc} for a {width}x{height} camera with a {fov_deg} deg field of view") from None
             x0 = math.floor(float(und[..., 0].min())) - 1
             y0 = math.floor(float(und[..., 1].min())) - 1
             cw = math.ceil(float(und[..., 0].max())) - x0 + 2
@@ -187,52 +192,10 @@ def _check_distortion(distortion: Sequence[float] | None) -> np.ndarray | None:
     return d if np.any(d != 0.0) else None
 
 
-def undistort_grid(k: np.ndarray, dist: np.ndarray, width: int, height: int) -> np.ndarray:
-    """Undistorted pixel positions (height, width, 2) of every pixel of a ``width`` x ``height``
-    image taken through a lens with camera matrix ``k`` and OpenCV coefficients ``dist``.
-
-    Inverts the distortion model by Newton's method (numerical Jacobian, damped steps) and checks
-    the result by distorting it again.
-
-    Raises:
-        ValueError: the model does not invert over the image (too strong or folding distortion).
-    """
-    ys, xs = np.mgrid[0:height, 0:width].astype(np.float64)
-    fx, fy, cx, cy = k[0, 0], k[1, 1], k[0, 2], k[1, 2]
-    xd, yd = (xs - cx) / fx, (ys - cy) / fy
-    c = np.zeros(8)
-    c[:dist.size] = dist
-    k1, k2, p1, p2, k3, k4, k5, k6 = c
-
-    def distort(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        r2 = x * x + y * y
-        radial = (1 + r2 * (k1 + r2 * (k2 + r2 * k3))) / (1 + r2 * (k4 + r2 * (k5 + r2 * k6)))
-        return (x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x),
-                y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y)
-
-    x, y = xd.copy(), yd.copy()
-    eps = 1e-7
-    with np.errstate(all="ignore"):
-        for _ in range(50):
-            u, v = distort(x, y)
-            ru, rv = u - xd, v - yd
-            if np.nanmax(np.abs(ru) + np.abs(rv)) < 1e-12:
-                break
-            ux, vx = distort(x + eps, y)
-            uy, vy = distort(x, y + eps)
-            a, b, cc, d = (ux - u) / eps, (uy - u) / eps, (vx - v) / eps, (vy - v) / eps
-            det = a * d - b * cc
-            sx = (d * ru - b * rv) / det
-            sy = (a * rv - cc * ru) / det
-            norm = np.hypot(sx, sy)
-            scale = np.minimum(1.0, 0.25 * (1.0 + np.hypot(x, y)) / np.maximum(norm, 1e-300))  # damped
-            x, y = x - sx * scale, y - sy * scale
-    rx, ry = distort(x, y)
-    err = np.hypot((rx - xd) * fx, (ry - yd) * fy)
-    if not np.all(np.isfinite(err)) or err.max() > 0.01:
-        raise ValueError(f"lens distortion {dist.tolist()} cannot be inverted over a {width}x{height} image "
-                         "(too strong, or it folds the image): use smaller coefficients")
-    return np.stack([x * fx + cx, y * fy + cy], axis=-1)
+def camera_from_config(cfg: Any) -> Camera:
+    """The simulated camera of a Config (SIM_CAMERA_*)."""
+    return Camera(cfg.SIM_CAMERA_W, cfg.SIM_CAMERA_H, cfg.SIM_CAMERA_FOV, cfg.SIM_CAMERA_PITCH,
+                  cfg.SIM_CAMERA_HEIGHT, cfg.SIM_CAMERA_FORWARD, distortion=cfg.SIM_CAMERA_DISTORTION)
 
 
 class ImageJitter:

@@ -12,6 +12,7 @@ along a row of inner corners, y down the columns, millimetres, z = 0 on the boar
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import time
@@ -29,15 +30,18 @@ TEXTURE_PX = 48
 SUPERSAMPLE = 3
 
 
+@functools.lru_cache(maxsize=4)
 def board_texture(columns: int, rows: int, px: int = TEXTURE_PX, margin: int = 1) -> np.ndarray:
     """RGB image of a board with ``columns`` x ``rows`` inner corners ((columns + 1) x (rows + 1)
-    squares, top-left black) on white paper with ``margin`` squares of border."""
+    squares, top-left black) on white paper with ``margin`` squares of border (cached: read only)."""
     nx, ny = columns + 1, rows + 1
     yy, xx = np.mgrid[0:ny, 0:nx]
     squares = np.where((xx + yy) % 2 == 0, 20, 235).astype(np.uint8)
     img = np.kron(squares, np.ones((px, px), np.uint8))
     img = np.pad(img, margin * px, constant_values=245)
-    return np.repeat(img[:, :, None], 3, axis=2)
+    out = np.repeat(img[:, :, None], 3, axis=2)
+    out.flags.writeable = False
+    return out
 
 
 def _board_to_texture(square_mm: float, px: int, margin: int) -> np.ndarray:

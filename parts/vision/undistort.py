@@ -4,9 +4,10 @@ The thesis (§6.2, Appendix 1.3) calls ``cv2.undistort`` per frame, which recomp
 undistortion map every time. Here the map is computed once per frame size
 (``cv2.initUndistortRectifyMap``, fixed-point maps) and each frame costs one ``cv2.remap``.
 
-``alpha`` chooses the output camera (``cv2.getOptimalNewCameraMatrix``): 0 keeps only valid
-pixels (the image is zoomed so no black border shows; what a pilot should see), 1 keeps every
-source pixel (black corners appear with barrel distortion).
+``alpha`` chooses the output camera (as ``cv2.getOptimalNewCameraMatrix``, computed with a
+converging inverse of the lens model, :mod:`parts.vision.lens`): 0 keeps only valid pixels (the
+image is zoomed so no black border shows; what a pilot should see), 1 keeps every source pixel
+(black corners appear with barrel distortion).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import cv2
 import numpy as np
 
 from parts.vision.calibration import CalibrationError, CameraCalibration
+from parts.vision.lens import LensError, new_camera_matrix
 
 logger = logging.getLogger(__name__)
 
@@ -54,8 +56,10 @@ class Undistort:
         key = (width, height)
         if key not in self._maps:
             cal = self.calibration.scaled_to(width, height)
-            new_k, _ = cv2.getOptimalNewCameraMatrix(cal.camera_matrix, cal.dist_coeffs, (width, height),
-                                                     self.alpha, (width, height))
+            try:
+                new_k = new_camera_matrix(cal.camera_matrix, cal.dist_coeffs, width, height, self.alpha)
+            except LensError as exc:
+                raise CalibrationError(f"the camera calibration cannot be used: {exc}; calibrate again") from None
             self.new_camera_matrix = new_k
             self._maps[key] = cv2.initUndistortRectifyMap(cal.camera_matrix, cal.dist_coeffs, None, new_k,
                                                           (width, height), cv2.CV_16SC2)

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from parts.sim.camera import Camera, undistort_grid
+from parts.sim.camera import Camera
 from parts.sim.chessboard import ChessboardCamera, project_corners, random_board_poses, render_board_view
 from parts.vision.calibration import (
     CalibrationError,
@@ -20,6 +20,7 @@ from parts.vision.calibration import (
     collect_views,
     find_corners,
 )
+from parts.vision.lens import undistort_grid
 
 #: a moderately wide lens with barrel distortion and a slightly tilted sensor
 TRUE_DIST = (-0.25, 0.07, 0.001, -0.0015, 0.0)

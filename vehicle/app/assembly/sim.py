@@ -16,11 +16,13 @@ def add_simulator(V: Any, cfg: Any, seeds: Sequence[int] | None = None) -> Any:
     """Add the simulated car: in ``angle``, ``throttle``, ``sim/reset``; out ``cam/image_array``,
     ``cam/timestamp``, ``sim/*`` telemetry and ``enc/speed``. Drives the tracks of SIM_TRACK_SEEDS
     unless ``seeds``. A part that sets ``sim/reset`` True (e.g. a button) puts the car back on the
-    start line."""
+    start line. With CAMERA_UNDISTORT the frames are undistorted next (see ``add_undistort``)."""
     from parts.sim.simulator import SimCar
+    from vehicle.app.assembly.camera import add_undistort
 
     sim = SimCar.from_config(cfg, seeds=seeds)
     V.add(sim)
+    add_undistort(V, cfg)  # a simulated lens (SIM_CAMERA_DISTORTION) is undistorted like a real one
     return sim
 
 
