@@ -104,7 +104,8 @@ class BehaviorSchedule:
         dt: seconds per loop (1 / DRIVE_LOOP_HZ).
     """
 
-    OUTPUTS = ("behavior/step",)
+    INPUTS: ClassVar[tuple[str, ...]] = ()
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("behavior/step",)
 
     def __init__(self, times: Sequence[float], dt: float) -> None:
         if not dt > 0:

@@ -16,6 +16,7 @@ import functools
 import logging
 import math
 import time
+from typing import ClassVar
 
 import cv2
 import numpy as np
@@ -166,7 +167,8 @@ class ChessboardCamera:
         seed: seed of the poses.
     """
 
-    OUTPUTS = ("cam/image_array", "cam/timestamp")
+    INPUTS: ClassVar[tuple[str, ...]] = ()
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("cam/image_array", "cam/timestamp")
 
     def __init__(self, camera: Camera, columns: int = 10, rows: int = 7, *, poses: int = 30, hold: int = 3,
                  seed: int = 0, square_mm: float = 25.0) -> None:

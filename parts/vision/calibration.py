@@ -30,10 +30,12 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import cv2
 import numpy as np
+
+from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
 
@@ -48,7 +50,7 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".gif")
 FORMAT_VERSION = 1
 
 
-class CalibrationError(ValueError):
+class CalibrationError(VehicleError, ValueError):
     """Calibration is impossible with the given views or a calibration file is unusable."""
 
 
@@ -408,7 +410,8 @@ class ChessboardCollector:
         clock: seconds (injectable for tests).
     """
 
-    OUTPUTS = ("calib/image", "calib/views", "calib/found")
+    INPUTS: ClassVar[tuple[str, ...]] = ("cam/image_array",)
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("calib/image", "calib/views", "calib/found")
 
     def __init__(self, folder: str | Path, board: Chessboard, *, target: int = 15, min_move: float = 0.05,
                  min_interval: float = 0.5, clock: Any = time.monotonic) -> None:

@@ -33,10 +33,12 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import cv2
 import numpy as np
+
+from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
 
@@ -51,13 +53,17 @@ THESIS_S_THRESHOLD: tuple[int, int] = (65, 255)
 COLOR_MASKS = ("white", "yellow", "white_yellow")
 
 
+class LaneSettingsError(VehicleError, ValueError):
+    """A lane-extraction setting is out of range; the message names the LANE_* setting."""
+
+
 def _points(value: Any, name: str) -> tuple[tuple[float, float], ...]:
     try:
         pts = tuple((float(p[0]), float(p[1])) for p in value)
     except (TypeError, ValueError, IndexError):
-        raise ValueError(f"{name} must be four (x, y) pixel points, got {value!r}") from None
+        raise LaneSettingsError(f"{name} must be four (x, y) pixel points, got {value!r}") from None
     if len(pts) != 4 or not np.isfinite(np.asarray(pts)).all():
-        raise ValueError(f"{name} must be four finite (x, y) points (bottom left, top left, top right, "
+        raise LaneSettingsError(f"{name} must be four finite (x, y) points (bottom left, top left, top right, "
                          f"bottom right), got {value!r}")
     # the quadrilateral must be convex and not degenerate, or the perspective transform is singular
     p = np.asarray(pts)
@@ -65,7 +71,7 @@ def _points(value: Any, name: str) -> tuple[tuple[float, float], ...]:
     nxt = np.roll(edges, -1, axis=0)
     cross = edges[:, 0] * nxt[:, 1] - edges[:, 1] * nxt[:, 0]
     if not (all(c > 1e-6 for c in cross) or all(c < -1e-6 for c in cross)):
-        raise ValueError(f"{name} {list(pts)} do not form a convex quadrilateral: give them in the order "
+        raise LaneSettingsError(f"{name} {list(pts)} do not form a convex quadrilateral: give them in the order "
                          "bottom left, top left, top right, bottom right")
     return pts
 
@@ -74,9 +80,9 @@ def _range(value: Any, name: str, low: int = 0, high: int = 255) -> tuple[int, i
     try:
         lo, hi = (int(v) for v in value)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be (low, high), got {value!r}") from None
+        raise LaneSettingsError(f"{name} must be (low, high), got {value!r}") from None
     if not low <= lo < hi <= high:
-        raise ValueError(f"{name} = ({lo}, {hi}) must satisfy {low} <= low < high <= {high}")
+        raise LaneSettingsError(f"{name} = ({lo}, {hi}) must satisfy {low} <= low < high <= {high}")
     return lo, hi
 
 
@@ -114,21 +120,21 @@ class LaneSettings:
         try:
             w, h = (int(v) for v in self.points_size)
         except (TypeError, ValueError):
-            raise ValueError(f"LANE_POINTS_SIZE must be (width, height), got {self.points_size!r}") from None
+            raise LaneSettingsError(f"LANE_POINTS_SIZE must be (width, height), got {self.points_size!r}") from None
         if w < 8 or h < 8:
-            raise ValueError(f"LANE_POINTS_SIZE must be at least 8x8 pixels, got {w}x{h}")
+            raise LaneSettingsError(f"LANE_POINTS_SIZE must be at least 8x8 pixels, got {w}x{h}")
         object.__setattr__(self, "points_size", (w, h))
         if self.s_threshold is not None:
             object.__setattr__(self, "s_threshold", _range(self.s_threshold, "LANE_S_THRESHOLD"))
         if self.color_mask is not None and self.color_mask not in COLOR_MASKS:
-            raise ValueError(f"LANE_COLOR_MASK must be None or one of {COLOR_MASKS}, got {self.color_mask!r}")
+            raise LaneSettingsError(f"LANE_COLOR_MASK must be None or one of {COLOR_MASKS}, got {self.color_mask!r}")
         if self.s_threshold is None and self.color_mask is None:
-            raise ValueError("lane extraction needs LANE_S_THRESHOLD or LANE_COLOR_MASK (both are off)")
+            raise LaneSettingsError("lane extraction needs LANE_S_THRESHOLD or LANE_COLOR_MASK (both are off)")
         if not 0 <= int(self.white_min_lightness) <= 255:
-            raise ValueError(f"LANE_WHITE_MIN_LIGHTNESS must be 0..255, got {self.white_min_lightness}")
+            raise LaneSettingsError(f"LANE_WHITE_MIN_LIGHTNESS must be 0..255, got {self.white_min_lightness}")
         object.__setattr__(self, "yellow_hue", _range(self.yellow_hue, "LANE_YELLOW_HUE", 0, 180))
         if not 0 <= int(self.yellow_min_saturation) <= 255:
-            raise ValueError(f"LANE_YELLOW_MIN_SATURATION must be 0..255, got {self.yellow_min_saturation}")
+            raise LaneSettingsError(f"LANE_YELLOW_MIN_SATURATION must be 0..255, got {self.yellow_min_saturation}")
 
     @classmethod
     def from_config(cls, cfg: Any) -> LaneSettings:
@@ -153,7 +159,7 @@ class LaneSettings:
         """Inverse of :meth:`to_dict`; unknown keys are refused."""
         unknown = set(d) - set(cls.__dataclass_fields__)
         if unknown:
-            raise ValueError(f"unknown lane setting(s) {sorted(unknown)}")
+            raise LaneSettingsError(f"unknown lane setting(s) {sorted(unknown)}")
         return cls(**d)
 
     def scaled(self, points: tuple[tuple[float, float], ...], width: int, height: int) -> np.ndarray:
@@ -238,8 +244,8 @@ class LaneExtraction:
         out_size: (width, height) of the lane image; None = the frame's size.
     """
 
-    INPUTS = ("cam/image_array",)
-    OUTPUTS = ("vision/lane_image",)
+    INPUTS: ClassVar[tuple[str, ...]] = ("cam/image_array",)
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("vision/lane_image",)
 
     def __init__(self, settings: LaneSettings | None = None, out_size: tuple[int, int] | None = None) -> None:
         self.extractor = LaneExtractor(settings)

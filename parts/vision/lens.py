@@ -10,8 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from vehicle.errors import VehicleError
 
-class LensError(ValueError):
+
+class LensError(VehicleError, ValueError):
     """The distortion model does not invert over the image (too strong, or it folds the image)."""
 
 

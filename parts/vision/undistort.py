@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import cv2
 import numpy as np
@@ -33,8 +33,8 @@ class Undistort:
         alpha: 0 (crop to valid pixels) .. 1 (keep all source pixels).
     """
 
-    INPUTS = ("cam/image_array",)
-    OUTPUTS = ("cam/image_array",)
+    INPUTS: ClassVar[tuple[str, ...]] = ("cam/image_array",)
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("cam/image_array",)
 
     def __init__(self, calibration: CameraCalibration | str | Path, alpha: float = 0.0) -> None:
         if not isinstance(calibration, CameraCalibration):

@@ -72,18 +72,14 @@ def add_undistort(V: Any, cfg: Config) -> Any:
     camera, with the car's calibration (CAMERA_CALIBRATION_PATH). Returns it, or None when off.
 
     Raises:
-        UserError: no usable calibration file (the message says how to make one).
+        CalibrationError: no usable calibration file (the message says how to make one).
     """
     if not cfg.CAMERA_UNDISTORT:
         return None
-    from parts.vision.calibration import CalibrationError
     from parts.vision.undistort import Undistort
 
-    try:
-        part = Undistort.from_config(cfg)
-    except CalibrationError as exc:
-        raise UserError(str(exc)) from exc
-    V.add(part, inputs=list(Undistort.INPUTS), outputs=list(Undistort.OUTPUTS))
+    part = Undistort.from_config(cfg)
+    V.add(part)
     cal = part.calibration
     logger.info("camera: undistorting with %s (made at %dx%d, RMS %.2f px)", cfg.path("CAMERA_CALIBRATION_PATH"),
                 *cal.image_size, cal.rms)

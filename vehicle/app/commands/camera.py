@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from vehicle.app.carconfig import add_car_options, load_for_command
 from vehicle.errors import UserError
 
 logger = logging.getLogger(__name__)
@@ -46,8 +47,7 @@ def register(subparsers: Any) -> None:
                      help="where --live/--sim write the views (default calibration_views/ in the car)")
     cal.add_argument("--web", action="store_true", help="--live: show the camera with the detected corners on the "
                                                         "web page (WEB_HOST:WEB_CONTROL_PORT)")
-    cal.add_argument("--car", help="car folder (default: the current folder if it has a myconfig.py)")
-    cal.add_argument("--myconfig", help="override file to use instead of <car>/myconfig.py")
+    add_car_options(cal)
     cal.set_defaults(func=cmd_calibrate)
 
 
@@ -117,11 +117,10 @@ def collect_live(cfg: Any, board: Any, folder: Path, views: int, timeout: float,
         from parts.web.controller import WebController
 
         page = WebController.from_config(cfg)
-        for key in WebController.INPUTS[1:]:
-            V.mem[key] = None
-        # the page shows its first input as the camera view: give it the frame with the corners
-        V.add(page, inputs=["calib/image", *WebController.INPUTS[1:]], outputs=[f"calib/web/{k}" for k in
-                                                                              WebController.OUTPUTS], threaded=True)
+        # the page shows its first input as the camera view: give it the frame with the corners; its
+        # commands go nowhere (this vehicle has no drivetrain)
+        inputs = ["calib/image", *WebController.INPUTS[1:]]
+        V.add(page, inputs=inputs, optional_inputs=inputs[1:], threaded=True)
         _say("the web page (its address is logged when it starts) shows the camera with the detected corners")
     stopper = _StopWhenDone(V, collector, math.inf if sim else timeout, clock=V.clock.now)
     V.add(stopper)
@@ -139,9 +138,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 
     from parts.vision.calibration import MIN_VIEWS, CalibrationError, calibrate_folder, read_rgb, write_rgb
     from parts.vision.undistort import Undistort
-    from vehicle.app.commands.sim import load_cli_config
 
-    cfg = load_cli_config(args)
+    cfg = load_for_command(args)
     board = _board(args, cfg)
     model = args.model or cfg.CAMERA_CALIB_MODEL
     if args.views < MIN_VIEWS:
@@ -160,7 +158,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     try:
         result = calibrate_folder(folder, board, model=model, annotate_to=annotate)
     except CalibrationError as exc:
-        raise UserError(str(exc)) from exc
+        raise UserError(f"{exc}") from exc
     cal = result.calibration
     cal.save(out)
     k, d = cal.camera_matrix, cal.dist_coeffs

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from vehicle.app.carconfig import add_car_options, load_for_command
 from vehicle.errors import UserError
 
 
@@ -37,7 +38,7 @@ def register(subparsers: Any) -> None:
     pre.add_argument("--frames", type=int, default=6, help="frames in the strip, spread over the source")
     pre.add_argument("--png", default="lanes_preview.png", help="output PNG")
     pre.add_argument("--scale", type=int, default=2, help="pixel zoom of the strip")
-    _config_args(pre)
+    add_car_options(pre)
     pre.set_defaults(func=cmd_preview)
     pts = sub.add_parser("points", help="print LANE_* settings that give a true bird's-eye view of the "
                                         "simulated camera", formatter_class=argparse.ArgumentDefaultsHelpFormatter)
@@ -45,14 +46,8 @@ def register(subparsers: Any) -> None:
     pts.add_argument("--near", type=float, help="metres ahead of the rear axle (default: the nearest ground in view)")
     pts.add_argument("--far", type=float, default=1.2, help="metres ahead of the rear axle")
     pts.add_argument("--half-width", type=float, default=0.5, help="metres to each side")
-    _config_args(pts)
+    add_car_options(pts)
     pts.set_defaults(func=cmd_points)
-
-
-def _config_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--car", help="car folder whose myconfig.py to use (default: the current folder "
-                                 "if it holds a myconfig.py, else the package defaults)")
-    p.add_argument("--myconfig", help="override file to use instead of <car>/myconfig.py")
 
 
 def _seeds(text: str) -> list[int]:
@@ -107,9 +102,8 @@ def cmd_preview(args: argparse.Namespace) -> int:
     """Write the preview strip and say how much of each lane image is lane."""
     from parts.vision.calibration import write_rgb
     from parts.vision.lanes import LaneExtractor, LaneSettings, preview_strip
-    from vehicle.app.commands.sim import load_cli_config
 
-    cfg = load_cli_config(args)
+    cfg = load_for_command(args)
     if args.frames < 1 or args.scale < 1:
         raise UserError("--frames and --scale must be at least 1")
     try:
@@ -139,9 +133,8 @@ def cmd_preview(args: argparse.Namespace) -> int:
 def cmd_points(args: argparse.Namespace) -> int:
     """Print the myconfig.py lines for the simulated camera."""
     from parts.sim.camera import camera_from_config, lane_region_points
-    from vehicle.app.commands.sim import load_cli_config
 
-    cfg = load_cli_config(args)
+    cfg = load_for_command(args)
     try:
         points = lane_region_points(camera_from_config(cfg), near=args.near, far=args.far,
                                     half_width=args.half_width)

@@ -45,6 +45,7 @@ def test_calibrate_the_simulated_camera_live_then_drive_undistorted(car, capsys)
     sim = assembly.add_simulator(V, cfg)
     names = [type(getattr(e, "part", None)).__name__ for e in V.parts]
     assert names == ["SimCar", "Undistort"]
+    V.add(lambda: (0.0, 0.0), outputs=["angle", "throttle"])  # a driver that stands still
     V.start(rate_hz=1000, max_loop_count=2)
     frame = V.mem["cam/image_array"]
     assert frame.shape == (240, 320, 3) and not np.array_equal(frame, sim.render())
@@ -75,14 +76,14 @@ def test_calibrate_from_a_folder_and_the_errors(car, capsys, tmp_path):
     assert "no such folder" in capsys.readouterr().err
 
 
-def test_undistort_without_a_calibration_is_a_user_error(car, capsys):
+def test_undistort_without_a_calibration_says_how_to_make_one(car, capsys):
     (car / "myconfig.py").write_text("CAMERA_UNDISTORT = True\nSIM_TEXTURE_RES = 0.02\n")
     from vehicle import Vehicle
     from vehicle.app import assembly
     from vehicle.config import load_config
-    from vehicle.errors import UserError
+    from vehicle.errors import VehicleError
 
-    with pytest.raises(UserError, match="vehicle camera calibrate"):
+    with pytest.raises(VehicleError, match="vehicle camera calibrate"):  # printed as one line, exit 2
         assembly.add_simulator(Vehicle(), load_config(car_path=car))
 
 
