@@ -145,3 +145,19 @@ def random_change_times(n: int, duration: float, *, seed: int = 0, min_gap: floa
     # n gaps of min_gap plus a random share of the free time: sorted uniform cut points
     extra = np.sort(rng.uniform(0.0, free, n))
     return [round(float(start + min_gap * i + extra[i]), 3) for i in range(n)]
+
+
+def periodic_change_times(duration: float, every: tuple[float, float], *, seed: int = 0,
+                          start: float = 4.0) -> list[float]:
+    """Seeded times from ``start`` to ``duration``, consecutive ones ``every`` = (min, max) seconds
+    apart (uniform): lane changes commanded through an evaluation episode."""
+    lo, hi = float(every[0]), float(every[1])
+    if not 0 < lo <= hi:
+        raise ValueError(f"the interval between lane changes must be (min, max) seconds with 0 < min <= max, "
+                         f"got {every!r}")
+    rng = np.random.default_rng([seed & 0xFFFFFFFF, 0x1A4F])
+    times, t = [], float(start)
+    while t < duration:
+        times.append(round(t, 3))
+        t += rng.uniform(lo, hi)
+    return times

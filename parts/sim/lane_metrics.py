@@ -1,7 +1,9 @@
 """Lane metrics of a drive with commanded lane changes (the thesis's lane change on demand).
 
-Pure functions over what an evaluation records per step: time, the car's lateral position, the
-commanded lane's centre, off-track flags. Definitions (docs/simulator.md repeats them):
+:func:`lane_metrics` is a pure function over what an evaluation records per step: time, the car's
+lateral position, the commanded lane's centre, off-track flags. The parts :class:`CommandedLane`
+(behaviour -> the commanded lane's centre) and :class:`LaneMetrics` (records the steps, reports)
+put it into an evaluation loop. Definitions (docs/simulator.md repeats them):
 
 - **in the commanded lane**: the car's centre is less than half a lane width from the commanded
   lane's centre and the car is on the road;
@@ -20,9 +22,12 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
+
+from parts.drive.behavior import behavior_lane
+from parts.sim.simulator import SimCar
 
 #: seconds a commanded change may take, by default
 TIME_LIMIT_S = 6.0
@@ -161,3 +166,71 @@ def overall_lane_metrics(tracks: Sequence[dict[str, Any]]) -> dict[str, Any]:
         "off_track_events": sum(r["off_track_events"] for r in tracks),
         "lane_keeping_frames": frames,
     }
+
+
+class CommandedLane:
+    """Part: the centre of the lane the active behaviour asks for (``behavior/label``, e.g.
+    Left_Lane) -> ``sim/lane_center`` (m left of the centre line; None when the label names no lane
+    or the track has one lane). The simulator re-centres a car that left the road in that lane.
+    """
+
+    INPUTS: ClassVar[tuple[str, ...]] = ("behavior/label",)
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("sim/lane_center",)
+
+    def __init__(self, sim: SimCar) -> None:
+        self.sim = sim
+
+    def run(self, label: Any) -> float | None:
+        lane = behavior_lane(label) if isinstance(label, str) else None
+        if lane is None or self.sim.track.lanes != 2:
+            return None
+        offset = self.sim.track.lane_offset(lane)
+        self.sim.start_offset = offset
+        return offset
+
+
+class LaneMetrics:
+    """Part: records one episode's lane keeping and commanded changes; :meth:`result` scores them
+    (:func:`lane_metrics`). A change of ``sim/lane_center`` is a commanded change.
+
+    Args:
+        dt: seconds per loop.
+        lane_width: width of one lane, metres.
+        time_limit, hold: see :func:`lane_metrics`.
+    """
+
+    INPUTS: ClassVar[tuple[str, ...]] = ("sim/cte", "sim/off_track", "sim/lane_center", "sim/pos", "behavior/label")
+    OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("sim/pos", "behavior/label")
+    OUTPUTS: ClassVar[tuple[str, ...]] = ()
+
+    def __init__(self, dt: float, lane_width: float, *, time_limit: float = TIME_LIMIT_S, hold: float = HOLD_S) -> None:
+        self.dt, self.lane_width = float(dt), float(lane_width)
+        self.time_limit, self.hold = float(time_limit), float(hold)
+        self.t: list[float] = []
+        self.lateral: list[float] = []
+        self.commanded: list[float] = []
+        self.off: list[bool] = []
+        self.commands: list[LaneCommand] = []
+        self._time = 0.0
+        self._last: float | None = None
+        self._pos: tuple[float, float] | None = None
+
+    def run(self, cte: Any, off_track: Any, center: Any, pos: Any, label: Any) -> None:
+        self._time += self.dt
+        if cte is None or center is None:
+            return  # no lane to keep (one-lane track, a behaviour that names no lane)
+        c = float(center)
+        if self._last is not None and c != self._last:
+            self.commands.append(LaneCommand(self._time, c, label if isinstance(label, str) else "", self._pos))
+        self._last = c
+        self.t.append(self._time)
+        self.lateral.append(-float(cte))  # sim/cte is positive to the right
+        self.commanded.append(c)
+        self.off.append(bool(off_track))
+        if pos is not None:
+            self._pos = (float(pos[0]), float(pos[1]))
+
+    def result(self) -> dict[str, Any]:
+        """The episode's lane metrics (see :func:`lane_metrics`)."""
+        return lane_metrics(self.t, self.lateral, self.commanded, self.off, self.lane_width, self.commands,
+                            time_limit=self.time_limit, hold=self.hold)

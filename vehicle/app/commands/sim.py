@@ -36,6 +36,8 @@ def register(subparsers: Any) -> None:
     ev.add_argument("--throttle", type=float, help="fixed throttle: use only the pilot's steering")
     ev.add_argument("--json", help="write the full report (metrics and trajectories) here")
     ev.add_argument("--png", help="write the driven trajectories over the track maps here")
+    ev.add_argument("--lane-changes", action=argparse.BooleanOptionalAction, default=None,
+                    help="command lane changes and score them (default: for a behaviour pilot when SIM_LANES = 2)")
     add_car_options(ev)
     ev.set_defaults(func=cmd_eval)
 
@@ -105,7 +107,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
                         "(e.g. models/mypilot.pt)")
     try:
         report = evaluate(args.pilot, seeds, laps, cfg=cfg, max_time=args.max_time,
-                          fixed_throttle=args.throttle)
+                          fixed_throttle=args.throttle, lane_changes=args.lane_changes)
     except (ValueError, FileNotFoundError) as exc:
         raise UserError(str(exc)) from exc
     print(format_table(report))  # noqa: T201 - CLI output
