@@ -278,8 +278,9 @@ def preview_strip(frames: list[np.ndarray], extractor: LaneExtractor, scale: int
         cells = [extractor.draw_region(frame), warped, cv2.cvtColor(mask, cv2.COLOR_GRAY2RGB)]
         row = np.hstack([cv2.resize(c, (w * scale, h * scale), interpolation=cv2.INTER_NEAREST) for c in cells])
         for i, label in enumerate(("raw + region", "bird's-eye", "lanes")):
-            org = (i * w * scale + 4, 14)
-            cv2.putText(row, label, org, cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 3, cv2.LINE_AA)
-            cv2.putText(row, label, org, cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 255, 0), 1, cv2.LINE_AA)
+            (tw, th), _ = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, 0.4, 1)
+            x0 = i * w * scale
+            cv2.rectangle(row, (x0, 0), (x0 + tw + 8, th + 8), (0, 0, 0), -1)  # a band keeps it legible
+            cv2.putText(row, label, (x0 + 4, th + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 255, 0), 1, cv2.LINE_AA)
         rows.append(row)
     return np.vstack(rows)
