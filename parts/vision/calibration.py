@@ -154,6 +154,7 @@ class CameraCalibration:
         board: the chessboard.
         model: "standard" or "rational".
         created: ISO time of the calibration.
+        dropped_views: views left out as outliers (wrongly detected corners).
     """
 
     image_size: tuple[int, int]
@@ -165,6 +166,7 @@ class CameraCalibration:
     board: Chessboard = field(default_factory=Chessboard)
     model: str = "standard"
     created: str = ""
+    dropped_views: list[str] = field(default_factory=list)
 
     @property
     def fov_deg(self) -> tuple[float, float]:
@@ -194,7 +196,7 @@ class CameraCalibration:
         k[0, 2] = (k[0, 2] + 0.5) * sx - 0.5
         k[1, 2] = (k[1, 2] + 0.5) * sy - 0.5
         return CameraCalibration((width, height), k, self.dist_coeffs.copy(), self.rms * sx, list(self.view_errors),
-                                 list(self.views), self.board, self.model, self.created)
+                                 list(self.views), self.board, self.model, self.created, list(self.dropped_views))
 
     # -- storage
     def to_dict(self) -> dict[str, Any]:
@@ -204,6 +206,7 @@ class CameraCalibration:
                 "dist_coeffs": np.asarray(self.dist_coeffs, float).reshape(-1).round(8).tolist(),
                 "model": self.model, "rms_px": round(float(self.rms), 5),
                 "view_errors_px": [round(float(e), 5) for e in self.view_errors], "views": list(self.views),
+                "dropped_views": list(self.dropped_views),
                 "board": {"columns": self.board.columns, "rows": self.board.rows,
                           "square_mm": self.board.square_mm},
                 "fov_deg": [round(v, 2) for v in self.fov_deg], "created": self.created}
@@ -229,7 +232,7 @@ class CameraCalibration:
             board = Chessboard(int(b.get("columns", 10)), int(b.get("rows", 7)), float(b.get("square_mm", 25.0)))
             out = cls(size, k, dist, float(d.get("rms_px", math.nan)),  # type: ignore[arg-type]
                       [float(e) for e in d.get("view_errors_px", [])], [str(v) for v in d.get("views", [])],
-                      board, model, str(d.get("created", "")))
+                      board, model, str(d.get("created", "")), [str(v) for v in d.get("dropped_views", [])])
         except (KeyError, TypeError, ValueError) as exc:
             raise CalibrationError(f"{source}: not a camera calibration ({type(exc).__name__}: {exc}); "
                                    "make one with `vehicle camera calibrate`") from None
@@ -273,7 +276,9 @@ class View:
 def calibrate(views: Sequence[View], board: Chessboard, image_size: tuple[int, int],
               model: str = "standard") -> CameraCalibration:
     """Fit the camera matrix and distortion to the corners of ``views`` (images of ``image_size``
-    = (width, height)).
+    = (width, height)). A view whose reprojection error is more than OUTLIER_FACTOR times the
+    others' median (and over OUTLIER_MIN_PX) is left out and the fit repeated; the names are in
+    the result's ``dropped_views``.
 
     Raises:
         CalibrationError: fewer than :data:`MIN_VIEWS` views, or an unknown model.
@@ -286,6 +291,32 @@ def calibrate(views: Sequence[View], board: Chessboard, image_size: tuple[int, i
     if len(views) < RECOMMENDED_VIEWS:
         logger.warning("calibrating from %d views; %d or more from different angles give a more reliable result",
                        len(views), RECOMMENDED_VIEWS)
+    views = list(views)
+    dropped: list[str] = []
+    while True:
+        cal = _fit(views, board, image_size, model)
+        errors = np.asarray(cal.view_errors)
+        worst = int(np.argmax(errors))
+        # a view far worse than the others is a corner detection gone wrong (a grid laid over the
+        # wrong squares, seen in steep views), not a property of the lens: leave it out and refit
+        limit = max(OUTLIER_MIN_PX, OUTLIER_FACTOR * float(np.median(errors)))
+        if errors[worst] <= limit or len(views) <= MIN_VIEWS:
+            break
+        logger.warning("view %s left out: reprojection error %.2f px, the others' median %.2f px (corners "
+                       "detected wrongly?)", views[worst].name, errors[worst], float(np.median(errors)))
+        dropped.append(views[worst].name)
+        del views[worst]
+    cal.dropped_views = dropped
+    return cal
+
+
+#: a view whose reprojection error exceeds this many times the median (and OUTLIER_MIN_PX) is dropped
+OUTLIER_FACTOR = 4.0
+OUTLIER_MIN_PX = 1.0
+
+
+def _fit(views: Sequence[View], board: Chessboard, image_size: tuple[int, int], model: str) -> CameraCalibration:
+    """One ``cv2.calibrateCamera`` over ``views`` and the per-view RMS reprojection errors."""
     obj = board.object_points()
     object_points = [obj] * len(views)
     image_points = [v.corners.astype(np.float32) for v in views]

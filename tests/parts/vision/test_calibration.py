@@ -154,3 +154,21 @@ def test_live_collector_keeps_distinct_views_and_writes_them(tmp_path):
     # the folder calibrates (few views: a warning, still a fit)
     result = calibrate_folder(tmp_path / "views", BOARD)
     assert result.calibration.rms < 0.5
+
+
+def test_a_view_with_wrongly_detected_corners_is_left_out():
+    from parts.vision.calibration import View, calibrate
+
+    camera = Camera(320, 240, distortion=TRUE_DIST)
+    views, _, size = collect_views(_views(camera, 12, seed=4), BOARD)
+    good = calibrate(views, BOARD, size)  # the detector itself misplaces a grid now and then
+    views = [v for v in views if v.name not in good.dropped_views]
+    assert calibrate(views, BOARD, size).dropped_views == [] and good.rms < 0.3
+    # a grid laid one square off (what the detector sometimes returns for a steep view)
+    bad = views[3].corners.reshape(7, 10, 2).copy()
+    bad[:, :-1] = bad[:, 1:]
+    views[3] = View("view_bad.png", bad.reshape(-1, 1, 2))
+    cal = calibrate(views, BOARD, size)
+    assert cal.dropped_views == ["view_bad.png"] and "view_bad.png" not in cal.views
+    assert cal.rms < 0.3 and cal.dist_coeffs[0] == pytest.approx(TRUE_DIST[0], abs=0.01)
+    assert CameraCalibration.from_dict(cal.to_dict()).dropped_views == ["view_bad.png"]

@@ -165,6 +165,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     worst = sorted(zip(cal.view_errors, cal.views, strict=True), reverse=True)[:3]
     _say(f"calibrated from {len(cal.views)} views of {cal.image_size[0]}x{cal.image_size[1]} "
          f"({len(result.rejected)} without the whole board: {', '.join(result.rejected[:5]) or 'none'})")
+    if cal.dropped_views:
+        _say(f"  left out, corners found wrongly: {', '.join(cal.dropped_views)} (see the corners_*.png pictures)")
     _say(f"  reprojection error: RMS {cal.rms:.3f} px; worst views " +
          ", ".join(f"{name} {err:.3f}" for err, name in worst))
     _say(f"  fx {k[0, 0]:.2f}  fy {k[1, 1]:.2f}  cx {k[0, 2]:.2f}  cy {k[1, 2]:.2f}  "

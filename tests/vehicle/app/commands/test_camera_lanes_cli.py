@@ -108,3 +108,28 @@ def test_lanes_points_and_preview(car, capsys, tmp_path):
     (car / "myconfig.py").write_text("LANE_S_THRESHOLD = None\n")
     assert main(["lanes", "preview", "--sim", "--frames", "1"]) == 2
     assert "LANE_COLOR_MASK" in capsys.readouterr().err
+
+
+def test_live_calibration_from_the_cars_camera_with_the_web_view(tmp_path, monkeypatch, capsys):
+    """--live runs the car's own camera part (here a folder of photos replayed as the camera) and
+    the web page showing the detected corners."""
+    from parts.sim.camera import Camera
+    from parts.sim.chessboard import random_board_poses, render_board_view
+
+    camera = Camera(320, 240, distortion=(-0.2, 0.05, 0.0, 0.0, 0.0))
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    for i, (r, t) in enumerate(random_board_poses(camera, 10, 7, 4, seed=11)):
+        cv2.imwrite(str(photos / f"{i}.png"), cv2.cvtColor(render_board_view(camera, 10, 7, r, t), cv2.COLOR_RGB2BGR))
+    (tmp_path / "myconfig.py").write_text('CAMERA_TYPE = "IMAGE_LIST"\nCAMERA_IMAGE_PATH = "photos"\nIMAGE_W = 320\n'
+                                          'IMAGE_H = 240\nWEB_CONTROL_PORT = 0\n')
+    monkeypatch.chdir(tmp_path)
+    assert main(["camera", "calibrate", "--live", "--views", "3", "--timeout", "60", "--web"]) == 0
+    out = capsys.readouterr().out
+    assert "calibrated from 3 views of 320x240" in out
+    assert len(list((tmp_path / "calibration_views").glob("view_*.png"))) == 3
+    assert json.loads((tmp_path / "camera_calibration.json").read_text())["image_size"] == [320, 240]
+    # too few views before the timeout: a one-line error
+    assert main(["camera", "calibrate", "--live", "--views", "50", "--timeout", "2",
+                 "--views-dir", "again"]) == 2
+    assert "views were collected" in capsys.readouterr().err
