@@ -78,7 +78,7 @@ def test_layer_structure_follows_appendix_5():
     assert (model.steering_out.out_features, model.throttle_out.out_features) == (1, 1)
 
 
-def test_behaviour_input_changes_the_output():
+def test_behaviour_input_changes_the_output(fit_steps):
     torch.manual_seed(0)
     model = create_model("lanes", (4, 64, 96), num_behaviors=2)
     images = torch.rand(1, 4, 64, 96).repeat(8, 1, 1, 1)  # the same frame 8 times
@@ -88,13 +88,7 @@ def test_behaviour_input_changes_the_output():
     with torch.no_grad():
         before = model(images[:2], behaviour[:2])
     assert not torch.equal(before[0], before[1])  # the one-hot reaches the output even untrained
-    opt = torch.optim.Adam(model.parameters(), lr=1e-3)
-    for _ in range(150):
-        model.train()
-        loss = model.loss(model(images, behaviour), target)
-        opt.zero_grad()
-        loss.backward()
-        opt.step()
+    fit_steps(model, images, behaviour, target, 150)
     model.eval()
     with torch.no_grad():
         out = model(images[:2], behaviour[:2])

@@ -82,7 +82,7 @@ def test_inferred_throttle_slows_in_curves():
 
 
 @pytest.mark.parametrize("name", ALL_TYPES)
-def test_each_type_learns_on_a_tiny_tub(name, tiny_tub, torch_one_thread):
+def test_each_type_learns_on_a_tiny_tub(name, tiny_tub, torch_one_thread, fit_steps):
     torch.manual_seed(0)
     data = read_drive_data([tiny_tub])
     lanes = LaneSettings(color_mask="yellow").to_dict() if name == "lanes" else None  # the bar is yellow
@@ -99,7 +99,6 @@ def test_each_type_learns_on_a_tiny_tub(name, tiny_tub, torch_one_thread):
     x = pre.normalize_batch(torch.stack([b[0] for b in batch]))
     e = torch.stack([b[1] for b in batch]) if model.extra_size else None
     y = torch.stack([b[2] for b in batch])
-    opt = torch.optim.Adam(model.parameters(), lr=1e-3)
 
     def eval_loss() -> float:
         model.eval()
@@ -107,12 +106,7 @@ def test_each_type_learns_on_a_tiny_tub(name, tiny_tub, torch_one_thread):
             return float(model.loss(model(x, e), y))
 
     before = eval_loss()
-    for _ in range(25):
-        model.train()
-        loss = model.loss(model(x, e), y)
-        opt.zero_grad()
-        loss.backward()
-        opt.step()
+    fit_steps(model, x, e, y, 25)
     after = eval_loss()
     # Cross-entropy over 15 + 20 bins falls more slowly in 25 steps than a regression loss.
     ratio = 0.85 if name == "categorical" else 0.6
