@@ -93,6 +93,11 @@ STANDARD_KEYS: dict[str, KeyInfo] = {
     "behavior/label": KeyInfo("str", "name of the active behaviour, e.g. Left_Lane"),
     "behavior/one_hot_state_array": KeyInfo("list[float]", "one-hot encoding of behavior/state"),
     "behavior/step": KeyInfo("int", "+1 / -1 for one loop: select the next / previous behaviour"),
+    "web/behavior_step": KeyInfo("int", "behaviour steps asked on the web page this loop (change lane)"),
+    "vision/lane_image": KeyInfo("ndarray HxW uint8", "binary lane image (bird's-eye, 255 = lane pixel)"),
+    "calib/image": KeyInfo("ndarray HxWx3 uint8 RGB", "camera frame with the chessboard corners drawn"),
+    "calib/views": KeyInfo("int", "chessboard views kept for camera calibration"),
+    "calib/found": KeyInfo("bool", "whether the chessboard is in the current frame"),
     # -- recording
     "tub/num_records": KeyInfo("int", "records in the current tub"),
     "tub/erase": KeyInfo("bool", "rising edge: delete the last ERASE_LAST_N_RECORDS records"),

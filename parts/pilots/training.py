@@ -24,7 +24,15 @@ from torch.utils.data import DataLoader, DistributedSampler
 
 from parts.pilots.augment import Augmenter, AugmentSettings
 from parts.pilots.balance import balance_by_steering
-from parts.pilots.dataset import IMAGE_KEY, DriveData, PilotDataset, build_samples, read_drive_data
+from parts.pilots.dataset import (
+    IMAGE_KEY,
+    DriveData,
+    PilotDataset,
+    behavior_mirror,
+    behavior_names,
+    build_samples,
+    read_drive_data,
+)
 from parts.pilots.distributed import DistInfo, init_distributed, shutdown_distributed
 from parts.pilots.fit import FitSettings, fit
 from parts.pilots.framecache import FrameCache
@@ -105,20 +113,42 @@ def prepare_data(cfg: Any, data: DriveData, model: PilotModel, preprocess: Prepr
         raise ValueError(f"no training samples left from {len(data)} records (sequence models need "
                          f"{depth} consecutive records before each sample); record more data")
     names = cfg.AUGMENTATIONS if augmentations is None else list(augmentations)
+    mirror, behaviors = _behavior_flip(data, model, names)
+    if mirror is None and behaviors is not None and "flip" in names:
+        names = [n for n in names if n != "flip"]
     aug_settings = AugmentSettings.from_config(cfg, names)
     augmenter = Augmenter(aug_settings) if aug_settings.names else None
     common = {"frames": model.frames, "command_history": model.command_history,
               "extra_key": model.extra_inputs[0] if model.extra_inputs else None,
-              "extra_size": model.extra_size}
+              "extra_size": model.extra_size, "extra_mirror": mirror}
     train_ds = PilotDataset(data, train_s, cache, preprocess, key_offsets=offsets, augmenter=augmenter,
                             seed=cfg.TRAIN_SEED, **common)
     val_ds = PilotDataset(data, val_s, cache, preprocess, **common) if len(val_s) else None
     info = {"records": len(data), "train_records": int(len(train_pos)), "val_records": int(len(val_pos)),
             "train_samples": len(train_s), "val_samples": len(val_s), "camera_keys": keys,
             "side_camera_offsets": side, "frames_cached": cache.cached, "cache_mb": round(cache.nbytes / 1e6, 1),
-            "augmentations": aug_settings.to_dict()}
+            "augmentations": aug_settings.to_dict(), "behaviors": behaviors}
     return PreparedData(data, train_ds, val_ds, preprocess, tuple(cache.get(int(train_s.chain[0, 0])).shape),
                         info)
+
+
+def _behavior_flip(data: DriveData, model: PilotModel,
+                   augmentations: Sequence[str]) -> tuple[np.ndarray | None, list[str] | None]:
+    """For a behaviour model: (permutation of the one-hot for flipped frames, behaviour names).
+
+    A flipped frame of the left lane shows the right lane, so its behaviour is swapped; when the
+    records do not name the behaviours or a name has no mirror, flipping would teach wrong labels
+    and is left out (with a warning). (None, None) for models without a behaviour input.
+    """
+    if "behavior/one_hot_state_array" not in model.extra_inputs:
+        return None, None
+    names = behavior_names(data)
+    mirror = behavior_mirror(names) if names is not None else None
+    if mirror is None and "flip" in augmentations:
+        why = (f"behaviours {names} have no left/right mirror" if names is not None
+               else "the records do not name every behaviour (behavior/state, behavior/label)")
+        logger.warning("flip augmentation left out: %s, so a flipped frame has no correct behaviour", why)
+    return mirror, names if names is not None else []
 
 
 def _loaders(prep: PreparedData, batch_size: int, workers: int, dist_info: DistInfo, device: torch.device,

@@ -7,6 +7,8 @@
                                                       # record demonstrations, no human needed
     python manage.py drive --sim udacity              # drive the Udacity simulator (Autonomous Mode)
     python manage.py drive --sim donkey               # drive the Donkey simulator at SIM_HOST:SIM_PORT
+    python manage.py drive --expert --record-records 6000 --lane-changes 40
+                                                      # ... changing lanes (SIM_LANES = 2)
     python manage.py train --tubs data --model models/pilot.pt
 
 Settings live in myconfig.py (overrides of the defaults; see docs/config.md). To add a part of
@@ -29,6 +31,7 @@ def drive(cfg, args):
     assembly.add_simulator(V, cfg, seeds=args.tracks, sim_type=args.sim)  # angle, throttle -> cam/image_array, sim/*
     assembly.add_controller(V, cfg)  # web page (and gamepad) -> user/angle, user/throttle, user/mode
     assembly.add_camera_watchdog(V, cfg)  # a stalled Udacity/Donkey simulator takes the pilot out
+    assembly.add_behavior(V, cfg)  # TRAIN_BEHAVIORS: lane buttons -> behavior/state, behavior/one_hot_state_array
     if args.model:
         assembly.add_pilot(V, cfg, args.model)  # cam/image_array -> pilot/angle, pilot/throttle
     assembly.add_drive_mode(V, cfg)  # user/* or pilot/* -> angle, throttle
@@ -43,7 +46,7 @@ def record_demonstrations(cfg, args):
         raise UserError("--expert records demonstrations: add --record-records N (e.g. 3000)")
     if (args.sim or cfg.SIM_TYPE) != "builtin":
         raise UserError("--expert drives the built-in simulator only: drop --sim (or set SIM_TYPE = \"builtin\")")
-    tub = record_expert(cfg, args.tracks, args.record_records)
+    tub = record_expert(cfg, args.tracks, args.record_records, lane_changes=args.lane_changes)
     print(f"recorded {args.record_records} expert records into {tub}")
     return 0
 
@@ -54,6 +57,7 @@ def main(argv=None):
     d.add_argument("--model", help="trained pilot to drive with (a models/*.pt file)")
     d.add_argument("--expert", action="store_true", help="let the built-in expert drive and record (simulated time)")
     d.add_argument("--record-records", type=int, metavar="N", help="with --expert: records to write")
+    d.add_argument("--lane-changes", type=int, metavar="N", help="with --expert: change lanes N times at random")
     d.add_argument("--tracks", type=manage.int_list, metavar="SEEDS", help="track seeds, e.g. 1,2,3")
     d.add_argument("--sim", choices=["builtin", "udacity", "donkey"], help="simulator to drive (default: SIM_TYPE)")
     d.add_argument("--max-loops", type=int, metavar="N", help="stop after N loops")

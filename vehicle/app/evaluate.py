@@ -20,6 +20,13 @@ re-centre); the Udacity simulator in real time on the track it shows, where the 
 overrides (W/S held) are the interventions and only frames that arrived are scored. What a
 simulator does not report (stock Udacity: CTE, laps, progress, position) is named in the report as
 unavailable, never counted as zero.
+
+A behaviour pilot on two-lane tracks (SIM_LANES = 2, a pilot reading
+``behavior/one_hot_state_array``) is also commanded to change lanes, the thesis's experiment: a
+:class:`parts.drive.behavior.BehaviorSchedule` steps the behaviour at seeded times
+(SIM_EVAL_LANE_CHANGE_EVERY), and :class:`parts.sim.lane_metrics.LaneMetrics` scores lane keeping
+and every change (success within SIM_EVAL_LANE_CHANGE_TIME_LIMIT, time to change, wrong-lane
+time); the report gets a ``lanes`` section per track and overall.
 """
 
 from __future__ import annotations
@@ -32,12 +39,14 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from parts.drive.behavior import BehaviorSchedule, behavior_lane, periodic_change_times
 from parts.drive.modes import PilotCondition
-from parts.sim.expert import Expert
+from parts.sim.lane_metrics import CommandedLane, LaneMetrics, overall_lane_metrics
 from parts.sim.metrics import EpisodeMetrics, overall
 from parts.sim.simulator import SimCar
 from vehicle import Vehicle
-from vehicle.app.assembly.drive import add_drive_mode
+from vehicle.app.assembly.drive import add_behavior, add_drive_mode
+from vehicle.app.assembly.sim import add_expert
 from vehicle.clock import SimulatedClock
 from vehicle.keys import Mode, rename
 from vehicle.part import part_name
@@ -120,7 +129,7 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
              max_time: float | None = None, penalty_s: float | None = None,
              fixed_throttle: float | None = None, extra_inputs: dict[str, Any] | None = None,
              on_step: Callable[[SimCar], None] | None = None, sim: str = "builtin",
-             scenes: Sequence[str] | None = None) -> dict[str, Any]:
+             scenes: Sequence[str] | None = None, lane_changes: bool | None = None) -> dict[str, Any]:
     """Drive ``pilot`` for ``laps`` laps on each track seed and return the report (a JSON-able dict).
 
     Args:
@@ -139,10 +148,16 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
         sim: "builtin", "donkey" (SIM_HOST:SIM_PORT) or "udacity" (UDACITY_PORT).
         scenes: Donkey scenes, one episode each (default DONKEY_GYM_ENV_NAME).
 
+        lane_changes: command lane changes and score them (see the module docstring); None: when
+            SIM_LANES = 2 and the pilot reads the behaviour (or is the expert with TRAIN_BEHAVIORS)
+            and ``extra_inputs`` does not fix it.
+
     Returns:
         ``{"pilot", "simulator", "laps", "seeds", "settings", "tracks": [per-track metrics],
         "overall": {...}}``; each track's and the overall ``unavailable`` name the metrics the
         simulator cannot give.
+        With lane changes each track and the overall dict also hold ``"lanes"``
+        (:func:`parts.sim.lane_metrics.lane_metrics`).
 
     Raises:
         ValueError: bad arguments, or the pilot reads keys nothing produces (a WiringError).
@@ -174,18 +189,27 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
     if driver == "expert" and sim != "builtin":
         raise ValueError(f"the expert drives the built-in simulator only: pass a model file to evaluate on the "
                          f"{sim} simulator")
+    lanes_on = sim == "builtin" and _lane_changes(driver, cfg, extra_inputs, lane_changes)
     started = time.perf_counter()
     results = []
     pooled: list[np.ndarray] = []  # |cte| of autonomous frames, for the overall percentile
     try:
         for episode in episodes:
+            lane_part = None
+            if lanes_on:
+                lane_part = LaneMetrics(1.0 / cfg.DRIVE_LOOP_HZ, cfg.SIM_ROAD_WIDTH / 2,
+                                        time_limit=cfg.SIM_EVAL_LANE_CHANGE_TIME_LIMIT,
+                                        hold=cfg.SIM_EVAL_LANE_CHANGE_HOLD)
             if sim == "builtin":
                 metrics = run_episode(driver, episode, laps, cfg, max_time=max_time, penalty_s=penalty,
-                                      fixed_throttle=fixed_throttle, extra_inputs=extra_inputs, on_step=on_step)
+                                      fixed_throttle=fixed_throttle, extra_inputs=extra_inputs, on_step=on_step,
+                                      lanes=lane_part)
             else:
                 metrics = run_bridge_episode(driver, sim, episode, laps, cfg, max_time=max_time, penalty_s=penalty,
                                              fixed_throttle=fixed_throttle, extra_inputs=extra_inputs)
             res = metrics.result()
+            if lane_part is not None:
+                res["lanes"] = lane_part.result()
             pooled.append(metrics.autonomous_abs_cte())
             logger.info("eval %s on %s: autonomy %.1f %%, %s/%d laps, mean |cte| %s, %d interventions",
                         name, episode, res["autonomy"], res["laps_completed"], laps,
@@ -212,7 +236,8 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
         "seeds": episodes,
         "settings": settings,
         "tracks": results,
-        "overall": overall(results, penalty, np.concatenate(pooled)),
+        "overall": {**overall(results, penalty, np.concatenate(pooled)),
+                    **({"lanes": overall_lane_metrics([r["lanes"] for r in results])} if lanes_on else {})},
         "wall_time_s": round(time.perf_counter() - started, 3),
     }
 
@@ -228,21 +253,52 @@ def add_engaged_pilot(V: Vehicle, driver: Any, fixed_throttle: float | None) -> 
     V.add(Lent(driver), run_condition="run_pilot")
 
 
+def _lane_changes(driver: Any, cfg: Any, extra_inputs: dict[str, Any] | None, asked: bool | None) -> bool:
+    """Whether the episodes command lane changes (see :func:`evaluate`)."""
+    if asked is False:
+        return False
+    reads = "behavior/one_hot_state_array" in tuple(getattr(driver, "INPUTS", None) or getattr(driver, "inputs", None)
+                                                    or ())
+    if asked is None:
+        fixed = bool(extra_inputs) and "behavior/one_hot_state_array" in extra_inputs
+        return cfg.SIM_LANES == 2 and not fixed and (reads or (driver == "expert" and cfg.TRAIN_BEHAVIORS))
+    if cfg.SIM_LANES != 2:
+        raise ValueError(f"lane changes need two-lane tracks: SIM_LANES = 2 (it is {cfg.SIM_LANES})")
+    if driver != "expert" and not reads:
+        raise ValueError("lane changes are commanded through behavior/one_hot_state_array, which this pilot does "
+                         "not read: evaluate a behaviour model (types behavior, lanes)")
+    return True
+
+
 def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float, penalty_s: float,
                 fixed_throttle: float | None = None, extra_inputs: dict[str, Any] | None = None,
-                on_step: Callable[[SimCar], None] | None = None) -> EpisodeMetrics:
+                on_step: Callable[[SimCar], None] | None = None, lanes: LaneMetrics | None = None) -> EpisodeMetrics:
     """One episode on track ``seed``: build the loop, run it to the end, return its metrics part.
 
     ``driver`` is "expert" or a pilot part; a pilot with a ``reset()`` (sequence models) starts the
-    episode with no memory of the previous track, so every track is scored on its own.
+    episode with no memory of the previous track, so every track is scored on its own. With
+    ``lanes`` (a :class:`LaneMetrics`, filled by the episode) the behaviour is stepped at seeded
+    times (SIM_EVAL_LANE_CHANGE_EVERY) and the car starts in the initial behaviour's lane.
     """
     # image jitter stays as configured: a pilot is judged on the images it will get
     sim = SimCar.from_config(cfg, seeds=[seed], reset_off_track=True, reset_to="nearest", realtime=False)
     V = Vehicle(clock=SimulatedClock())
     V.mem.update(extra_inputs or {})  # seeded: keys the simulator does not make
     V.add(sim)
+    if lanes is not None:
+        cfg = cfg.replace(TRAIN_BEHAVIORS=True)
+        times = periodic_change_times(max_time, tuple(cfg.SIM_EVAL_LANE_CHANGE_EVERY),
+                                      seed=(cfg.SIM_SEED * 1_000_003 + seed))
+        V.add(BehaviorSchedule(times, sim.dt))
+        behavior = add_behavior(V, cfg)
+        lane = behavior_lane(behavior.behaviors[behavior.state])
+        if lane is not None:  # start in the initial behaviour's lane
+            sim.start_offset = sim.track.lane_offset(lane)
+            sim.select_track(seed)
+        V.add(CommandedLane(sim))
     if driver == "expert":
-        V.add(Expert.from_config(cfg, sim))  # user mode: the expert is the "human"
+        # user mode: the expert is the "human"; it follows behaviours only when they are commanded
+        add_expert(V, cfg if lanes is not None else cfg.replace(TRAIN_BEHAVIORS=False), sim)
         if fixed_throttle is not None:
             V.add(lambda: fixed_throttle, outputs=["user/throttle"])
     else:
@@ -252,6 +308,8 @@ def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float,
                              track_length=sim.track.length,
                              on_step=(lambda: on_step(sim)) if on_step is not None else None)
     V.add(metrics)
+    if lanes is not None:
+        V.add(lanes)
     V.start(rate_hz=cfg.DRIVE_LOOP_HZ, log_summary=False)
     return metrics
 

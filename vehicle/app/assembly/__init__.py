@@ -20,6 +20,7 @@ HELPERS: dict[str, str] = {
     "add_expert": "sim",
     "add_expert_noise": "sim",
     "add_camera": "camera",
+    "add_undistort": "camera",
     "add_gamepad": "gamepad",
     "add_behavior": "drive",
     "add_camera_watchdog": "drive",

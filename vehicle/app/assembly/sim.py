@@ -53,24 +53,29 @@ def add_simulator(V: Any, cfg: Any, seeds: Sequence[int] | None = None, sim_type
 
     The external simulators' parts are threaded: the loop never waits for them, and a stale camera
     (SIM_TIMEOUT_S) makes ``cam/ok`` False for :func:`add_camera_watchdog`. A rising ``sim/reset``
-    puts the car back on its start line (the Udacity simulator cannot: it has no reset).
+    puts the car back on its start line (the Udacity simulator cannot: it has no reset). With
+    CAMERA_UNDISTORT the frames are undistorted next (see ``add_undistort``).
 
     Raises:
         UserError: a setting is out of range, the port is taken, the Donkey simulator cannot be
             reached or lacks the scene (the message names the setting).
     """
+    from vehicle.app.assembly.camera import add_undistort
+
     kind = resolve_sim_type(cfg, sim_type)
     if kind == "builtin":
         from parts.sim.simulator import SimCar
 
         sim = SimCar.from_config(cfg, seeds=seeds)
         V.add(sim)
+        add_undistort(V, cfg)  # a simulated lens (SIM_CAMERA_DISTORTION) is undistorted like a real one
         return sim
     if seeds:
         logger.warning("--tracks applies to the built-in simulator only; the %s simulator chooses its own "
                        "track%s", kind, " (DONKEY_GYM_ENV_NAME)" if kind == "donkey" else "")
     sim = make_bridge(cfg, kind)
     V.add(sim, threaded=True)
+    add_undistort(V, cfg)
     return sim
 
 
@@ -139,11 +144,14 @@ def _donkey(cfg: Any, **options: Any) -> Any:
 
 def add_expert(V: Any, cfg: Any, sim: Any) -> Any:
     """Add the pure-pursuit expert driving ``sim``: out ``user/angle``, ``user/throttle``,
-    ``user/mode`` (always "user") and ``recording`` (always True)."""
+    ``user/mode`` (always "user") and ``recording`` (always True). On two-lane tracks with
+    TRAIN_BEHAVIORS it reads ``behavior/state`` (add the behaviour part first) and keeps to, or
+    changes to, the lane of the active behaviour."""
     from parts.sim.expert import Expert
 
     expert = Expert.from_config(cfg, sim)
-    V.add(expert)
+    # following behaviours, it reads the active one (add_behavior before add_expert)
+    V.add(expert, inputs=["behavior/state"] if expert.behavior_lanes is not None else None)
     return expert
 
 

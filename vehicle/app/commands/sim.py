@@ -42,6 +42,8 @@ def register(subparsers: Any) -> None:
                                      "DONKEY_GYM_ENV_NAME; --tracks N stands for scene track_N of `vehicle sim serve`)")
     ev.add_argument("--json", help="write the full report (metrics and trajectories) here")
     ev.add_argument("--png", help="write the driven trajectories over the track maps here")
+    ev.add_argument("--lane-changes", action=argparse.BooleanOptionalAction, default=None,
+                    help="command lane changes and score them (default: for a behaviour pilot when SIM_LANES = 2)")
     add_car_options(ev)
     ev.set_defaults(func=cmd_eval)
 
@@ -50,6 +52,9 @@ def register(subparsers: Any) -> None:
     rec.add_argument("--tracks", type=_seeds, help="comma-separated track seeds (default SIM_TRACK_SEEDS)")
     rec.add_argument("--tub", help="tub folder (default: a new tub in the car's data folder)")
     rec.add_argument("--noise", type=float, help="steering noise injection amplitude (default SIM_EXPERT_NOISE)")
+    rec.add_argument("--lane-changes", type=int, metavar="N",
+                     help="two-lane tracks (SIM_LANES = 2): switch the behaviour (Left_Lane / Right_Lane) N times at "
+                          "random; the expert changes lanes and the records carry the behaviour")
     add_car_options(rec)
     rec.set_defaults(func=cmd_record)
 
@@ -135,7 +140,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
             [f"track_{s}" for s in args.tracks] if args.tracks else None)
     try:
         report = evaluate(args.pilot, seeds, laps, cfg=cfg, max_time=args.max_time,
-                          fixed_throttle=args.throttle, sim=args.sim, scenes=scenes)
+                          fixed_throttle=args.throttle, sim=args.sim, scenes=scenes,
+                          lane_changes=args.lane_changes)
     except (ValueError, FileNotFoundError) as exc:
         raise UserError(str(exc)) from exc
     except PartError as exc:  # e.g. a model made for another image size: the loop stopped safely
@@ -155,8 +161,11 @@ def cmd_record(args: argparse.Namespace) -> int:
     cfg = load_for_command(args)
     if args.records < 1:
         raise UserError(f"--records {args.records}: give at least 1 record")
+    if args.lane_changes is not None and args.lane_changes < 0:
+        raise UserError(f"--lane-changes {args.lane_changes}: give 0 or more")
     try:
-        path = record_expert(cfg, args.tracks, args.records, args.tub, noise=args.noise)
+        path = record_expert(cfg, args.tracks, args.records, args.tub, noise=args.noise,
+                             lane_changes=args.lane_changes)
     except ValueError as exc:
         raise UserError(str(exc)) from exc
     print(f"recorded {args.records} records into {path}")  # noqa: T201
