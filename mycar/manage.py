@@ -6,6 +6,7 @@
     python manage.py drive --expert --record-records 3000 --tracks 1,2,3
                                                       # record demonstrations, no human needed
     python manage.py train --tubs data --model models/pilot.pt
+    python manage.py console                          # datasets, training, models in the browser
 
 Settings live in myconfig.py (overrides of the defaults; see docs/config.md). To add a part of
 your own, insert a V.add(...) between two helper calls in drive().
@@ -52,6 +53,7 @@ def main(argv=None):
     d.add_argument("--tracks", type=manage.int_list, metavar="SEEDS", help="track seeds, e.g. 1,2,3")
     d.add_argument("--max-loops", type=int, metavar="N", help="stop after N loops")
     manage.add_train_command(parser)  # the options of `vehicle train`, on this car's data/
+    manage.add_console_command(parser)  # the trainer console: datasets, training, models, leaderboard
     return manage.main(parser, Path(__file__).resolve().parent, argv)
 
 

@@ -22,6 +22,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "vehicle.app.commands.createjs",
     "vehicle.app.commands.sim",
     "vehicle.app.commands.tub",
+    "vehicle.app.commands.console",
 )
 
 

@@ -61,21 +61,18 @@ def write_preview(cfg: Any, tubs: list[str], out: Path, rows: int = 4, variants:
                   augmentations: list[str] | None = None, seed: int = 0) -> Path:
     """Write a PNG grid: ``rows`` frames spread over the tubs, each with ``variants`` augmented copies."""
     import cv2
-    import numpy as np
 
-    from parts.pilots.augment import Augmenter, AugmentSettings, preview_grid
-    from parts.pilots.dataset import IMAGE_KEY, read_drive_data
+    from parts.pilots.augment import Augmenter, AugmentSettings, preview_frames, preview_grid
+    from parts.tub.errors import TubError
 
     if rows < 1 or variants < 1:
         raise UserError("--rows and --variants must be >= 1")
     try:
-        data = read_drive_data(tubs, modes=None)
+        frames, angles = preview_frames(tubs, rows)
         settings = AugmentSettings.from_config(cfg, augmentations)
-    except ValueError as exc:
+    except (ValueError, TubError) as exc:
         raise UserError(str(exc)) from exc
-    picks = np.unique(np.linspace(0, len(data) - 1, min(rows, len(data))).round().astype(int))
-    frames = [data.records[i].image(IMAGE_KEY) for i in picks]
-    grid = preview_grid(frames, [float(data.angles[i]) for i in picks], Augmenter(settings), variants, seed)
+    grid = preview_grid(frames, angles, Augmenter(settings), variants, seed)
     out.parent.mkdir(parents=True, exist_ok=True)
     if not cv2.imwrite(str(out), cv2.cvtColor(grid, cv2.COLOR_RGB2BGR)):
         raise UserError(f"cannot write {out}; check the folder and the .png extension")
