@@ -283,7 +283,8 @@ class DatasetStore:
         if self.busy is not None and path in self.busy():
             raise DatasetError(f"{entry.name} is used by a queued or running job; wait for it to finish "
                                "or cancel it", status=409)
-        newest = max((p.stat().st_mtime for p in path.glob("catalog_*.catalog")), default=0.0)
+        # records appended in the last seconds (an empty catalog is a tub created, not recording)
+        newest = max((st.st_mtime for p in path.glob("catalog_*.catalog") if (st := p.stat()).st_size), default=0.0)
         if time.time() - newest < RECORDING_GRACE_S:
             raise DatasetError(f"{entry.name} was written {time.time() - newest:.0f} s ago: the car seems to be "
                                "recording into it; stop recording first", status=409)

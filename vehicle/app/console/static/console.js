@@ -13,7 +13,7 @@ function nodes(children) {
   return children.flat(Infinity).filter(c => c !== null && c !== undefined && c !== false)
     .map(c => (c instanceof Node ? c : document.createTextNode(String(c))));
 }
-function show(...children) { show(...nodes(children)); }
+function show(...children) { main.replaceChildren(...nodes(children)); }
 
 /** h("div", {class: "x", onclick: f}, child, "text", [children]) -> Element */
 function h(tag, attrs, ...children) {
@@ -79,6 +79,14 @@ const fmt = {
   pct(v) { return v === null || v === undefined ? "–" : `${Number(v).toFixed(1)} %`; },
 };
 
+/** On a phone, table rows read as cards: every cell gets its column's name as a label. */
+function cardify(table) {
+  const names = [...table.querySelectorAll("thead th")].map(th => th.textContent);
+  table.classList.add("cardify");
+  table.querySelectorAll("tbody tr").forEach(tr => [...tr.children].forEach((td, i) => { if (names[i]) td.dataset.label = names[i]; }));
+  return table;
+}
+
 function statusPill(s) { return h("span", { class: `status ${s}` }, s); }
 
 function fieldError(form, name, message) {
@@ -121,6 +129,7 @@ function makeChart(el, opts, data) {
   const ro = new ResizeObserver(() => { const w = chartWidth(el); if (Math.abs(w - u.width) > 2) u.setSize({ width: w, height: u.height }); });
   ro.observe(el);
   u._ro = ro;
+  el._uplot = u;  // tests and the console's own code read the chart's data from its element
   return u;
 }
 
@@ -128,7 +137,7 @@ function lossChart(el, epochs, height = 260) {
   const data = lossData(epochs);
   return makeChart(el, {
     height, scales: { x: { time: false } }, legend: { live: true },
-    axes: [{ label: "epoch" }, { label: "loss", size: 60 }],
+    axes: [{ label: "epoch", incrs: [1, 2, 5, 10, 20, 50, 100, 200, 500] }, { label: "loss", size: 60 }],
     series: [{ label: "epoch" },
       { label: "loss", stroke: COLORS.loss, width: 2, points: { show: true, size: 5 } },
       { label: "val_loss", stroke: COLORS.val, width: 2, points: { show: true, size: 5 } }],
@@ -300,10 +309,10 @@ async function pageDatasets() {
     h("div", { class: "spread" }, h("h1", {}, "Datasets"),
       h("div", { class: "row" }, h("a", { class: "button", href: "#/datasets/add", id: "add-dataset" }, "Add dataset"),
         h("a", { class: "button", href: "#/datasets/import", id: "import-udacity" }, "Import Udacity recording"), trainSel)),
-    liveSets.length ? h("div", { class: "table-wrap" }, h("table", { id: "datasets" },
+    liveSets.length ? h("div", { class: "table-wrap" }, cardify(h("table", { id: "datasets" },
       h("thead", {}, h("tr", {}, ["", "Name", "Track / label", "Records", "Duration", "Sessions", "Size", "Frames", "Steering", "Comment", ""]
         .map((t, i) => h("th", { class: [3, 4, 5, 6].includes(i) ? "num" : "" }, t)))),
-      h("tbody", {}, rows)))
+      h("tbody", {}, rows))))
       : h("div", { class: "card" }, h("p", {}, "No datasets yet. Record with ", h("span", { class: "mono" }, "manage.py drive"),
         ", or add one here."), h("p", { class: "muted small" }, `Tubs in ${info.data_path} are listed automatically.`)),
     deleted.length ? h("div", {}, h("h2", {}, "Deleted"), h("p", { class: "muted small" },
@@ -636,13 +645,13 @@ async function pageTrain(query) {
 // ---------------------------------------------------------------------------------------------
 async function pageRuns() {
   const jobs = await api("GET", "api/jobs");
-  const render = list => h("div", { class: "table-wrap" }, h("table", { id: "runs" },
+  const render = list => h("div", { class: "table-wrap" }, cardify(h("table", { id: "runs" },
     h("thead", {}, h("tr", {}, ["#", "Job", "Status", "Progress", "Queued", "Finished", ""].map(t => h("th", {}, t)))),
     h("tbody", {}, list.map(j => h("tr", { "data-job": j.id },
       h("td", {}, j.id), h("td", {}, h("a", { href: `#/runs/${j.id}` }, j.title), j.message ? h("div", { class: "muted small" }, j.message) : null),
       h("td", {}, statusPill(j.status)), h("td", { class: "small" }, progressText(j)),
       h("td", { class: "small" }, fmt.when(j.created)), h("td", { class: "small" }, fmt.when(j.finished)),
-      h("td", {}, j.status === "queued" || j.status === "running" ? h("button", { class: "small", onclick: () => cancelJob(j) }, "Cancel") : null))))));
+      h("td", {}, j.status === "queued" || j.status === "running" ? h("button", { class: "small", onclick: () => cancelJob(j) }, "Cancel") : null)))))));
   show(h("h1", {}, "Runs"), h("p", { class: "muted" }, "Trainings and evaluations run one at a time, each in its own worker process; the others wait in the queue."),
     jobs.length ? render(jobs) : h("p", {}, "Nothing yet: ", h("a", { href: "#/train" }, "train a model"), "."));
   cleanup.push(live.on(ev => { if (ev.event === "status") route(); }));
@@ -784,7 +793,7 @@ async function pageModels() {
   const models = await api("GET", "api/models");
   show(
     h("div", { class: "spread" }, h("h1", {}, "Models"), h("a", { class: "button primary", href: "#/train" }, "Train a model")),
-    models.length ? h("div", { class: "table-wrap" }, h("table", { id: "models" },
+    models.length ? h("div", { class: "table-wrap" }, cardify(h("table", { id: "models" },
       h("thead", {}, h("tr", {}, ["Name", "Type", "Origin datasets", "Parameters", "Augmentations", "Best val_loss", "Evaluation", "Comment", ""].map(t => h("th", {}, t)))),
       h("tbody", {}, models.map(m => {
         const ev = m.latest_evaluation;
@@ -800,7 +809,7 @@ async function pageModels() {
           h("td", { class: "model-comment" }, m.comment || ""),
           h("td", { class: "actions-cell" }, h("a", { class: "button small", href: `#/models/${encodeURIComponent(m.name)}/edit`, "data-action": "edit" }, "Edit"), " ",
             h("button", { class: "small", "data-action": "delete", onclick: () => deleteModel(m) }, "Delete")));
-      }))))
+      })))))
       : h("div", { class: "card" }, h("p", {}, "No models yet: ", h("a", { href: "#/train" }, "train one"), ".")));
 }
 
@@ -895,14 +904,14 @@ async function pageLeaderboard(query) {
     h("h1", {}, "Leaderboard"),
     h("p", { class: "muted" }, "Models ranked by their latest evaluation on the same tracks: autonomy first, then laps completed, then mean |cross-track error|, then speed."),
     lb.track_sets.length ? h("div", { class: "row" }, "Track set ", sel) : null,
-    lb.board.length ? h("div", { class: "table-wrap", style: "margin-top:.8rem" }, h("table", { id: "leaderboard" },
+    lb.board.length ? h("div", { class: "table-wrap", style: "margin-top:.8rem" }, cardify(h("table", { id: "leaderboard" },
       h("thead", {}, h("tr", {}, ["#", "Model", "Autonomy", "Laps", "Mean |CTE|", "Speed", "Off-track", "Evaluated"].map(t => h("th", {}, t)))),
       h("tbody", {}, lb.board.map((e, i) => h("tr", { class: `rank-${i + 1}`, "data-model": e.model },
         h("td", {}, i + 1), h("td", {}, h("a", { href: `#/models/${encodeURIComponent(e.model)}` }, e.model)),
         h("td", { class: "num" }, fmt.pct(e.overall.autonomy)), h("td", { class: "num" }, e.overall.laps_completed ?? "–"),
         h("td", { class: "num" }, e.overall.mean_abs_cte != null ? `${fmt.num(e.overall.mean_abs_cte, 3)} m` : "–"),
         h("td", { class: "num" }, e.overall.mean_speed != null ? `${fmt.num(e.overall.mean_speed, 2)} m/s` : "–"),
-        h("td", { class: "num" }, e.overall.interventions ?? "–"), h("td", { class: "small" }, fmt.when(e.created)))))))
+        h("td", { class: "num" }, e.overall.interventions ?? "–"), h("td", { class: "small" }, fmt.when(e.created))))))))
       : h("div", { class: "card" }, h("p", {}, "No evaluations on these tracks yet. Open a model in the ", h("a", { href: "#/models" }, "model manager"), " and press Evaluate.")));
 }
 
