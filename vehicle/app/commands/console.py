@@ -17,6 +17,7 @@ import logging
 import signal
 from typing import Any
 
+from vehicle.app.carconfig import add_car_options, load_for_command
 from vehicle.errors import UserError
 
 logger = logging.getLogger(__name__)
@@ -34,25 +35,13 @@ def register(subparsers: Any) -> None:
     parser = subparsers.add_parser("console", help="the trainer console in the browser: datasets, training, "
                                    "models, leaderboard", description=__doc__,
                                    formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--car", metavar="DIR", default=".", help="car folder (default: the current folder)")
-    parser.add_argument("--myconfig", metavar="FILE", help="config file (default: <car>/myconfig.py)")
+    add_car_options(parser)
     add_console_arguments(parser)
     parser.set_defaults(func=_cmd_console)
 
 
 def _cmd_console(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
-    from vehicle.config import ConfigError, load_config
-
-    car = Path(args.car)
-    if not car.is_dir():
-        raise UserError(f"--car {car}: no such folder; pass a car folder made by `vehicle createcar`")
-    try:
-        cfg = load_config(args.myconfig, car_path=car)
-    except ConfigError as exc:
-        raise UserError(str(exc)) from exc
-    return serve(cfg, args)
+    return serve(load_for_command(args), args)
 
 
 def serve(cfg: Any, args: argparse.Namespace) -> int:

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 from parts.pilots import hyperparams
 from parts.pilots.model_db import RegistryError, check_model_name
 from vehicle.app.console.datasets import DatasetError, augmentation_preview
-from vehicle.errors import UserError
+from vehicle.errors import VehicleError
 
 if TYPE_CHECKING:
     from vehicle.app.console.server import ConsoleApp
@@ -140,7 +140,7 @@ class Api:
         except RegistryError as exc:
             status = 404 if str(exc).startswith("no ") else 409
             raise ApiError(status, str(exc)) from exc
-        except (UserError, ValueError, OSError) as exc:
+        except (VehicleError, ValueError, OSError) as exc:
             raise ApiError(400, str(exc)) from exc
 
     # -- info -------------------------------------------------------------------------------------

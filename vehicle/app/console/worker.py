@@ -216,15 +216,15 @@ def _run(job_file: Path) -> int:
         events.emit({"event": "end", "status": "cancelled", "message": "cancelled before a result was saved"})
         return 0
     except Exception as exc:  # noqa: BLE001 - every failure becomes a message on the page
-        from vehicle.errors import UserError
+        from vehicle.errors import VehicleError
 
         if watcher.stop.is_set() and "cancelled" in str(exc):
             events.emit({"event": "end", "status": "cancelled", "message": str(exc)})
             return 0
-        if not isinstance(exc, ValueError | UserError | FileNotFoundError | OSError):
+        if not isinstance(exc, ValueError | VehicleError | OSError):
             logger.exception("the job failed")
         events.emit({"event": "end", "status": "failed", "message": f"{type(exc).__name__}: {exc}"
-                     if not isinstance(exc, ValueError | UserError) else str(exc)})
+                     if not isinstance(exc, ValueError | VehicleError) else str(exc)})
         return 1
     events.emit(result)
     cancelled = bool(result.get("metrics", {}).get("cancelled"))
