@@ -87,6 +87,8 @@ class ConsoleApp:
         self._stop: asyncio.Event | None = None
         self._stop_requested = threading.Event()
         self._streams: set[asyncio.Task[Any]] = set()
+        self._describe: Any = None
+        self._warm: asyncio.Task[Any] | None = None
         self._runner: Any = None
         self._thread: threading.Thread | None = None
         self._started = threading.Event()
@@ -103,7 +105,14 @@ class ConsoleApp:
                 proc = await asyncio.create_subprocess_exec(
                     sys.executable, "-m", "vehicle.app.console.worker", "describe",
                     stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE)
-                out, err = await proc.communicate()
+                self._describe = proc
+                try:
+                    out, err = await proc.communicate()
+                finally:
+                    if proc.returncode is None:  # cancelled: the console is closing
+                        with contextlib.suppress(ProcessLookupError):
+                            proc.kill()
+                        await proc.wait()
                 try:
                     self._types = json.loads(out.decode().strip().splitlines()[-1])["model_types"]
                 except (ValueError, IndexError, KeyError):
@@ -259,7 +268,7 @@ class ConsoleApp:
             raise OSError(exc.errno, f"the console cannot listen on {self.host}:{self.port} ({exc.strerror}); "
                           "another program uses the port: pass --port or set CONSOLE_PORT in myconfig.py") from exc
         self.port = self._runner.addresses[0][1]
-        asyncio.create_task(self.model_types())  # warm the model type list in the background
+        self._warm = asyncio.create_task(self.model_types())  # the model type list, in the background
 
     async def serve_until_stopped(self) -> None:
         """Serve until :meth:`stop`; then stop the running job cleanly and close."""
@@ -270,6 +279,10 @@ class ConsoleApp:
         finally:
             for task in list(self._streams):
                 task.cancel()
+            if self._warm is not None and not self._warm.done():
+                self._warm.cancel()
+                with contextlib.suppress(asyncio.CancelledError):
+                    await self._warm
             await self.jobs.close()
             await self._runner.cleanup()
 
