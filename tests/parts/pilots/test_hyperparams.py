@@ -1,4 +1,4 @@
-"""The hyper-parameter table: the seed's validation rules, shared by the CLI and the console."""
+"""The hyper-parameter table: Track Driver AI's validation rules, shared by the CLI and the console."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 from parts.pilots import hyperparams as hp
 from vehicle.config import Config
 
-# the seed's "Validation Tests" of the training setup: field, normal, extreme, erroneous
+# Track Driver AI's "Validation Tests" of the training setup: field, normal, extreme, erroneous
 SEED = [
     ("balance_bins", "25", "100", "-21", 25),
     ("max_per_bin", "400", "1500", "True", 400),
@@ -22,7 +22,7 @@ SEED = [
 
 
 @pytest.mark.parametrize("name,normal,extreme,bad,value", SEED)
-def test_the_seed_table(name, normal, extreme, bad, value):
+def test_the_track_driver_ai_table(name, normal, extreme, bad, value):
     clean, errors = hp.parse({name: normal})
     assert errors == {} and clean == {name: value}
     assert hp.parse({name: extreme})[1] == {}

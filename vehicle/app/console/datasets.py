@@ -67,7 +67,7 @@ def check_folder_name(name: str, field: str = "name") -> str:
 
 
 def check_label(label: Any) -> str | None:
-    """The track/label: free text up to 60 characters, None when blank (the seed's track number
+    """The track/label: free text up to 60 characters, None when blank (Track Driver AI's track number
     is a label like any other: "1", "3", "oval", "right lane")."""
     if label is None:
         return None
@@ -293,7 +293,7 @@ class DatasetStore:
     def create(self, name: str, label: Any = None, comment: Any = None) -> DatasetEntry:
         """An empty tub ``DATA_PATH/name`` with the car's recording schema (TUB_INPUTS/TUB_TYPES), to
         record into later (``vehicle sim record --tub``, or DATA_PATH with AUTO_CREATE_NEW_TUB off).
-        An existing tub of that name is registered instead (the seed's "not in the datasets folder"
+        An existing tub of that name is registered instead (Track Driver AI's "not in the datasets folder"
         and "in the datasets folder" both work)."""
         from parts.tub.reader import is_tub
         from parts.tub.tub import Tub
@@ -341,7 +341,7 @@ class DatasetStore:
         return entry
 
     def edit(self, dataset_id: int, name: str | None = None, label: Any = ..., comment: Any = ...) -> DatasetEntry:
-        """Rename the folder (the seed renames on disk), change label and comment."""
+        """Rename the folder (Track Driver AI's trainer renames it on disk), change label and comment."""
         entry = self.get(dataset_id)
         fields: dict[str, Any] = {}
         if label is not ...:

@@ -1,4 +1,4 @@
-"""The trainer console in Debian's headless chromium: the seed's interface (TN), operation (TO) and
+"""The trainer console in Debian's headless chromium: Track Driver AI's interface (TN), operation (TO) and
 validation (TV) tables, a real training from the wizard with its live loss chart, cancel, two
 browsers, a reload, an evaluation from the model manager and the leaderboard."""
 
@@ -225,7 +225,7 @@ def test_to5a_training_setup_loads_the_car_defaults(page, url):
 
 
 # -- TV: validation --------------------------------------------------------------------------------------
-TV3 = [  # field, normal, extreme, erroneous (the seed's table)
+TV3 = [  # field, normal, extreme, erroneous (Track Driver AI's table)
     ("balance_bins", "25", "100", "-21"),
     ("max_per_bin", "400", "1500", "True"),
     ("val_share", "0.2", "1", "3.5"),
@@ -294,7 +294,7 @@ def test_tv2_tv4_edit_validation(page, url, registered_model, console):
     page.fill("input[name=label]", "1")
     page.click("#update")
     _heading(page, "^Datasets$")
-    # TV4: model names (the seed's .h5 names become file names as they are, with .pt after them)
+    # TV4: model names (Track Driver AI's .h5 names become file names as they are, with .pt after them)
     for name, ok in (("", False), ("decent_driver.h5", True), ("b_2_3-3_123.h5", True)):
         current = console.registry.names()[0]
         _open(page, url, f"models/{current}/edit")

@@ -96,7 +96,7 @@ def test_create_an_empty_tub_or_register_an_existing_one(store, car, tmp_path, c
     manifest = (car / "data" / "test_drive_abc" / "manifest.json").read_text().splitlines()
     assert json.loads(manifest[0]) == list(config.TUB_INPUTS)
     assert store.summary(created)["stats"]["records"] == 0
-    # an existing tub of the data folder by name: registered as it is (the seed's "in the folder")
+    # an existing tub of the data folder by name: registered as it is (Track Driver AI's "in the folder")
     again = store.create("tub_2_26-01-02", label="1")
     assert again.path == (car / "data" / "tub_2_26-01-02").resolve() and again.label == "1"
     # a tub elsewhere, by path

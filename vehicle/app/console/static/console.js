@@ -556,7 +556,7 @@ async function pageTrain(query) {
     h("fieldset", {}, h("legend", {}, "2 · Datasets"), usable.length ? dsList : h("p", {}, "No dataset with records: ", h("a", { href: "#/datasets" }, "add one first"), "."),
       h("div", { class: "err", "data-err": "datasets" })),
     h("fieldset", {}, h("legend", {}, "3 · Start from an existing model (transfer)"),
-      field("Transfer from", transferSel, "transfer", "Fine-tune a model you trained before (the seed's model retraining): its type and preprocessing are kept, its weights are the start.")),
+      field("Transfer from", transferSel, "transfer", "Fine-tune a model you trained before (Track Driver AI's model retraining): its type and preprocessing are kept, its weights are the start.")),
     [["Optimisation", 4], ["Data", 5]].map(([g, n]) => groups[g] ? h("fieldset", {}, h("legend", {}, `${n} · ${g}`),
       h("div", { class: "hp-grid" }, groups[g].map(hpField))) : null),
     h("fieldset", {}, h("legend", {}, "6 · Augmentation"),
