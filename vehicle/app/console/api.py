@@ -10,7 +10,6 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
-import math
 import re
 import sys
 from collections.abc import Awaitable, Callable
@@ -20,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 from parts.pilots import hyperparams
 from parts.pilots.model_db import RegistryError, check_model_name
 from vehicle.app.console.datasets import DatasetError, augmentation_preview
+from vehicle.app.console.jsonsafe import finite
 from vehicle.errors import VehicleError
 
 if TYPE_CHECKING:
@@ -69,17 +69,6 @@ def _int(text: str, what: str) -> int:
         return int(text)
     except (TypeError, ValueError):
         raise ApiError(400, f"{what} must be a whole number, got {text!r}") from None
-
-
-def _finite(value: Any) -> Any:
-    """JSON cannot carry NaN: replace non-finite floats by None, recursively."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_finite(v) for v in value]
-    return value
 
 
 class Api:
@@ -147,7 +136,7 @@ class Api:
     async def info(self, request: Any) -> Any:
         cfg = self.app.cfg
         types = await self.app.model_types()
-        return json_response(_finite({
+        return json_response(finite({
             "car": str(cfg.CAR_PATH), "car_name": Path(cfg.CAR_PATH).name, "data_path": str(self.store.data_path),
             "models_path": str(cfg.path("MODELS_PATH")), "registry": str(self.registry.db_path),
             "hyperparams": hyperparams.describe(cfg, [t["name"] for t in types] if types else None),
@@ -160,11 +149,11 @@ class Api:
         def work() -> list[dict[str, Any]]:
             return [self.store.summary(e) for e in self.store.sync()]
 
-        return json_response(_finite(await self._run(work)))
+        return json_response(finite(await self._run(work)))
 
     async def get_dataset(self, request: Any) -> Any:
         entry = await self._run(self.store.get, _int(request.match_info["id"], "dataset id"))
-        return json_response(_finite(await self._run(self.store.summary, entry)))
+        return json_response(finite(await self._run(self.store.summary, entry)))
 
     async def add_dataset(self, request: Any) -> Any:
         body = await read_json(request)
@@ -177,28 +166,28 @@ class Api:
                                       body.get("comment"))
         else:
             raise ApiError(400, f"action must be create or register, got {action!r}", "action")
-        return json_response(_finite([await self._run(self.store.summary, e) for e in entries]), 201)
+        return json_response(finite([await self._run(self.store.summary, e) for e in entries]), 201)
 
     async def import_udacity(self, request: Any) -> Any:
         body = await read_json(request)
         entry = await self._run(self.store.import_udacity, body.get("source", ""), body.get("name", ""),
                                 body.get("label"), body.get("comment"))
-        return json_response(_finite(await self._run(self.store.summary, entry)), 201)
+        return json_response(finite(await self._run(self.store.summary, entry)), 201)
 
     async def edit_dataset(self, request: Any) -> Any:
         body = await read_json(request)
         did = _int(request.match_info["id"], "dataset id")
         kwargs = {k: body[k] for k in ("label", "comment") if k in body}
         entry = await self._run(self.store.edit, did, body.get("name"), **kwargs)
-        return json_response(_finite(await self._run(self.store.summary, entry)))
+        return json_response(finite(await self._run(self.store.summary, entry)))
 
     async def delete_dataset(self, request: Any) -> Any:
         entry = await self._run(self.store.soft_delete, _int(request.match_info["id"], "dataset id"))
-        return json_response(_finite(await self._run(self.store.summary, entry)))
+        return json_response(finite(await self._run(self.store.summary, entry)))
 
     async def restore_dataset(self, request: Any) -> Any:
         entry = await self._run(self.store.restore, _int(request.match_info["id"], "dataset id"))
-        return json_response(_finite(await self._run(self.store.summary, entry)))
+        return json_response(finite(await self._run(self.store.summary, entry)))
 
     async def purge_dataset(self, request: Any) -> Any:
         await self._run(self.store.purge, _int(request.match_info["id"], "dataset id"))
@@ -219,12 +208,12 @@ class Api:
             raise ApiError(400, "action must be delete or restore", "action")
         did = _int(request.match_info["id"], "dataset id")
         out = await self._run(self.store.mark_records, did, body.get("start"), body.get("end"), action == "delete")
-        return json_response(_finite(out))
+        return json_response(finite(out))
 
     async def get_record(self, request: Any) -> Any:
         entry = await self._run(self.store.get, _int(request.match_info["id"], "dataset id"))
         rec = await self._run(self.store.record, entry, _int(request.match_info["index"], "record index"))
-        return json_response(_finite(rec))
+        return json_response(finite(rec))
 
     async def get_image(self, request: Any) -> Any:
         from aiohttp import web
@@ -371,7 +360,7 @@ class Api:
 
     # -- jobs -----------------------------------------------------------------------------------------
     async def list_jobs(self, request: Any) -> Any:
-        return json_response(_finite(self.app.jobs.list()))
+        return json_response(finite(self.app.jobs.list()))
 
     def _job(self, request: Any) -> Any:
         job = self.app.jobs.get(_int(request.match_info["id"], "job id"))
@@ -380,14 +369,14 @@ class Api:
         return job
 
     async def get_job(self, request: Any) -> Any:
-        return json_response(_finite(self._job(request).snapshot()))
+        return json_response(finite(self._job(request).snapshot()))
 
     async def cancel_job(self, request: Any) -> Any:
         job = self._job(request)
         if job.status not in ("queued", "running"):
             raise ApiError(409, f"job {job.id} is {job.status}: nothing to cancel")
         job = await self.app.jobs.cancel(job.id)
-        return json_response(_finite(job.summary()))
+        return json_response(finite(job.summary()))
 
     # -- models -----------------------------------------------------------------------------------
     def _model_view(self, entry: Any, latest: Any) -> dict[str, Any]:
@@ -406,7 +395,7 @@ class Api:
                 latest.setdefault(ev.model, ev)
             return [self._model_view(e, latest.get(e.name)) for e in reversed(self.registry.list())]
 
-        return json_response(_finite(await self._run(work)))
+        return json_response(finite(await self._run(work)))
 
     async def get_model(self, request: Any) -> Any:
         def work() -> dict[str, Any]:
@@ -419,7 +408,7 @@ class Api:
                                       "id": by_path[p].id if p in by_path else None} for p in entry.datasets]
             return view
 
-        return json_response(_finite(await self._run(work)))
+        return json_response(finite(await self._run(work)))
 
     async def edit_model(self, request: Any) -> Any:
         body = await read_json(request)
@@ -447,7 +436,7 @@ class Api:
             entry = await asyncio.to_thread(work)
         except RegistryError as exc:
             raise ApiError(404, str(exc)) from exc
-        return json_response(_finite({"name": entry.name, "comment": entry.comment}))
+        return json_response(finite({"name": entry.name, "comment": entry.comment}))
 
     async def delete_model(self, request: Any) -> Any:
         files = request.query.get("files", "1") not in ("0", "false", "no")
@@ -519,4 +508,4 @@ class Api:
                     "track_sets": [{"tracks": list(t), "laps": lp, "models": n} for t, lp, n in sets],
                     "board": [e.as_dict() for e in board]}
 
-        return json_response(_finite(await self._run(work)))
+        return json_response(finite(await self._run(work)))

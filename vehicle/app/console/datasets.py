@@ -319,12 +319,7 @@ class DatasetStore:
         from parts.tub.reader import find_tubs
 
         label, comment = check_label(label), check_comment(comment)
-        text = (folder or "").strip()
-        if not text:
-            raise DatasetError("must not be empty: give the path of a tub folder", "path")
-        path = Path(os.path.expanduser(text))
-        if not path.is_absolute():
-            path = Path(self.cfg.CAR_PATH) / path
+        path = self._user_path(folder, "path", "give the path of a tub folder")
         if not path.is_dir():
             raise DatasetError(f"{path}: no such folder", "path")
         try:
@@ -332,6 +327,14 @@ class DatasetStore:
         except TubError as exc:
             raise DatasetError(str(exc), "path") from exc
         return [self._add(t.resolve(), "registered", label, comment) for t in tubs]
+
+    def _user_path(self, text: Any, field: str, what: str) -> Path:
+        """A path typed by the user: ``~`` expanded, relative paths taken from the car folder."""
+        text = text.strip() if isinstance(text, str) else ""
+        if not text:
+            raise DatasetError(f"must not be empty: {what}", field)
+        path = Path(os.path.expanduser(text))
+        return path if path.is_absolute() else Path(self.cfg.CAR_PATH) / path
 
     def _add(self, path: Path, origin: str, label: str | None, comment: str | None) -> DatasetEntry:
         entry = self.registry.add_dataset(path, origin, label, comment)
@@ -443,12 +446,7 @@ class DatasetStore:
 
         name = check_folder_name(name)
         label, comment = check_label(label), check_comment(comment)
-        text = (source or "").strip()
-        if not text:
-            raise DatasetError("must not be empty: give driving_log.csv or the folder holding it", "source")
-        src = Path(os.path.expanduser(text))
-        if not src.is_absolute():
-            src = Path(self.cfg.CAR_PATH) / src
+        src = self._user_path(source, "source", "give driving_log.csv or the folder holding it")
         target = self.data_path / name
         if target.exists():
             raise DatasetError(f"{target} exists already; choose another name", "name")

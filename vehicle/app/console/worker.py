@@ -18,13 +18,14 @@ import argparse
 import inspect
 import json
 import logging
-import math
 import os
 import sys
 import threading
 import time
 from pathlib import Path
 from typing import Any, TextIO
+
+from vehicle.app.console.jsonsafe import finite
 
 logger = logging.getLogger(__name__)
 
@@ -46,7 +47,7 @@ class Events:
 
     def emit(self, event: dict[str, Any]) -> None:
         """Write one event (NaN and infinities become null)."""
-        line = json.dumps(_finite(event), default=str)
+        line = json.dumps(finite(event), default=str)
         with self._lock:
             self.out.write(line + "\n")
             self.out.flush()
@@ -57,16 +58,6 @@ class Events:
         if force or now - self._last_progress >= PROGRESS_INTERVAL_S:
             self._last_progress = now
             self.emit(event)
-
-
-def _finite(value: Any) -> Any:
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_finite(v) for v in value]
-    return value
 
 
 class EventLogHandler(logging.Handler):
