@@ -126,7 +126,13 @@ function chartWidth(el) { return Math.max(200, Math.floor(el.getBoundingClientRe
 /** A chart that follows its container's width. */
 function makeChart(el, opts, data) {
   const u = new uPlot(Object.assign({ width: chartWidth(el), height: opts.height || 240 }, opts), data, el);
-  const ro = new ResizeObserver(() => { const w = chartWidth(el); if (Math.abs(w - u.width) > 2) u.setSize({ width: w, height: u.height }); });
+  // resize on the next frame: resizing inside the observer's callback can make the browser report
+  // "ResizeObserver loop completed with undelivered notifications" as a page error
+  let pending = 0;
+  const ro = new ResizeObserver(() => {
+    cancelAnimationFrame(pending);
+    pending = requestAnimationFrame(() => { const w = chartWidth(el); if (Math.abs(w - u.width) > 2) u.setSize({ width: w, height: u.height }); });
+  });
   ro.observe(el);
   u._ro = ro;
   el._uplot = u;  // tests and the console's own code read the chart's data from its element
