@@ -163,6 +163,11 @@ EARLY_STOP_PATIENCE: int = 5
 MIN_DELTA: float = 0.0005
 # Adam learning rate.
 LEARNING_RATE: float = 0.001
+# Training steps (batches) per epoch; None = every training sample once. Fewer steps make epochs
+# shorter on a large data set (each epoch then sees a different random part of it).
+TRAIN_STEPS_PER_EPOCH: int | None = None
+# Validation steps (batches) per epoch; None = every validation sample.
+TRAIN_VAL_STEPS: int | None = None
 # Adam weight decay (L2 penalty on the weights), 0 = off.
 TRAIN_WEIGHT_DECAY: float = 0.0
 # Where to train: "auto" = the GPU when there is one (cuda), else cpu; or "cpu", "cuda", "cuda:1".
@@ -599,6 +604,15 @@ WEB_JPEG_QUALITY: int = 80
 # source that moved last). Mode and recording: the latest change from either wins; an emergency
 # stop from either holds.
 CONTROLLER_PRIORITY: Literal["gamepad", "web", "latest"] = "gamepad"
+
+# == Trainer console ==
+
+# The trainer console (`vehicle console`, `manage.py console`): datasets, training, models and the
+# leaderboard in a browser. Interface it listens on: "127.0.0.1" = this machine only; "0.0.0.0" =
+# every network interface, which then requires the pairing token (WEB_TOKEN's rules).
+CONSOLE_HOST: str = "127.0.0.1"
+# TCP port of the console: http://localhost:8890/
+CONSOLE_PORT: int = 8890
 
 # == Recording ==
 

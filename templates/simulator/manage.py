@@ -10,6 +10,7 @@
     python manage.py drive --expert --record-records 6000 --lane-changes 40
                                                       # ... changing lanes (SIM_LANES = 2)
     python manage.py train --tubs data --model models/pilot.pt
+    python manage.py console                          # datasets, training, models in the browser
 
 Settings live in myconfig.py (overrides of the defaults; see docs/config.md). To add a part of
 your own, insert a V.add(...) between two helper calls in drive().
@@ -62,6 +63,7 @@ def main(argv=None):
     d.add_argument("--sim", choices=["builtin", "udacity", "donkey"], help="simulator to drive (default: SIM_TYPE)")
     d.add_argument("--max-loops", type=int, metavar="N", help="stop after N loops")
     manage.add_train_command(parser)  # the options of `vehicle train`, on this car's data/
+    manage.add_console_command(parser)  # the trainer console: datasets, training, models, leaderboard
     return manage.main(parser, Path(__file__).resolve().parent, argv)
 
 

@@ -25,6 +25,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "vehicle.app.commands.sim",
     "vehicle.app.commands.tub",
     "vehicle.app.commands.udacity",
+    "vehicle.app.commands.console",
 )
 
 

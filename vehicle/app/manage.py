@@ -52,6 +52,15 @@ def add_train_command(parser: argparse.ArgumentParser) -> argparse.ArgumentParse
     return p
 
 
+def add_console_command(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """Add ``console``: the trainer console of this car in the browser (``vehicle console``)."""
+    from vehicle.app.commands.console import add_console_arguments, serve
+
+    p = add_command(parser, "console", serve, "the trainer console in the browser: datasets, training, models")
+    add_console_arguments(p)
+    return p
+
+
 def main(parser: argparse.ArgumentParser, car_path: str | Path, argv: Sequence[str] | None = None) -> int:
     """Parse ``argv``, load the car's config and run the chosen command; returns the exit code."""
     args = parser.parse_args(argv)

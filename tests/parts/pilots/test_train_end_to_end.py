@@ -122,7 +122,7 @@ def test_manage_py_and_vehicle_train_share_arguments(tiny_tub, tmp_path, capsys,
     assert meta["type"] == "inferred" and meta["training"]["augmentations"]["names"] == ["flip"]
     assert main(["train", "--car", str(tmp_path), "--tubs", str(tiny_tub), "--model", str(tmp_path / "c.pt"),
                  "--type", "lstm"]) == 2
-    assert "unknown model type 'lstm'" in capsys.readouterr().err
+    assert "--type lstm: must be one of 3d, behavior, categorical" in capsys.readouterr().err
 
 
 def test_training_without_validation_split_monitors_training_loss(tiny_tub, tmp_path, torch_one_thread):

@@ -44,6 +44,8 @@ def register(subparsers: Any) -> None:
     ev.add_argument("--png", help="write the driven trajectories over the track maps here")
     ev.add_argument("--lane-changes", action=argparse.BooleanOptionalAction, default=None,
                     help="command lane changes and score them (default: for a behaviour pilot when SIM_LANES = 2)")
+    ev.add_argument("--store", action="store_true",
+                    help="keep the result in the car's model registry (the leaderboard ranks stored results)")
     add_car_options(ev)
     ev.set_defaults(func=cmd_eval)
 
@@ -151,6 +153,17 @@ def cmd_eval(args: argparse.Namespace) -> int:
         print(f"wrote {write_json(report, args.json)}")  # noqa: T201
     if args.png:
         print(f"wrote {write_png(report, args.png, cfg)}")  # noqa: T201
+    if args.store:
+        from parts.pilots.model_db import RegistryError
+        from vehicle.app.eval_store import store_report
+
+        if args.pilot == "expert":
+            raise UserError("--store keeps evaluations of registered models; the expert is not one")
+        try:
+            ev = store_report(cfg, Path(args.pilot), report)
+        except RegistryError as exc:
+            raise UserError(f"--store: {exc}") from exc
+        print(f"stored as evaluation {ev.id} of {ev.model}")  # noqa: T201
     return 0
 
 
