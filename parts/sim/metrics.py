@@ -85,6 +85,8 @@ class EpisodeMetrics:
         self._was_off = False
         self._last_pos: tuple[float, float] | None = None
         self._progress: float | None = None
+        self._last_lap: int | None = None
+        self._reset_pending = False
         self._unwrapped = 0.0  # laps of forward progress since the first step
 
     def run(self, angle: Any, cte: Any, off_track: Any, speed: Any, pos: Any, lap: Any, lap_time: Any,
@@ -98,6 +100,7 @@ class EpisodeMetrics:
             if value is not None:
                 tr.reported.add(name)
         off = bool(off_track)
+        self._reset_pending = self._was_off  # the simulator re-centred the car after the last frame
         if off and not self._was_off:  # off-track event: the rising edge (the simulator re-centres)
             tr.events.append(self._last_pos if self._last_pos is not None else _pair(pos))
         self._was_off = off
@@ -110,15 +113,21 @@ class EpisodeMetrics:
         if pos is not None:
             tr.pos.append(_pair(pos))
             self._last_pos = tr.pos[-1]
-        if lap is not None and int(lap) > tr.laps:
-            tr.laps = int(lap)
-            if lap_time is not None:
-                tr.lap_times.append(float(lap_time))
+        restarted = False  # the simulator moved the car (a reset) or restarted its lap count
+        if lap is not None:
+            n = int(lap)
+            if self._last_lap is not None and n > self._last_lap:  # laps are counted as increments, so
+                tr.laps += n - self._last_lap  # a counter that restarts (a new scene) loses none
+                if lap_time is not None:
+                    tr.lap_times.append(float(lap_time))
+            restarted = self._last_lap is not None and n < self._last_lap
+            self._last_lap = n
         if progress is not None:
             # unwrap the lap fraction (it jumps 0.99 -> 0 at the start line, and reads ~1.0 or ~0.0
-            # for a car standing on it) into forward progress; the best of it counts
+            # for a car standing on it) into forward progress; the best of it counts. The step after
+            # a reset is a jump, not driving: it does not count.
             p = float(progress)
-            if self._progress is not None:
+            if self._progress is not None and not restarted and not self._reset_pending:
                 delta = p - self._progress
                 self._unwrapped += delta - round(delta)
             self._progress = p
