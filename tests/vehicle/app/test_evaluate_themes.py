@@ -24,3 +24,16 @@ def test_expert_drives_every_theme_and_randomisation_without_leaving_the_road(cf
         assert {t["conditions"]["latency"] for t in report["tracks"]} == {2}
     assert report["overall"]["interventions"] == 0 and report["overall"]["autonomy"] == 100.0
     assert report["overall"]["laps_completed"] == len(seeds)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("randomize", [1, 2, 3, 4, 6, 7])
+def test_expert_drives_many_randomisation_draws(cfg, randomize):
+    """Six more draws (the demo's training draw 1 and held-out draws among them) over 12 tracks of
+    every theme, so 72 randomised episodes in all."""
+    c = cfg.replace(SIM_THEME="road,indoor,park", SIM_RANDOMIZE=randomize)
+    seeds = list(range(400, 412))
+    report = evaluate("expert", seeds, laps=1, cfg=c)
+    assert {t["conditions"]["randomize"] for t in report["tracks"]} == {randomize}
+    assert report["overall"]["interventions"] == 0 and report["overall"]["autonomy"] == 100.0
+    assert report["overall"]["laps_completed"] == len(seeds)
