@@ -7,9 +7,9 @@
 1. The simulator's expert drives the training tracks (with noise injection, so the data shows
    recoveries) and its clean commands are recorded in a tub. The tracks alternate between the
    road and indoor themes and are randomised (light, shadows, colours, camera, sensor, latency,
-   distractors, worn lines: SIM_RANDOMIZE = 1).
+   distractors, lines worn away in patches: SIM_RANDOMIZE = 1).
 2. The default ``linear`` model trains on that tub (the same training code as ``manage.py train``),
-   with the hue augmentation on top of the default ones.
+   with the hue and blur augmentations on top of the default ones.
 3. The model is exported to ONNX when onnx and onnxruntime are installed (the pilot then runs it).
 4. The trained pilot and the expert drive tracks the pilot never saw, in each trained theme and in
    the park theme it never saw at all (a path without lines): one table per theme. By default in
@@ -41,8 +41,12 @@ DEMO_SETTINGS: dict[str, Any] = {
     # the training tracks alternate between two themes, each randomised (seed 1)
     "SIM_THEME": ["road", "indoor"],
     "SIM_RANDOMIZE": 1,
-    # the default augmentations plus hue: tape of one colour teaches the others
-    "AUGMENTATIONS": ["flip", "brightness", "shadow", "shift", "hue"],
+    # worn lines up to gone in patches: where a line vanishes, the pilot must steer by where the
+    # road's surface ends (what the unseen park theme has instead of lines)
+    "SIM_RANDOMIZE_RANGES": {"line_wear": (0.0, 1.0)},
+    # the default augmentations plus hue (tape of one colour teaches the others) and blur (thin
+    # lines count less against the broad edges of the drivable surface)
+    "AUGMENTATIONS": ["flip", "brightness", "shadow", "shift", "hue", "blur"],
     "SHOW_PLOT": True,
 }
 DEFAULTS = {"records": 6000, "epochs": 10, "noise": 0.4, "train_tracks": list(range(1, 33)),
