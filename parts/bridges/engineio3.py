@@ -40,6 +40,13 @@ _PRIVATE_API: dict[str, tuple[str, ...]] = {
     "_handle_eio_connect": ("self", "eio_sid", "environ"),
     "_handle_connect": ("self", "eio_sid", "namespace", "data"),
 }
+#: what else parts.bridges.udacity calls below python-socketio's documented surface: (module,
+#: class, method) -> parameters. It closes a simulator's websocket through the Engine.IO server
+#: (a Socket.IO v2 client ignores the namespace DISCONNECT).
+_INTERNAL_API: dict[tuple[str, str, str], tuple[str, ...]] = {
+    ("socketio", "AsyncManager", "eio_sid_from_sid"): ("self", "sid", "namespace"),
+    ("engineio", "AsyncServer", "disconnect"): ("self", "sid"),
+}
 INSTALL_HINT = "pip install 'vehicle-rc[web]' (python-socketio>=5.11,<5.19 and python-engineio>=4.9,<4.16)"
 
 _server_class: type | None = None
@@ -58,6 +65,13 @@ def _version(dist: str) -> tuple[int, int] | None:
         return None
 
 
+def _installed(dist: str) -> str:
+    try:
+        return metadata.version(dist)
+    except metadata.PackageNotFoundError:
+        return "(version unknown)"
+
+
 def check_support() -> None:
     """Raise :class:`BridgeError` unless python-socketio has the internals this layer overrides.
 
@@ -65,16 +79,24 @@ def check_support() -> None:
     """
     global _warned_untested
     try:
+        import aiohttp.web  # the server's HTTP side: a missing one fails here, not in start()
+        import engineio
         import socketio
-    except ImportError:
-        raise BridgeError(f"the Udacity simulator bridge needs python-socketio and aiohttp: {INSTALL_HINT}") from None
-    for name, params in _PRIVATE_API.items():
-        method = getattr(socketio.AsyncServer, name, None)
+    except ImportError as exc:
+        raise BridgeError(f"the Udacity simulator bridge needs python-socketio and aiohttp ({exc.name or exc} is "
+                          f"missing): {INSTALL_HINT}") from None
+    if not hasattr(aiohttp.web.BaseRunner, "addresses"):  # how the bridge learns the port it got for port 0
+        raise BridgeError(f"aiohttp {_installed('aiohttp')} has no BaseRunner.addresses: {INSTALL_HINT}")
+    modules = {"socketio": socketio, "engineio": engineio}
+    wanted = {("socketio", "AsyncServer", name): params for name, params in _PRIVATE_API.items()} | _INTERNAL_API
+    for (module, cls, name), params in wanted.items():
+        method = getattr(getattr(modules[module], cls, None), name, None)
         found = tuple(inspect.signature(method).parameters) if callable(method) else None
         if found != params:
+            dist = f"python-{module}"
             raise BridgeError(
-                f"python-socketio {metadata.version('python-socketio')} changed AsyncServer.{name} "
-                f"(parameters {found}, expected {params}), which the Udacity bridge relies on: {INSTALL_HINT}")
+                f"{dist} {_installed(dist)} changed {cls}.{name} (parameters {found}, expected {params}), "
+                f"which the Udacity bridge relies on: {INSTALL_HINT}")
     untested = []
     for dist, (low, high) in SUPPORTED.items():
         version = _version(dist)
