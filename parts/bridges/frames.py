@@ -50,10 +50,11 @@ def within_limits(width: int, height: int) -> bool:
 
 def clamp_size(width: int, height: int) -> tuple[int, int]:
     """The largest size within the limits with (about) the aspect ratio of ``width`` x ``height``."""
-    w, h = max(1, min(int(width), MAX_SIDE)), max(1, min(int(height), MAX_SIDE))
-    if w * h > MAX_PIXELS:
-        scale = math.sqrt(MAX_PIXELS / (w * h))
-        w, h = max(1, int(w * scale)), max(1, int(h * scale))
+    w, h = max(1, int(width)), max(1, int(height))
+    scale = min(1.0, MAX_SIDE / w, MAX_SIDE / h, math.sqrt(MAX_PIXELS / (w * h)))
+    w, h = max(1, min(MAX_SIDE, int(w * scale))), max(1, min(MAX_SIDE, int(h * scale)))
+    while w * h > MAX_PIXELS:  # rounding
+        w, h = max(1, w - 1), max(1, h - 1)
     return w, h
 
 

@@ -259,7 +259,10 @@ class UdacitySim(ThreadedPart):
         return self.NOTHING
 
     def shutdown(self) -> None:
-        """Stop the server and join its thread."""
+        """Leave the simulated car at steer (0, 0) (:meth:`neutral`, unless done already), then stop
+        the server and join its thread."""
+        if not self._neutral:
+            self.neutral()
         loop, stop = self._loop, self._stop_server
         if loop is not None and stop is not None and not loop.is_closed():
             with contextlib.suppress(RuntimeError):  # closed between the check and the call
