@@ -9,11 +9,13 @@ connected to namespace /"): the car never moves, and nothing says why.
 
 :func:`legacy_server` returns a python-socketio ``AsyncServer`` whose subclass joins each new
 Engine.IO connection to ``/`` at once (the Socket.IO v2 behaviour), and ignores a later ``40`` for
-``/`` from a client that sends one anyway. It overrides two private methods of python-socketio
-(``_handle_eio_connect``, ``_handle_connect``), so :func:`check_support` verifies their signatures
-before a server is made and the ``web`` extra pins the minor versions this was tested with
-(see ``SUPPORTED`` and pyproject.toml). tests/parts/bridges/test_bridge_engineio3.py proves both
-sides: the stock server stays silent against the faithful fake client, this one answers.
+``/`` from a client that sends one anyway. It overrides private methods of python-socketio
+(``_handle_eio_connect``, ``_handle_connect``; ``_handle_eio_message`` so that a packet that is
+not JSON, or is nested too deeply for the parser, costs one log line, not a traceback each), so
+:func:`check_support` verifies their signatures before a server is made and the ``web`` extra
+pins the minor versions this was tested with (see ``SUPPORTED`` and pyproject.toml).
+tests/parts/bridges/test_bridge_engineio3.py proves both sides: the stock server stays silent
+against the faithful fake client, this one answers.
 
 python-socketio is imported when a server is made, never at import time.
 """
@@ -39,6 +41,7 @@ SUPPORTED: dict[str, tuple[tuple[int, int], tuple[int, int]]] = {
 _PRIVATE_API: dict[str, tuple[str, ...]] = {
     "_handle_eio_connect": ("self", "eio_sid", "environ"),
     "_handle_connect": ("self", "eio_sid", "namespace", "data"),
+    "_handle_eio_message": ("self", "eio_sid", "data"),
 }
 #: what else parts.bridges.udacity calls below python-socketio's documented surface: (module,
 #: class, method) -> parameters. It closes a simulator's websocket through the Engine.IO server
@@ -133,6 +136,16 @@ def legacy_server_class() -> type:
                 if sid is not None and self.manager.is_connected(sid, "/"):
                     return None  # joined implicitly already; a v3+ client's own '40' changes nothing
             return await super()._handle_connect(eio_sid, namespace, data)
+
+        async def _handle_eio_message(self, eio_sid: str, data: Any) -> Any:
+            try:
+                return await super()._handle_eio_message(eio_sid, data)
+            except (ValueError, RecursionError) as exc:  # json.loads of the packet: the peer's junk
+                level = logging.DEBUG if getattr(self, "_junk_reported", False) else logging.WARNING
+                self._junk_reported = True
+                logger.log(level, "Socket.IO: skipped an unreadable packet (%s): %.60r", type(exc).__name__,
+                           data if isinstance(data, str) else type(data).__name__)
+                return None
 
     _server_class = LegacyAutoConnectServer
     return _server_class
