@@ -55,6 +55,9 @@ logger = logging.getLogger(__name__)
 _TRACK_SCENE = re.compile(r"^track_(-?\d+)$")
 #: longest client message a session reads (client messages are a few hundred bytes)
 MAX_CLIENT_MESSAGE_BYTES: Final = 64 * 1024
+#: simulated seconds a synchronous step may last (a client's ``time_step`` is clamped to them)
+MIN_TIME_STEP: Final = 0.001
+MAX_TIME_STEP: Final = 0.2
 _WORLD_LOCK = threading.Lock()  # parts.sim's world cache is shared by every session
 BRAKE_HOLD_SPEED: Final = 0.05  # m/s below which the hand brake holds the car still
 
@@ -338,7 +341,9 @@ class Session:
         elif kind in ("step_mode", "settings"):
             self.synchronous = str(msg.get("step_mode", "")).lower() == "synchronous"
             step = proto.number(msg.get("time_step"))
-            self.time_step = step if step is not None and step > 0 else self.server.period
+            # within what the car model integrates well: 1 ms .. 0.2 s per step
+            self.time_step = min(MAX_TIME_STEP, max(MIN_TIME_STEP, step)) if step is not None and step > 0 \
+                else self.server.period
             if self.sim is not None and self.synchronous:
                 self._report()  # the observation a stepping client waits for before its first control
         elif kind == "cam_config":

@@ -477,3 +477,20 @@ def test_idle_and_oversized_clients_are_disconnected_and_free_their_slot() -> No
         ok.expect("car_loaded")
         ok.expect("telemetry")
         ok.close()
+
+
+def test_step_time_is_clamped_to_what_the_car_model_integrates(server: DonkeyServer) -> None:
+    c = RawClient(server.port)
+    try:
+        c.expect("scene_selection_ready")
+        c.send("load_scene", scene_name="track_5")
+        c.expect("car_loaded")
+        for asked, applied in (("1e6", 0.2), ("1e-9", 0.001), ("0.05", 0.05)):
+            c.send("step_mode", step_mode="synchronous", time_step=asked)
+            c.drain()
+            c.send("control", steering="0", throttle="0.3", brake="0")
+            first = c.expect("telemetry")["time"]
+            c.send("control", steering="0", throttle="0.3", brake="0")
+            assert c.expect("telemetry")["time"] - first == pytest.approx(applied, abs=1e-9)
+    finally:
+        c.close()
