@@ -346,6 +346,14 @@ class RawClient:
                     return msg
         raise AssertionError(f"no {kind}")
 
+    def load(self, scene: str = "track_5", synchronous: bool = True) -> None:
+        """Menu -> scene loaded (-> step mode, 0.05 s per step)."""
+        self.expect("scene_selection_ready")
+        self.send("load_scene", scene_name=scene)
+        self.expect("car_loaded")
+        if synchronous:
+            self.send("step_mode", step_mode="synchronous", time_step="0.05")
+
     def send(self, msg_type: str, **fields: Any) -> None:
         self.sendraw(proto.client_message(msg_type, **fields))
 
@@ -393,10 +401,7 @@ def test_telemetry_cte_is_the_simulators_cross_track_error(server: DonkeyServer)
     """Our cte has the sign and size CarPath computes from the path nodes and the car's position."""
     c = RawClient(server.port)
     try:
-        c.expect("scene_selection_ready")
-        c.send("load_scene", scene_name="track_5")
-        c.expect("car_loaded")
-        c.send("step_mode", step_mode="synchronous", time_step="0.05")
+        c.load()
         for steering in (0.6, -0.6):  # off the centre line to the right, then to the left
             for _ in range(12):
                 c.send("control", steering=str(steering), throttle="0.5", brake="0")
@@ -420,10 +425,7 @@ def test_cam_config_is_clamped_to_the_frame_limits(server: DonkeyServer) -> None
 
     c = RawClient(server.port)
     try:
-        c.expect("scene_selection_ready")
-        c.send("load_scene", scene_name="track_5")
-        c.expect("car_loaded")
-        c.send("step_mode", step_mode="synchronous", time_step="0.05")
+        c.load()
         for w, h in (("inf", "120"), ("-640", "480"), ("nan", "1e12"), ("abc", "120")):  # kept: 160x120
             c.send("cam_config", img_w=w, img_h=h)
         c.drain()
@@ -482,9 +484,7 @@ def test_idle_and_oversized_clients_are_disconnected_and_free_their_slot() -> No
 def test_step_time_is_clamped_to_what_the_car_model_integrates(server: DonkeyServer) -> None:
     c = RawClient(server.port)
     try:
-        c.expect("scene_selection_ready")
-        c.send("load_scene", scene_name="track_5")
-        c.expect("car_loaded")
+        c.load(synchronous=False)
         for asked, applied in (("1e6", 0.2), ("1e-9", 0.001), ("0.05", 0.05)):
             c.send("step_mode", step_mode="synchronous", time_step=asked)
             c.drain()
