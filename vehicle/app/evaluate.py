@@ -9,8 +9,10 @@ One episode per track seed, each a real :class:`vehicle.Vehicle` on a
 
 so what is evaluated is what drives: the pilot's outputs go through the same DriveMode (a NaN or
 None command becomes centre and zero throttle, AI_THROTTLE_MULT scales the throttle) before the
-simulated car applies them. Leaving the road counts as an intervention: the car is re-centred on the
-road next to where it left (what a person would do) and the episode goes on. Metrics:
+simulated car applies them, and the pilot sees the frames the car drives with (undistorted after
+the simulator with CAMERA_UNDISTORT, as ``add_simulator`` does). Leaving the road counts as an
+intervention: the car is re-centred on the road next to where it left (what a person would do) and
+the episode goes on. Metrics:
 :mod:`parts.sim.metrics` (DAVE-2 autonomy, time-weighted |CTE| over autonomous frames, ...).
 
 The same loop drives the other simulators (``sim="donkey"`` / ``"udacity"``): the Donkey simulator
@@ -45,6 +47,7 @@ from parts.sim.lane_metrics import CommandedLane, LaneMetrics, overall_lane_metr
 from parts.sim.metrics import EpisodeMetrics, overall
 from parts.sim.simulator import SimCar
 from vehicle import Vehicle
+from vehicle.app.assembly.camera import add_undistort
 from vehicle.app.assembly.drive import add_behavior, add_drive_mode
 from vehicle.app.assembly.sim import add_expert
 from vehicle.clock import SimulatedClock
@@ -285,6 +288,8 @@ def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float,
     V = Vehicle(clock=SimulatedClock())
     V.mem.update(extra_inputs or {})  # seeded: keys the simulator does not make
     V.add(sim)
+    # as add_simulator: the pilot sees what the car drives with
+    add_undistort(V, cfg, (cfg.SIM_CAMERA_W, cfg.SIM_CAMERA_H), "SIM_CAMERA_W x SIM_CAMERA_H")
     if lanes is not None:
         cfg = cfg.replace(TRAIN_BEHAVIORS=True)
         times = periodic_change_times(max_time, tuple(cfg.SIM_EVAL_LANE_CHANGE_EVERY),
@@ -348,7 +353,7 @@ def run_bridge_episode(driver: Any, sim_type: str, scene: str, laps: int, cfg: A
                        extra_inputs: dict[str, Any] | None = None) -> EpisodeMetrics:
     """One episode on the Donkey simulator (synchronous steps, scene ``scene``) or the Udacity
     simulator (real time): the same loop as :func:`run_episode` around the bridge part."""
-    from vehicle.app.assembly.sim import add_simulator, add_simulator_commands, make_bridge
+    from vehicle.app.assembly.sim import add_simulator, add_simulator_commands, bridge_frame_size, make_bridge
 
     dt = 1.0 / cfg.DRIVE_LOOP_HZ
     if sim_type == "donkey":
@@ -356,6 +361,7 @@ def run_bridge_episode(driver: Any, sim_type: str, scene: str, laps: int, cfg: A
         bridge = make_bridge(cfg.replace(DONKEY_GYM_ENV_NAME=scene), "donkey", synchronous=True, time_step=dt)
         bridge.start()  # connect now: an unreachable simulator is an error, not a failed loop
         V.add(bridge, feedback=("angle", "throttle", "sim/reset"))  # run(): send, then wait for the step
+        add_undistort(V, cfg, *bridge_frame_size(cfg, "donkey"))  # as add_simulator
     else:
         V = Vehicle()  # the Udacity simulator runs in real time
         add_simulator(V, cfg, sim_type="udacity")
