@@ -216,3 +216,47 @@ def test_a_wrong_board_size_is_named_while_collecting(tmp_path, monkeypatch, cap
     assert "board not found for 0 s" not in caplog.text and "board not found for 1 s" in caplog.text
     assert "inner corners" in caplog.text
     assert "no chessboard was seen" in err and "8x5 inner corners" in err and "--board / CAMERA_CALIB_BOARD" in err
+
+
+def test_lanes_points_and_preview_are_for_the_frames_the_pilot_sees(car, capsys, tmp_path):
+    """A car with a wide-angle lens and CAMERA_UNDISTORT feeds its pilot undistorted frames: the
+    points are computed and the preview drawn on those."""
+    from parts.sim.camera import Camera, lane_region_points
+    from parts.vision.calibration import CameraCalibration
+    from parts.vision.undistort import Undistort
+
+    lens = Camera(320, 240, distortion=LENS)
+    cal = CameraCalibration((320, 240), lens.intrinsics, np.array(LENS), 0.1)
+    cal.save(car / "camera_calibration.json")
+    base = (car / "myconfig.py").read_text()
+    (car / "myconfig.py").write_text(base + "CAMERA_UNDISTORT = True\n")
+    assert main(["lanes", "points", "--sim"]) == 0
+    out = capsys.readouterr().out
+    assert "undistorted with" in out and "CAMERA_UNDISTORT" in out
+    expected = lane_region_points(lens, intrinsics=Undistort(cal).output_camera_matrix(320, 240))
+    assert f"LANE_SOURCE_POINTS = {[tuple(p) for p in expected['LANE_SOURCE_POINTS']]!r}" in out
+    # the preview's raw column is the undistorted frame
+    assert main(["lanes", "preview", "--sim", "--tracks", "3", "--frames", "1", "--scale", "1",
+                 "--png", "u.png"]) == 0
+    assert "undistorting the frames as the car does" in capsys.readouterr().out
+    (car / "myconfig.py").write_text(base)
+    assert main(["lanes", "preview", "--sim", "--tracks", "3", "--frames", "1", "--scale", "1",
+                 "--png", "d.png"]) == 0
+    out = capsys.readouterr().out
+    assert "undistorting" not in out
+    undistorted, distorted = cv2.imread(str(car / "u.png")), cv2.imread(str(car / "d.png"))
+    expected_raw = cv2.cvtColor(Undistort(cal).undistort(cv2.cvtColor(distorted[:, :320], cv2.COLOR_BGR2RGB)),
+                                cv2.COLOR_RGB2BGR)
+    # compare below the label band and away from the outlined region (drawn on both)
+    body = (slice(30, 240), slice(0, 320))
+    assert np.abs(undistorted[body].astype(int) - expected_raw[body].astype(int)).mean() < 8
+    assert np.abs(undistorted[body].astype(int) - distorted[body].astype(int)).mean() > 8
+    # without undistortion the lens's points are only near bird's-eye: said so
+    assert main(["lanes", "points", "--sim"]) == 0
+    assert "only near bird's-eye" in capsys.readouterr().out
+    # a calibration of another aspect ratio: one line naming the settings
+    CameraCalibration((320, 180), lens.intrinsics, np.array(LENS), 0.1).save(car / "camera_calibration.json")
+    (car / "myconfig.py").write_text(base + "CAMERA_UNDISTORT = True\n")
+    assert main(["lanes", "points", "--sim"]) == 2
+    err = capsys.readouterr().err
+    assert "aspect ratio" in err and "SIM_CAMERA_W" in err and len(err.strip().splitlines()) == 1
