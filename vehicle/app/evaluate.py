@@ -193,6 +193,8 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
         raise ValueError(f"the expert drives the built-in simulator only: pass a model file to evaluate on the "
                          f"{sim} simulator")
     lanes_on = sim == "builtin" and _lane_changes(driver, cfg, extra_inputs, lane_changes)
+    if lanes_on:
+        _check_change_schedule(cfg)
     started = time.perf_counter()
     results = []
     pooled: list[np.ndarray] = []  # |cte| of autonomous frames, for the overall percentile
@@ -271,6 +273,19 @@ def _lane_changes(driver: Any, cfg: Any, extra_inputs: dict[str, Any] | None, as
         raise ValueError("lane changes are commanded through behavior/one_hot_state_array, which this pilot does "
                          "not read: evaluate a behaviour model (types behavior, lanes)")
     return True
+
+
+def _check_change_schedule(cfg: Any) -> None:
+    """Raise ValueError when commanded lane changes may come closer together than one change is
+    given to succeed (time limit, then hold): one would be judged while the next is under way."""
+    every = tuple(cfg.SIM_EVAL_LANE_CHANGE_EVERY)
+    needed = cfg.SIM_EVAL_LANE_CHANGE_TIME_LIMIT + cfg.SIM_EVAL_LANE_CHANGE_HOLD
+    if len(every) != 2 or not 0 < every[0] <= every[1]:
+        raise ValueError(f"SIM_EVAL_LANE_CHANGE_EVERY = {every!r}: give (min, max) seconds with 0 < min <= max")
+    if every[0] < needed:
+        raise ValueError(f"SIM_EVAL_LANE_CHANGE_EVERY = {every!r} may command a change {every[0]:g} s after the last, "
+                         f"before that one is judged (SIM_EVAL_LANE_CHANGE_TIME_LIMIT + SIM_EVAL_LANE_CHANGE_HOLD = "
+                         f"{needed:g} s): raise its minimum to at least {needed:g}")
 
 
 def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float, penalty_s: float,

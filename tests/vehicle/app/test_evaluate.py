@@ -174,7 +174,7 @@ def test_tracks_are_scored_independently(cfg):
 
 
 def test_lane_changes_are_commanded_and_scored(cfg, tmp_path):
-    lanes = cfg.replace(SIM_LANES=2, TRAIN_BEHAVIORS=True, SIM_EXPERT_SPEED=1.5, SIM_EVAL_LANE_CHANGE_EVERY=(6.0, 8.0))
+    lanes = cfg.replace(SIM_LANES=2, TRAIN_BEHAVIORS=True, SIM_EXPERT_SPEED=1.5, SIM_EVAL_LANE_CHANGE_EVERY=(7.0, 8.0))
     r = evaluate("expert", [101], laps=1, cfg=lanes)
     t = r["tracks"][0]["lanes"]
     assert t["lane_changes"] >= 2 and t["lane_change_success_rate"] == 1.0 and t["wrong_lane_s"] == 0.0
@@ -213,6 +213,12 @@ def test_lane_changes_are_commanded_and_scored(cfg, tmp_path):
         evaluate("expert", [101], laps=1, cfg=cfg, max_time=5.0, lane_changes=True)
     with pytest.raises(ValueError, match="does not read"):
         evaluate(StandStill(), [101], laps=1, cfg=lanes, max_time=5.0, lane_changes=True)
+    # commands closer together than a change is given (time limit + hold) would judge one change
+    # while the next is under way: refused, naming the settings
+    with pytest.raises(ValueError) as err:
+        evaluate("expert", [101], laps=1, cfg=lanes.replace(SIM_EVAL_LANE_CHANGE_EVERY=(5.0, 8.0)), max_time=5.0)
+    assert "SIM_EVAL_LANE_CHANGE_EVERY" in str(err.value) and "SIM_EVAL_LANE_CHANGE_TIME_LIMIT" in str(err.value)
+    assert "\n" not in str(err.value)
 
 
 def test_the_pilot_is_scored_on_the_frames_the_car_drives_with(cfg, tmp_path):
