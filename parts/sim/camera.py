@@ -267,8 +267,8 @@ def lane_region_points(camera: Camera, near: float | None = None, far: float = 1
         bottom = camera.car_from_pixel @ canvas
         near = float(bottom[0] / bottom[2]) + 0.02
     if not 0 < near < far or half_width <= 0:
-        raise ValueError(f"lane region needs 0 < near < far metres and half_width > 0, got {near}, {far}, "
-                         f"{half_width}")
+        raise ValueError(f"lane region needs 0 < near < far metres and half_width > 0, got near {near:.3g} m, "
+                         f"far {far:.3g} m, half_width {half_width:.3g} m")
     pts = camera.project_ground(np.array([[near, half_width], [far, half_width], [far, -half_width],
                                           [near, -half_width]]), intrinsics)
     if not np.isfinite(pts).all():

@@ -390,8 +390,16 @@ def read_rgb(path: Path) -> np.ndarray:
 
 def write_rgb(path: Path, image: np.ndarray) -> None:
     """Write an RGB image (PNG or JPEG by suffix); OSError naming the path when it cannot."""
+    if path.suffix.lower() not in IMAGE_SUFFIXES:
+        raise OSError(errno.EINVAL, f"not an image file name: use .png or .jpg (one of {', '.join(IMAGE_SUFFIXES)})",
+                      str(path))
     path.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(path), cv2.cvtColor(image, cv2.COLOR_RGB2BGR)):
+    try:
+        written = cv2.imwrite(str(path), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+    except cv2.error as exc:  # OpenCV raises for some formats instead of returning False
+        raise OSError(errno.EIO, f"the image could not be written ({str(exc).strip().splitlines()[-1]})",
+                      str(path)) from None
+    if not written:
         raise OSError(errno.EIO, "the image could not be written", str(path))
 
 

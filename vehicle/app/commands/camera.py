@@ -224,6 +224,8 @@ def _calibrate(args: argparse.Namespace) -> int:
     model = args.model or cfg.CAMERA_CALIB_MODEL
     if args.views < MIN_VIEWS:
         raise UserError(f"--views {args.views}: collect at least {MIN_VIEWS} (better 10 or more)")
+    if args.live and not args.timeout > 0:
+        raise UserError(f"--timeout {args.timeout:g}: give the seconds to collect views, more than 0 (default 300)")
     out = Path(args.out) if args.out else cfg.path("CAMERA_CALIBRATION_PATH")
     try:
         if args.images:

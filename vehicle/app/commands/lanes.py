@@ -98,6 +98,8 @@ def _source_frames(args: argparse.Namespace, cfg: Any) -> list[np.ndarray]:
     if args.images:
         from parts.vision.calibration import CalibrationError, image_files, read_rgb
 
+        if not Path(args.images).is_dir():
+            raise UserError(f"--images {args.images}: no such folder; give a folder of frames (.png, .jpg)")
         try:
             files = image_files(args.images)
             if not files:
@@ -137,7 +139,7 @@ def cmd_preview(args: argparse.Namespace) -> int:
     try:
         write_rgb(out, strip)
     except OSError as exc:
-        raise UserError(f"--png {out}: {exc}") from exc
+        raise UserError(f"--png {out}: {exc.strerror or exc}") from exc
     shares = [float((extractor.extract(f) > 0).mean()) for f in frames]
     s = extractor.settings
     _say(f"wrote {out}: {len(frames)} frames of {frames[0].shape[1]}x{frames[0].shape[0]} "

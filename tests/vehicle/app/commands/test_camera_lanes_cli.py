@@ -260,3 +260,20 @@ def test_lanes_points_and_preview_are_for_the_frames_the_pilot_sees(car, capsys,
     assert main(["lanes", "points", "--sim"]) == 2
     err = capsys.readouterr().err
     assert "aspect ratio" in err and "SIM_CAMERA_W" in err and len(err.strip().splitlines()) == 1
+
+
+def test_bad_arguments_of_lanes_and_camera_are_one_line_errors(car, capsys, tmp_path):
+    (car / "myconfig.py").write_text("SIM_TEXTURE_RES = 0.02\n")
+    cases = [
+        (["lanes", "preview", "--sim", "--frames", "1", "--png", "strip.txt"], "strip.txt"),  # no such image format
+        (["lanes", "preview", "--images", str(tmp_path / "none")], "no such folder"),
+        (["lanes", "points", "--sim", "--near", "5"], "near 5 m"),
+        (["camera", "calibrate", "--live", "--timeout", "0"], "--timeout"),
+    ]
+    for argv, expected in cases:
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert expected in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, (argv, err)
+    assert not (car / "strip.txt").exists()
+    err_images = main(["lanes", "preview", "--images", str(tmp_path / "none")])
+    assert err_images == 2 and "chessboard" not in capsys.readouterr().err
