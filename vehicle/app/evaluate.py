@@ -9,8 +9,10 @@ One episode per track seed, each a real :class:`vehicle.Vehicle` on a
 
 so what is evaluated is what drives: the pilot's outputs go through the same DriveMode (a NaN or
 None command becomes centre and zero throttle, AI_THROTTLE_MULT scales the throttle) before the
-simulated car applies them. Leaving the road counts as an intervention: the car is re-centred on the
-road next to where it left (what a person would do) and the episode goes on. Metrics:
+simulated car applies them, and the pilot sees the frames the car drives with (undistorted after
+the simulator with CAMERA_UNDISTORT, as ``add_simulator`` does). Leaving the road counts as an
+intervention: the car is re-centred on the road next to where it left (what a person would do) and
+the episode goes on. Metrics:
 :mod:`parts.sim.metrics` (DAVE-2 autonomy, time-weighted |CTE| over autonomous frames, ...).
 
 The same loop drives the other simulators (``sim="donkey"`` / ``"udacity"``): ``vehicle sim serve``
@@ -46,6 +48,7 @@ from parts.sim.lane_metrics import CommandedLane, LaneMetrics, overall_lane_metr
 from parts.sim.metrics import EpisodeMetrics, overall
 from parts.sim.simulator import SimCar
 from vehicle import Vehicle
+from vehicle.app.assembly.camera import add_undistort
 from vehicle.app.assembly.drive import add_behavior, add_drive_mode
 from vehicle.app.assembly.sim import add_expert
 from vehicle.clock import SimulatedClock
@@ -191,6 +194,8 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
         raise ValueError(f"the expert drives the built-in simulator only: pass a model file to evaluate on the "
                          f"{sim} simulator")
     lanes_on = sim == "builtin" and _lane_changes(driver, cfg, extra_inputs, lane_changes)
+    if lanes_on:
+        _check_change_schedule(cfg)
     started = time.perf_counter()
     results = []
     pooled: list[np.ndarray] = []  # |cte| of autonomous frames, for the overall percentile
@@ -272,6 +277,19 @@ def _lane_changes(driver: Any, cfg: Any, extra_inputs: dict[str, Any] | None, as
     return True
 
 
+def _check_change_schedule(cfg: Any) -> None:
+    """Raise ValueError when commanded lane changes may come closer together than one change is
+    given to succeed (time limit, then hold): one would be judged while the next is under way."""
+    every = tuple(cfg.SIM_EVAL_LANE_CHANGE_EVERY)
+    needed = cfg.SIM_EVAL_LANE_CHANGE_TIME_LIMIT + cfg.SIM_EVAL_LANE_CHANGE_HOLD
+    if len(every) != 2 or not 0 < every[0] <= every[1]:
+        raise ValueError(f"SIM_EVAL_LANE_CHANGE_EVERY = {every!r}: give (min, max) seconds with 0 < min <= max")
+    if every[0] < needed:
+        raise ValueError(f"SIM_EVAL_LANE_CHANGE_EVERY = {every!r} may command a change {every[0]:g} s after the last, "
+                         f"before that one is judged (SIM_EVAL_LANE_CHANGE_TIME_LIMIT + SIM_EVAL_LANE_CHANGE_HOLD = "
+                         f"{needed:g} s): raise its minimum to at least {needed:g}")
+
+
 def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float, penalty_s: float,
                 fixed_throttle: float | None = None, extra_inputs: dict[str, Any] | None = None,
                 on_step: Callable[[SimCar], None] | None = None, lanes: LaneMetrics | None = None) -> EpisodeMetrics:
@@ -287,6 +305,8 @@ def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float,
     V = Vehicle(clock=SimulatedClock())
     V.mem.update(extra_inputs or {})  # seeded: keys the simulator does not make
     V.add(sim)
+    # as add_simulator: the pilot sees what the car drives with
+    add_undistort(V, cfg, (cfg.SIM_CAMERA_W, cfg.SIM_CAMERA_H), "SIM_CAMERA_W x SIM_CAMERA_H")
     if lanes is not None:
         cfg = cfg.replace(TRAIN_BEHAVIORS=True)
         times = periodic_change_times(max_time, tuple(cfg.SIM_EVAL_LANE_CHANGE_EVERY),
@@ -355,7 +375,7 @@ def run_bridge_episode(driver: Any, sim_type: str, scene: str, laps: int, cfg: A
     Donkey: in synchronous steps of 1 / DRIVE_LOOP_HZ where the server steps (``vehicle sim
     serve``), else in real time with the threaded part; ``info["synchronous"]`` says which.
     """
-    from vehicle.app.assembly.sim import add_simulator, add_simulator_commands, make_bridge
+    from vehicle.app.assembly.sim import add_simulator, add_simulator_commands, bridge_frame_size, make_bridge
 
     dt = 1.0 / cfg.DRIVE_LOOP_HZ
     stepped = False
@@ -371,6 +391,7 @@ def run_bridge_episode(driver: Any, sim_type: str, scene: str, laps: int, cfg: A
         else:
             V = Vehicle()  # the Donkey simulator runs in real time: the loop paces itself
             V.add(bridge, threaded=True, feedback=("angle", "throttle", "sim/reset"))
+        add_undistort(V, cfg, *bridge_frame_size(cfg, "donkey"))  # as add_simulator
     else:
         V = Vehicle()  # the Udacity simulator runs in real time
         add_simulator(V, cfg, sim_type="udacity")
