@@ -129,6 +129,15 @@ TRAIN_NUM_WORKERS: int = 0
 TRAIN_CACHE_IMAGES: bool = True
 # Largest frame cache in MB; with more frames than fit, frames are decoded every epoch instead.
 TRAIN_CACHE_MAX_MB: int = 4096
+# Arithmetic precision of training. "auto": bf16 autocast on CPUs with AVX512-BF16 or AMX and on
+# GPUs of compute capability 8.0+, fp16 with a gradient scaler on GPUs of 7.x, else fp32; the choice
+# is logged at start. "fp32" forces full precision; "bf16"/"fp16" force autocast in that type. The
+# weights and the model file stay float32 either way (docs/training.md, "Speed").
+TRAIN_PRECISION: Literal["auto", "fp32", "bf16", "fp16"] = "auto"
+# Compile the model with torch.compile before training (needs a C++ compiler on CPUs, Triton on
+# GPUs). Off by default: on the measured CPUs its compile time outweighs what it saves
+# (docs/benchmarks.md, "training").
+TRAIN_COMPILE: bool = False
 # Write the loss curve as a PNG next to the model.
 SHOW_PLOT: bool = True
 # Log the model's layers and parameter count before training.

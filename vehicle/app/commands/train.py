@@ -96,6 +96,8 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lr", type=float, dest="learning_rate", help="Adam learning rate (LEARNING_RATE)")
     parser.add_argument("--device", help="auto, cpu, cuda, cuda:1 (TRAIN_DEVICE)")
     parser.add_argument("--workers", type=int, help="DataLoader worker processes (TRAIN_NUM_WORKERS)")
+    parser.add_argument("--precision", choices=("auto", "fp32", "bf16", "fp16"),
+                        help="arithmetic precision (TRAIN_PRECISION); auto: bf16 where the CPU or GPU has it")
     parser.add_argument("--aug", nargs="*", metavar="NAME", dest="augmentations",
                         help="augmentations to use (AUGMENTATIONS); --aug with no name turns them off")
     parser.add_argument("--comment", help="free text stored with the model in the registry")
@@ -125,7 +127,8 @@ def run_from_args(cfg: Any, args: argparse.Namespace) -> int:
         metrics = train(cfg, tubs, model_path, model_type_name=args.model_type, transfer=args.transfer,
                         epochs=args.epochs, batch_size=args.batch_size, learning_rate=args.learning_rate,
                         device=args.device, workers=args.workers, augmentations=args.augmentations,
-                        comment=args.comment, register=not args.no_register)
+                        comment=args.comment, register=not args.no_register,
+                        precision=getattr(args, "precision", None))
     except UserError:
         raise
     except (ValueError, TrainingDiverged) as exc:
