@@ -318,8 +318,10 @@ SIM_EVAL_MAX_TIME: float | None = None
 
 # Runtime that drives a .pt model: "auto" runs NAME.onnx next to it when onnxruntime is installed
 # and that export was made from this very .pt (same SHA-256; `vehicle models export NAME`), else
-# PyTorch; "torch", "onnx" and "torchscript" force one (a missing or stale export is an error).
-PILOT_BACKEND: Literal["auto", "torch", "onnx", "torchscript"] = "auto"
+# PyTorch; "torch", "onnx" and "torchscript" force one (a missing or stale export is an error);
+# "onnx-int8" runs the int8 export NAME.int8.onnx (`vehicle models export NAME --format onnx-int8`;
+# check its speed and steering against the float export with bench/int8.py first).
+PILOT_BACKEND: Literal["auto", "torch", "onnx", "onnx-int8", "torchscript"] = "auto"
 # ONNX Runtime intra-op threads for the pilot. 1: batch-1 inference gains little from more, and
 # the drive loop's other parts need the other cores.
 PILOT_ONNX_THREADS: int = 1
