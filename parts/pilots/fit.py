@@ -101,15 +101,15 @@ def evaluate(model: PilotModel, loader: DataLoader, pre: Preprocess, device: tor
     plan's precision (default fp32)."""
     plan = plan or plain_plan(device)
     model.eval()
-    total, count = 0.0, 0
+    loss_sum = torch.zeros((), dtype=torch.float64, device=device)  # read once: no GPU wait per batch
+    count = 0
     with torch.no_grad():
         for x, e, y in _batches(loader, device, pre, model.extra_size > 0, plan):
             with autocast(plan):
                 out = model(x, e)
-            loss = model.loss(out.float(), y)
-            total += float(loss) * len(y)
+            loss_sum += model.loss(out.float(), y) * len(y)
             count += len(y)
-    total, count = all_sum([total, float(count)], info, device)
+    total, count = all_sum([float(loss_sum), float(count)], info, device)
     return total / count if count else math.nan
 
 
