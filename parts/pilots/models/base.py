@@ -99,26 +99,27 @@ class FastDropout(nn.Dropout):
 
     PyTorch's CPU dropout draws one Bernoulli number per element from a serial generator (MKL's
     vectorised path only runs on Intel CPUs): in the linear model's training step it took 43 % of
-    the time on an AMD CPU (torch.profiler; docs/benchmarks.md, "training"). Here the mask comes from 64-bit random
-    words, four 15-bit numbers each (``keep = r < round((1 - p) * 2**15)``, so p is exact to 1/32768
-    and the scale uses that exact keep rate: the expectation is unchanged), drawn from the same
-    seeded torch generator. Evaluation mode, p = 0 or 1, in-place use and other devices (CUDA has
-    a fused kernel) run torch's own dropout, so exports and inference are unchanged.
+    the time on an AMD CPU (torch.profiler; docs/benchmarks.md, "training"). Here the mask comes from
+    64-bit random words of the same seeded torch generator, cut into four 16-bit numbers each, and
+    one comparison (``keep = r < round((1 - p) * 2**16)``, so p is exact to 1/65536 and the scale
+    uses that exact keep rate: the expectation is unchanged). One comparison, not several
+    operations: on a busy machine every parallel operation waits for all its threads. Evaluation
+    mode, p = 0 or 1, in-place use and other devices (CUDA has a fused kernel) run torch's own
+    dropout, so exports and inference are unchanged.
     """
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         if not self.training or self.inplace or x.device.type != "cpu" or not 0.0 < self.p < 1.0:
             return super().forward(x)
-        keep_count = round((1.0 - self.p) * 32768)
-        if keep_count in (0, 32768):
+        keep_count = round((1.0 - self.p) * 65536)
+        if keep_count in (0, 65536):
             return super().forward(x)
         if not _dense(x):
             x = x.contiguous()
         n = x.numel()
-        words = torch.empty((n + 3) // 4, dtype=torch.int64).random_()  # 63 random bits each
-        r = words.view(torch.int16)[:n].bitwise_and_(0x7FFF)  # 4 x 15 bits per word, uniform
-        keep = torch.as_strided(r, x.shape, x.stride()) < keep_count
-        return _KeepMask.apply(x, keep, 32768.0 / keep_count)
+        words = torch.empty((n + 3) // 4, dtype=torch.int64).random_(-(2**63), None)  # all 64 bits random
+        r = torch.as_strided(words.view(torch.int16)[:n], x.shape, x.stride())  # uniform in [-2**15, 2**15)
+        return _KeepMask.apply(x, r < keep_count - 32768, 65536.0 / keep_count)
 
 
 def donkey_convs(in_channels: int, dropout: float) -> nn.Sequential:

@@ -16,7 +16,7 @@ def test_drops_the_asked_share_and_keeps_the_expectation(p):
     dropped = float((y == 0).double().mean())
     assert abs(dropped - p) < 0.004  # 400k draws: the standard error is below 0.001
     kept = y[y != 0]
-    assert torch.allclose(kept, torch.full_like(kept, 32768 / round((1 - p) * 32768)))
+    assert torch.allclose(kept, torch.full_like(kept, 65536 / round((1 - p) * 65536)))
     assert abs(float(y.double().mean()) - 1.0) < 0.01  # unbiased: E[y] = x
 
 
@@ -26,7 +26,7 @@ def test_gradient_flows_through_the_kept_elements_only():
     y = FastDropout(0.3).train()(x)
     y.sum().backward()
     kept = y.detach() != 0
-    scale = 32768 / round(0.7 * 32768)
+    scale = 65536 / round(0.7 * 65536)
     assert torch.equal(x.grad != 0, kept)
     assert torch.allclose(x.grad[kept], torch.full_like(x.grad[kept], scale))
     assert torch.allclose(y[kept], x.detach()[kept] * scale)
