@@ -313,6 +313,10 @@ SIM_INTERVENTION_PENALTY: float = 6.0
 # Longest simulated time of one evaluation episode in seconds (None: 60 s per lap), so a pilot
 # that stands still cannot hang the evaluation.
 SIM_EVAL_MAX_TIME: float | None = None
+# Processes that evaluate tracks in parallel (`vehicle sim eval`, the demo): 0 = one per core
+# (capped at the number of tracks), 1 = one track after another. Each runs its own simulator and
+# copy of the pilot with cores / workers threads; the report is the same either way.
+SIM_EVAL_WORKERS: int = 0
 
 # == Pilot ==
 

@@ -98,8 +98,8 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
 
     t = time.perf_counter()
     say(f"[4/4] driving {laps} laps on each of the unseen tracks {eval_tracks} ...")
-    pilot_report = evaluate(model_path, eval_tracks, laps, cfg=cfg)
-    expert_report = evaluate("expert", eval_tracks, laps, cfg=cfg)
+    pilot_report = evaluate(model_path, eval_tracks, laps, cfg=cfg, workers=cfg.SIM_EVAL_WORKERS)
+    expert_report = evaluate("expert", eval_tracks, laps, cfg=cfg, workers=cfg.SIM_EVAL_WORKERS)
     seconds["evaluate"] = time.perf_counter() - t
     write_json(pilot_report, out / "eval" / "pilot.json")
     write_json(expert_report, out / "eval" / "expert.json")

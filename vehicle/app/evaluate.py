@@ -12,11 +12,18 @@ None command becomes centre and zero throttle, AI_THROTTLE_MULT scales the throt
 simulated car applies them. Leaving the road counts as an intervention: the car is re-centred on the
 road next to where it left (what a person would do) and the episode goes on. Metrics:
 :mod:`parts.sim.metrics` (DAVE-2 autonomy, time-weighted |CTE| over autonomous frames, ...).
+
+With ``workers > 1`` the tracks run in parallel worker processes, each with its own simulator and
+its own copy of the pilot (loaded from the model file, or the expert), torch and OpenCV limited to
+``cores // workers`` threads so the workers do not oversubscribe the machine. Every episode depends
+only on its seed, so the report is the serial one (a test checks they are identical).
 """
 
 from __future__ import annotations
 
 import logging
+import os
+import pickle
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -99,7 +106,7 @@ def resolve_pilot(pilot: Any) -> tuple[Any, str, bool]:
 def evaluate(pilot: Any, seeds: Sequence[int], laps: int = 2, *, cfg: Any = None,
              max_time: float | None = None, penalty_s: float | None = None,
              fixed_throttle: float | None = None, extra_inputs: dict[str, Any] | None = None,
-             on_step: Callable[[SimCar], None] | None = None) -> dict[str, Any]:
+             on_step: Callable[[SimCar], None] | None = None, workers: int = 1) -> dict[str, Any]:
     """Drive ``pilot`` for ``laps`` laps on each track seed and return the report (a JSON-able dict).
 
     Args:
@@ -115,6 +122,9 @@ def evaluate(pilot: Any, seeds: Sequence[int], laps: int = 2, *, cfg: Any = None
             otherwise the pilot drives ("local": its throttle scaled by AI_THROTTLE_MULT).
         extra_inputs: values for memory keys the pilot needs that the simulator does not make.
         on_step: called with the sim car after every step (e.g. to show or record frames).
+        workers: processes running tracks in parallel (0: one per core; capped at the number of
+            tracks). Needs ``pilot`` to be "expert" or a model file (a worker loads its own copy)
+            and no ``on_step``; otherwise the tracks run one after another.
 
     Returns:
         ``{"pilot", "laps", "seeds", "settings", "tracks": [per-track metrics], "overall": {...}}``.
@@ -136,23 +146,34 @@ def evaluate(pilot: Any, seeds: Sequence[int], laps: int = 2, *, cfg: Any = None
     if fixed_throttle is not None and not -1.0 <= fixed_throttle <= 1.0:
         raise ValueError(f"fixed_throttle must be in [-1, 1], got {fixed_throttle}")
 
-    driver, name, owned = resolve_pilot(pilot)
+    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 0:
+        raise ValueError(f"workers must be an int >= 0 (0 = one per core), got {workers!r}")
+    n_workers = min(workers or os.cpu_count() or 1, len(seeds))
+    episode = {"max_time": max_time, "penalty_s": penalty, "fixed_throttle": fixed_throttle,
+               "extra_inputs": extra_inputs}
     started = time.perf_counter()
-    results = []
-    pooled: list[np.ndarray] = []  # |cte| of autonomous frames, for the overall percentile
-    try:
-        for seed in seeds:
-            metrics = run_episode(driver, seed, laps, cfg, max_time=max_time, penalty_s=penalty,
-                                  fixed_throttle=fixed_throttle, extra_inputs=extra_inputs, on_step=on_step)
-            res = metrics.result()
-            pooled.append(metrics.autonomous_abs_cte())
-            logger.info("eval %s on track %d: autonomy %.1f %%, %d/%d laps, mean |cte| %.3f m, %d off-track",
-                        name, seed, res["autonomy"], res["laps_completed"], laps, res["mean_abs_cte"] or 0.0,
-                        res["interventions"])
-            results.append(res)
-    finally:
+    if n_workers > 1 and on_step is None and (pilot == "expert" or isinstance(pilot, str | Path)):
+        # loaded here once too, so a missing or broken model file fails with its own message
+        driver, name, owned = resolve_pilot(pilot)
         if owned and callable(getattr(driver, "shutdown", None)):
             driver.shutdown()
+        episodes = _run_parallel(pilot, seeds, laps, cfg, n_workers, episode)
+    else:
+        if n_workers > 1:
+            logger.info("evaluating the tracks one after another: parallel workers need 'expert' or a model "
+                        "file (each loads its own copy) and no on_step callback")
+        driver, name, owned = resolve_pilot(pilot)
+        try:
+            episodes = []
+            for seed in seeds:
+                metrics = run_episode(driver, seed, laps, cfg, **episode, on_step=on_step)
+                episodes.append((metrics.result(), metrics.autonomous_abs_cte()))
+                _log_track(name, laps, episodes[-1][0])
+        finally:
+            if owned and callable(getattr(driver, "shutdown", None)):
+                driver.shutdown()
+    results = [res for res, _ in episodes]
+    pooled = [abs_cte for _, abs_cte in episodes]  # |cte| of autonomous frames, for the overall percentile
     return {
         "pilot": name,
         "laps": laps,
@@ -165,6 +186,83 @@ def evaluate(pilot: Any, seeds: Sequence[int], laps: int = 2, *, cfg: Any = None
         "overall": overall(results, penalty, np.concatenate(pooled)),
         "wall_time_s": round(time.perf_counter() - started, 3),
     }
+
+
+def _log_track(name: str, laps: int, res: dict[str, Any]) -> None:
+    logger.info("eval %s on track %d: autonomy %.1f %%, %d/%d laps, mean |cte| %.3f m, %d off-track",
+                name, res["seed"], res["autonomy"], res["laps_completed"], laps, res["mean_abs_cte"] or 0.0,
+                res["interventions"])
+
+
+# -- parallel evaluation -----------------------------------------------------------------------------
+# State of a worker process, set once by _init_worker: the pilot, the settings, what each episode gets.
+_WORKER: dict[str, Any] = {}
+
+
+def _sendable_config(cfg: Any) -> tuple[dict[str, Any], frozenset[str], Any]:
+    """The Config's values for a worker process; a value that cannot be pickled (a function defined
+    in myconfig.py, e.g. TRAIN_FILTER) takes its default, which evaluation never reads anyway."""
+    from vehicle.config import Config
+
+    values = dict(cfg.items())
+    defaults: Config | None = None
+    for key, value in values.items():
+        try:
+            pickle.dumps(value)
+        except Exception:  # noqa: BLE001 - any reason a value cannot travel
+            defaults = defaults or Config.defaults()
+            values[key] = defaults[key]
+    return values, frozenset(getattr(cfg, "overridden", ())), getattr(cfg, "source", None)
+
+
+def _init_worker(pilot: Any, config: tuple[dict[str, Any], frozenset[str], Any], tracks: dict[int, Any],
+                 threads: int, laps: int, episode: dict[str, Any]) -> None:
+    """Runs once in each worker: thread limits, the parent's hand-made tracks, settings, pilot."""
+    import cv2
+
+    try:
+        import torch
+
+        torch.set_num_threads(threads)
+    except ImportError:  # the expert needs no torch
+        pass
+    cv2.setNumThreads(threads)
+    from parts.sim.simulator import register_track
+    from vehicle.config import Config
+
+    for track in tracks.values():
+        register_track(track)
+    driver, name, _ = resolve_pilot(pilot)
+    _WORKER.update(cfg=Config(*config), driver=driver, name=name, laps=laps, episode=episode)
+
+
+def _worker_episode(seed: int) -> tuple[dict[str, Any], np.ndarray]:
+    w = _WORKER
+    metrics = run_episode(w["driver"], seed, w["laps"], w["cfg"], **w["episode"])
+    return metrics.result(), metrics.autonomous_abs_cte()
+
+
+def _run_parallel(pilot: Any, seeds: list[int], laps: int, cfg: Any, n_workers: int,
+                  episode: dict[str, Any]) -> list[tuple[dict[str, Any], np.ndarray]]:
+    """The episodes of ``seeds`` in ``n_workers`` processes, in seed order."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from parts.sim.simulator import registered_tracks
+
+    threads = max(1, (os.cpu_count() or 1) // n_workers)
+    name = "expert" if pilot == "expert" else Path(pilot).name
+    logger.info("evaluating %d tracks in %d worker processes (%d thread(s) each)", len(seeds), n_workers, threads)
+    # spawn, not fork: a forked copy of a process whose OpenMP threads already ran can hang
+    context = multiprocessing.get_context("spawn")
+    pilot_arg = pilot if pilot == "expert" else str(Path(pilot).expanduser().resolve())
+    initargs = (pilot_arg, _sendable_config(cfg), registered_tracks(), threads, laps, episode)
+    episodes = []
+    with ProcessPoolExecutor(n_workers, mp_context=context, initializer=_init_worker, initargs=initargs) as pool:
+        for res, abs_cte in pool.map(_worker_episode, seeds):
+            _log_track(name, laps, res)
+            episodes.append((res, abs_cte))
+    return episodes
 
 
 def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float, penalty_s: float,
