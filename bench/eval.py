@@ -7,7 +7,8 @@
 turn ``--repeats`` times on the same tracks, so both see the same load; medians, and the median of
 the per-repeat ratios. Without ``--model`` the pilot is an untrained linear model exported to ONNX
 (what it costs per step does not depend on its weights); each episode then runs its full
-``--max-time``. The reports of the two runs are checked to be identical.
+``--max-time``. Track textures are drawn afresh for every run (as in a new process). The reports
+of the two runs are checked to be identical.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from parts.sim import simulator  # noqa: E402
 from vehicle.app.evaluate import evaluate  # noqa: E402
 from vehicle.config import Config  # noqa: E402
 
@@ -64,6 +66,9 @@ def main(argv: list[str] | None = None) -> int:
             reports = {}
             for _ in range(args.repeats):
                 for name, workers in (("serial", 1), ("parallel", 0)):
+                    # as a fresh `vehicle sim eval` process: no track textures cached from the last run
+                    # (the workers always start without)
+                    simulator._WORLDS.clear()
                     t = time.perf_counter()
                     reports[name] = evaluate(pilot, seeds, args.laps, cfg=cfg, max_time=args.max_time,
                                              workers=workers)
