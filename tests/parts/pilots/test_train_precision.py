@@ -1,8 +1,6 @@
-"""bf16 training costs no quality: same data, same seed, validation loss of fp32 within a tolerance."""
+"""bf16 training costs no quality: on the same data and seeds, its validation loss is within a tolerance of fp32's."""
 
 from __future__ import annotations
-
-import math
 
 import pytest
 import torch
@@ -16,9 +14,12 @@ from parts.pilots.preprocess import Preprocess
 from parts.pilots.training import prepare_data, train
 from vehicle.config import Config
 
-#: largest ratio between the bf16 and the fp32 model's validation loss (either way), per seed. For
-#: scale: on this data, fp32 runs that differ only in the seed spread over 1.33x (0.0127-0.0169).
-TOLERANCE = 1.3
+#: bf16's validation loss, averaged over SEEDS, may exceed fp32's by at most this factor. For scale:
+#: on this data fp32 runs that differ only in the seed spread over 1.5x (0.0120-0.0177), and so
+#: does one seed trained in bf16 against fp32 (the low-precision arithmetic sends training down
+#: another path), which is why the comparison is of means.
+TOLERANCE = 1.25
+SEEDS = (0, 1, 2)
 
 
 @pytest.fixture(scope="module")
@@ -35,22 +36,24 @@ def _val_loss_fp32(cfg: Config, tub, path) -> float:
     return evaluate(model, DataLoader(prep.val, batch_size=64), pre, torch.device("cpu"))
 
 
-@pytest.mark.parametrize("seed", [0, 1])
-def test_bf16_validation_loss_is_within_tolerance_of_fp32(bar_tub, tmp_path, torch_one_thread, seed):
-    losses = {}
-    for precision in ("fp32", "bf16"):
-        cfg = Config.defaults(BATCH_SIZE=16, MAX_EPOCHS=8, USE_EARLY_STOP=False, TRAIN_SEED=seed,
-                              CAR_PATH=str(tmp_path), SHOW_PLOT=False)
-        path = tmp_path / f"{precision}.pt"
-        metrics = train(cfg, [bar_tub], path, precision=precision, register=False)
-        _, meta = load_model(path)
-        assert meta["training"]["precision"] == precision
-        assert all(p.dtype == torch.float32 for p in load_model(path)[0].parameters())  # fp32 master weights
-        losses[precision] = _val_loss_fp32(cfg, bar_tub, path)
-        assert metrics["best_val_loss"] == pytest.approx(losses[precision], rel=0.02)
+def test_bf16_validation_loss_is_within_tolerance_of_fp32(bar_tub, tmp_path, torch_one_thread):
+    losses: dict[str, list[float]] = {"fp32": [], "bf16": []}
+    for seed in SEEDS:
+        for precision in ("fp32", "bf16"):
+            cfg = Config.defaults(BATCH_SIZE=16, MAX_EPOCHS=8, USE_EARLY_STOP=False, TRAIN_SEED=seed,
+                                  CAR_PATH=str(tmp_path), SHOW_PLOT=False)
+            path = tmp_path / f"{precision}.pt"
+            metrics = train(cfg, [bar_tub], path, precision=precision, register=False)
+            model, meta = load_model(path)
+            assert meta["training"]["precision"] == precision
+            assert all(p.dtype == torch.float32 for p in model.parameters())  # fp32 master weights
+            loss = _val_loss_fp32(cfg, bar_tub, path)
+            assert metrics["best_val_loss"] == pytest.approx(loss, rel=0.02)  # bf16 validation: close
+            losses[precision].append(loss)
     # both learnt the bar: predicting the mean would cost ~0.26 (angle = sin, variance 0.5)
-    assert max(losses.values()) < 0.05
-    assert abs(math.log(losses["bf16"] / losses["fp32"])) <= math.log(TOLERANCE), losses
+    assert max(losses["fp32"] + losses["bf16"]) < 0.05
+    mean = {k: sum(v) / len(v) for k, v in losses.items()}
+    assert mean["bf16"] <= TOLERANCE * mean["fp32"], losses
 
 
 def test_training_logs_its_plan_and_how_long_it_waited_for_data(tiny_tub, tmp_path, torch_one_thread, caplog):
