@@ -24,10 +24,12 @@ import logging
 import os
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
-import torch
+
+if TYPE_CHECKING:
+    import torch
 
 logger = logging.getLogger(__name__)
 
@@ -43,11 +45,7 @@ def preprocessor_from_meta(meta: dict[str, Any]) -> Callable[[np.ndarray], np.nd
         pre = Preprocess.from_dict(meta.get("preprocess") or {})
     except (TypeError, ValueError) as exc:
         raise ValueError(f"the model's preprocessing settings are invalid: {exc}") from exc
-
-    def preprocess(image: np.ndarray) -> np.ndarray:
-        return pre(image).numpy()  # shares memory with the tensor: no copy
-
-    return preprocess
+    return pre.array  # numpy only: an ONNX pilot runs without torch
 
 
 class Runner(abc.ABC):
@@ -101,6 +99,8 @@ class TorchRunner(Runner):
         self.model = model.eval()
 
     def predict(self, images: np.ndarray, extra: np.ndarray | None) -> tuple[float, float]:
+        import torch
+
         with torch.inference_mode():
             x = torch.from_numpy(images)
             e = None if extra is None else torch.from_numpy(extra)
@@ -122,6 +122,8 @@ class TorchScriptRunner(Runner):
         super().__init__(path, json.loads(props[META_KEY]))
 
     def predict(self, images: np.ndarray, extra: np.ndarray | None) -> tuple[float, float]:
+        import torch
+
         with torch.inference_mode():
             args = (torch.from_numpy(images),) if extra is None else (torch.from_numpy(images),
                                                                       torch.from_numpy(extra))
@@ -144,7 +146,7 @@ class OnnxRunner(Runner):
     backend = "onnx"
 
     def __init__(self, path: Path, threads: int = 1) -> None:
-        from parts.pilots.export import META_KEY, SOURCE_KEY
+        from parts.pilots.export_files import META_KEY, SOURCE_KEY
 
         try:
             import onnxruntime as ort
@@ -185,7 +187,7 @@ class OnnxRunner(Runner):
 def sibling_onnx(path: Path, threads: int = 1) -> OnnxRunner | None:
     """The ONNX export next to the .pt ``path`` if it exists, onnxruntime is installed and the
     export matches the .pt as it is now; None (with a log line saying why) otherwise."""
-    from parts.pilots.export import export_matches
+    from parts.pilots.export_files import export_matches
 
     onnx_path = path.with_suffix(".onnx")
     if not onnx_path.is_file():
@@ -234,7 +236,7 @@ def open_runner(path: str | os.PathLike[str], backend: Backend | str = "auto",
     if backend == "torch":
         return TorchRunner(path)
     if backend in ("onnx", "onnx-int8", "torchscript"):
-        from parts.pilots.export import SUFFIXES, export_matches
+        from parts.pilots.export_files import SUFFIXES, export_matches
 
         export = path.with_suffix(SUFFIXES[backend])
         if not export.is_file():

@@ -8,41 +8,36 @@ preprocessing (:mod:`parts.pilots.preprocess`) in front. Inputs: ``images`` ``(1
 
 Each export carries the source model file's metadata (JSON) and the SHA-256 of the source file,
 so an export is self-contained (``load_pilot("x.onnx")`` works without the .pt) and a stale export
-(the .pt was retrained since) is detected: :func:`export_matches`.
+(the .pt was retrained since) is detected: :func:`parts.pilots.export_files.export_matches`.
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import os
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import torch
 from torch import nn
 
+# the export file format's facts live in the torch-free export_files; imported here for callers
+from parts.pilots.export_files import (  # noqa: F401
+    META_KEY,
+    SOURCE_KEY,
+    SUFFIXES,
+    ExportFormat,
+    export_matches,
+    file_sha256,
+)
 from parts.pilots.modelfile import load_model
 
 logger = logging.getLogger(__name__)
 
-ExportFormat = Literal["onnx", "onnx-int8", "torchscript"]
-SUFFIXES: dict[str, str] = {"onnx": ".onnx", "onnx-int8": ".int8.onnx", "torchscript": ".ts"}
-META_KEY = "vehicle_meta"  # JSON of the source model file's metadata
-SOURCE_KEY = "source_sha256"  # SHA-256 of the source model file
 ONNX_OPSET = 17
-
-
-def file_sha256(path: str | os.PathLike[str]) -> str:
-    """Hex SHA-256 of a file (1 MiB chunks)."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            digest.update(chunk)
-    return digest.hexdigest()
 
 
 class ControlsModule(nn.Module):
@@ -178,8 +173,3 @@ def read_torchscript(path: str | os.PathLike[str]) -> tuple[Any, dict[str, str]]
         raise ValueError(f"{path}: not a TorchScript export of a pilot model (no {META_KEY}); "
                          "export one with `vehicle models export MODEL --format torchscript`")
     return module.eval(), props
-
-
-def export_matches(source: str | os.PathLike[str], export_sha256: str | None) -> bool:
-    """Whether an export made from a file with hash ``export_sha256`` is of ``source`` as it is now."""
-    return bool(export_sha256) and Path(source).is_file() and file_sha256(source) == export_sha256

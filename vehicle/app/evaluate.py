@@ -218,21 +218,19 @@ def _sendable_config(cfg: Any) -> tuple[dict[str, Any], frozenset[str], Any]:
 def _init_worker(pilot: Any, config: tuple[dict[str, Any], frozenset[str], Any], tracks: dict[int, Any],
                  threads: int, laps: int, episode: dict[str, Any]) -> None:
     """Runs once in each worker: thread limits, the parent's hand-made tracks, settings, pilot."""
+    import sys
+
     import cv2
 
-    try:
-        import torch
-
-        torch.set_num_threads(threads)
-    except ImportError:  # the expert needs no torch
-        pass
-    cv2.setNumThreads(threads)
     from parts.sim.simulator import register_track
     from vehicle.config import Config
 
+    cv2.setNumThreads(threads)
     for track in tracks.values():
         register_track(track)
     driver, name, _ = resolve_pilot(pilot)
+    if "torch" in sys.modules:  # a model pilot loaded it; the expert needs none (0.75 s to import)
+        sys.modules["torch"].set_num_threads(threads)
     _WORKER.update(cfg=Config(*config), driver=driver, name=name, laps=laps, episode=episode)
 
 
