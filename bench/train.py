@@ -3,6 +3,7 @@
     .venv/bin/python bench/train.py                          # linear and pilotnet, 5 rounds
     .venv/bin/python bench/train.py --types linear --rounds 9 --threads 1,2
     .venv/bin/python bench/train.py --compile                # + torch.compile (compile time too)
+    .venv/bin/python bench/train.py --busy torch             # while other OpenMP jobs share the cores
 
 A tub recorded by the simulator expert (``--records``, 4 training tracks) goes through the training
 data path (tub reader, decoded-frame cache, augmentations, preprocessing, DataLoader, prefetch
@@ -19,6 +20,10 @@ over the rounds, ratios taken within each round.
   augmentation draw); real / from memory is what the data path costs the training loop.
 - **waiting**: the share of the real path's epoch time its loop waited for the next batch
   (``History.data_seconds``).
+
+``--busy python`` keeps one pure-Python spinning process per core running during the timing;
+``--busy torch`` one process per core multiplying matrices with 2 torch threads (OpenMP work
+competing for the same cores, as other training jobs on a shared machine).
 """
 
 from __future__ import annotations
@@ -160,6 +165,21 @@ def bench_type(mtype: str, cfg: Config, tub: Path, rounds: int, compile_too: boo
     return row
 
 
+def _spin(kind: str, stop: Any) -> None:
+    """A competing job until ``stop`` is set: pure Python, or torch matrix products on 2 threads."""
+    if kind == "torch":
+        torch.set_num_threads(2)
+        a = torch.randn(256, 256)
+        while not stop.is_set():
+            for _ in range(20):
+                a = torch.tanh(a @ a)
+    else:
+        x = 0
+        while not stop.is_set():
+            for _ in range(100_000):
+                x += 1
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--types", default="linear,pilotnet", help="comma-separated model types")
@@ -168,6 +188,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--threads", default=str(os.cpu_count() or 1),
                         help="comma-separated torch thread counts (default: all cores)")
     parser.add_argument("--compile", action="store_true", help="also time torch.compile (and its compile)")
+    parser.add_argument("--busy", choices=("python", "torch"), help="competing jobs during the timing, one per core")
     args = parser.parse_args(argv)
     from vehicle.app.record import record_expert
 
@@ -178,11 +199,25 @@ def main(argv: list[str] | None = None) -> int:
         t = time.perf_counter()
         tub = record_expert(cfg, [1, 2, 3, 4], args.records, Path(tmp) / "data" / "bench_tub", noise=0.4)
         print(f"recorded {args.records} expert records in {time.perf_counter() - t:.1f} s")
+        busy = []
+        if args.busy:
+            import multiprocessing
+
+            ctx = multiprocessing.get_context("spawn")
+            stop = ctx.Event()
+            busy = [ctx.Process(target=_spin, args=(args.busy, stop), daemon=True) for _ in range(os.cpu_count() or 1)]
+            for proc in busy:
+                proc.start()
+            print(f"{len(busy)} competing {args.busy} processes running")
         for threads in (int(v) for v in args.threads.split(",")):
             torch.set_num_threads(threads)
             print(f"\n{threads} torch thread(s)")
             for mtype in args.types.split(","):
                 rows.append({"threads": threads, **bench_type(mtype, cfg, tub, args.rounds, args.compile)})
+        if busy:
+            stop.set()
+            for proc in busy:
+                proc.join(timeout=10)
     print(f"\nmachine after: {machine_state()}")
     extra = " compiled samples/s (x) | first epoch with compile s |" if args.compile else ""
     print("\n| threads | type | plan | baseline samples/s | real path samples/s | real / baseline | "
