@@ -1,21 +1,25 @@
 """Web controller benchmark, in a real headless chromium against a real Vehicle.
 
-1. Latency from a browser key press (CDP Input.dispatchKeyEvent of ArrowUp) to the command in the
-   vehicle memory (``user/throttle`` written by the loop), and to the server (the socket message
-   applied to the control slot), median and p99 over N presses. The loop-side figure includes the
-   wait for the next loop, so it is also given as a ratio to the loop period.
-2. Camera frame delivery rate to one and to three viewers (pages), as a ratio to the frames the
-   loop produced (one per loop). Median of several runs.
+1. Latency from a browser key press (Playwright's keyboard.down("ArrowUp"): a DevTools
+   Input.dispatchKeyEvent) to the command in the vehicle memory (``user/throttle`` written by the
+   loop), and to the server (the socket message applied to the control slot), median and p99 over
+   N presses. The loop-side figure includes the wait for the next loop, so it is also given as a
+   ratio to the loop period.
+2. Camera frame delivery rate to one and to three viewers (visible pages that Playwright does not
+   instrument, see open_viewers; frames counted as the pages acknowledge them, after drawing), as
+   a ratio to the frames the loop produced (one per loop). Median of several runs.
 
     .venv/bin/python bench/web.py                      # 20 Hz loop, 160x120 frames
     .venv/bin/python bench/web.py --hz 50 --size 640x480
     .venv/bin/python bench/web.py --screenshots docs/img   # also the docs screenshots (simulator)
+
+Playwright (the dev extra) drives the system chromium (tests/fixtures/browser.py); no browser download.
 """
 
 from __future__ import annotations
 
 import argparse
-import asyncio
+import collections
 import random
 import shutil
 import statistics
@@ -23,13 +27,17 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests"))  # tests/fixtures/browser.py: how the project starts chromium
 
-from parts.web.devtools import Chromium, find_chromium  # noqa: E402
+from fixtures.browser import find_chromium, launch_chromium, open_page  # noqa: E402
+
 from vehicle import Vehicle  # noqa: E402
 from vehicle.app import assembly  # noqa: E402
 from vehicle.config import Config  # noqa: E402
@@ -102,15 +110,15 @@ def pct(values: list[float], q: float) -> float:
     return s[min(len(s) - 1, round(q / 100 * (len(s) - 1)))]
 
 
-async def wait(cond, timeout: float = 5.0) -> None:
+def wait(cond, timeout: float = 5.0) -> None:
     end = time.monotonic() + timeout
     while not cond():
         if time.monotonic() > end:
             raise TimeoutError("benchmark condition not met")
-        await asyncio.sleep(0.0005)
+        time.sleep(0.0005)
 
 
-async def latency(args: argparse.Namespace) -> dict[str, float]:
+def latency(args: argparse.Namespace, browser) -> dict[str, float]:
     V, web, probe = build_car(args)
     t_srv: list[float | None] = [None]
     original = web.state.drive
@@ -123,22 +131,25 @@ async def latency(args: argparse.Namespace) -> dict[str, float]:
     web.state.drive = drive
     thread = start(V, args.hz)
     try:
-        await wait(lambda: web.port != 0)
-        async with Chromium.launch() as browser:
-            page = await browser.new_page(web.url)
-            await page.wait_for("window.webStats && webStats.role === 'driver'")
-            to_srv, to_mem = [], []
-            for _ in range(args.presses):
-                probe.reset()
-                t_srv[0] = None
-                t0 = time.perf_counter()
-                await page.key("ArrowUp")
-                await wait(lambda: probe.t_mem is not None)
-                to_srv.append(t_srv[0] - t0)
-                to_mem.append(probe.t_mem - t0)
-                await page.key("ArrowUp", down=False)
-                await wait(lambda: V.mem["user/throttle"] == 0.0)
-                await asyncio.sleep(random.uniform(0.02, 0.02 + 1.0 / args.hz))  # random loop phase
+        wait(lambda: web.port != 0)
+        page = open_page(browser, web.url)
+        page.wait_for_function("window.webStats && webStats.role === 'driver'")
+        to_srv, to_mem = [], []
+        for _ in range(args.presses):
+            probe.reset()
+            t_srv[0] = None
+            # Playwright's driver passes each camera frame the page receives on to this process,
+            # which reads them at its next call: read them now, not while the key press travels
+            page.evaluate("0")
+            t0 = time.perf_counter()
+            page.keyboard.down("ArrowUp")
+            wait(lambda: probe.t_mem is not None)
+            to_srv.append(t_srv[0] - t0)
+            to_mem.append(probe.t_mem - t0)
+            page.keyboard.up("ArrowUp")
+            wait(lambda: V.mem["user/throttle"] == 0.0)
+            time.sleep(random.uniform(0.02, 0.02 + 1.0 / args.hz))  # random loop phase
+        page.context.close()
     finally:
         V.stop()
         thread.join(10)
@@ -149,57 +160,96 @@ async def latency(args: argparse.Namespace) -> dict[str, float]:
             "period_ms": period_ms}
 
 
-async def frame_rates(args: argparse.Namespace, viewers: int) -> tuple[float, float]:
+def count_drawn_frames(web) -> collections.Counter[str]:
+    """Frames each browser acknowledged (by Socket.IO sid), counted in the server.
+
+    The page acknowledges a frame once it has drawn it (static/app.js), so this is the number of
+    frames it showed: webStats.frames, read without attaching to the page.
+    """
+    counts: collections.Counter[str] = collections.Counter()
+    sio = web.server._sio  # set once the server listens (web.port != 0)
+    call = sio.call
+
+    async def counting_call(event, data=None, to=None, **kwargs):
+        result = await call(event, data, to=to, **kwargs)
+        if event == "frame":
+            counts[to] += 1
+        return result
+
+    sio.call = counting_call
+    return counts
+
+
+def open_viewers(browser, url: str, n: int) -> Callable[[], None]:
+    """``n`` pages showing ``url`` that Playwright does not instrument; returns a function closing them.
+
+    Playwright's own pages pass every websocket frame (the JPEGs, base64) from chromium to its
+    driver and on to this process: at 640x480 and 50 Hz that costs more CPU than drawing them.
+    Pages opened over DevTools in a browser context Playwright did not create are left alone (it
+    detaches from them). Each is a window of its own, visible, as on separate phones: tabs of one
+    window would be hidden but the last, and a hidden page does not paint.
+    """
+    cdp = browser.new_browser_cdp_session()
+    context = cdp.send("Target.createBrowserContext")["browserContextId"]
+    for _ in range(n):
+        cdp.send("Target.createTarget", {"url": url, "browserContextId": context, "newWindow": True,
+                                         "width": 1280, "height": 900})
+
+    def close() -> None:
+        cdp.send("Target.disposeBrowserContext", {"browserContextId": context})
+        cdp.detach()
+
+    return close
+
+
+def frame_rates(args: argparse.Namespace, browser, viewers: int) -> tuple[float, float]:
     """Median over runs of (delivered fps per viewer, produced fps)."""
     V, web, probe = build_car(args)
     thread = start(V, args.hz)
     delivered, produced = [], []
     try:
-        await wait(lambda: web.port != 0)
-        async with Chromium.launch() as browser:
-            pages = [await browser.new_page(web.url) for _ in range(viewers)]
-            for p in pages:
-                await p.wait_for("window.webStats && webStats.frames > 5")
-            for _ in range(args.runs):
-                f0 = [await p.evaluate("webStats.frames") for p in pages]
-                l0, t0 = probe.loops, time.perf_counter()
-                await asyncio.sleep(args.seconds)
-                f1 = [await p.evaluate("webStats.frames") for p in pages]
-                dt = time.perf_counter() - t0
-                produced.append((probe.loops - l0) / dt)
-                delivered.append(statistics.mean((b - a) / dt for a, b in zip(f0, f1, strict=True)))
+        wait(lambda: web.port != 0)
+        drawn = count_drawn_frames(web)
+        close = open_viewers(browser, web.url, viewers)
+        wait(lambda: len(drawn) == viewers and min(drawn.values()) > 5, timeout=20)
+        for _ in range(args.runs):
+            f0 = dict(drawn)
+            l0, t0 = probe.loops, time.perf_counter()
+            time.sleep(args.seconds)
+            f1 = dict(drawn)
+            dt = time.perf_counter() - t0
+            produced.append((probe.loops - l0) / dt)
+            delivered.append(statistics.mean((f1[sid] - f0[sid]) / dt for sid in f0))
+        close()
     finally:
         V.stop()
         thread.join(10)
     return statistics.median(delivered), statistics.median(produced)
 
 
-async def screenshots(args: argparse.Namespace, folder: Path) -> None:
+def screenshots(args: argparse.Namespace, browser, folder: Path) -> None:
     V, web, probe = build_car(args, sim=True)
     thread = start(V, 20)
     folder.mkdir(parents=True, exist_ok=True)
     try:
-        await wait(lambda: web.port != 0)
-        async with Chromium.launch(window=(1280, 860)) as browser:
-            page = await browser.new_page(web.url)
-            await page.viewport(1280, 860)
-            await page.wait_for("window.webStats && webStats.frames > 10")
-            await page.evaluate("document.querySelector('[data-mode=user]').click()")
-            await page.key("r")
-            await page.key("ArrowUp")
-            await asyncio.sleep(2.0)
-            await page.key("ArrowLeft")
-            await asyncio.sleep(0.25)
-            (folder / "web-desktop.png").write_bytes(await page.screenshot())
-            await page.key("ArrowLeft", down=False)
-            await page.key("ArrowUp", down=False)
-            await page.key("r")
-            phone = await browser.new_page(web.url)
-            await phone.viewport(390, 844, scale=1.0, mobile=True)
-            await phone.evaluate("location.reload()")
-            await asyncio.sleep(0.5)
-            await phone.wait_for("window.webStats && webStats.frames > 30")
-            (folder / "web-phone.png").write_bytes(await phone.screenshot())
+        wait(lambda: web.port != 0)
+        page = open_page(browser, web.url, viewport={"width": 1280, "height": 860})
+        page.wait_for_function("window.webStats && webStats.frames > 10")
+        page.evaluate("document.querySelector('[data-mode=user]').click()")  # no focus ring in the picture
+        page.keyboard.press("r")
+        page.keyboard.down("ArrowUp")
+        time.sleep(2.0)
+        page.keyboard.down("ArrowLeft")
+        time.sleep(0.25)
+        page.screenshot(path=folder / "web-desktop.png")
+        page.keyboard.up("ArrowLeft")
+        page.keyboard.up("ArrowUp")
+        page.keyboard.press("r")
+        phone = open_page(browser, web.url, device="phone")
+        phone.wait_for_function("window.webStats && webStats.frames > 30")
+        phone.screenshot(path=folder / "web-phone.png")
+        for context in browser.contexts:  # the pages go before the car stops, as in the tests
+            context.close()
     finally:
         V.stop()
         thread.join(10)
@@ -224,23 +274,33 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    if find_chromium() is None:
+    executable = find_chromium()
+    if executable is None:
         print("chromium not found: apt-get install chromium", file=sys.stderr)
         return 2
-    if args.screenshots:
-        asyncio.run(screenshots(args, args.screenshots))
-        return 0
-    w, h = args.size
-    print(f"loop {args.hz:g} Hz, frames {w}x{h}, {args.presses} key presses")
-    lat = asyncio.run(latency(args))
-    print(f"key press -> server   : median {lat['server_p50']:6.1f} ms  p99 {lat['server_p99']:6.1f} ms")
-    print(f"key press -> memory   : median {lat['memory_p50']:6.1f} ms  p99 {lat['memory_p99']:6.1f} ms"
-          f"  (= {lat['memory_p50'] / lat['period_ms']:.2f} / {lat['memory_p99'] / lat['period_ms']:.2f}"
-          f" loop periods of {lat['period_ms']:.0f} ms)")
-    for n in (1, 3):
-        fps, produced = asyncio.run(frame_rates(args, n))
-        print(f"frames, {n} viewer{'s' if n > 1 else ' '}   : {fps:5.1f} fps per viewer of {produced:5.1f} "
-              f"produced (ratio {fps / produced:.2f})")
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        print("playwright not installed: pip install -e '.[dev]'", file=sys.stderr)
+        return 2
+
+    with sync_playwright() as playwright:
+        browser = launch_chromium(playwright, executable)
+        if args.screenshots:
+            screenshots(args, browser, args.screenshots)
+            return 0
+        w, h = args.size
+        print(f"loop {args.hz:g} Hz, frames {w}x{h}, {args.presses} key presses, chromium {browser.version}")
+        lat = latency(args, browser)
+        print(f"key press -> server   : median {lat['server_p50']:6.1f} ms  p99 {lat['server_p99']:6.1f} ms")
+        print(f"key press -> memory   : median {lat['memory_p50']:6.1f} ms  p99 {lat['memory_p99']:6.1f} ms"
+              f"  (= {lat['memory_p50'] / lat['period_ms']:.2f} / {lat['memory_p99'] / lat['period_ms']:.2f}"
+              f" loop periods of {lat['period_ms']:.0f} ms)")
+        for n in (1, 3):
+            fps, produced = frame_rates(args, browser, n)
+            print(f"frames, {n} viewer{'s' if n > 1 else ' '}   : {fps:5.1f} fps per viewer of {produced:5.1f} "
+                  f"produced (ratio {fps / produced:.2f})")
+        browser.close()
     return 0
 
 

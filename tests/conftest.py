@@ -6,8 +6,9 @@ import os
 
 import pytest
 
-# fixtures shared by several folders (tests/ is on sys.path: this conftest.py lives there)
-pytest_plugins = ("fixtures.sim", "fixtures.pilots", "fixtures.tubs", "fixtures.gamepads")
+# fixtures shared by several folders (tests/ is on sys.path: this conftest.py lives there);
+# fixtures.browser: Playwright driving Debian's chromium, for any test folder
+pytest_plugins = ("fixtures.sim", "fixtures.pilots", "fixtures.tubs", "fixtures.gamepads", "fixtures.browser")
 
 # pygame parts must never try to open a window in tests.
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")

@@ -80,6 +80,50 @@ CAMERA_IMAGE_PATH: str | None = None
 # False after CAMERA_TIMEOUT_S).
 CAMERA_REPLAY_LOOP: bool = True
 
+# == Vision ==
+
+# Remove lens distortion from every camera frame with the car's calibration (Undistort part, one
+# precomputed remap per frame). Make the calibration first: `vehicle camera calibrate`.
+CAMERA_UNDISTORT: bool = False
+# The camera calibration file (camera matrix, distortion coefficients, reprojection error),
+# relative to CAR_PATH; written by `vehicle camera calibrate`.
+CAMERA_CALIBRATION_PATH: str = "camera_calibration.json"
+# Undistorted view: 0 = zoom so that only valid pixels show (no black border), 1 = keep every
+# source pixel (black corners with a wide lens).
+CAMERA_UNDISTORT_ALPHA: float = 0.0
+# Chessboard used for calibration: inner corners per row and per column (where four squares
+# meet; the thesis's board: 10 x 7, an 11 x 8 squares print). The counts must differ.
+CAMERA_CALIB_BOARD: tuple[int, int] = (10, 7)
+# Side of one chessboard square as printed, in millimetres (only the board poses depend on it).
+CAMERA_CALIB_SQUARE_MM: float = 25.0
+# Distortion model fitted: "standard" = k1, k2, p1, p2, k3 (the thesis's code); "rational" adds
+# k4..k6 for very wide lenses (the thesis's equation 6.3).
+CAMERA_CALIB_MODEL: Literal["standard", "rational"] = "standard"
+# Lane extraction (thesis chapter 7), used by the `lanes` model type and the LaneExtraction part:
+# the region of interest on the road as four (x, y) pixel points of a LANE_POINTS_SIZE frame,
+# bottom left, top left, top right, bottom right. Default: the thesis's points for its 320x180
+# simulator camera; tune them for your camera with `vehicle lanes preview`.
+LANE_SOURCE_POINTS: list[tuple[float, float]] = [(0.0, 180.0), (112.5, 87.5), (200.0, 87.5), (307.5, 180.0)]
+# Where the source points go in the bird's-eye image, same order and frame size (the thesis's).
+LANE_DESTINATION_POINTS: list[tuple[float, float]] = [(80.0, 180.0), (80.0, 0.25), (230.0, 0.25), (230.0, 180.0)]
+# (width, height) of the frame the lane points are given for; they are scaled to the real
+# camera size (same field of view assumed).
+LANE_POINTS_SIZE: tuple[int, int] = (320, 180)
+# HLS saturation range of lane pixels after the warp: S in (low, high] (thesis: 65, 255, i.e.
+# S > 65); None leaves the S threshold out (then LANE_COLOR_MASK must be set).
+LANE_S_THRESHOLD: tuple[int, int] | None = (65, 255)
+# Also count white and/or yellow pixels as lane pixels: white tape has almost no saturation, so
+# the S threshold alone misses it. None, "white", "yellow" or "white_yellow".
+LANE_COLOR_MASK: Literal["white", "yellow", "white_yellow"] | None = None
+# HLS lightness (0-255, after LANE_NORMALIZE) from which a pixel is white (LANE_COLOR_MASK).
+LANE_WHITE_MIN_LIGHTNESS: int = 200
+# OpenCV hue range (0-180) of yellow lane pixels (LANE_COLOR_MASK).
+LANE_YELLOW_HUE: tuple[int, int] = (15, 35)
+# Least HLS saturation (0-255) of a yellow lane pixel (LANE_COLOR_MASK).
+LANE_YELLOW_MIN_SATURATION: int = 80
+# Stretch the warped image to the full 0-255 range before thresholding (the thesis does).
+LANE_NORMALIZE: bool = True
+
 # == Drive modes ==
 
 # Mode at start: "user" (human drives), "local_angle" (pilot steers), "local" (pilot drives).
@@ -119,6 +163,11 @@ EARLY_STOP_PATIENCE: int = 5
 MIN_DELTA: float = 0.0005
 # Adam learning rate.
 LEARNING_RATE: float = 0.001
+# Training steps (batches) per epoch; None = every training sample once. Fewer steps make epochs
+# shorter on a large data set (each epoch then sees a different random part of it).
+TRAIN_STEPS_PER_EPOCH: int | None = None
+# Validation steps (batches) per epoch; None = every validation sample.
+TRAIN_VAL_STEPS: int | None = None
 # Adam weight decay (L2 penalty on the weights), 0 = off.
 TRAIN_WEIGHT_DECAY: float = 0.0
 # Where to train: "auto" = the GPU when there is one (cuda), else cpu; or "cpu", "cuda", "cuda:1".
@@ -255,6 +304,10 @@ SIM_CAMERA_PITCH: float = 20.0
 SIM_CAMERA_FOV: float = 100.0
 # Camera position ahead of the rear axle in metres.
 SIM_CAMERA_FORWARD: float = 0.2
+# Lens distortion of the simulated camera, OpenCV's coefficients (k1, k2, p1, p2[, k3]; k1 < 0 is
+# a wide-angle barrel lens), or None for an ideal pinhole. With it the simulator's frames need
+# calibrating and undistorting like a real camera's (`vehicle camera calibrate --sim`).
+SIM_CAMERA_DISTORTION: list[float] | None = None
 # Width of the rendered image in pixels; follows IMAGE_W unless set (e.g. 320 like the Udacity
 # simulator).
 SIM_CAMERA_W: int = IMAGE_W
@@ -298,6 +351,14 @@ SIM_EXPERT_LOOKAHEAD_TIME: float = 0.25
 # Which line the expert follows: "auto" (centre on one lane, right lane on two), "center",
 # "left" or "right".
 SIM_EXPERT_LANE: Literal["auto", "center", "left", "right"] = "auto"
+# Two-lane tracks with TRAIN_BEHAVIORS: the expert keeps to the lane of the active behaviour
+# (BEHAVIOR_LIST names with Left/Right) and changes lane along a smooth path of this many metres.
+SIM_EXPERT_LANE_CHANGE_DISTANCE: float = 2.0
+# A lane change starts only where the road ahead curves less than this (1/m; 0.4 = radius 2.5 m):
+# the expert delays the manoeuvre in tight corners, as the thesis's drivers did.
+SIM_EXPERT_LANE_CHANGE_MAX_CURVATURE: float = 0.4
+# Longest wait (seconds) for a straighter road before a lane change starts anyway.
+SIM_EXPERT_LANE_CHANGE_MAX_DELAY: float = 3.0
 # Noise injection: amplitude of the steering perturbation added to the executed command while
 # the expert's clean label is recorded, so demonstrations contain recoveries (0 = off). Used when
 # the expert drives (manage.py drive --expert, vehicle sim record), never in evaluation.
@@ -317,6 +378,52 @@ SIM_EVAL_MAX_TIME: float | None = None
 # (capped at the number of tracks), 1 = one track after another. Each runs its own simulator and
 # copy of the pilot with cores / workers threads; the report is the same either way.
 SIM_EVAL_WORKERS: int = 0
+# Evaluation of a behaviour pilot on two-lane tracks: the lane is changed on command (the behaviour
+# steps), the first time after 4 s, then every (min, max) seconds, drawn per track from SIM_SEED.
+SIM_EVAL_LANE_CHANGE_EVERY: tuple[float, float] = (8.0, 12.0)
+# Seconds a commanded lane change may take to count as done (the car must be in the new lane by then).
+SIM_EVAL_LANE_CHANGE_TIME_LIMIT: float = 6.0
+# Seconds the car must then stay in the new lane.
+SIM_EVAL_LANE_CHANGE_HOLD: float = 1.0
+
+# == Simulator bridges ==
+
+# Which simulator a simulator car drives: "builtin" (ours, in this process), "udacity" (the
+# Udacity self-driving-car simulator, which connects to us) or "donkey" (the Donkey simulator or
+# `vehicle sim serve`, which we connect to). `manage.py drive --sim NAME` overrides it.
+SIM_TYPE: Literal["builtin", "udacity", "donkey"] = "builtin"
+# Seconds without telemetry from the Udacity or Donkey simulator before its camera counts as
+# stale (cam/ok False: the camera watchdog takes the pilot out) and one line says what to check.
+SIM_TIMEOUT_S: float = 1.0
+# Address of the Donkey simulator (DonkeyCar's name); it often runs on another machine.
+SIM_HOST: str = "127.0.0.1"
+# TCP port of the Donkey simulator (9091 unless it was started with --port).
+SIM_PORT: int = 9091
+# Seconds a drive keeps trying to reach the Donkey simulator at start (it may still be starting).
+SIM_CONNECT_TIMEOUT_S: float = 10.0
+# Scene the Donkey simulator loads: a gym id (DonkeyCar's setting: donkey-generated-track-v0,
+# donkey-warren-track-v0 ...) or a scene name (generated_track, warren, track_5 on `vehicle sim serve`).
+DONKEY_GYM_ENV_NAME: str = "donkey-generated-track-v0"
+# How the car looks in the Donkey simulator (DonkeyCar's GYM_CONF): body_style (donkey, bare,
+# car01, f1, cybertruck), body_rgb, car_name, font_size; racer_name, country, bio, guid for races.
+GYM_CONF: dict[str, Any] = {"body_style": "donkey", "body_rgb": (128, 128, 128), "car_name": "car",
+                            "font_size": 100}
+# |cte| beyond which the Donkey simulator's car is off the track, in the simulator's units
+# (gym-donkeycar's max_cte; `vehicle sim serve` reports metres: use half the road width there).
+# None: only hits count.
+DONKEY_MAX_CTE: float | None = 8.0
+# Interface the Udacity simulator connects to. The simulator connects to 127.0.0.1 only; use
+# "0.0.0.0" when it runs on another machine (e.g. Windows, with this in WSL2).
+UDACITY_HOST: str = "127.0.0.1"
+# Port the Udacity simulator connects to (4567 is built into the simulator).
+UDACITY_PORT: int = 4567
+# Decimal separator of steer values: "auto" (the one the simulator's telemetry uses: a
+# simulator on a comma-decimal locale parses "0,5"), "." or ",".
+UDACITY_DECIMAL: Literal["auto", ".", ","] = "auto"
+# Telemetry keys of a research fork of the Udacity simulator to publish as their own memory keys
+# (sim/<key in snake case>, e.g. ["sim_time", "crash"]); cte and lapNumber always go to sim/cte
+# and sim/lap, all others to the sim/extra dict.
+UDACITY_EXTRA_KEYS: list[str] = []
 
 # == Pilot ==
 
@@ -330,7 +437,7 @@ PILOT_BACKEND: Literal["auto", "torch", "onnx", "onnx-int8", "torchscript"] = "a
 # the drive loop's other parts need the other cores.
 PILOT_ONNX_THREADS: int = 1
 # Speed control that replaces the model's throttle while a speed limit is set: "off", "pi" (PI
-# controller with the limit as target speed, the Udacity seed) or "limit" (throttle =
+# controller with the limit as target speed, as Udacity's drive.py) or "limit" (throttle =
 # 1 - speed / limit, Track Driver AI's driver).
 PILOT_SPEED_CONTROL: Literal["off", "pi", "limit"] = "off"
 # Speed limit (target) in m/s while the web page sets none (`user/speed_limit` is None); None =
@@ -473,8 +580,8 @@ USE_THROTTLE_FILTER: bool = True
 # == Behaviour ==
 
 # Drive with behaviour states (e.g. which lane to keep): adds behavior/state, behavior/label and
-# behavior/one_hot_state_array to the memory (record them by adding them to TUB_INPUTS with the
-# types int, str, vector); the gamepad's behaviour buttons step through BEHAVIOR_LIST.
+# behavior/one_hot_state_array to the memory, and every tub records them (as DonkeyCar does); the
+# gamepad's behaviour buttons and the web page's "change lane" button step through BEHAVIOR_LIST.
 TRAIN_BEHAVIORS: bool = False
 # Names of the behaviours in order; the one-hot array has one entry per name.
 BEHAVIOR_LIST: list[str] = ["Left_Lane", "Right_Lane"]
@@ -512,6 +619,15 @@ WEB_JPEG_QUALITY: int = 80
 # source that moved last). Mode and recording: the latest change from either wins; an emergency
 # stop from either holds.
 CONTROLLER_PRIORITY: Literal["gamepad", "web", "latest"] = "gamepad"
+
+# == Trainer console ==
+
+# The trainer console (`vehicle console`, `manage.py console`): datasets, training, models and the
+# leaderboard in a browser. Interface it listens on: "127.0.0.1" = this machine only; "0.0.0.0" =
+# every network interface, which then requires the pairing token (WEB_TOKEN's rules).
+CONSOLE_HOST: str = "127.0.0.1"
+# TCP port of the console: http://localhost:8890/
+CONSOLE_PORT: int = 8890
 
 # == Recording ==
 

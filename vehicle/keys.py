@@ -93,11 +93,17 @@ STANDARD_KEYS: dict[str, KeyInfo] = {
     "behavior/label": KeyInfo("str", "name of the active behaviour, e.g. Left_Lane"),
     "behavior/one_hot_state_array": KeyInfo("list[float]", "one-hot encoding of behavior/state"),
     "behavior/step": KeyInfo("int", "+1 / -1 for one loop: select the next / previous behaviour"),
+    "web/behavior_step": KeyInfo("int", "behaviour steps asked on the web page this loop (change lane)"),
+    "vision/lane_image": KeyInfo("ndarray HxW uint8", "binary lane image (bird's-eye, 255 = lane pixel)"),
+    "calib/image": KeyInfo("ndarray HxWx3 uint8 RGB", "camera frame with the chessboard corners drawn"),
+    "calib/views": KeyInfo("int", "chessboard views kept for camera calibration"),
+    "calib/found": KeyInfo("bool", "whether the chessboard is in the current frame"),
     # -- recording
     "tub/num_records": KeyInfo("int", "records in the current tub"),
     "tub/erase": KeyInfo("bool", "rising edge: delete the last ERASE_LAST_N_RECORDS records"),
     # -- simulator
-    "sim/cte": KeyInfo("float, m", "signed cross-track error, positive = right of the centre line"),
+    "sim/cte": KeyInfo("float, m", "signed cross-track error, positive = right of the centre line "
+                       "(the simulator's own units from the Donkey simulator and Udacity forks)"),
     "sim/heading_error": KeyInfo("float, rad", "car heading minus track heading"),
     "sim/speed": KeyInfo("float, m/s", "speed of the simulated car"),
     "sim/progress": KeyInfo("float in [0, 1)", "fraction of the current lap driven"),
@@ -107,6 +113,16 @@ STANDARD_KEYS: dict[str, KeyInfo] = {
     "sim/pos": KeyInfo("tuple[float, float], m", "car position in track coordinates"),
     "sim/track": KeyInfo("int", "seed of the track the simulated car is on"),
     "sim/reset": KeyInfo("bool", "rising edge puts the simulated car back on its start line"),
+    "sim/steering_deg": KeyInfo("float, degrees", "steering the Udacity simulator reports, positive = right"),
+    "sim/throttle": KeyInfo("float in [-1, 1]", "throttle the Udacity simulator reports"),
+    "sim/manual": KeyInfo("bool", "the user overrides the pilot in the simulator (Udacity: W/S held)"),
+    "sim/hit": KeyInfo("str", "what the simulated car hit this loop, or 'none' (Donkey simulator)"),
+    "sim/time": KeyInfo("float, s", "the simulator's clock (Donkey simulator: time since the scene loaded)"),
+    "sim/extra": KeyInfo("dict", "other telemetry fields of a simulator (Donkey IMU, Udacity fork keys)"),
+    # -- the loop itself (written by the Vehicle every loop)
+    "loop/rate_hz": KeyInfo("float, Hz", "achieved loop rate over the last second"),
+    "loop/overruns": KeyInfo("int", "loops that started late so far"),
+    "loop/count": KeyInfo("int", "loops run so far"),
     # -- speed
     "enc/speed": KeyInfo("float, m/s", "measured speed (encoder or simulator)"),
 }

@@ -4,6 +4,16 @@ A part is any object with ``run(*inputs)`` returning one value, a tuple (one ite
 or None. Optional: ``shutdown()``; ``update()`` + ``run_threaded(*inputs)`` for parts added with
 ``threaded=True``; ``neutral()`` for actuators (called first on every stop path). This is
 DonkeyCar's contract, so existing Donkey parts run unmodified.
+
+A part class may also declare the memory keys it reads and writes, as class attributes (or
+properties) that :meth:`vehicle.Vehicle.add` uses when it is not given them:
+
+- ``INPUTS`` / ``OUTPUTS``: tuples of keys, in the order of ``run``'s arguments / return values;
+- ``OPTIONAL_INPUTS``: inputs that may be produced by no part of a car (they read None);
+- ``FEEDBACK``: inputs produced by a part added after this one, read from the previous loop on
+  purpose.
+
+Key names follow :mod:`vehicle.keys`.
 """
 
 from __future__ import annotations
@@ -11,7 +21,11 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from typing import Any, Final
+from collections.abc import Coroutine
+from typing import TYPE_CHECKING, Any, Final
+
+if TYPE_CHECKING:
+    import asyncio
 
 logger = logging.getLogger(__name__)
 
@@ -185,3 +199,19 @@ class ThreadedPart:
         if not self._opened:
             self._opened = True
             self.open()
+
+
+def run_event_loop(loop: asyncio.AbstractEventLoop, main: Coroutine[Any, Any, Any]) -> None:
+    """Run ``main`` on ``loop`` (a part's own event loop, in its thread), then cancel what is left
+    of its tasks and close the loop, so no task is destroyed while pending."""
+    import asyncio
+
+    try:
+        loop.run_until_complete(main)
+    finally:
+        pending = asyncio.all_tasks(loop)
+        for task in pending:
+            task.cancel()
+        loop.run_until_complete(asyncio.gather(*pending, return_exceptions=True))
+        loop.run_until_complete(loop.shutdown_asyncgens())
+        loop.close()

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import difflib
+import inspect
 import logging
 import signal
 import threading
@@ -40,9 +41,37 @@ class _Entry:
     run_condition: str | None
     optional: frozenset[str] = frozenset()  # inputs no part may produce: they read None
     feedback: frozenset[str] = frozenset()  # inputs read from the previous loop, on purpose
+    strict: bool = True  # a lag (read before the producer) is an error, not a warning
     call: Any = None  # bound run or run_threaded
     timing: TimingRing = field(default_factory=TimingRing)
     thread: threading.Thread | None = None
+
+
+#: add() argument -> the part's class attribute that declares it
+DECLARATIONS = {"inputs": "INPUTS", "outputs": "OUTPUTS", "optional_inputs": "OPTIONAL_INPUTS", "feedback": "FEEDBACK"}
+
+
+def declared_keys(part: Any, attr: str) -> tuple[str, ...] | list[str] | None:
+    """The keys ``part`` declares in ``attr`` (a class attribute, a property or an attribute set in
+    ``__init__``), or None when it declares none. Looked up statically, so proxies and mocks that
+    answer every attribute do not declare anything by accident."""
+    instance = vars(part) if hasattr(part, "__dict__") else {}
+    if attr in instance:
+        return instance[attr]
+    try:
+        found = inspect.getattr_static(type(part), attr)
+    except AttributeError:
+        return None
+    return getattr(part, attr) if isinstance(found, property) else found
+
+
+def _check_keys(name: str, label: str, value: Any) -> tuple[str, ...]:
+    if isinstance(value, str) or not isinstance(value, list | tuple):
+        raise TypeError(f"part {name!r}: {label} must be a list of memory keys, got {type(value).__name__} {value!r}")
+    bad = [k for k in value if not isinstance(k, str) or not k]
+    if bad:
+        raise TypeError(f"part {name!r}: {label} must be non-empty strings, got {bad!r}")
+    return tuple(value)
 
 
 class ShutdownError(RuntimeError):
@@ -97,21 +126,12 @@ class Vehicle:
             part = Lambda(part)
         name = self._unique_name(part_name(part))
         given = {"inputs": inputs, "outputs": outputs, "optional_inputs": optional_inputs, "feedback": feedback}
-        declared = {"inputs": "INPUTS", "outputs": "OUTPUTS", "optional_inputs": "OPTIONAL_INPUTS",
-                    "feedback": "FEEDBACK"}
+        declaration = {label: declared_keys(part, attr) for label, attr in DECLARATIONS.items()}
         keys: dict[str, tuple[str, ...]] = {}
-        from_class: set[str] = set()
         for label, value in given.items():
             if value is None:
-                value = getattr(part, declared[label], ())
-                from_class.add(label)
-            if isinstance(value, str) or not isinstance(value, list | tuple):
-                raise TypeError(f"part {name!r}: {label} must be a list of memory keys, "
-                                f"got {type(value).__name__} {value!r}")
-            bad = [k for k in value if not isinstance(k, str) or not k]
-            if bad:
-                raise TypeError(f"part {name!r}: {label} must be non-empty strings, got {bad!r}")
-            keys[label] = tuple(value)
+                value = declaration[label] if declaration[label] is not None else ()
+            keys[label] = _check_keys(name, label, value)
         if not isinstance(threaded, bool):
             raise TypeError(f"part {name!r}: threaded must be True or False, got {threaded!r}")
         if run_condition is not None and (not isinstance(run_condition, str) or not run_condition):
@@ -120,20 +140,33 @@ class Vehicle:
         dupes = sorted({k for k in keys["outputs"] if keys["outputs"].count(k) > 1})
         if dupes:
             raise ValueError(f"part {name!r}: output keys listed more than once: {dupes}")
+        own_inputs = _check_keys(name, "INPUTS", declaration["inputs"] or ())
         readable = set(keys["inputs"]) | ({run_condition} if run_condition else set())
         for label in ("optional_inputs", "feedback"):
+            if given[label] is None and declaration[label]:
+                # the class declares these among its own INPUTS; follow a renaming of the inputs
+                typo = [k for k in declaration[label] if k not in own_inputs]
+                if typo:
+                    raise ValueError(f"part {name!r}: its {DECLARATIONS[label]} {typo} are not among its "
+                                     f"INPUTS {list(own_inputs)}")
+                if given["inputs"] is not None:
+                    renamed = dict(zip(own_inputs, keys["inputs"], strict=False)) \
+                        if len(own_inputs) == len(keys["inputs"]) else {}
+                    keys[label] = tuple(renamed.get(k, k) for k in keys[label])
+                    keys[label] = tuple(k for k in keys[label] if k in readable)
             stray = [k for k in keys[label] if k not in readable]
-            if label in from_class:  # a declaration covers the part's own keys, not renamed ones
-                keys[label] = tuple(k for k in keys[label] if k in readable)
-            elif stray:
+            if stray:
                 raise ValueError(f"part {name!r}: {label} {stray} are not among its inputs {list(keys['inputs'])}")
+        # a plain DonkeyCar part wired by hand declares nothing: wiring order is only advised for it
+        strict = any(v is not None for v in declaration.values()) or optional_inputs is not None \
+            or feedback is not None
         needed = ("update", "run_threaded") if threaded else ("run",)
         missing = [m for m in needed if not callable(getattr(part, m, None))]
         if missing:
             how = "threaded=True needs update() and run_threaded()" if threaded else "a part needs run()"
             raise TypeError(f"part {name!r} ({type(part).__name__}) has no {', '.join(missing)}(): {how}")
         entry = _Entry(part, name, keys["inputs"], keys["outputs"], threaded, run_condition,
-                       frozenset(keys["optional_inputs"]), frozenset(keys["feedback"]))
+                       frozenset(keys["optional_inputs"]), frozenset(keys["feedback"]), strict)
         entry.call = part.run_threaded if threaded else part.run
         self.parts.append(entry)
 
@@ -157,30 +190,35 @@ class Vehicle:
     def check_wiring(self) -> None:
         """Raise WiringError if a part reads a key that is not there when it runs.
 
-        A part may read a key seeded in memory before ``start``, a ``loop/*`` key, or an output of
-        a part added before it. Reading the output of a part added *after* it is a one-loop lag:
-        allowed only when declared as ``feedback``. A key that no part produces must be declared
-        in ``optional_inputs`` (it reads None).
+        A part may read a key seeded in memory before ``start``, a ``loop/*`` key, an output of a
+        part added before it, or its own output of the previous loop. Reading the output of a part
+        added *after* it is a one-loop lag: allowed only when declared as ``feedback`` (for a plain
+        DonkeyCar part that declares nothing it is logged as a warning instead, as DonkeyCar allows
+        it). A key that no part produces must be declared in ``optional_inputs`` (it reads None).
         """
         seeded = set(self.mem.keys()) | set(LOOP_KEYS)
-        producers: dict[str, str] = {}
+        producers: dict[str, list[str]] = {}
         for e in self.parts:
             for key in e.outputs:
-                producers.setdefault(key, e.name)
+                producers.setdefault(key, []).append(e.name)
         everything = sorted(seeded | set(producers))
         available = set(seeded)
         problems = []
         for e in self.parts:
-            wanted = list(e.inputs) + ([e.run_condition] if e.run_condition else [])
+            wanted = dict.fromkeys([*e.inputs, *([e.run_condition] if e.run_condition else [])])
             for key in wanted:
-                role = "run_condition" if key == e.run_condition else "input"
-                if key in available:
-                    continue
+                if key in available or key in e.outputs or key in e.feedback:
+                    continue  # produced earlier, the part's own last output, or a declared lag
+                role = "input" if key in e.inputs else "run_condition"
                 if key in producers:
-                    if key not in e.feedback:
-                        problems.append(f"part {e.name!r} {role} {key!r} is read before part {producers[key]!r} "
-                                        f"produces it (a one-loop lag): add {e.name!r} after {producers[key]!r}, "
-                                        f"or declare feedback=[{key!r}] if the lag is intended")
+                    later = producers[key][0]
+                    message = (f"part {e.name!r} {role} {key!r} is read before part {later!r} produces it "
+                               f"(a one-loop lag): add {e.name!r} after {later!r}, or declare "
+                               f"feedback=[{key!r}] if the lag is intended")
+                    if e.strict:
+                        problems.append(message)
+                    else:
+                        logger.warning("%s", message)
                 elif key not in e.optional:
                     close = difflib.get_close_matches(key, everything, n=1)
                     hint = f" (did you mean {close[0]!r}?)" if close else ""

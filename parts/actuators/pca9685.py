@@ -24,6 +24,8 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any, Protocol
 
+from vehicle.errors import VehicleError
+
 logger = logging.getLogger(__name__)
 
 # -- registers (NXP PCA9685 datasheet, section 7.3) -------------------------------------------------
@@ -67,7 +69,7 @@ class SMBusLike(Protocol):
 BusFactory = Callable[[int], SMBusLike]
 
 
-class PCA9685Error(RuntimeError):
+class PCA9685Error(VehicleError, RuntimeError):
     """A PCA9685 or its I2C bus failed; the message names bus and address and says what to check."""
 
     def __init__(self, message: str, *, bus: int, address: int, errno_: int | None = None) -> None:

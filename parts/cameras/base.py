@@ -17,6 +17,7 @@ from typing import Any, ClassVar, NamedTuple, Protocol
 
 import numpy as np
 
+from vehicle.errors import VehicleError
 from vehicle.part import ThreadedPart
 
 logger = logging.getLogger(__name__)
@@ -24,7 +25,7 @@ logger = logging.getLogger(__name__)
 OUTPUTS = ("cam/image_array", "cam/timestamp", "cam/ok")
 
 
-class CameraError(RuntimeError):
+class CameraError(VehicleError, RuntimeError):
     """A camera could not be opened or failed; the message names the device and a fix."""
 
 

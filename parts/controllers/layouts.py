@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from parts.controllers.events import Caps, parse_code
+from vehicle.errors import VehicleError
 
 LAYOUTS_DIR = Path(__file__).with_name("layouts")
 
@@ -39,7 +40,7 @@ ALIASES = {"xbox_one": "xbox", "xbox_usb": "xbox", "xboxone": "xbox", "xbox_one_
            "pygame": "pygame"}
 
 
-class LayoutError(ValueError):
+class LayoutError(VehicleError, ValueError):
     """A layout file is missing, unreadable or inconsistent."""
 
 

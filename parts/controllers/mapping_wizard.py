@@ -20,6 +20,7 @@ from typing import Any, TextIO
 
 from parts.controllers.events import AXIS, AXIS_MAX, BUTTON, DeviceLost, PadEvent
 from parts.controllers.layouts import AxisControl, ButtonControl, Layout
+from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
 
@@ -41,7 +42,7 @@ BUTTON_STEPS: tuple[tuple[str, str, bool], ...] = (
 )
 
 
-class WizardError(RuntimeError):
+class WizardError(VehicleError, RuntimeError):
     """The wizard could not finish (no pad, pad lost, nothing moved in time)."""
 
 

@@ -1,4 +1,4 @@
-"""Speed control for pilots: the two controllers of the seeds, as loop parts.
+"""Speed control for pilots: Udacity drive.py's PI controller and Track Driver AI's limit rule, as parts.
 
 - :class:`PIController` – ``SimplePIController`` of the Udacity behavioural-cloning project's drive.py (a PI
   controller that drives the measured speed to a set point), with a time step, output limits and

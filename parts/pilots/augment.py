@@ -186,3 +186,19 @@ def preview_grid(frames: list[np.ndarray], angles: list[float], augmenter: Augme
                 cv2.putText(cell, text, (4, y), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 255, 0), 1, cv2.LINE_AA)
             grid[r * cell_h:(r + 1) * cell_h, c * cell_w:(c + 1) * cell_w] = cell
     return grid
+
+
+def preview_frames(tubs: list[Any], rows: int) -> tuple[list[np.ndarray], list[float]]:
+    """``rows`` frames spread evenly over the (not deleted) records of ``tubs``, with their steering.
+
+    Reads the tubs directly (no torch): the trainer console's web server calls it.
+    """
+    from parts.tub.reader import load_records
+
+    if rows < 1:
+        raise ValueError(f"rows must be >= 1, got {rows}")
+    records = [r for r in load_records(tubs) if r.angle is not None]
+    if not records:
+        raise ValueError(f"no records with a steering angle in {', '.join(map(str, tubs))}")
+    picks = np.unique(np.linspace(0, len(records) - 1, min(rows, len(records))).round().astype(int))
+    return [records[i].image() for i in picks], [float(records[i].angle) for i in picks]

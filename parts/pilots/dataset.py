@@ -159,19 +159,56 @@ def build_samples(data: DriveData, positions: np.ndarray, n_keys: int = 1, depth
     return Samples(np.repeat(chain, n_keys, axis=0), np.tile(np.arange(n_keys), len(chain)))
 
 
+BEHAVIOR_STATE_KEY = "behavior/state"
+BEHAVIOR_LABEL_KEY = "behavior/label"
+
+
+def behavior_names(data: DriveData) -> list[str] | None:
+    """The behaviour names by index, read from the records' ``behavior/state`` and
+    ``behavior/label``; None when the records do not name them or disagree."""
+    names: dict[int, str] = {}
+    for rec in data.records:
+        state, label = rec.data.get(BEHAVIOR_STATE_KEY), rec.data.get(BEHAVIOR_LABEL_KEY)
+        if state is None or not isinstance(label, str):
+            return None
+        if names.setdefault(int(state), label) != label:
+            return None
+    if not names or sorted(names) != list(range(len(names))):
+        # some behaviour never occurs: its name is unknown, and so is the mirror of the others
+        return None
+    return [names[i] for i in range(len(names))]
+
+
+def behavior_mirror(names: Sequence[str]) -> np.ndarray | None:
+    """Index permutation of the behaviours for a horizontally flipped frame: a name with "left"
+    swaps with the same name with "right" (Left_Lane <-> Right_Lane), other names stay. None when
+    some left/right name has no counterpart (then a flipped frame has no correct label)."""
+    lowered = [n.lower() for n in names]
+    perm = np.arange(len(names))
+    for i, n in enumerate(lowered):
+        if "left" in n or "right" in n:
+            other = n.replace("left", "\0").replace("right", "left").replace("\0", "right")
+            if other not in lowered:
+                return None
+            perm[i] = lowered.index(other)
+    return perm
+
+
 class PilotDataset(Dataset):
     """Samples as ``(images, extra, target)`` tensors.
 
     ``images``: uint8 (C, H, W), or (T, C, H, W) oldest first when ``frames > 1``; ``extra``: float32
     (E,) (previous commands or behaviour one-hot; (0,) when the model takes none); ``target``: float32
     (angle, throttle). With an ``augmenter`` (training only) every sample gets a fresh random draw,
-    reproducible from (seed, epoch, index).
+    reproducible from (seed, epoch, index). ``extra_mirror`` permutes the extra values of a flipped
+    frame (the left-lane behaviour of a mirrored frame is the right lane, see
+    :func:`behavior_mirror`).
     """
 
     def __init__(self, data: DriveData, samples: Samples, cache: FrameCache, preprocess: Preprocess, *,
                  key_offsets: Sequence[float] = (0.0,), frames: int = 1, command_history: int = 0,
                  extra_key: str | None = None, extra_size: int = 0, augmenter: Augmenter | None = None,
-                 seed: int = 0) -> None:
+                 seed: int = 0, extra_mirror: np.ndarray | None = None) -> None:
         if samples.chain.shape[1] < max(frames, command_history + 1):
             raise ValueError("samples were built with too short a history for this model")
         self.data = data
@@ -185,6 +222,7 @@ class PilotDataset(Dataset):
         self.extra_size = extra_size
         self.augmenter = augmenter
         self.seed = seed
+        self.extra_mirror = extra_mirror
         self.epoch = 0
 
     def set_epoch(self, epoch: int) -> None:
@@ -208,6 +246,10 @@ class PilotDataset(Dataset):
                 rec = self.data.records[chain[0]]
                 raise ValueError(f"record {rec.index} of {rec.tub}: {self.extra_key} has {values.size} "
                                  f"values, the model expects {self.extra_size}")
+            if flip and self.extra_mirror is not None:
+                mirrored = np.empty_like(values)
+                mirrored[self.extra_mirror] = values
+                return mirrored
             return values
         return np.zeros(0, np.float32)
 

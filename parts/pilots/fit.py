@@ -1,4 +1,5 @@
-"""The training loop: Adam, early stopping on the validation loss, best-model callback, progress bar.
+"""The training loop: Adam, early stopping on the validation loss, best-model callback, progress bar,
+progress events for a live view (the trainer console) and a clean stop on request.
 
 It runs the device plan of :mod:`parts.pilots.acceleration` (autocast precision, gradient scaler,
 channels_last batches, non-blocking copies, torch.compile) and measures per epoch how long the loop
@@ -13,6 +14,7 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from itertools import islice
 from typing import Any
 
 import torch
@@ -24,6 +26,7 @@ from parts.pilots.distributed import DistInfo, all_sum
 from parts.pilots.models import PilotModel
 from parts.pilots.prefetch import Prefetcher
 from parts.pilots.preprocess import Preprocess
+from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
 
@@ -32,8 +35,12 @@ _SINGLE = DistInfo()  # one process, rank 0
 SYNC_STEPS = 25
 
 
-class TrainingDiverged(RuntimeError):
+class TrainingDiverged(VehicleError, RuntimeError):
     """The loss became NaN or infinite."""
+
+
+#: receives progress events (plain dicts, see :func:`fit`)
+EventSink = Callable[[dict[str, Any]], None]
 
 
 @dataclass
@@ -47,6 +54,8 @@ class FitSettings:
     min_delta: float = 0.0005
     progress: bool | None = None  # None: a bar only when stderr is a terminal
     prefetch: int = 2  # batches read ahead in a background thread (0 = read in the training loop)
+    steps_per_epoch: int | None = None  # batches per epoch (None: the whole training set)
+    val_steps: int | None = None  # validation batches per epoch (None: the whole validation set)
 
 
 @dataclass
@@ -62,6 +71,7 @@ class History:
     best_epoch: int = 0
     best_loss: float = math.inf
     stopped_early: bool = False
+    cancelled: bool = False  # stopped on request (should_stop); the partial epoch is not counted
 
     def as_dict(self) -> dict[str, Any]:
         return {"train_loss": self.train_loss, "val_loss": self.val_loss, "epoch_seconds": self.seconds,
@@ -69,7 +79,8 @@ class History:
                 "epoch_data_seconds": self.data_seconds,
                 "best_epoch": self.best_epoch,
                 "best_loss": self.best_loss if math.isfinite(self.best_loss) else None,
-                "epochs": len(self.train_loss), "stopped_early": self.stopped_early}
+                "epochs": len(self.train_loss), "stopped_early": self.stopped_early,
+                "cancelled": self.cancelled}
 
 
 def _set_epoch(loader: DataLoader, epoch: int) -> None:
@@ -96,15 +107,15 @@ def _batches(loader: DataLoader, device: torch.device, pre: Preprocess, needs_ex
 
 
 def evaluate(model: PilotModel, loader: DataLoader, pre: Preprocess, device: torch.device,
-             info: DistInfo = _SINGLE, plan: TrainPlan | None = None) -> float:
-    """Mean loss of ``model`` over ``loader`` (summed over every process when distributed), in the
-    plan's precision (default fp32)."""
+             info: DistInfo = _SINGLE, plan: TrainPlan | None = None, max_batches: int | None = None) -> float:
+    """Mean loss of ``model`` over ``loader`` (summed over every process when distributed), over its
+    first ``max_batches`` batches when given, in the plan's precision (default fp32)."""
     plan = plan or plain_plan(device)
     model.eval()
     loss_sum = torch.zeros((), dtype=torch.float64, device=device)  # read once: no GPU wait per batch
     count = 0
     with torch.no_grad():
-        for x, e, y in _batches(loader, device, pre, model.extra_size > 0, plan):
+        for x, e, y in islice(_batches(loader, device, pre, model.extra_size > 0, plan), max_batches):
             with autocast(plan):
                 out = model(x, e)
             loss_sum += model.loss(out.float(), y) * len(y)
@@ -130,17 +141,26 @@ def make_optimizer(model: nn.Module, settings: FitSettings, device: torch.device
 def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | None, pre: Preprocess,
         device: torch.device, settings: FitSettings, info: DistInfo = _SINGLE,
         on_best: Callable[[int, History], None] | None = None,
-        optimizer: torch.optim.Optimizer | None = None, plan: TrainPlan | None = None) -> History:
+        optimizer: torch.optim.Optimizer | None = None, plan: TrainPlan | None = None,
+        on_event: EventSink | None = None, should_stop: Callable[[], bool] | None = None) -> History:
     """Train ``model`` (a PilotModel, or DDP around one) and return the history.
 
     ``plan`` (:func:`parts.pilots.acceleration.plan_for`; default fp32 eager) sets the precision,
     the batches' layout and compilation; a channels_last plan expects the model already laid out
     by :func:`parts.pilots.acceleration.apply_layout`.
 
-    Each epoch trains on ``train_loader`` then measures ``val_loader`` (the training loss stands in
-    when there is no validation data). ``on_best(epoch, history)`` runs on every process whenever
-    the monitored loss improves by more than ``min_delta``; training stops after ``patience`` epochs
-    without improvement.
+    Each epoch trains on ``train_loader`` (its first ``steps_per_epoch`` batches when set) then
+    measures ``val_loader`` (the training loss stands in when there is no validation data).
+    ``on_best(epoch, history)`` runs on every process whenever the monitored loss improves by more
+    than ``min_delta``; training stops after ``patience`` epochs without improvement.
+
+    ``on_event`` (main process) gets ``{"event": "batch", "epoch", "epochs", "batch", "batches",
+    "loss", "samples", "samples_per_s"}`` after every step (on a GPU every ``SYNC_STEPS`` steps:
+    reading the loss waits for the GPU) and ``{"event": "epoch", "epoch", "epochs", "train_loss",
+    "val_loss", "seconds", "samples_per_s", "best", "best_epoch"}`` after every epoch.
+    ``should_stop()`` is asked after every step (single process only): when it says yes, training
+    ends at once, the unfinished epoch is dropped and ``history.cancelled`` is set; the best model
+    so far has already been handed to ``on_best``.
     """
     core: PilotModel = model.module if isinstance(model, nn.parallel.DistributedDataParallel) else model
     needs_extra = core.extra_size > 0
@@ -155,6 +175,13 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
     show = settings.progress if settings.progress is not None else sys.stderr.isatty()
     show = bool(show and info.is_main)
     history = History()
+    if should_stop is not None and info.enabled:
+        logger.warning("fit: should_stop is ignored when training on several processes")
+        should_stop = None
+    emit = on_event if info.is_main else None
+    n_batches = len(train_loader)
+    if settings.steps_per_epoch is not None:
+        n_batches = min(n_batches, settings.steps_per_epoch)
     waited = 0
     for epoch in range(1, settings.epochs + 1):
         _set_epoch(train_loader, epoch)
@@ -165,9 +192,9 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
         if show:
             from tqdm import tqdm
 
-            bar = tqdm(total=len(train_loader), desc=f"epoch {epoch}/{settings.epochs}", unit="batch",
+            bar = tqdm(total=n_batches, desc=f"epoch {epoch}/{settings.epochs}", unit="batch",
                        leave=False, dynamic_ncols=True)
-        batches = _batches(train_loader, device, pre, needs_extra, plan)
+        batches = islice(_batches(train_loader, device, pre, needs_extra, plan), n_batches)
         source = Prefetcher(batches, settings.prefetch) if settings.prefetch > 0 else None
         data_wait = 0.0
         clock = time.perf_counter
@@ -207,11 +234,19 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
                     if bar is not None:
                         bar.update(1)
                         bar.set_postfix(loss=f"{total / count:.4f}")
+                    if emit is not None:
+                        elapsed = clock() - start
+                        emit({"event": "batch", "epoch": epoch, "epochs": settings.epochs, "batch": step,
+                              "batches": n_batches, "loss": total / count, "samples": count,
+                              "samples_per_s": count / elapsed if elapsed > 0 else 0.0})
                 if compile_pending:
                     compile_pending = False
                     if info.is_main:
                         logger.info("torch.compile: the first training step took %.1f s (compiling)",
                                     clock() - t_step)
+                if should_stop is not None and should_stop():
+                    history.cancelled = True
+                    break
             total = float(loss_sum)
             _check_finite(total, epoch, settings)
         finally:
@@ -219,10 +254,16 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
                 source.close()
             if bar is not None:
                 bar.close()
+        if history.cancelled:
+            if info.is_main:
+                logger.info("training cancelled in epoch %d/%d (batch %d of %d); the best model so far "
+                            "is kept (epoch %d)", epoch, settings.epochs, step, n_batches, history.best_epoch)
+            break
         seconds = time.perf_counter() - start
         total, count = all_sum([total, float(count)], info, device)
         train_loss = total / max(count, 1.0)
-        val_loss = evaluate(core, val_loader, pre, device, info, plan) if val_loader is not None else math.nan
+        val_loss = evaluate(core, val_loader, pre, device, info, plan, settings.val_steps) \
+            if val_loader is not None else math.nan
         history.train_loss.append(train_loss)
         history.val_loss.append(val_loss)
         history.seconds.append(seconds)
@@ -239,7 +280,18 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
             history.best_loss, history.best_epoch, waited = monitored, epoch, 0
             if on_best is not None:
                 on_best(epoch, history)
-        else:
+        if emit is not None:
+            emit({"event": "epoch", "epoch": epoch, "epochs": settings.epochs, "train_loss": train_loss,
+                  "val_loss": val_loss if math.isfinite(val_loss) else None, "seconds": seconds,
+                  "samples_per_s": history.samples_per_s[-1], "best": improved,
+                  "best_epoch": history.best_epoch})
+        if should_stop is not None and should_stop():
+            history.cancelled = True
+            if info.is_main:
+                logger.info("training cancelled after epoch %d/%d; the best model so far is kept (epoch %d)",
+                            epoch, settings.epochs, history.best_epoch)
+            break
+        if not improved:
             waited += 1
             if settings.patience is not None and waited >= settings.patience:
                 history.stopped_early = True

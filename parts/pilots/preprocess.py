@@ -10,11 +10,15 @@ Two stages so that training stays fast and both paths stay identical:
 ``Preprocess(...)(frame)`` does both for one frame (the pilot part's path). The settings are stored
 in the model file (``meta["preprocess"]`` = :meth:`Preprocess.to_dict`), so a model always drives
 with the preprocessing it was trained with.
+
+With ``lanes`` settings (the ``lanes`` model type), stage 1 also computes the binary lane image
+(:mod:`parts.vision.lanes`) from the whole raw frame, straight at the output size, and appends it
+as the last channel (0 or 255, so stage 2 scales it like the image).
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import cv2
@@ -22,6 +26,8 @@ import numpy as np
 
 if TYPE_CHECKING:
     import torch
+
+    from parts.vision.lanes import LaneExtractor
 
 COLORS = ("rgb", "yuv", "hsv", "gray")
 NORMALIZATIONS = ("unit", "symmetric")
@@ -39,6 +45,8 @@ class Preprocess:
         normalize: "unit" maps 0..255 to [0, 1]; "symmetric" to [-1, 1] (x / 127.5 - 1).
         image_shape: (height, width, channels) of the camera frames the model was trained on, or
             None to accept any size (checked so a camera of another size fails clearly).
+        lanes: lane-extraction settings (:meth:`parts.vision.lanes.LaneSettings.to_dict`) to append
+            the lane image as the last channel, or None.
     """
 
     crop: tuple[int, int, int, int] = (0, 0, 0, 0)
@@ -46,6 +54,8 @@ class Preprocess:
     color: str = "rgb"
     normalize: str = "unit"
     image_shape: tuple[int, int, int] | None = field(default=None)
+    lanes: dict[str, Any] | None = None
+    _lanes: LaneExtractor | None = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         crop = tuple(int(v) for v in self.crop)
@@ -68,6 +78,14 @@ class Preprocess:
                 raise ValueError(f"image_shape must be (height, width, channels), got {self.image_shape!r}")
             object.__setattr__(self, "image_shape", shape)
             self.output_shape(shape)  # validates the crop against the frame size
+        if self.lanes is not None:
+            from parts.vision.lanes import LaneExtractor, LaneSettings
+
+            if not isinstance(self.lanes, dict):
+                raise ValueError(f"lanes must be a dict of lane settings or None, got {self.lanes!r}")
+            settings = LaneSettings.from_dict(self.lanes)
+            object.__setattr__(self, "lanes", settings.to_dict())
+            object.__setattr__(self, "_lanes", LaneExtractor(settings))
 
     # -- shapes
     def output_shape(self, image_shape: tuple[int, ...]) -> tuple[int, int, int]:
@@ -81,7 +99,7 @@ class Preprocess:
                              "lower ROI_CROP_* settings")
         if self.resize is not None:
             ch, cw = self.resize
-        return (1 if self.color == "gray" else 3, ch, cw)
+        return ((1 if self.color == "gray" else 3) + (1 if self.lanes is not None else 0), ch, cw)
 
     # -- stage 1: per frame, uint8
     def frame(self, image: np.ndarray) -> np.ndarray:
@@ -108,6 +126,10 @@ class Preprocess:
             out = cv2.cvtColor(np.ascontiguousarray(out), _CV2_COLOR[self.color])
         if out.ndim == 2:
             out = out[:, :, None]
+        if self._lanes is not None:
+            # from the whole frame (the lane points are frame pixels), warped straight to this size
+            lanes = self._lanes.extract(image, (out.shape[1], out.shape[0]))
+            return np.concatenate([out, lanes[:, :, None]], axis=2)
         return np.ascontiguousarray(out)
 
     @staticmethod
@@ -150,14 +172,19 @@ class Preprocess:
 
     # -- storage
     def to_dict(self) -> dict[str, Any]:
-        """Plain values for the model file."""
-        d = asdict(self)
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in d.items()}
+        """Plain values for the model file (``lanes`` only when set, so older readers still load
+        every other model)."""
+        d: dict[str, Any] = {"crop": list(self.crop), "resize": list(self.resize) if self.resize else None,
+                             "color": self.color, "normalize": self.normalize,
+                             "image_shape": list(self.image_shape) if self.image_shape else None}
+        if self.lanes is not None:
+            d["lanes"] = dict(self.lanes)
+        return d
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Preprocess:
         """Inverse of :meth:`to_dict`; unknown keys are refused."""
-        unknown = set(d) - {"crop", "resize", "color", "normalize", "image_shape"}
+        unknown = set(d) - {"crop", "resize", "color", "normalize", "image_shape", "lanes"}
         if unknown:
             raise ValueError(f"unknown preprocessing setting(s) {sorted(unknown)}")
         return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
@@ -166,8 +193,8 @@ class Preprocess:
 def preprocess_from_config(cfg: Any, model_type: str,
                            image_shape: tuple[int, int, int] | None = None) -> Preprocess:
     """The car's preprocessing for ``model_type``: ROI_CROP_* and PREPROCESS_* settings; where a
-    PREPROCESS_* setting is None the model type's default applies (pilotnet: 66x200, YUV; every
-    type: [-1, 1])."""
+    PREPROCESS_* setting is None the model type's default applies (pilotnet: 66x200, YUV; lanes:
+    [0, 1] and the lane image from the LANE_* settings; every other type: [-1, 1])."""
     from parts.pilots.models import model_type as lookup
 
     # [-1, 1] for every type: with [0, 1] inputs (DonkeyCar's) the linear model often sat on the
@@ -181,4 +208,11 @@ def preprocess_from_config(cfg: Any, model_type: str,
         color=cfg.PREPROCESS_COLOR or defaults["color"],
         normalize=cfg.PREPROCESS_NORMALIZE or defaults["normalize"],
         image_shape=image_shape,
+        lanes=_lane_settings(cfg) if defaults.get("lanes") else None,
     )
+
+
+def _lane_settings(cfg: Any) -> dict[str, Any]:
+    from parts.vision.lanes import LaneSettings
+
+    return LaneSettings.from_config(cfg).to_dict()

@@ -48,14 +48,15 @@ def split_train_val(segments: Sequence[int], train_fraction: float, by: str = "b
 
     Args:
         segments: per record (in tub order), an id of its tub + recording session.
-        train_fraction: share of records for training, in (0, 1].
+        train_fraction: share of records for training, in [0, 1] (at least one group always
+            trains, so 0 holds out all but one session or block).
         by: "session" (whole sessions when there are at least 2, else falls back to blocks) or "block".
         block: records per contiguous block; shrunk for small data so there are at least 10 blocks.
         seed: random seed of the choice of validation sessions/blocks.
     """
     n = len(segments)
-    if not 0.0 < train_fraction <= 1.0:
-        raise ValueError(f"TRAIN_TEST_SPLIT = {train_fraction} must be in (0, 1]")
+    if not 0.0 <= train_fraction <= 1.0:
+        raise ValueError(f"TRAIN_TEST_SPLIT = {train_fraction} must be in [0, 1]")
     if by not in ("session", "block"):
         raise ValueError(f"TRAIN_SPLIT_BY = {by!r} must be 'session' or 'block'")
     if block < 1:

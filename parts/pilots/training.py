@@ -12,7 +12,7 @@ import logging
 import math
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -25,12 +25,21 @@ from torch.utils.data import DataLoader, DistributedSampler
 from parts.pilots.acceleration import TrainPlan, apply_layout, plan_for
 from parts.pilots.augment import Augmenter, AugmentSettings
 from parts.pilots.balance import balance_by_steering
-from parts.pilots.dataset import IMAGE_KEY, DriveData, PilotDataset, build_samples, read_drive_data
+from parts.pilots.dataset import (
+    IMAGE_KEY,
+    DriveData,
+    PilotDataset,
+    behavior_mirror,
+    behavior_names,
+    build_samples,
+    read_drive_data,
+)
 from parts.pilots.distributed import DistInfo, init_distributed, shutdown_distributed
-from parts.pilots.fit import FitSettings, fit
+from parts.pilots.fit import EventSink, FitSettings, fit
 from parts.pilots.framecache import FrameCache
+from parts.pilots.hyperparams import check_config
 from parts.pilots.modelfile import load_model, save_model
-from parts.pilots.models import PilotModel, create_model, model_type
+from parts.pilots.models import PilotModel, create_model, model_type, model_type_names
 from parts.pilots.preprocess import Preprocess, preprocess_from_config
 from parts.pilots.split import split_train_val
 from parts.pilots.train_report import plot_losses, sidecar, write_metrics
@@ -106,20 +115,42 @@ def prepare_data(cfg: Any, data: DriveData, model: PilotModel, preprocess: Prepr
         raise ValueError(f"no training samples left from {len(data)} records (sequence models need "
                          f"{depth} consecutive records before each sample); record more data")
     names = cfg.AUGMENTATIONS if augmentations is None else list(augmentations)
+    mirror, behaviors = _behavior_flip(data, model, names)
+    if mirror is None and behaviors is not None and "flip" in names:
+        names = [n for n in names if n != "flip"]
     aug_settings = AugmentSettings.from_config(cfg, names)
     augmenter = Augmenter(aug_settings) if aug_settings.names else None
     common = {"frames": model.frames, "command_history": model.command_history,
               "extra_key": model.extra_inputs[0] if model.extra_inputs else None,
-              "extra_size": model.extra_size}
+              "extra_size": model.extra_size, "extra_mirror": mirror}
     train_ds = PilotDataset(data, train_s, cache, preprocess, key_offsets=offsets, augmenter=augmenter,
                             seed=cfg.TRAIN_SEED, **common)
     val_ds = PilotDataset(data, val_s, cache, preprocess, **common) if len(val_s) else None
     info = {"records": len(data), "train_records": int(len(train_pos)), "val_records": int(len(val_pos)),
             "train_samples": len(train_s), "val_samples": len(val_s), "camera_keys": keys,
             "side_camera_offsets": side, "frames_cached": cache.cached, "cache_mb": round(cache.nbytes / 1e6, 1),
-            "augmentations": aug_settings.to_dict()}
+            "augmentations": aug_settings.to_dict(), "behaviors": behaviors}
     return PreparedData(data, train_ds, val_ds, preprocess, tuple(cache.get(int(train_s.chain[0, 0])).shape),
                         info)
+
+
+def _behavior_flip(data: DriveData, model: PilotModel,
+                   augmentations: Sequence[str]) -> tuple[np.ndarray | None, list[str] | None]:
+    """For a behaviour model: (permutation of the one-hot for flipped frames, behaviour names).
+
+    A flipped frame of the left lane shows the right lane, so its behaviour is swapped; when the
+    records do not name the behaviours or a name has no mirror, flipping would teach wrong labels
+    and is left out (with a warning). (None, None) for models without a behaviour input.
+    """
+    if "behavior/one_hot_state_array" not in model.extra_inputs:
+        return None, None
+    names = behavior_names(data)
+    mirror = behavior_mirror(names) if names is not None else None
+    if mirror is None and "flip" in augmentations:
+        why = (f"behaviours {names} have no left/right mirror" if names is not None
+               else "the records do not name every behaviour (behavior/state, behavior/label)")
+        logger.warning("flip augmentation left out: %s, so a flipped frame has no correct behaviour", why)
+    return mirror, names if names is not None else []
 
 
 def _loaders(prep: PreparedData, batch_size: int, workers: int, dist_info: DistInfo, plan: TrainPlan,
@@ -150,11 +181,14 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
           epochs: int | None = None, batch_size: int | None = None, learning_rate: float | None = None,
           device: str | None = None, workers: int | None = None, augmentations: Sequence[str] | None = None,
           comment: str | None = None, register: bool = True, progress: bool | None = None,
-          precision: str | None = None) -> dict[str, Any]:
+          precision: str | None = None, on_event: EventSink | None = None,
+          should_stop: Callable[[], bool] | None = None) -> dict[str, Any]:
     """Train a model on ``tubs`` and write it to ``model_path``; returns the metrics.
 
     Arguments left None take the car's settings (MAX_EPOCHS, BATCH_SIZE, LEARNING_RATE,
-    TRAIN_DEVICE, TRAIN_NUM_WORKERS, AUGMENTATIONS, DEFAULT_MODEL_TYPE, TRAIN_PRECISION).
+    TRAIN_DEVICE, TRAIN_NUM_WORKERS, AUGMENTATIONS, DEFAULT_MODEL_TYPE, TRAIN_PRECISION). The car's
+    settings are checked by :func:`parts.pilots.hyperparams.check_config`, the rules the CLI and the
+    console use.
 
     Raises:
         ValueError: bad settings or no usable data (the message says what to change).
@@ -170,6 +204,11 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
             raise ValueError(f"{name} must be >= 1, got {value}")
     if not learning_rate > 0:
         raise ValueError(f"learning rate must be > 0, got {learning_rate}")
+    check_config(cfg, model_type_names())
+
+    def phase(name: str) -> None:
+        if on_event is not None:
+            on_event({"event": "phase", "phase": name})
     model_path = Path(model_path)
     if model_path.suffix != ".pt":
         raise ValueError(f"model file {model_path} must end in .pt (e.g. models/mypilot.pt)")
@@ -187,6 +226,7 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
             model_type_name = old_type
         type_name = model_type_name or cfg.DEFAULT_MODEL_TYPE
         model_type(type_name)  # unknown types fail before reading any data
+        phase("reading")
         data = read_drive_data(tubs, modes=cfg.TRAIN_MODES, record_filter=cfg.TRAIN_FILTER)
         image_shape = tuple(int(v) for v in data.records[0].image(IMAGE_KEY).shape)
         if old_meta is not None:
@@ -198,6 +238,7 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
             preprocess = preprocess_from_config(cfg, type_name, image_shape)
             model = create_model(type_name, preprocess.output_shape(image_shape),
                                  **model_options(cfg, type_name, data))
+        phase("preparing")
         prep = prepare_data(cfg, data, model, preprocess, augmentations,
                             progress=dist_info.is_main and (progress if progress is not None else _tty()))
         model.to(dev)
@@ -223,6 +264,7 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
                     "filter": getattr(cfg.TRAIN_FILTER, "__name__", None) if cfg.TRAIN_FILTER else None,
                     "balance": {"bins": cfg.TRAIN_BALANCE_BINS, "max_per_bin": cfg.TRAIN_BALANCE_MAX_PER_BIN}
                     if cfg.TRAIN_BALANCE else None,
+                    "steps_per_epoch": cfg.TRAIN_STEPS_PER_EPOCH, "val_steps": cfg.TRAIN_VAL_STEPS,
                     "device": str(dev), **plan.to_dict(), "world_size": dist_info.world_size, "parameters": n_params,
                     **{k: v for k, v in prep.info.items() if k not in ("records",)}}
         base_meta = {"type": type_name, "preprocess": preprocess.to_dict(), "training": training,
@@ -235,9 +277,17 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
 
         settings = FitSettings(epochs=epochs, learning_rate=learning_rate, weight_decay=cfg.TRAIN_WEIGHT_DECAY,
                                patience=cfg.EARLY_STOP_PATIENCE if cfg.USE_EARLY_STOP else None,
-                               min_delta=cfg.MIN_DELTA, progress=progress)
+                               min_delta=cfg.MIN_DELTA, progress=progress,
+                               steps_per_epoch=cfg.TRAIN_STEPS_PER_EPOCH, val_steps=cfg.TRAIN_VAL_STEPS)
+        if on_event is not None and dist_info.is_main:
+            on_event({"event": "start", "type": type_name, "parameters": n_params, "device": str(dev),
+                      "records": len(data), "train_samples": prep.info["train_samples"],
+                      "val_samples": prep.info["val_samples"], "epochs": epochs, "batch_size": batch_size,
+                      "batches": min(len(train_loader), cfg.TRAIN_STEPS_PER_EPOCH or len(train_loader)),
+                      "model": str(model_path)})
+            phase("training")
         history = fit(train_model, train_loader, val_loader, preprocess, dev, settings, dist_info, save_best,
-                      plan=plan)
+                      plan=plan, on_event=on_event, should_stop=should_stop)
         # every rank got through the last collective: from here each leaves through the barrier,
         # rank 0 even when its own file writing below fails, so no peer waits for it in vain
         clean = True
@@ -274,6 +324,8 @@ def _finish(model_path: Path, base_meta: dict[str, Any], metrics: dict[str, Any]
             show_plot: bool, register: bool, comment: str | None) -> None:
     """Final metadata into the best model file, the metrics JSON, the loss plot and the registry."""
     if not model_path.exists():
+        if metrics.get("cancelled"):
+            raise ValueError("training was cancelled before its first epoch ended: no model was saved")
         raise ValueError("training produced no model (no epoch had a finite loss)")
     model, meta = load_model(model_path)
     meta = {**{k: v for k, v in meta.items() if k != "model"}, "metrics": metrics}

@@ -28,13 +28,26 @@ _COLUMNS: tuple[tuple[str, str, str], ...] = (
 )
 
 
-def format_table(report: dict[str, Any]) -> str:
-    """The report as a fixed-width text table: one row per track, then the overall row."""
-    headers = ["track", *(c[0] for c in _COLUMNS)]
+#: lane table columns (commanded lane changes): (header, key of the "lanes" section, format)
+_LANE_COLUMNS: tuple[tuple[str, str, str], ...] = (
+    ("changes", "lane_changes", "{:d}"),
+    ("ok", "lane_changes_ok", "{:d}"),
+    ("success %", "lane_change_success_rate", "{:.0%}"),
+    ("change s", "mean_time_to_change_s", "{:.2f}"),
+    ("max s", "max_time_to_change_s", "{:.2f}"),
+    ("lane|err| m", "lane_mean_abs_error", "{:.3f}"),
+    ("max|err| m", "lane_max_abs_error", "{:.3f}"),
+    ("wrong lane s", "wrong_lane_s", "{:.1f}"),
+    ("off-track", "off_track_events", "{:d}"),
+)
+
+
+def _table(rows_in: list[tuple[str, dict[str, Any]]], columns: tuple[tuple[str, str, str], ...]) -> list[str]:
+    headers = ["track", *(c[0] for c in columns)]
     rows = []
-    for name, res in [(str(t["seed"]), t) for t in report["tracks"]] + [("all", report["overall"])]:
+    for name, res in rows_in:
         row = [name]
-        for _, key, fmt in _COLUMNS:
+        for _, key, fmt in columns:
             v = res.get(key)
             row.append("-" if v is None else fmt.format(v))
         rows.append(row)
@@ -42,9 +55,37 @@ def format_table(report: dict[str, Any]) -> str:
     lines = ["  ".join(h.rjust(w) for h, w in zip(headers, widths, strict=True))]
     lines.append("  ".join("-" * w for w in widths))
     lines += ["  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)) for r in rows]
+    return lines
+
+
+def format_table(report: dict[str, Any]) -> str:
+    """The report as a fixed-width text table: one row per track, then the overall row; with
+    commanded lane changes, a second table of the lane metrics."""
+    tracks = [(str(t["seed"]), t) for t in report["tracks"]] + [("all", report["overall"])]
+    lines = _table(tracks, _COLUMNS)
     o = report["overall"]
+    simulator = report.get("simulator", "builtin")
+    success = "-" if o.get("success_rate") is None else f"{o['success_rate'] * 100:.0f} %"
+    clock = "simulated" if simulator == "builtin" or report.get("settings", {}).get("synchronous") else "driven"
     lines.append(f"pilot {report['pilot']}: {report['laps']} lap(s) per track, success rate "
-                 f"{o['success_rate'] * 100:.0f} %, {o['elapsed_s']:.1f} s simulated")
+                 f"{success}, {o['elapsed_s']:.1f} s {clock}" + ("" if simulator == "builtin" else f" ({simulator})"))
+    missing = o.get("unavailable") or {}
+    if missing:
+        headers = {key: header for header, key, _ in _COLUMNS}
+        parts = []
+        for what in missing.values():
+            shown = [headers[m] for m in what["metrics"] if m in headers]
+            parts.append(what["signal"] + (f" ({', '.join(shown)})" if shown else ""))
+        lines.append(f"not available: the {simulator} simulator reports no " + "; no ".join(parts)
+                     + ": '-' above means unknown, not zero")
+    if "lanes" in o:
+        lines.append("")
+        lines += _table([(name, res["lanes"]) for name, res in tracks], _LANE_COLUMNS)
+        lanes = o["lanes"]
+        rate = lanes["lane_change_success_rate"]
+        lines.append(f"commanded lane changes: {lanes['lane_changes_ok']} of {lanes['lane_changes']} done "
+                     f"({'-' if rate is None else f'{rate:.0%}'}), lane error and wrong-lane time measured between "
+                     f"changes, {o['interventions']} off-track")
     return "\n".join(lines)
 
 
@@ -57,8 +98,10 @@ def write_json(report: dict[str, Any], path: str | os.PathLike[str]) -> Path:
 
 
 def track_image(seed: int, cfg: Any, size: int = 480, trajectory: Any = None,
-                events: Any = None, title: str | None = None) -> np.ndarray:
-    """A square RGB map of a track (its texture), with a driven trajectory and off-track marks."""
+                events: Any = None, title: str | None = None, commands: Any = None) -> np.ndarray:
+    """A square RGB map of a track (its texture), with a driven trajectory, off-track marks and,
+    for lane changes, where each change was commanded (a triangle and L/R; green if it was done,
+    red if not, grey if the episode ended first)."""
     from parts.sim.simulator import load_world, world_params
 
     track, texture = load_world(seed, **world_params(cfg))
@@ -83,6 +126,17 @@ def track_image(seed: int, cfg: Any, size: int = 480, trajectory: Any = None,
     for p in events if events is not None else []:
         c = to_px([p])[0]
         cv2.circle(canvas, (int(c[0]), int(c[1])), 6 * 16, (255, 40, 40), 2, cv2.LINE_AA, 4)
+    for cmd in commands if commands is not None else []:
+        if cmd.get("pos") is None or None in cmd["pos"]:
+            continue
+        u, v = (to_px([cmd["pos"]])[0] / 16).astype(int)
+        colour = {True: (40, 220, 40), False: (255, 40, 40)}.get(cmd.get("success"), (200, 200, 200))
+        tri = np.array([[u, v - 7], [u - 6, v + 5], [u + 6, v + 5]], np.int32)
+        cv2.fillPoly(canvas, [tri], colour, cv2.LINE_AA)
+        cv2.polylines(canvas, [tri], True, (0, 0, 0), 1, cv2.LINE_AA)
+        letter = (cmd.get("lane") or "?")[:1].upper()
+        cv2.putText(canvas, letter, (u + 7, v + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 3, cv2.LINE_AA)
+        cv2.putText(canvas, letter, (u + 7, v + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 255, 255), 1, cv2.LINE_AA)
     label = title if title is not None else f"track {seed}"
     cv2.rectangle(canvas, (0, 0), (size, 24), (0, 0, 0), -1)
     cv2.putText(canvas, label, (6, 17), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
@@ -99,7 +153,11 @@ def write_png(report: dict[str, Any], path: str | os.PathLike[str], cfg: Any = N
     for t in report["tracks"]:
         title = (f"track {t['seed']}: {t['autonomy']:.1f} % autonomy, {t['laps_completed']} laps, "
                  f"{t['interventions']} off")
-        panels.append(track_image(t["seed"], cfg, panel, t.get("trajectory"), t.get("off_track_at"), title))
+        lanes = t.get("lanes")
+        if lanes is not None:
+            title += f", lane changes {lanes['lane_changes_ok']}/{lanes['lane_changes']}"
+        panels.append(track_image(t["seed"], cfg, panel, t.get("trajectory"), t.get("off_track_at"), title,
+                                  lanes["commands"] if lanes is not None else None))
     return write_panels(panels, path)
 
 

@@ -5,7 +5,8 @@ DriveMode's output) and the telemetry keys every simulator part writes (``sim/ct
 ``sim/off_track``, ``sim/speed``, ``sim/pos``, ``sim/lap``, ``sim/lap_time``, ``sim/progress``),
 and asks the loop to stop once the episode has driven its laps or used its time. Definitions
 follow docs/simulator.md and protocols.md §4 (DAVE-2 autonomy, |CTE| over autonomous frames, ...).
-A simulator that reports no CTE (stock Udacity) gives None for the CTE metrics, never zeros.
+A simulator that does not report a signal (stock Udacity: no CTE, laps, progress or position) gives
+None for the metrics that need it, never zeros, and the result names them (``unavailable``).
 """
 
 from __future__ import annotations
@@ -36,6 +37,19 @@ class _Trace:
     laps: int = 0
     laps_driven: float = 0.0  # most forward progress reached, in laps
     progress: float = 0.0
+    reported: set[str] = field(default_factory=set)  # signals the simulator gave at least once
+
+
+#: signal -> (what it is, the metrics that need it); a simulator that never reports a signal gets
+#: None for those metrics and the report names them, instead of zeros
+SIGNALS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "cte": ("cross-track error", ("mean_abs_cte", "rms_cte", "p95_abs_cte", "max_abs_cte")),
+    "lap": ("laps", ("laps_completed", "success", "timed_out", "lap_times_s", "best_lap_s", "mean_lap_s",
+                     "std_lap_s")),
+    "progress": ("progress along the track", ("laps_driven", "progress", "off_track_per_lap")),
+    "speed": ("speed", ("mean_speed", "distance_m", "off_track_per_km", "mean_distance_between_interventions_m")),
+    "pos": ("position", ("trajectory", "off_track_at")),
+}
 
 
 class EpisodeMetrics:
@@ -68,6 +82,8 @@ class EpisodeMetrics:
         self._was_off = False
         self._last_pos: tuple[float, float] | None = None
         self._progress: float | None = None
+        self._last_lap: int | None = None
+        self._reset_pending = False
         self._unwrapped = 0.0  # laps of forward progress since the first step
 
     def run(self, angle: Any, cte: Any, off_track: Any, speed: Any, pos: Any, lap: Any, lap_time: Any,
@@ -77,7 +93,11 @@ class EpisodeMetrics:
             return
         tr = self.trace
         self.time += self.dt
+        for name, value in (("cte", cte), ("lap", lap), ("progress", progress), ("speed", speed), ("pos", pos)):
+            if value is not None:
+                tr.reported.add(name)
         off = bool(off_track)
+        self._reset_pending = self._was_off  # the simulator re-centred the car after the last frame
         if off and not self._was_off:  # off-track event: the rising edge (the simulator re-centres)
             tr.events.append(self._last_pos if self._last_pos is not None else _pair(pos))
         self._was_off = off
@@ -90,15 +110,21 @@ class EpisodeMetrics:
         if pos is not None:
             tr.pos.append(_pair(pos))
             self._last_pos = tr.pos[-1]
-        if lap is not None and int(lap) > tr.laps:
-            tr.laps = int(lap)
-            if lap_time is not None:
-                tr.lap_times.append(float(lap_time))
+        restarted = False  # the simulator moved the car (a reset) or restarted its lap count
+        if lap is not None:
+            n = int(lap)
+            if self._last_lap is not None and n > self._last_lap:  # laps are counted as increments, so
+                tr.laps += n - self._last_lap  # a counter that restarts (a new scene) loses none
+                if lap_time is not None:
+                    tr.lap_times.append(float(lap_time))
+            restarted = self._last_lap is not None and n < self._last_lap
+            self._last_lap = n
         if progress is not None:
             # unwrap the lap fraction (it jumps 0.99 -> 0 at the start line, and reads ~1.0 or ~0.0
-            # for a car standing on it) into forward progress; the best of it counts
+            # for a car standing on it) into forward progress; the best of it counts. The step after
+            # a reset is a jump, not driving: it does not count.
             p = float(progress)
-            if self._progress is not None:
+            if self._progress is not None and not restarted and not self._reset_pending:
                 delta = p - self._progress
                 self._unwrapped += delta - round(delta)
             self._progress = p
@@ -118,8 +144,24 @@ class EpisodeMetrics:
         keep = ~np.asarray(self.trace.off, bool) & np.isfinite(cte)
         return np.abs(cte[keep])
 
+    def unavailable(self) -> dict[str, str]:
+        """Signals the simulator never reported -> what they are (e.g. the stock Udacity simulator:
+        ``{"cte": "cross-track error", "lap": "laps", ...}``)."""
+        return {name: what for name, (what, _) in SIGNALS.items() if name not in self.trace.reported}
+
     def result(self) -> dict[str, Any]:
-        """Per-track metrics (docs/simulator.md gives the definitions)."""
+        """Per-track metrics (docs/simulator.md gives the definitions); metrics that need a signal
+        the simulator never reported are None, and ``unavailable`` names them."""
+        out = self._result()
+        missing = self.unavailable()
+        for name in missing:
+            for key in SIGNALS[name][1]:
+                out[key] = None
+        out["unavailable"] = {name: {"signal": SIGNALS[name][0], "metrics": list(SIGNALS[name][1])}
+                              for name in missing}
+        return out
+
+    def _result(self) -> dict[str, Any]:
         tr, t = self.trace, self.time
         n_int = len(tr.events)
         off = np.asarray(tr.off, bool)
@@ -174,8 +216,9 @@ def overall(results: Sequence[dict[str, Any]], penalty: float, abs_cte: np.ndarr
     """Aggregate over tracks: sums, and means weighted by frames / time / distance."""
     t = sum(r["elapsed_s"] for r in results)
     n_int = sum(r["interventions"] for r in results)
-    laps_driven = sum(r["laps_driven"] for r in results)
-    dist = sum(r["distance_m"] for r in results)
+    laps_driven = sum(r["laps_driven"] or 0.0 for r in results)
+    dist = sum(r["distance_m"] or 0.0 for r in results)
+    with_laps = [r for r in results if r["laps_completed"] is not None]
     auto_frames = sum(r["autonomous_frames"] for r in results if r["rms_cte"] is not None)
     frames = sum(r["frames"] for r in results)
 
@@ -184,14 +227,14 @@ def overall(results: Sequence[dict[str, Any]], penalty: float, abs_cte: np.ndarr
         total = sum(w for _, w in pairs)
         return _r(sum(v * w for v, w in pairs) / total) if total else None
 
-    lap_times = [x for r in results for x in r["lap_times_s"]]
+    lap_times = [x for r in results for x in r["lap_times_s"] or []]
     return {
         "tracks": len(results),
         "elapsed_s": _r(t, 3),
         "interventions": n_int,
         "autonomy": _r(max(0.0, 1.0 - n_int * penalty / t) * 100.0 if t > 0 else 0.0, 2),
-        "laps_completed": sum(r["laps_completed"] for r in results),
-        "success_rate": _r(sum(r["success"] for r in results) / len(results), 3),
+        "laps_completed": sum(r["laps_completed"] for r in with_laps) if with_laps else None,
+        "success_rate": _r(sum(bool(r["success"]) for r in with_laps) / len(with_laps), 3) if with_laps else None,
         "mean_abs_cte": weighted("mean_abs_cte", "autonomous_frames"),
         "rms_cte": _r(math.sqrt(sum((r["rms_cte"] or 0) ** 2 * r["autonomous_frames"] for r in results)
                                 / auto_frames)) if auto_frames else None,
@@ -207,6 +250,9 @@ def overall(results: Sequence[dict[str, Any]], penalty: float, abs_cte: np.ndarr
         "mean_speed": weighted("mean_speed", "autonomous_frames"),
         "steering_smoothness": weighted("steering_smoothness", "frames"),
         "frames": frames,
+        # a signal missing on every track: its metrics are None above, named here
+        "unavailable": {k: v for k, v in results[0].get("unavailable", {}).items()
+                        if all(k in r.get("unavailable", {}) for r in results)},
     }
 
 

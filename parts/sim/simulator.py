@@ -16,7 +16,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from parts.sim.camera import Camera, ImageJitter
+from parts.sim.camera import Camera, ImageJitter, camera_from_config
 from parts.sim.kinematics import Car, CarParams
 from parts.sim.telemetry import LapTracker, TelemetryFrame
 from parts.sim.texture import TrackTexture, render_texture
@@ -149,8 +149,7 @@ class SimCar:
     @classmethod
     def from_config(cls, cfg: Any, seeds: Sequence[int] | None = None, **kwargs: Any) -> SimCar:
         """A SimCar with every setting taken from a Config (SIM_* and DRIVE_LOOP_HZ)."""
-        camera = Camera(cfg.SIM_CAMERA_W, cfg.SIM_CAMERA_H, cfg.SIM_CAMERA_FOV, cfg.SIM_CAMERA_PITCH,
-                        cfg.SIM_CAMERA_HEIGHT, cfg.SIM_CAMERA_FORWARD)
+        camera = camera_from_config(cfg)
         jitter = ImageJitter(cfg.SIM_IMAGE_NOISE, cfg.SIM_IMAGE_BLUR, cfg.SIM_BRIGHTNESS_JITTER, cfg.SIM_SEED)
         options: dict[str, Any] = {
             "dt": 1.0 / cfg.DRIVE_LOOP_HZ, "camera": camera, "car_params": CarParams.from_config(cfg),

@@ -14,8 +14,10 @@ import json
 import math
 import os
 import re
+import shutil
 import time
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -178,8 +180,6 @@ def check_new_folder(out: Path) -> None:
 def new_folder_tmp(out: Path) -> Path:
     """A fresh hidden folder beside ``out`` to build it in; :func:`replace_folder` puts it in place,
     so an interrupted export or import never leaves a half-written ``out``."""
-    import shutil
-
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.parent / f".{out.name}.partial-{os.getpid()}"
     shutil.rmtree(tmp, ignore_errors=True)
@@ -193,3 +193,24 @@ def replace_folder(tmp: Path, out: Path) -> None:
         out.rmdir()
     os.replace(tmp, out)
     fsync_dir(out.parent)
+
+
+@contextmanager
+def building_folder(out: Path) -> Iterator[Path]:
+    """Build the new folder ``out`` all at once: yields a hidden folder beside it to write into,
+    which replaces ``out`` when the block ends normally and is removed when it raises (anything,
+    Ctrl-C included), so ``out`` is either complete or untouched.
+
+    >>> with building_folder(Path("datasets/mycar")) as tmp:
+    ...     (tmp / "meta").mkdir()
+
+    Raises TubError (before yielding) if ``out`` exists and is not an empty folder.
+    """
+    check_new_folder(out)
+    tmp = new_folder_tmp(out)
+    try:
+        yield tmp
+        replace_folder(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise

@@ -31,6 +31,7 @@ logger = logging.getLogger(__name__)
 OnError = Literal["skip", "raise"]
 IMAGE_KEY = "cam/image_array"
 ANGLE_KEYS = ("user/angle", "user/steering")  # DonkeyCar renamed user/angle for a while (#1103)
+SPEED_KEYS = ("enc/speed", "sim/speed")         # measured speed (m/s): encoder first, else the simulator's
 
 
 class TubRecord:

@@ -24,14 +24,18 @@ import csv
 import io
 import itertools
 import logging
+import math
 import os
 import re
-import shutil
 import time
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from parts.tub.errors import TubError
+from parts.tub.errors import CorruptRecord, TubError
+from parts.tub.format import MANIFEST, building_folder
+from parts.tub.manifest import parse_manifest
+from parts.tub.reader import IMAGE_KEY, SPEED_KEYS, TubRecord, find_tubs, iter_records
 from parts.tub.tub import Tub
 
 logger = logging.getLogger(__name__)
@@ -223,26 +227,38 @@ STYLES: dict[str, tuple[bool, str, bool]] = {
     "sample": (True, ", ", False),     # Udacity's sample data.zip: header, ", ", IMG/... paths
     "semicolon": (True, ";", False),   # header, ";" (spreadsheet exports; read by behavioural-cloning scripts)
 }
-SIDES = (("center", "cam/image_array"), ("left", "cam/image_array_left"), ("right", "cam/image_array_right"))
-SPEED_KEYS = ("enc/speed", "sim/speed")
+SIDES = (("center", IMAGE_KEY), ("left", "cam/image_array_left"), ("right", "cam/image_array_right"))
 
 
 @dataclass
 class UdacityExportReport:
-    """What ``export_udacity`` wrote."""
+    """What ``export_udacity`` wrote, and what it left out and why."""
 
     out: Path
     rows: int = 0
     cameras: list[str] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)  # "tub: record N: reason"
+    why_skipped: Counter[str] = field(default_factory=Counter)  # reason -> records
+
+    def skip(self, what: str, why: str, detail: str = "") -> None:
+        """Count a record left out: ``what`` names it (tub: record N), ``why`` is its category."""
+        self.why_skipped[why] += 1
+        self.skipped.append(f"{what}: {detail or why}")
+
+    def skipped_summary(self) -> str:
+        """``skipped 3: 2 without a cam/image_array image, 1 with a non-finite number``."""
+        if not self.skipped:
+            return "skipped 0"
+        return f"skipped {len(self.skipped)}: " + ", ".join(f"{n} {why}" for why, n in self.why_skipped.items())
 
 
 def _stamp(ms: int, images: Path) -> str:
     """The simulator's file-name time ``yyyy_MM_dd_HH_mm_ss_fff`` (local time); a millisecond
-    whose frame is already written is moved on by 1 ms, so that no two frames share a name."""
+    for which any camera's frame is already written is moved on by 1 ms, so that no two frames
+    share a name."""
     while True:
         stamp = time.strftime("%Y_%m_%d_%H_%M_%S", time.localtime(ms // 1000)) + f"_{ms % 1000:03d}"
-        if not (images / f"center_{stamp}.jpg").exists():
+        if not any((images / f"{side}_{stamp}.jpg").exists() for side, _ in SIDES):
             return stamp
         ms += 1
 
@@ -253,64 +269,95 @@ def _csv_field(text: str, sep: str) -> str:
     return text
 
 
+def _is_number(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _numbers(rec: TubRecord) -> tuple[list[float] | None, str, str]:
+    """(steering, throttle, brake, speed in mph) of a record, or (None, why, detail)."""
+    angle, throttle = rec.angle, rec.throttle
+    if not _is_number(angle) or not _is_number(throttle):
+        return None, "without user/angle or user/throttle", ""
+    brake = rec.get("user/brake")
+    speed_key = next((k for k in SPEED_KEYS if _is_number(rec.get(k))), None)
+    named = (("steering", angle), ("user/throttle", throttle), ("user/brake", brake if _is_number(brake) else 0.0),
+             (speed_key or "speed", rec[speed_key] if speed_key else 0.0))
+    for name, value in named:
+        if not math.isfinite(value):
+            return None, "with a non-finite number", f"{name} is {value} (NaN or infinity)"
+    steering, throttle, brake, speed = (float(v) for _, v in named)
+    return [steering, throttle, brake, speed / MPH_TO_MS], "", ""
+
+
 def export_udacity(tubs: list[str | os.PathLike[str]] | str | os.PathLike[str], out: str | os.PathLike[str], *,
                    style: str = "simulator", progress: bool = False) -> UdacityExportReport:
     """Write the live records of ``tubs`` as a Udacity recording: ``out/driving_log.csv`` + ``out/IMG/``.
 
     Each record gives one row ``center,left,right,steering,throttle,brake,speed``: the JPEGs of
-    ``cam/image_array`` (and ``cam/image_array_left``/``_right`` where the tub has them; empty
-    columns otherwise) copied as ``IMG/{center|left|right}_<capture time>.jpg``, ``user/angle``,
-    ``user/throttle`` (negative = reverse, as the tub has it), ``user/brake`` (0 without it) and
-    the speed in mph from ``enc/speed`` or ``sim/speed`` (m/s; 0 without either). ``style``: one of
-    :data:`STYLES`. ``import-udacity`` reads every style back.
+    ``cam/image_array`` (and ``cam/image_array_left``/``_right`` where its tub has them; empty
+    columns for a tub without) copied as ``IMG/{center|left|right}_<capture time>.jpg``,
+    ``user/angle``, ``user/throttle`` (negative = reverse, as the tub has it), ``user/brake`` (0
+    without it) and the speed in mph from ``enc/speed`` or ``sim/speed`` (m/s; 0 without either).
+    Records without a centre image (or without an image their tub's other cameras should have),
+    without steering or throttle, or with a NaN or infinite number are left out and counted in
+    the report. The CSV is written as the records stream by, into a hidden folder renamed to
+    ``out`` when complete. ``style``: one of :data:`STYLES`. ``import-udacity`` reads every style back.
     """
     from tqdm import tqdm
-
-    from parts.tub.format import check_new_folder, new_folder_tmp, replace_folder
-    from parts.tub.reader import find_tubs, iter_records
 
     if style not in STYLES:
         raise TubError(f"unknown driving_log style {style!r}; choose one of {', '.join(STYLES)}")
     header, sep, absolute = STYLES[style]
     final = Path(os.path.expanduser(os.fspath(out))).absolute()
-    check_new_folder(final)
     paths = find_tubs(tubs)
     report = UdacityExportReport(final)
-    tmp = new_folder_tmp(final)
-    errors: list = []
-    try:
-        (tmp / "IMG").mkdir()
-        lines = [sep.strip().join(COLUMNS)] if header else []  # the sample's header has no spaces
-        for rec in tqdm(iter_records(paths, errors=errors), desc="export", unit="rec", disable=not progress,
-                        leave=False):
-            angle, throttle = rec.angle, rec.throttle
-            if not isinstance(angle, int | float) or not isinstance(throttle, int | float):
-                report.skipped.append(f"{rec.tub}: record {rec.index}: no user/angle or user/throttle value")
+    errors: list[CorruptRecord] = []
+    sides_of: dict[Path, list[tuple[str, str]]] = {}  # tub -> the cameras its records must have
+    with building_folder(final) as tmp, open(tmp / "driving_log.csv", "w", encoding="utf-8", newline="") as log:
+        images_dir = tmp / "IMG"
+        images_dir.mkdir()
+        if header:
+            log.write(sep.strip().join(COLUMNS) + "\n")  # the sample's header has no spaces
+        for rec in tqdm(iter_records(paths, errors=errors, check_images=False), desc="export", unit="rec",
+                        disable=not progress, leave=False):
+            what = f"{rec.tub}: record {rec.index}"
+            numbers, why, detail = _numbers(rec)
+            if numbers is None:
+                report.skip(what, why, detail)
                 continue
-            ts = rec.timestamp_ms
-            stamp = _stamp(int(ts) if isinstance(ts, int | float) else int(time.time() * 1000), tmp / "IMG")
-            images = []
-            for side, key in SIDES:
+            if rec.tub not in sides_of:
+                inputs = parse_manifest(rec.tub / MANIFEST).manifest.inputs
+                sides_of[rec.tub] = [(side, key) for side, key in SIDES if key == IMAGE_KEY or key in inputs]
+            images: dict[str, bytes] = {}
+            for side, key in sides_of[rec.tub]:
                 if rec.get(key) is None:
-                    images.append("")
-                    continue
-                name = f"{side}_{stamp}.jpg"
-                (tmp / "IMG" / name).write_bytes(rec.image_bytes(key))
-                images.append(str(final / "IMG" / name) if absolute else f"IMG/{name}")
-                if side not in report.cameras:
-                    report.cameras.append(side)
-            speed = next((rec.get(k) for k in SPEED_KEYS if isinstance(rec.get(k), int | float)), 0.0)
-            brake = rec.get("user/brake")
-            numbers = [float(angle), float(throttle), float(brake) if isinstance(brake, int | float) else 0.0,
-                       float(speed) / MPH_TO_MS]
-            lines.append(sep.join([_csv_field(p, sep) for p in images] + [repr(v) for v in numbers]))
-            report.rows += 1
-        report.skipped.extend(str(e) for e in errors)
+                    report.skip(what, f"without a {key} image")
+                    break
+                try:
+                    images[side] = rec.image_bytes(key)
+                except CorruptRecord as exc:
+                    report.skip(what, "with a missing or empty image file", f"{key}: {exc.reason}")
+                    break
+            else:
+                ts = rec.timestamp_ms
+                stamp = _stamp(int(ts) if _is_number(ts) else int(time.time() * 1000), images_dir)
+                columns = []
+                for side, _ in SIDES:
+                    if side not in images:
+                        columns.append("")
+                        continue
+                    name = f"{side}_{stamp}.jpg"
+                    (images_dir / name).write_bytes(images[side])
+                    columns.append(str(final / "IMG" / name) if absolute else f"IMG/{name}")
+                    if side not in report.cameras:
+                        report.cameras.append(side)
+                log.write(sep.join([_csv_field(c, sep) for c in columns] + [repr(v) for v in numbers]) + "\n")
+                report.rows += 1
+        for e in errors:
+            report.skip(f"{e.tub}: record {e.index}", "that cannot be read", f"{e.file.name}: {e.reason}")
         if not report.rows:
-            raise TubError(f"{', '.join(map(str, paths))}: no records to export")
-        (tmp / "driving_log.csv").write_text("".join(line + "\n" for line in lines), encoding="utf-8")
-        replace_folder(tmp, final)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+            raise TubError(f"{', '.join(map(str, paths))}: no records to export ({report.skipped_summary()}"
+                           + (f", first: {report.skipped[0]}" if report.skipped else "") + ")")
+    if report.skipped:
+        logger.warning("%s; first: %s", report.skipped_summary(), report.skipped[0])
     return report

@@ -1,7 +1,7 @@
 """The web controller and driver monitor: a browser page that drives the car (see docs/web.md).
 
-Modules: ``part`` (WebController, the threaded part), ``server`` (python-socketio on aiohttp),
+Modules: ``controller`` (WebController, the threaded part), ``server`` (python-socketio on aiohttp),
 ``state`` (the lock-protected slot shared with the loop, dead-man rule), ``protocol`` (message
-validation), ``pairing`` (token, URL, QR), ``arbiter`` (web page + gamepad), ``devtools`` (headless
-chromium over the DevTools protocol, for tests and benchmarks). Nothing heavy is imported here.
+validation), ``pairing`` (token, URL, QR), ``arbiter`` (web page + gamepad). Nothing heavy is
+imported here.
 """

@@ -27,7 +27,7 @@ import numpy as np
 from parts.web.pairing import is_loopback, page_url, resolve_token, terminal_qr
 from parts.web.server import LatestFrame, WebServer
 from parts.web.state import ControlState, Telemetry
-from vehicle.part import ThreadedPart
+from vehicle.part import ThreadedPart, run_event_loop
 
 logger = logging.getLogger(__name__)
 
@@ -69,14 +69,14 @@ class WebController(ThreadedPart):
     #: memory keys the part reads (telemetry for the page), in this order
     INPUTS: Final = ("cam/image_array", "user/mode", "recording", "estop", "tub/num_records",
                      "angle", "throttle", "pilot/angle", "pilot/throttle", "pilot/model",
-                     "sim/speed", "enc/speed", "loop/rate_hz", "loop/overruns")
+                     "sim/speed", "enc/speed", "loop/rate_hz", "loop/overruns", "behavior/label")
     #: every input is telemetry for the page: it may be absent (None) and is the last loop's value
     #: when a part added after the controller produces it (drive mode, pilot, tub writer ...)
     OPTIONAL_INPUTS: Final = INPUTS
     FEEDBACK: Final = INPUTS
     #: memory keys the part writes, in this order
     OUTPUTS: Final = ("user/angle", "user/throttle", "user/mode", "recording", "estop",
-                      "user/speed_limit", "pilot/model_request")
+                      "user/speed_limit", "pilot/model_request", "web/behavior_step")
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8887, token: str | None = None, *,
                  deadman_s: float = 0.5, init_mode: str = "user", max_throttle: float = 0.5,
@@ -158,15 +158,9 @@ class WebController(ThreadedPart):
         loop = self._loop
         assert loop is not None  # open() ran  # noqa: S101
         try:
-            loop.run_until_complete(self.server.serve_until_stopped(self._runner))
+            run_event_loop(loop, self.server.serve_until_stopped(self._runner))
         finally:
             self.stop_event.set()
-            pending = asyncio.all_tasks(loop)
-            for task in pending:
-                task.cancel()
-            loop.run_until_complete(asyncio.gather(*pending, return_exceptions=True))
-            loop.run_until_complete(loop.shutdown_asyncgens())
-            loop.close()
         return self.NOTHING
 
     def shutdown(self) -> None:
@@ -178,7 +172,7 @@ class WebController(ThreadedPart):
     def run_threaded(self, *inputs: Any) -> tuple[Any, ...]:
         """Hand this loop's telemetry and frame to the page; return the browsers' commands:
         ``(user/angle, user/throttle, user/mode, recording, estop, user/speed_limit,
-        pilot/model_request)``."""
+        pilot/model_request, web/behavior_step)``."""
         if self.error is not None:
             raise RuntimeError(f"web controller thread failed: {self.error!r}") from self.error
         values = dict(zip(self.INPUTS, inputs, strict=False))
@@ -195,6 +189,7 @@ class WebController(ThreadedPart):
         recording = values.get("recording")
         estop = values.get("estop")
         model = values.get("pilot/model")
+        behavior = values.get("behavior/label")
         self.state.report(Telemetry(
             mode=mode if isinstance(mode, str) else None,
             recording=bool(recording) if isinstance(recording, bool | np.bool_) else None,
@@ -205,10 +200,11 @@ class WebController(ThreadedPart):
             pilot_throttle=_num(values.get("pilot/throttle")),
             pilot_model=Path(model).name if isinstance(model, str) else None,
             speed=speed, loop_rate_hz=_num(values.get("loop/rate_hz")),
-            loop_overruns=int(overruns) if isinstance(overruns, int | np.integer) else None))
+            loop_overruns=int(overruns) if isinstance(overruns, int | np.integer) else None,
+            behavior=behavior if isinstance(behavior, str) else None))
         cmd = self.state.outputs()
         return (cmd.angle, cmd.user_throttle(), cmd.mode, cmd.recording, cmd.estop,
-                cmd.speed_limit, cmd.model_request)
+                cmd.speed_limit, cmd.model_request, cmd.behavior_step)
 
     def run(self, *inputs: Any) -> tuple[Any, ...]:
         """Non-threaded use: start the server on first call, then as :meth:`run_threaded`."""

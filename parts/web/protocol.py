@@ -13,6 +13,7 @@ Client → server events (all payloads are JSON objects):
 ``estop``         ``{"on": bool}`` — latch or release the emergency stop.
 ``take_control``  no payload — this browser becomes the driver.
 ``models``        no payload — list the model files again.
+``behavior``      ``{"step": 1 | -1}`` — select the next / previous behaviour (e.g. change lane).
 
 Each handler answers with an acknowledgement ``{"ok": true}`` or ``{"ok": false, "error": "..."}``.
 """
@@ -127,3 +128,13 @@ def parse_estop(payload: Any) -> bool:
     if "on" not in msg:
         raise ProtocolError("estop: missing 'on' (true latches the stop, false releases it)")
     return _bool(msg, "on", "estop")
+
+
+def parse_behavior(payload: Any) -> int:
+    """Validate a ``behavior`` message; return the step: +1 (next behaviour) or -1 (previous)."""
+    msg = _require_object(payload, "behavior")
+    _no_extra(msg, ("step",), "behavior")
+    step = msg.get("step")
+    if isinstance(step, bool) or step not in (1, -1):
+        raise ProtocolError(f"behavior: step must be 1 (next) or -1 (previous), got {step!r}")
+    return int(step)

@@ -321,10 +321,21 @@ class WebServer:
         async def models(sid: str, data: Any = None) -> dict[str, Any]:
             return {"ok": True, "models": self._models()}
 
+        @sio.on("behavior")
+        async def behavior(sid: str, data: Any = None) -> dict[str, Any]:
+            if not self.state.is_driver(sid):
+                return self._reject(sid, "behavior: this browser watches; press 'Take control' first")
+            try:
+                step = protocol.parse_behavior(data)
+            except protocol.ProtocolError as exc:
+                return self._reject(sid, str(exc))
+            self.state.step_behavior(step)
+            return {"ok": True}
+
         @sio.on("*")
         async def unknown(event: str, sid: str, data: Any = None) -> dict[str, Any]:
             return self._reject(sid, f"unknown event {event!r}; the page sends drive, set, estop, "
-                                "take_control, models")
+                                "take_control, models, behavior")
 
     async def _telemetry(self) -> None:
         period = 1.0 / self.telemetry_hz

@@ -36,6 +36,7 @@ class Commands:
     constant_throttle: bool = False  # throttle = max_throttle while the page drives
     speed_limit: float | None = None  # m/s, for the speed controller; None = no limit
     model_request: str | None = None  # path of the model file asked for
+    behavior_step: int = 0  # behaviour steps asked since the loop last read them (+ next, - previous)
 
     def user_throttle(self) -> float:
         """The throttle the controller outputs: scaled, or constant when that mode is on."""
@@ -62,6 +63,7 @@ class Telemetry:
     speed: float | None = None
     loop_rate_hz: float | None = None
     loop_overruns: int | None = None
+    behavior: str | None = None  # label of the active behaviour (e.g. Left_Lane), None = no behaviours
     loops: int = 0  # loops seen by the controller
 
 
@@ -176,6 +178,11 @@ class ControlState:
                 self._last_control = self._clock()
                 self._armed = True
 
+    def step_behavior(self, step: int) -> None:
+        """Ask for the next (+1) or previous (-1) behaviour; the loop applies it once."""
+        with self._lock:
+            self._cmd.behavior_step += step
+
     def set_estop(self, on: bool) -> None:
         """Latch (True) or release (False) the emergency stop. Latching also stops the car."""
         with self._lock:
@@ -220,7 +227,9 @@ class ControlState:
                                    "throttle 0, user mode", silent, self.deadman_s)
                     self._stop_locked("dead-man")
             self._dirty.clear()
-            return Commands(**asdict(cmd))
+            out = Commands(**asdict(cmd))
+            cmd.behavior_step = 0  # a step is applied once
+            return out
 
     def _stop_locked(self, why: str) -> None:
         logger.debug("web controller stop: %s", why)

@@ -4,6 +4,7 @@
     python manage.py drive                            # drive from the web page or gamepad, record tubs
     python manage.py drive --model models/pilot.pt    # let a trained pilot drive
     python manage.py train --tubs data --model models/pilot.pt
+    python manage.py console                          # datasets, training, models in the browser
 
 Settings live in myconfig.py (overrides of the defaults; see docs/config.md); set CAMERA_TYPE and
 DRIVE_TRAIN_TYPE to "MOCK" to run on the bench without hardware. To add a part of your own,
@@ -39,6 +40,7 @@ def main(argv=None):
     d.add_argument("--model", help="trained pilot to drive with (a models/*.pt file)")
     d.add_argument("--max-loops", type=int, metavar="N", help="stop after N loops")
     manage.add_train_command(parser)  # the options of `vehicle train`, on this car's data/
+    manage.add_console_command(parser)  # the trainer console: datasets, training, models, leaderboard
     return manage.main(parser, Path(__file__).resolve().parent, argv)
 
 

@@ -1,11 +1,16 @@
 #!/usr/bin/env python3
-"""Drive, record and train this car in the built-in simulator.
+"""Drive, record and train this car in a simulator: ours (built in), Udacity's or Donkey's.
 
     python manage.py drive                            # drive from the web page, record tubs
     python manage.py drive --model models/pilot.pt    # let a trained pilot drive
     python manage.py drive --expert --record-records 3000 --tracks 1,2,3
                                                       # record demonstrations, no human needed
+    python manage.py drive --sim udacity              # drive the Udacity simulator (Autonomous Mode)
+    python manage.py drive --sim donkey               # drive the Donkey simulator at SIM_HOST:SIM_PORT
+    python manage.py drive --expert --record-records 6000 --lane-changes 40
+                                                      # ... changing lanes (SIM_LANES = 2)
     python manage.py train --tubs data --model models/pilot.pt
+    python manage.py console                          # datasets, training, models in the browser
 
 Settings live in myconfig.py (overrides of the defaults; see docs/config.md). To add a part of
 your own, insert a V.add(...) between two helper calls in drive().
@@ -16,7 +21,6 @@ from pathlib import Path
 from vehicle import Vehicle
 from vehicle.app import assembly, manage
 from vehicle.app.record import record_expert
-from vehicle.clock import SimulatedClock
 from vehicle.errors import UserError
 
 
@@ -24,13 +28,16 @@ def drive(cfg, args):
     """Assemble the simulated car and drive it until Ctrl-C (or --max-loops)."""
     if args.expert:
         return record_demonstrations(cfg, args)
-    V = Vehicle(clock=None if cfg.SIM_REALTIME else SimulatedClock())  # simulated time: as fast as the CPU allows
-    assembly.add_simulator(V, cfg, seeds=args.tracks)  # angle, throttle -> cam/image_array, sim/*
+    V = Vehicle(clock=assembly.sim_clock(cfg, args.sim))  # SIM_REALTIME = False: as fast as the CPU allows
+    assembly.add_simulator(V, cfg, seeds=args.tracks, sim_type=args.sim)  # angle, throttle -> cam/image_array, sim/*
     assembly.add_controller(V, cfg)  # web page (and gamepad) -> user/angle, user/throttle, user/mode
+    assembly.add_camera_watchdog(V, cfg)  # a stalled Udacity/Donkey simulator takes the pilot out
+    assembly.add_behavior(V, cfg)  # TRAIN_BEHAVIORS: lane buttons -> behavior/state, behavior/one_hot_state_array
     if args.model:
         assembly.add_pilot(V, cfg, args.model)  # cam/image_array -> pilot/angle, pilot/throttle
     assembly.add_drive_mode(V, cfg)  # user/* or pilot/* -> angle, throttle
     assembly.add_tub_writer(V, cfg)  # records every loop while `recording` is on
+    assembly.add_simulator_commands(V)  # last: Udacity/Donkey get this loop's angle, throttle at once
     return manage.run(V, cfg, args.max_loops)
 
 
@@ -38,7 +45,9 @@ def record_demonstrations(cfg, args):
     """Let the built-in expert drive in simulated time and record --record-records N records."""
     if not args.record_records:
         raise UserError("--expert records demonstrations: add --record-records N (e.g. 3000)")
-    tub = record_expert(cfg, args.tracks, args.record_records)
+    if (args.sim or cfg.SIM_TYPE) != "builtin":
+        raise UserError("--expert drives the built-in simulator only: drop --sim (or set SIM_TYPE = \"builtin\")")
+    tub = record_expert(cfg, args.tracks, args.record_records, lane_changes=args.lane_changes)
     print(f"recorded {args.record_records} expert records into {tub}")
     return 0
 
@@ -49,9 +58,12 @@ def main(argv=None):
     d.add_argument("--model", help="trained pilot to drive with (a models/*.pt file)")
     d.add_argument("--expert", action="store_true", help="let the built-in expert drive and record (simulated time)")
     d.add_argument("--record-records", type=int, metavar="N", help="with --expert: records to write")
+    d.add_argument("--lane-changes", type=int, metavar="N", help="with --expert: change lanes N times at random")
     d.add_argument("--tracks", type=manage.int_list, metavar="SEEDS", help="track seeds, e.g. 1,2,3")
+    d.add_argument("--sim", choices=["builtin", "udacity", "donkey"], help="simulator to drive (default: SIM_TYPE)")
     d.add_argument("--max-loops", type=int, metavar="N", help="stop after N loops")
     manage.add_train_command(parser)  # the options of `vehicle train`, on this car's data/
+    manage.add_console_command(parser)  # the trainer console: datasets, training, models, leaderboard
     return manage.main(parser, Path(__file__).resolve().parent, argv)
 
 

@@ -11,6 +11,9 @@ reported with the closest valid name.
 
 # -- simulator
 # SIM_TRACK_SEEDS = [1]          # tracks to drive; `vehicle sim track --seed N --png t.png` draws one
+# SIM_TYPE = "builtin"           # or "udacity" / "donkey": drive their simulator (docs/simulators.md)
+# SIM_HOST = "127.0.0.1"         # the Donkey simulator's machine (SIM_PORT = 9091)
+# DONKEY_GYM_ENV_NAME = "donkey-generated-track-v0"
 
 # -- driving with a pilot
 # AI_THROTTLE_MULT = 1.0

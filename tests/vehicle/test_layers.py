@@ -14,17 +14,37 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 
 
+def module_name(path: Path) -> str:
+    """``parts/sim/track.py`` -> ``parts.sim.track`` (a package's ``__init__`` is the package)."""
+    parts = list(path.relative_to(ROOT).with_suffix("").parts) if path.is_relative_to(ROOT) else [path.stem]
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
 def imports_of(path: Path) -> set[str]:
-    """Every module name ``path`` imports, at any depth of the file."""
+    """Every module name ``path`` imports, at any depth of the file: import statements (relative
+    ones resolved) and string literals given to ``importlib.import_module`` / ``__import__``."""
     tree = ast.parse(path.read_text(), filename=str(path))
+    package = module_name(path) if path.name == "__init__.py" else module_name(path).rpartition(".")[0]
     names: set[str] = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             names.update(alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            names.add(node.module)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")[: len(package.split(".")) - (node.level - 1)]
+                base = ".".join([*anchor, *([base] if base else [])])
+            names.add(base)
             # `from vehicle import app` imports the module vehicle.app
-            names.update(f"{node.module}.{alias.name}" for alias in node.names)
+            names.update(f"{base}.{alias.name}" for alias in node.names)
+        elif isinstance(node, ast.Call) and node.args and (
+                getattr(node.func, "attr", None) == "import_module" or getattr(node.func, "id", None) in (
+                    "import_module", "__import__")):
+            first = node.args[0]
+            if isinstance(first, ast.Constant) and isinstance(first.value, str):
+                names.add(first.value)
+            elif isinstance(first, ast.JoinedStr) and first.values and isinstance(first.values[0], ast.Constant):
+                names.add(str(first.values[0].value).rstrip("."))  # f"parts.tub.{name}": its prefix
     return names
 
 
@@ -47,6 +67,17 @@ def test_the_checker_sees_imports_inside_functions(tmp_path):
     module = tmp_path / "m.py"
     module.write_text("def f():\n    from vehicle import app\n    import parts.sim.track\n")
     assert {"vehicle.app", "parts.sim.track"} <= imports_of(module)
+
+
+def test_the_checker_resolves_relative_and_dynamic_imports():
+    probe = ROOT / "vehicle" / "_layer_probe.py"
+    probe.write_text("from .app.cli import main\nfrom . import keys\nimport importlib\n"
+                     "importlib.import_module('parts.sim.track')\nimportlib.import_module(f'vehicle.app.{1}')\n")
+    try:
+        found = imports_of(probe)
+    finally:
+        probe.unlink()
+    assert {"vehicle.app.cli", "vehicle.keys", "parts.sim.track", "vehicle.app"} <= found
 
 
 @pytest.mark.parametrize(("folder", "pattern", "forbidden"), [

@@ -6,7 +6,7 @@ from typing import ClassVar
 
 import pytest
 
-from vehicle import Vehicle
+from vehicle import ThreadedPart, Vehicle
 from vehicle.clock import SimulatedClock
 from vehicle.errors import WiringError
 from vehicle.keys import is_valid_key, rename
@@ -90,9 +90,70 @@ def test_seeded_keys_count_as_produced_and_feedback_must_be_an_input():
 def test_declared_optional_keys_follow_renamed_inputs():
     V = Vehicle(clock=SimulatedClock())
     V.add(Source())
-    V.add(Follower(), inputs=["user/angle", "js/angle"])  # the declaration names pilot/angle only
-    assert V.parts[1].optional == frozenset()
-    with pytest.raises(WiringError, match="'js/angle' is produced by no part"):
+    V.add(Follower(), inputs=["user/angle", "js/angle"])  # same order: pilot/angle is now js/angle
+    assert V.parts[1].optional == {"js/angle"}
+    V.check_wiring()
+    V.add(Follower(), inputs=["user/angle"])  # another shape: the declaration does not apply
+    assert V.parts[2].optional == frozenset()
+
+
+def test_a_declaration_with_a_key_outside_its_inputs_is_refused():
+    class Typo(Follower):
+        OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("pilot/angel",)
+
+    with pytest.raises(ValueError, match=r"'Typo': its OPTIONAL_INPUTS \['pilot/angel'\] are not among its INPUTS"):
+        Vehicle().add(Typo())
+
+
+def test_a_part_may_read_its_own_last_output_and_each_key_is_reported_once():
+    V = Vehicle(clock=SimulatedClock())
+    seen = []
+    V.add(lambda last: seen.append(last) or (last or 0) + 1, inputs=["count/n"], outputs=["count/n"])
+    V.start(rate_hz=20, max_loop_count=3)
+    assert seen == [None, 1, 2]
+    V = Vehicle(clock=SimulatedClock())
+    V.add(Follower(), inputs=["user/flag", "pilot/angle"], run_condition="user/flag")
+    with pytest.raises(WiringError) as err:
+        V.check_wiring()
+    assert str(err.value).count("'user/flag'") == 1 and "input 'user/flag'" in str(err.value)
+
+
+def test_a_run_condition_produced_later_is_a_lag_too():
+    V = Vehicle(clock=SimulatedClock())
+    V.add(Source(), run_condition="recording")
+    V.add(lambda: True, outputs=["recording"])
+    with pytest.raises(WiringError, match="'Source' run_condition 'recording' is read before part 'lambda'"):
+        V.check_wiring()
+
+
+def test_an_undeclared_donkey_part_read_before_its_producer_is_a_warning(caplog):
+    class DonkeyWeb:  # DonkeyCar's LocalWebController shows tub/num_records written later
+        def run(self, num_records):
+            return 0.0
+
+    V = Vehicle(clock=SimulatedClock())
+    V.add(DonkeyWeb(), inputs=["tub/num_records"], outputs=["user/angle"])
+    V.add(lambda: 3, outputs=["tub/num_records"])
+    V.check_wiring()
+    assert "'DonkeyWeb' input 'tub/num_records' is read before part 'lambda'" in caplog.text
+
+
+def test_declarations_are_read_statically_and_threaded_parts_are_checked():
+    from unittest import mock
+
+    V = Vehicle(clock=SimulatedClock())
+    V.add(mock.MagicMock(), outputs=["user/angle"])  # a mock answers every attribute: no declaration
+    assert V.parts[0].inputs == () and V.parts[0].outputs == ("user/angle",)
+
+    class Cam(ThreadedPart):
+        OUTPUTS: ClassVar[tuple[str, ...]] = ("cam/image_array",)
+        INPUTS: ClassVar[tuple[str, ...]] = ("user/mode",)
+
+        def poll(self):
+            return ThreadedPart.NOTHING
+
+    V.add(Cam(), threaded=True)
+    with pytest.raises(WiringError, match="'Cam' input 'user/mode' is produced by no part"):
         V.check_wiring()
 
 

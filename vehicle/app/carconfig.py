@@ -4,8 +4,9 @@ Every command that reads a car's settings takes ``--car DIR`` and ``--myconfig F
 :func:`add_car_options`) and calls :func:`load_for_command`, so the rules are the same everywhere:
 
 - ``--car DIR`` names the car folder (default: the current folder); it must exist.
-- ``--myconfig FILE`` selects another override file (relative paths are taken in the car folder);
-  it must exist.
+- ``--myconfig FILE`` selects another override file; it must exist. With ``--car`` a relative path
+  is taken in the car folder; without, the file's own folder is the car folder (as
+  ``manage.py --myconfig`` and DonkeyCar do).
 - Without ``--myconfig``, ``<car>/myconfig.py`` is used when it exists, else the defaults (a
   command run outside any car folder works with the package defaults, ``CAR_PATH`` = the folder).
 - An invalid override file is an error (one line: file, line, setting). A command that exists to
@@ -52,8 +53,13 @@ def load_for_command(args: argparse.Namespace) -> Config:
         UserError: ``--car`` or ``--myconfig`` does not exist.
         ConfigError: the override file is invalid.
     """
-    car = car_folder(args)
     myconfig = getattr(args, "myconfig", None)
+    if myconfig and not getattr(args, "car", None):
+        path = Path(myconfig).expanduser()
+        if not path.is_file():
+            raise UserError(f"--myconfig {myconfig}: no such file; pass an existing override file")
+        return load_config(path.resolve().name, car_path=path.resolve().parent)
+    car = car_folder(args)
     if myconfig and not (car / myconfig).is_file():
         raise UserError(f"--myconfig {myconfig}: no such file in {car}; pass an existing override file")
     if not myconfig and not (car / "myconfig.py").is_file():

@@ -19,9 +19,13 @@ COMMAND_MODULES: tuple[str, ...] = (
     "vehicle.app.commands.demo",
     "vehicle.app.commands.train",
     "vehicle.app.commands.calibrate",
+    "vehicle.app.commands.camera",
+    "vehicle.app.commands.lanes",
     "vehicle.app.commands.createjs",
     "vehicle.app.commands.sim",
     "vehicle.app.commands.tub",
+    "vehicle.app.commands.udacity",
+    "vehicle.app.commands.console",
 )
 
 

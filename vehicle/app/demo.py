@@ -57,7 +57,7 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
         raise ValueError(f"need records >= 100, epochs >= 1 and laps >= 1 (got {records}, {epochs}, {laps})")
     out = out.resolve()
     cfg = Config.defaults(CAR_PATH=str(out), **DEMO_SETTINGS)
-    _write_myconfig(out)
+    write_myconfig(out, DEMO_SETTINGS, "vehicle demo")
     tub = out / "data" / "demo_tub"
     if tub.exists():
         shutil.rmtree(tub)  # the demo records afresh each run; it never touches other folders
@@ -81,19 +81,7 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
          f"{metrics['epochs']} ({seconds['train']:.0f} s)")
 
     t = time.perf_counter()
-    from parts.pilots.backends import onnxruntime_available
-
-    try:
-        import onnx  # noqa: F401
-        have_onnx = onnxruntime_available()
-    except ImportError:
-        have_onnx = False
-    if have_onnx:
-        from parts.pilots.export import export_model
-
-        say(f"[3/4] exporting to ONNX: {export_model(model_path, 'onnx')}")
-    else:
-        say("[3/4] onnx/onnxruntime not installed: the pilot runs in PyTorch")
+    export_onnx(model_path)
     seconds["export"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -111,13 +99,33 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
             "metrics": metrics}
 
 
-def _write_myconfig(out: Path) -> None:
+def write_myconfig(out: Path, settings: dict[str, Any], source: str) -> None:
     """Make ``out`` a car folder with the demo's settings (kept if it already has a myconfig.py),
     so ``vehicle models --car``, ``vehicle sim eval`` and ``manage.py`` there use them too."""
     path = out / "myconfig.py"
     if path.exists():
         return
     out.mkdir(parents=True, exist_ok=True)
-    lines = ['"""Settings of the `vehicle demo` car (written by the demo)."""', ""]
-    lines += [f"{name} = {value!r}" for name, value in DEMO_SETTINGS.items()]
+    lines = [f'"""Settings of the `{source}` car (written by the demo)."""', ""]
+    lines += [f"{name} = {value!r}" for name, value in settings.items()]
     path.write_text("\n".join(lines) + "\n")
+
+
+def export_onnx(model_path: Path) -> Path | None:
+    """Export to ONNX next to the model when onnx and onnxruntime are installed (the pilot then
+    runs the export); says what it did. Returns the export, or None."""
+    from parts.pilots.backends import onnxruntime_available
+
+    try:
+        import onnx  # noqa: F401
+        have_onnx = onnxruntime_available()
+    except ImportError:
+        have_onnx = False
+    if not have_onnx:
+        say("[3/4] onnx/onnxruntime not installed: the pilot runs in PyTorch")
+        return None
+    from parts.pilots.export import export_model
+
+    path = export_model(model_path, "onnx")
+    say(f"[3/4] exporting to ONNX: {path}")
+    return path

@@ -13,10 +13,26 @@ simulated car applies them. Leaving the road counts as an intervention: the car 
 road next to where it left (what a person would do) and the episode goes on. Metrics:
 :mod:`parts.sim.metrics` (DAVE-2 autonomy, time-weighted |CTE| over autonomous frames, ...).
 
-With ``workers > 1`` the tracks run in parallel worker processes, each with its own simulator and
-its own copy of the pilot (loaded from the model file, or the expert), torch and OpenCV limited to
-``cores // workers`` threads so the workers do not oversubscribe the machine. Every episode depends
-only on its seed, so the report is the serial one (a test checks they are identical).
+The same loop drives the other simulators (``sim="donkey"`` / ``"udacity"``): the Donkey simulator
+(or ``vehicle sim serve``) in synchronous steps of 1 / DRIVE_LOOP_HZ, one episode per scene, an
+off-track event answered with ``reset_car`` (back to the start line: the simulator cannot
+re-centre); the Udacity simulator in real time on the track it shows, where the user's manual
+overrides (W/S held) are the interventions and only frames that arrived are scored. What a
+simulator does not report (stock Udacity: CTE, laps, progress, position) is named in the report as
+unavailable, never counted as zero.
+
+A behaviour pilot on two-lane tracks (SIM_LANES = 2, a pilot reading
+``behavior/one_hot_state_array``) is also commanded to change lanes, the thesis's experiment: a
+:class:`parts.drive.behavior.BehaviorSchedule` steps the behaviour at seeded times
+(SIM_EVAL_LANE_CHANGE_EVERY), and :class:`parts.sim.lane_metrics.LaneMetrics` scores lane keeping
+and every change (success within SIM_EVAL_LANE_CHANGE_TIME_LIMIT, time to change, wrong-lane
+time); the report gets a ``lanes`` section per track and overall.
+
+On the built-in simulator, with ``workers > 1`` the tracks run in parallel worker processes, each
+with its own simulator and its own copy of the pilot (loaded from the model file, or the expert),
+torch and OpenCV limited to ``cores // workers`` threads so the workers do not oversubscribe the
+machine. Every episode depends only on its seed, so the report is the serial one (a test checks
+they are identical).
 """
 
 from __future__ import annotations
@@ -31,14 +47,16 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from parts.drive.behavior import BehaviorSchedule, behavior_lane, periodic_change_times
 from parts.drive.modes import PilotCondition
-from parts.sim.expert import Expert
+from parts.sim.lane_metrics import CommandedLane, LaneMetrics, overall_lane_metrics
 from parts.sim.metrics import EpisodeMetrics, overall
 from parts.sim.simulator import SimCar
 from vehicle import Vehicle
-from vehicle.app.assembly.drive import add_drive_mode
+from vehicle.app.assembly.drive import add_behavior, add_drive_mode
+from vehicle.app.assembly.sim import add_expert
 from vehicle.clock import SimulatedClock
-from vehicle.keys import Mode
+from vehicle.keys import Mode, rename
 from vehicle.part import part_name
 
 logger = logging.getLogger(__name__)
@@ -47,6 +65,10 @@ logger = logging.getLogger(__name__)
 SECONDS_PER_LAP_LIMIT = 60.0
 #: what a pilot reads when it declares nothing
 DEFAULT_PILOT_INPUTS = ("cam/image_array",)
+#: simulators evaluate() drives
+SIMULATORS = ("builtin", "donkey", "udacity")
+#: seconds an evaluation waits for the Udacity simulator to send its first frame
+UDACITY_WAIT_S = 120.0
 
 
 class Engaged:
@@ -74,9 +96,12 @@ class Lent:
         self.pilot = pilot
         self.name = part_name(pilot)
         self.run = pilot.run
-        self.INPUTS = tuple(getattr(pilot, "INPUTS", None) or getattr(pilot, "inputs", None)  # noqa: N815
-                            or DEFAULT_PILOT_INPUTS)
+        inputs = getattr(pilot, "INPUTS", None)
+        if inputs is None:
+            inputs = getattr(pilot, "inputs", None)
+        self.INPUTS = tuple(DEFAULT_PILOT_INPUTS if inputs is None else inputs)  # noqa: N815
         self.OPTIONAL_INPUTS = tuple(getattr(pilot, "OPTIONAL_INPUTS", ()))  # noqa: N815
+        self.FEEDBACK = tuple(getattr(pilot, "FEEDBACK", ()))  # noqa: N815
         self.OUTPUTS = ("pilot/angle", "pilot/throttle")  # noqa: N815
 
 
@@ -86,8 +111,12 @@ def _default_config() -> Any:
     return Config.defaults()
 
 
-def resolve_pilot(pilot: Any) -> tuple[Any, str, bool]:
-    """(pilot part or "expert", display name, whether we loaded it and must shut it down)."""
+def resolve_pilot(pilot: Any, cfg: Any = None) -> tuple[Any, str, bool]:
+    """(pilot part or "expert", display name, whether we loaded it and must shut it down).
+
+    A model file is loaded as ``manage.py drive --model`` loads it, with the car's back-end and
+    speed-control settings (``cfg``; default: the package defaults).
+    """
     if isinstance(pilot, str) and pilot == "expert":
         return "expert", "expert", False
     if isinstance(pilot, str | Path):
@@ -95,25 +124,28 @@ def resolve_pilot(pilot: Any) -> tuple[Any, str, bool]:
         if not path.exists():
             raise FileNotFoundError(f"pilot model {path} does not exist: pass 'expert' or the path of a "
                                     "trained model file (see `manage.py train`)")
-        from parts.pilots import load_pilot
+        from vehicle.app.assembly.pilot import make_pilot
 
-        return load_pilot(path), path.name, True
+        cfg = cfg if cfg is not None else _default_config()
+        return make_pilot(cfg, path, measured_speed_key="sim/speed"), path.name, True
     if callable(getattr(pilot, "run", None)):
         return pilot, getattr(pilot, "name", None) or type(pilot).__name__, False
     raise TypeError(f"pilot must be 'expert', a model path or an object with run(), got {type(pilot).__name__}")
 
 
-def evaluate(pilot: Any, seeds: Sequence[int], laps: int = 2, *, cfg: Any = None,
+def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, cfg: Any = None,
              max_time: float | None = None, penalty_s: float | None = None,
              fixed_throttle: float | None = None, extra_inputs: dict[str, Any] | None = None,
-             on_step: Callable[[SimCar], None] | None = None, workers: int = 1) -> dict[str, Any]:
+             on_step: Callable[[SimCar], None] | None = None, sim: str = "builtin",
+             scenes: Sequence[str] | None = None, lane_changes: bool | None = None,
+             workers: int = 1) -> dict[str, Any]:
     """Drive ``pilot`` for ``laps`` laps on each track seed and return the report (a JSON-able dict).
 
     Args:
         pilot: "expert", a model file path (loaded with ``parts.pilots.load_pilot``), or a pilot
             part: an object with ``run(*inputs) -> (angle, throttle)`` and optionally ``INPUTS`` (or
             ``inputs``: memory keys, default ``["cam/image_array"]``).
-        seeds: track seeds (use tracks the pilot was not trained on).
+        seeds: track seeds of the built-in simulator (use tracks the pilot was not trained on).
         laps: laps per track.
         cfg: a Config (default: package defaults); SIM_* settings shape tracks, camera and car.
         max_time: simulated seconds per episode at most (default SIM_EVAL_MAX_TIME, else 60 s/lap).
@@ -122,20 +154,39 @@ def evaluate(pilot: Any, seeds: Sequence[int], laps: int = 2, *, cfg: Any = None
             otherwise the pilot drives ("local": its throttle scaled by AI_THROTTLE_MULT).
         extra_inputs: values for memory keys the pilot needs that the simulator does not make.
         on_step: called with the sim car after every step (e.g. to show or record frames).
-        workers: processes running tracks in parallel (0: one per core; capped at the number of
-            tracks). Needs ``pilot`` to be "expert" or a model file (a worker loads its own copy)
-            and no ``on_step``; otherwise the tracks run one after another.
+        sim: "builtin", "donkey" (SIM_HOST:SIM_PORT) or "udacity" (UDACITY_PORT).
+        scenes: Donkey scenes, one episode each (default DONKEY_GYM_ENV_NAME).
+        lane_changes: command lane changes and score them (see the module docstring); None: when
+            SIM_LANES = 2 and the pilot reads the behaviour (or is the expert with TRAIN_BEHAVIORS)
+            and ``extra_inputs`` does not fix it.
+        workers: built-in simulator: processes running tracks in parallel (0: one per core;
+            capped at the number of tracks). Needs ``pilot`` to be "expert" or a model file (a
+            worker loads its own copy) and no ``on_step``; otherwise the tracks run one after
+            another. The report is the same either way.
 
     Returns:
-        ``{"pilot", "laps", "seeds", "settings", "tracks": [per-track metrics], "overall": {...}}``.
+        ``{"pilot", "simulator", "laps", "seeds", "settings", "tracks": [per-track metrics],
+        "overall": {...}}``; each track's and the overall ``unavailable`` name the metrics the
+        simulator cannot give.
+        With lane changes each track and the overall dict also hold ``"lanes"``
+        (:func:`parts.sim.lane_metrics.lane_metrics`).
 
     Raises:
         ValueError: bad arguments, or the pilot reads keys nothing produces (a WiringError).
+        parts.bridges.errors.BridgeError: the Donkey or Udacity simulator cannot be reached.
     """
     cfg = cfg if cfg is not None else _default_config()
-    seeds = [seeds] if isinstance(seeds, int) else list(seeds)
-    if not seeds or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds):
-        raise ValueError(f"seeds must be a non-empty list of ints, got {seeds!r}")
+    if sim not in SIMULATORS:
+        raise ValueError(f"unknown simulator {sim!r}: use one of {', '.join(SIMULATORS)}")
+    if sim == "builtin":
+        seeds = [seeds] if isinstance(seeds, int) else list(seeds or [])
+        if not seeds or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds):
+            raise ValueError(f"seeds must be a non-empty list of ints, got {seeds!r}")
+        episodes: list[Any] = list(seeds)
+    elif sim == "donkey":
+        episodes = list(scenes or [cfg.DONKEY_GYM_ENV_NAME])
+    else:
+        episodes = ["udacity"]  # the track the simulator shows
     if not isinstance(laps, int) or isinstance(laps, bool) or laps < 1:
         raise ValueError(f"laps must be an int >= 1, got {laps!r}")
     if max_time is None:
@@ -148,50 +199,88 @@ def evaluate(pilot: Any, seeds: Sequence[int], laps: int = 2, *, cfg: Any = None
 
     if not isinstance(workers, int) or isinstance(workers, bool) or workers < 0:
         raise ValueError(f"workers must be an int >= 0 (0 = one per core), got {workers!r}")
-    n_workers = min(workers or os.cpu_count() or 1, len(seeds))
-    episode = {"max_time": max_time, "penalty_s": penalty, "fixed_throttle": fixed_throttle,
-               "extra_inputs": extra_inputs}
+    n_workers = min(workers or os.cpu_count() or 1, len(episodes)) if sim == "builtin" else 1
+    parallel = n_workers > 1 and on_step is None and (pilot == "expert" or isinstance(pilot, str | Path))
+    if n_workers > 1 and not parallel:
+        logger.info("evaluating the tracks one after another: parallel workers need 'expert' or a model "
+                    "file (each loads its own copy) and no on_step callback")
+
+    # loaded here also for a parallel run: a missing or broken model file fails with its own message,
+    # and the pilot's inputs decide the lane changes
+    driver, name, owned = resolve_pilot(pilot, cfg)
     started = time.perf_counter()
-    if n_workers > 1 and on_step is None and (pilot == "expert" or isinstance(pilot, str | Path)):
-        # loaded here once too, so a missing or broken model file fails with its own message
-        driver, name, owned = resolve_pilot(pilot)
+    try:
+        if driver == "expert" and sim != "builtin":
+            raise ValueError(f"the expert drives the built-in simulator only: pass a model file to evaluate on "
+                             f"the {sim} simulator")
+        lanes_on = sim == "builtin" and _lane_changes(driver, cfg, extra_inputs, lane_changes)
+        episode_args = {"max_time": max_time, "penalty_s": penalty, "fixed_throttle": fixed_throttle,
+                        "extra_inputs": extra_inputs, "lanes": lanes_on}
+        if parallel:
+            if owned and callable(getattr(driver, "shutdown", None)):
+                owned = False
+                driver.shutdown()
+            outcomes = _run_parallel(pilot, episodes, laps, cfg, n_workers, episode_args, name)
+        else:
+            outcomes = []
+            for episode in episodes:
+                if sim == "builtin":
+                    outcomes.append(_builtin_episode(driver, episode, laps, cfg, episode_args, on_step))
+                else:
+                    metrics = run_bridge_episode(driver, sim, episode, laps, cfg, max_time=max_time,
+                                                 penalty_s=penalty, fixed_throttle=fixed_throttle,
+                                                 extra_inputs=extra_inputs)
+                    outcomes.append((metrics.result(), metrics.autonomous_abs_cte()))
+                _log_episode(name, episode, laps, outcomes[-1][0])
+    finally:
         if owned and callable(getattr(driver, "shutdown", None)):
             driver.shutdown()
-        episodes = _run_parallel(pilot, seeds, laps, cfg, n_workers, episode)
+    results = [res for res, _ in outcomes]
+    pooled = [abs_cte for _, abs_cte in outcomes]  # |cte| of autonomous frames, for the overall percentile
+    settings: dict[str, Any] = {"dt": 1.0 / cfg.DRIVE_LOOP_HZ, "penalty_s": penalty, "max_time_s": max_time,
+                                "fixed_throttle": fixed_throttle}
+    if sim == "builtin":
+        settings.update({"road_width_m": cfg.SIM_ROAD_WIDTH, "lanes": cfg.SIM_LANES,
+                         "image": [cfg.SIM_CAMERA_W, cfg.SIM_CAMERA_H], "off_track_cte_m": cfg.SIM_OFF_TRACK_CTE,
+                         "track_size_m": cfg.SIM_TRACK_SIZE})
+    elif sim == "donkey":
+        settings.update({"host": cfg.SIM_HOST, "port": cfg.SIM_PORT, "synchronous": True,
+                         "max_cte": cfg.DONKEY_MAX_CTE, "image": [cfg.IMAGE_W, cfg.IMAGE_H]})
     else:
-        if n_workers > 1:
-            logger.info("evaluating the tracks one after another: parallel workers need 'expert' or a model "
-                        "file (each loads its own copy) and no on_step callback")
-        driver, name, owned = resolve_pilot(pilot)
-        try:
-            episodes = []
-            for seed in seeds:
-                metrics = run_episode(driver, seed, laps, cfg, **episode, on_step=on_step)
-                episodes.append((metrics.result(), metrics.autonomous_abs_cte()))
-                _log_track(name, laps, episodes[-1][0])
-        finally:
-            if owned and callable(getattr(driver, "shutdown", None)):
-                driver.shutdown()
-    results = [res for res, _ in episodes]
-    pooled = [abs_cte for _, abs_cte in episodes]  # |cte| of autonomous frames, for the overall percentile
+        settings.update({"port": cfg.UDACITY_PORT, "realtime": True, "interventions": "manual overrides"})
     return {
         "pilot": name,
+        "simulator": sim,
         "laps": laps,
-        "seeds": seeds,
-        "settings": {"dt": 1.0 / cfg.DRIVE_LOOP_HZ, "penalty_s": penalty, "max_time_s": max_time,
-                     "fixed_throttle": fixed_throttle, "road_width_m": cfg.SIM_ROAD_WIDTH,
-                     "lanes": cfg.SIM_LANES, "image": [cfg.SIM_CAMERA_W, cfg.SIM_CAMERA_H],
-                     "off_track_cte_m": cfg.SIM_OFF_TRACK_CTE, "track_size_m": cfg.SIM_TRACK_SIZE},
+        "seeds": episodes,
+        "settings": settings,
         "tracks": results,
-        "overall": overall(results, penalty, np.concatenate(pooled)),
+        "overall": {**overall(results, penalty, np.concatenate(pooled)),
+                    **({"lanes": overall_lane_metrics([r["lanes"] for r in results])} if lanes_on else {})},
         "wall_time_s": round(time.perf_counter() - started, 3),
     }
 
 
-def _log_track(name: str, laps: int, res: dict[str, Any]) -> None:
-    logger.info("eval %s on track %d: autonomy %.1f %%, %d/%d laps, mean |cte| %.3f m, %d off-track",
-                name, res["seed"], res["autonomy"], res["laps_completed"], laps, res["mean_abs_cte"] or 0.0,
-                res["interventions"])
+def _log_episode(name: str, episode: Any, laps: int, res: dict[str, Any]) -> None:
+    logger.info("eval %s on %s: autonomy %.1f %%, %s/%d laps, mean |cte| %s, %d interventions",
+                name, episode, res["autonomy"], res["laps_completed"], laps,
+                "-" if res["mean_abs_cte"] is None else f"{res['mean_abs_cte']:.3f}", res["interventions"])
+
+
+def _builtin_episode(driver: Any, seed: int, laps: int, cfg: Any, episode_args: dict[str, Any],
+                     on_step: Callable[[SimCar], None] | None = None) -> tuple[dict[str, Any], np.ndarray]:
+    """One built-in episode's (metrics, |cte| of its autonomous frames), lane metrics included
+    when ``episode_args["lanes"]``."""
+    args = dict(episode_args)
+    lane_part = None
+    if args.pop("lanes"):
+        lane_part = LaneMetrics(1.0 / cfg.DRIVE_LOOP_HZ, cfg.SIM_ROAD_WIDTH / 2,
+                                time_limit=cfg.SIM_EVAL_LANE_CHANGE_TIME_LIMIT, hold=cfg.SIM_EVAL_LANE_CHANGE_HOLD)
+    metrics = run_episode(driver, seed, laps, cfg, **args, on_step=on_step, lanes=lane_part)
+    res = metrics.result()
+    if lane_part is not None:
+        res["lanes"] = lane_part.result()
+    return res, metrics.autonomous_abs_cte()
 
 
 # -- parallel evaluation -----------------------------------------------------------------------------
@@ -216,7 +305,7 @@ def _sendable_config(cfg: Any) -> tuple[dict[str, Any], frozenset[str], Any]:
 
 
 def _init_worker(pilot: Any, config: tuple[dict[str, Any], frozenset[str], Any], tracks: dict[int, Any],
-                 threads: int, laps: int, episode: dict[str, Any]) -> None:
+                 threads: int, laps: int, episode_args: dict[str, Any]) -> None:
     """Runs once in each worker: thread limits, the parent's hand-made tracks, settings, pilot."""
     import sys
 
@@ -228,20 +317,20 @@ def _init_worker(pilot: Any, config: tuple[dict[str, Any], frozenset[str], Any],
     cv2.setNumThreads(threads)
     for track in tracks.values():
         register_track(track)
-    driver, name, _ = resolve_pilot(pilot)
+    cfg = Config(*config)
+    driver, _, _ = resolve_pilot(pilot, cfg)
     if "torch" in sys.modules:  # a model pilot loaded it; the expert needs none (0.75 s to import)
         sys.modules["torch"].set_num_threads(threads)
-    _WORKER.update(cfg=Config(*config), driver=driver, name=name, laps=laps, episode=episode)
+    _WORKER.update(cfg=cfg, driver=driver, laps=laps, episode_args=episode_args)
 
 
 def _worker_episode(seed: int) -> tuple[dict[str, Any], np.ndarray]:
     w = _WORKER
-    metrics = run_episode(w["driver"], seed, w["laps"], w["cfg"], **w["episode"])
-    return metrics.result(), metrics.autonomous_abs_cte()
+    return _builtin_episode(w["driver"], seed, w["laps"], w["cfg"], w["episode_args"])
 
 
 def _run_parallel(pilot: Any, seeds: list[int], laps: int, cfg: Any, n_workers: int,
-                  episode: dict[str, Any]) -> list[tuple[dict[str, Any], np.ndarray]]:
+                  episode_args: dict[str, Any], name: str) -> list[tuple[dict[str, Any], np.ndarray]]:
     """The episodes of ``seeds`` in ``n_workers`` processes, in seed order."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
@@ -249,47 +338,154 @@ def _run_parallel(pilot: Any, seeds: list[int], laps: int, cfg: Any, n_workers: 
     from parts.sim.simulator import registered_tracks
 
     threads = max(1, (os.cpu_count() or 1) // n_workers)
-    name = "expert" if pilot == "expert" else Path(pilot).name
     logger.info("evaluating %d tracks in %d worker processes (%d thread(s) each)", len(seeds), n_workers, threads)
     # spawn, not fork: a forked copy of a process whose OpenMP threads already ran can hang
     context = multiprocessing.get_context("spawn")
     pilot_arg = pilot if pilot == "expert" else str(Path(pilot).expanduser().resolve())
-    initargs = (pilot_arg, _sendable_config(cfg), registered_tracks(), threads, laps, episode)
-    episodes = []
+    initargs = (pilot_arg, _sendable_config(cfg), registered_tracks(), threads, laps, episode_args)
+    outcomes = []
     with ProcessPoolExecutor(n_workers, mp_context=context, initializer=_init_worker, initargs=initargs) as pool:
-        for res, abs_cte in pool.map(_worker_episode, seeds):
-            _log_track(name, laps, res)
-            episodes.append((res, abs_cte))
-    return episodes
+        for seed, (res, abs_cte) in zip(seeds, pool.map(_worker_episode, seeds), strict=True):
+            _log_episode(name, seed, laps, res)
+            outcomes.append((res, abs_cte))
+    return outcomes
+
+
+def add_engaged_pilot(V: Vehicle, driver: Any, fixed_throttle: float | None) -> None:
+    """The driver engages the pilot (``user/mode`` local, or local_angle with a fixed throttle) and
+    the pilot part runs; a pilot with ``reset()`` (sequence models) starts with no memory of the
+    previous episode."""
+    if callable(getattr(driver, "reset", None)):
+        driver.reset()
+    V.add(Engaged(fixed_throttle))
+    V.add(PilotCondition())
+    V.add(Lent(driver), run_condition="run_pilot")
+
+
+def _lane_changes(driver: Any, cfg: Any, extra_inputs: dict[str, Any] | None, asked: bool | None) -> bool:
+    """Whether the episodes command lane changes (see :func:`evaluate`)."""
+    if asked is False:
+        return False
+    reads = "behavior/one_hot_state_array" in tuple(getattr(driver, "INPUTS", None) or getattr(driver, "inputs", None)
+                                                    or ())
+    if asked is None:
+        fixed = bool(extra_inputs) and "behavior/one_hot_state_array" in extra_inputs
+        return cfg.SIM_LANES == 2 and not fixed and (reads or (driver == "expert" and cfg.TRAIN_BEHAVIORS))
+    if cfg.SIM_LANES != 2:
+        raise ValueError(f"lane changes need two-lane tracks: SIM_LANES = 2 (it is {cfg.SIM_LANES})")
+    if driver != "expert" and not reads:
+        raise ValueError("lane changes are commanded through behavior/one_hot_state_array, which this pilot does "
+                         "not read: evaluate a behaviour model (types behavior, lanes)")
+    return True
 
 
 def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float, penalty_s: float,
                 fixed_throttle: float | None = None, extra_inputs: dict[str, Any] | None = None,
-                on_step: Callable[[SimCar], None] | None = None) -> EpisodeMetrics:
+                on_step: Callable[[SimCar], None] | None = None, lanes: LaneMetrics | None = None) -> EpisodeMetrics:
     """One episode on track ``seed``: build the loop, run it to the end, return its metrics part.
 
     ``driver`` is "expert" or a pilot part; a pilot with a ``reset()`` (sequence models) starts the
-    episode with no memory of the previous track, so every track is scored on its own.
+    episode with no memory of the previous track, so every track is scored on its own. With
+    ``lanes`` (a :class:`LaneMetrics`, filled by the episode) the behaviour is stepped at seeded
+    times (SIM_EVAL_LANE_CHANGE_EVERY) and the car starts in the initial behaviour's lane.
     """
     # image jitter stays as configured: a pilot is judged on the images it will get
     sim = SimCar.from_config(cfg, seeds=[seed], reset_off_track=True, reset_to="nearest", realtime=False)
     V = Vehicle(clock=SimulatedClock())
     V.mem.update(extra_inputs or {})  # seeded: keys the simulator does not make
     V.add(sim)
+    if lanes is not None:
+        cfg = cfg.replace(TRAIN_BEHAVIORS=True)
+        times = periodic_change_times(max_time, tuple(cfg.SIM_EVAL_LANE_CHANGE_EVERY),
+                                      seed=(cfg.SIM_SEED * 1_000_003 + seed))
+        V.add(BehaviorSchedule(times, sim.dt))
+        behavior = add_behavior(V, cfg)
+        lane = behavior_lane(behavior.behaviors[behavior.state])
+        if lane is not None:  # start in the initial behaviour's lane
+            sim.start_offset = sim.track.lane_offset(lane)
+            sim.select_track(seed)
+        V.add(CommandedLane(sim))
     if driver == "expert":
-        V.add(Expert.from_config(cfg, sim))  # user mode: the expert is the "human"
+        # user mode: the expert is the "human"; it follows behaviours only when they are commanded
+        add_expert(V, cfg if lanes is not None else cfg.replace(TRAIN_BEHAVIORS=False), sim)
         if fixed_throttle is not None:
             V.add(lambda: fixed_throttle, outputs=["user/throttle"])
     else:
-        if callable(getattr(driver, "reset", None)):
-            driver.reset()
-        V.add(Engaged(fixed_throttle))
-        V.add(PilotCondition())
-        V.add(Lent(driver), run_condition="run_pilot")
+        add_engaged_pilot(V, driver, fixed_throttle)
     add_drive_mode(V, cfg)
     metrics = EpisodeMetrics(sim.dt, laps, max_time, penalty_s, stop=V.stop, seed=seed,
                              track_length=sim.track.length,
                              on_step=(lambda: on_step(sim)) if on_step is not None else None)
     V.add(metrics)
+    if lanes is not None:
+        V.add(lanes)
     V.start(rate_hz=cfg.DRIVE_LOOP_HZ, log_summary=False)
+    return metrics
+
+
+class ResetOnOffTrack:
+    """Part: an off-track event asks the Donkey simulator for ``reset_car`` (rising ``sim/reset``),
+    as a person would put the car back; the simulator puts it on the start line."""
+
+    INPUTS: ClassVar[tuple[str, ...]] = ("sim/off_track",)
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("sim/reset",)
+
+    def run(self, off_track: Any) -> bool:
+        return bool(off_track)
+
+
+class StopIfNoSimulator:
+    """Part: stops the loop when no frame arrived within ``wait_s`` seconds of the start."""
+
+    INPUTS: ClassVar[tuple[str, ...]] = ("cam/ok",)
+
+    def __init__(self, wait_s: float, stop: Callable[[], None]) -> None:
+        self.wait_s, self.stop = wait_s, stop
+        self.started = time.monotonic()
+        self.seen = False
+        self.gave_up = False
+
+    def run(self, ok: Any) -> None:
+        self.seen = self.seen or bool(ok)
+        if not self.seen and time.monotonic() - self.started > self.wait_s:
+            self.gave_up = True
+            self.stop()
+
+
+def run_bridge_episode(driver: Any, sim_type: str, scene: str, laps: int, cfg: Any, *, max_time: float,
+                       penalty_s: float, fixed_throttle: float | None = None,
+                       extra_inputs: dict[str, Any] | None = None) -> EpisodeMetrics:
+    """One episode on the Donkey simulator (synchronous steps, scene ``scene``) or the Udacity
+    simulator (real time): the same loop as :func:`run_episode` around the bridge part."""
+    from vehicle.app.assembly.sim import add_simulator, add_simulator_commands, make_bridge
+
+    dt = 1.0 / cfg.DRIVE_LOOP_HZ
+    if sim_type == "donkey":
+        V = Vehicle(clock=SimulatedClock())  # each loop is one synchronous simulator step
+        bridge = make_bridge(cfg.replace(DONKEY_GYM_ENV_NAME=scene), "donkey", synchronous=True, time_step=dt)
+        bridge.start()  # connect now: an unreachable simulator is an error, not a failed loop
+        V.add(bridge, feedback=("angle", "throttle", "sim/reset"))  # run(): send, then wait for the step
+    else:
+        V = Vehicle()  # the Udacity simulator runs in real time
+        add_simulator(V, cfg, sim_type="udacity")
+    V.mem.update(extra_inputs or {})
+    add_engaged_pilot(V, driver, fixed_throttle)
+    add_drive_mode(V, cfg)
+    metrics = EpisodeMetrics(dt, laps, max_time, penalty_s, stop=V.stop, seed=scene)  # type: ignore[arg-type]
+    waiter = None
+    if sim_type == "donkey":
+        V.add(metrics)
+        V.add(ResetOnOffTrack())
+    else:
+        # score only frames that arrived; the user's manual overrides are the interventions
+        V.add(metrics, inputs=list(rename(EpisodeMetrics.INPUTS, {"sim/off_track": "sim/manual"})),
+              run_condition="cam/ok")
+        waiter = StopIfNoSimulator(UDACITY_WAIT_S, V.stop)
+        V.add(waiter)
+        add_simulator_commands(V)
+        logger.info("evaluation: start the Udacity simulator in Autonomous Mode on the track to drive")
+    V.start(rate_hz=cfg.DRIVE_LOOP_HZ, log_summary=False)
+    if waiter is not None and waiter.gave_up:
+        raise ValueError(f"no frame from the Udacity simulator within {UDACITY_WAIT_S:.0f} s: start it, choose "
+                         f"Autonomous Mode, and check it connects to port {cfg.UDACITY_PORT}")
     return metrics

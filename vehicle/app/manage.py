@@ -52,6 +52,15 @@ def add_train_command(parser: argparse.ArgumentParser) -> argparse.ArgumentParse
     return p
 
 
+def add_console_command(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """Add ``console``: the trainer console of this car in the browser (``vehicle console``)."""
+    from vehicle.app.commands.console import add_console_arguments, serve
+
+    p = add_command(parser, "console", serve, "the trainer console in the browser: datasets, training, models")
+    add_console_arguments(p)
+    return p
+
+
 def main(parser: argparse.ArgumentParser, car_path: str | Path, argv: Sequence[str] | None = None) -> int:
     """Parse ``argv``, load the car's config and run the chosen command; returns the exit code."""
     args = parser.parse_args(argv)
@@ -99,7 +108,7 @@ def run(V: Any, cfg: Config, max_loops: int | None = None) -> int:
     0: max loops reached or stopped by a part; 1: a part failed; 130: Ctrl-C; 128+N: signal N.
     """
     loops = max_loops if max_loops is not None else cfg.MAX_LOOPS
-    logger.info("starting %d parts at %d Hz%s\n%s", len(V.parts), cfg.DRIVE_LOOP_HZ,
+    logger.info("starting at %d Hz%s\n%s", cfg.DRIVE_LOOP_HZ,
                 f" for {loops} loops" if loops else " (Ctrl-C to stop)", V.describe())
     try:
         V.start(rate_hz=cfg.DRIVE_LOOP_HZ, max_loop_count=loops)

@@ -1,9 +1,14 @@
 """Record expert demonstrations in the simulator into a tub, in simulated time.
 
 The vehicle is the simulator car's usual loop: sim car → expert (user/angle, user/throttle,
-recording=True) → executed command (optionally perturbed by noise injection) → tub writer. The
-tub stores the expert's clean command as the label, so with SIM_EXPERT_NOISE > 0 the data shows
-how to recover from the perturbed poses.
+recording=True) → DriveMode → executed command (optionally perturbed by noise injection) → tub
+writer. The tub stores the expert's clean command as the label, so with SIM_EXPERT_NOISE > 0 the
+data shows how to recover from the perturbed poses.
+
+With ``lane_changes`` (two-lane tracks), a :class:`parts.drive.behavior.BehaviorSchedule` steps the
+behaviour (BEHAVIOR_LIST, e.g. Left_Lane / Right_Lane) at seeded random times, the expert moves
+to the lane of the active behaviour, and every record carries ``behavior/state``,
+``behavior/label`` and ``behavior/one_hot_state_array``: the thesis's lane-change data.
 """
 
 from __future__ import annotations
@@ -15,6 +20,8 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
+
+from vehicle.errors import UserError
 
 logger = logging.getLogger(__name__)
 
@@ -56,7 +63,7 @@ def _as_config(cfg_or_car: Any) -> Any:
 
 
 def record_expert(cfg: Any, seeds: Sequence[int] | None, n_records: int, tub_path: str | os.PathLike[str] | None = None,
-                  *, noise: float | None = None) -> Path:
+                  *, noise: float | None = None, lane_changes: int | None = None) -> Path:
     """Let the expert drive and record ``n_records`` records; returns the tub's path.
 
     Args:
@@ -66,10 +73,15 @@ def record_expert(cfg: Any, seeds: Sequence[int] | None, n_records: int, tub_pat
         tub_path: the tub folder to write (created; an existing tub is appended to). None: a new tub
             in the car's data folder, as ``manage.py drive`` records.
         noise: steering noise amplitude for noise injection (None: SIM_EXPERT_NOISE).
+        lane_changes: commanded lane changes spread at random over the recording (two-lane tracks:
+            SIM_LANES = 2; turns TRAIN_BEHAVIORS on). None or 0: the behaviour stays BEHAVIOR_INITIAL
+            (still recorded with TRAIN_BEHAVIORS).
 
     Raises:
         ValueError: n_records < 1 or bad seeds.
+        UserError: lane changes on one-lane tracks, or more than fit into the recording.
     """
+    from vehicle.app.assembly.drive import add_drive_mode
     from vehicle.app.assembly.sim import add_expert, add_expert_noise, add_simulator
     from vehicle.clock import SimulatedClock
     from vehicle.vehicle import Vehicle
@@ -83,17 +95,42 @@ def record_expert(cfg: Any, seeds: Sequence[int] | None, n_records: int, tub_pat
         "METADATA": [*cfg.METADATA, "source:sim expert", f"tracks:{','.join(map(str, seeds))}"]}
     if noise is not None:
         overrides["SIM_EXPERT_NOISE"] = float(noise)
+    if lane_changes:
+        if cfg.SIM_LANES != 2:
+            raise UserError(f"lane changes need two-lane tracks: set SIM_LANES = 2 in myconfig.py (it is "
+                            f"{cfg.SIM_LANES})")
+        overrides["TRAIN_BEHAVIORS"] = True
+        overrides["METADATA"] = [*overrides["METADATA"], f"lane_changes:{lane_changes}"]
     cfg = cfg.replace(**overrides)
 
     V = Vehicle(clock=SimulatedClock())
     sim = add_simulator(V, cfg, seeds=seeds)
     if len(seeds) > 1:
         sim.switch_every = math.ceil(n_records / len(seeds))
+    fields = list(RECORD_FIELDS)
+    if cfg.TRAIN_BEHAVIORS:
+        from parts.drive.behavior import BehaviorSchedule, behavior_lane, random_change_times
+        from vehicle.app.assembly.drive import add_behavior
+
+        dt = 1.0 / cfg.DRIVE_LOOP_HZ
+        try:
+            times = random_change_times(int(lane_changes or 0), n_records * dt, seed=cfg.SIM_SEED)
+        except ValueError as exc:
+            raise UserError(f"--lane-changes {lane_changes}: {exc}") from None
+        V.add(BehaviorSchedule(times, dt), outputs=list(BehaviorSchedule.OUTPUTS))
+        part = add_behavior(V, cfg)
+        from vehicle.app.assembly.tub import BEHAVIOR_FIELDS
+
+        fields += BEHAVIOR_FIELDS
+        lane = behavior_lane(part.behaviors[part.state])
+        if lane is not None and cfg.SIM_LANES == 2:  # start in the lane of the initial behaviour
+            sim.start_offset = sim.track.lane_offset(lane)
+            sim.select_track(sim.seeds[0])
     add_expert(V, cfg, sim)
-    if add_expert_noise(V, cfg, inputs=("user/angle", "user/throttle")) is None:
-        V.add(_passthrough, inputs=["user/angle", "user/throttle"], outputs=["angle", "throttle"])
-    keys = [k for k, _ in RECORD_FIELDS]
-    types = [t for _, t in RECORD_FIELDS]
+    add_drive_mode(V, cfg)  # user mode: the expert's command, clamped, as on the car
+    add_expert_noise(V, cfg)  # perturbs the executed command; the tub keeps the expert's label
+    keys = [k for k, _ in fields]
+    types = [t for _, t in fields]
     if tub_path is not None:  # record exactly there: the data folder is the tub
         cfg = cfg.replace(DATA_PATH=str(Path(tub_path).expanduser().absolute()), AUTO_CREATE_NEW_TUB=False)
     from vehicle.app.assembly.tub import add_tub_writer
@@ -108,7 +145,3 @@ def record_expert(cfg: Any, seeds: Sequence[int] | None, n_records: int, tub_pat
                 n_records, seeds, path, time.perf_counter() - t0, sim.tracker.laps, sim.resets)
     return path
 
-
-def _passthrough(angle: float, throttle: float) -> tuple[float, float]:
-    """The expert's command is executed as is (no noise injection)."""
-    return angle, throttle

@@ -12,6 +12,7 @@ from typing import Any
 
 from parts.pilots.models.base import PilotModel
 from parts.pilots.models.cnn import BehaviorModel, CategoricalModel, InferredModel, LinearModel, MemoryModel
+from parts.pilots.models.lanes import LanesModel
 from parts.pilots.models.pilotnet import PilotNetModel
 from parts.pilots.models.sequence import Conv3DModel, RNNModel
 
@@ -31,7 +32,7 @@ def register_model_type(cls: type[PilotModel]) -> type[PilotModel]:
 
 
 for _cls in (LinearModel, CategoricalModel, InferredModel, PilotNetModel, MemoryModel, BehaviorModel,
-             RNNModel, Conv3DModel):
+             RNNModel, Conv3DModel, LanesModel):
     register_model_type(_cls)
 
 

@@ -1,4 +1,4 @@
-"""NVIDIA DAVE-2 (PilotNet) as in the Udacity seeds: steering only, throttle derived."""
+"""NVIDIA DAVE-2 (PilotNet) as in the Udacity behavioural-cloning projects: steering only, throttle derived."""
 
 from __future__ import annotations
 

@@ -52,17 +52,20 @@ class Part:
         values = [float(v) for v in value]
         return values if len(values) == self.width else [math.nan] * self.width
 
-    def restore(self, values: list[float], record: dict[str, Any]) -> None:
+    def restore(self, values: list[float], record: dict[str, Any], key: str | None = None) -> None:
+        """Put the values back into ``record`` under ``key`` (default: this part's key; one of its
+        aliases for a record whose tub used that name)."""
         if any(math.isnan(v) for v in values):
             return  # missing in the tub: left out, as the tub left it out
+        key = key or self.key
         if self.type in ("nparray", "list", "vector"):
-            record[self.key] = [int(round(v)) for v in values] if self.items == "int" else list(values)
+            record[key] = [int(round(v)) for v in values] if self.items == "int" else list(values)
         elif self.type == "int":
-            record[self.key] = int(round(values[0]))
+            record[key] = int(round(values[0]))
         elif self.type == "boolean":
-            record[self.key] = bool(values[0])
+            record[key] = bool(values[0])
         else:
-            record[self.key] = values[0]
+            record[key] = values[0]
 
     def spec(self) -> dict[str, Any]:
         out: dict[str, Any] = {"key": self.key, "type": self.type, "width": self.width}
@@ -101,8 +104,9 @@ class Column:
             return ""
         return str(value) if self.encoding == "plain" else json.dumps(value, separators=(",", ":"))
 
-    def restore(self, value: Any, record: dict[str, Any]) -> None:
-        """Put the column's value of one row back as tub fields into ``record``."""
+    def restore(self, value: Any, record: dict[str, Any], renames: dict[str, str] | None = None) -> None:
+        """Put the column's value of one row back as tub fields into ``record`` (``renames``: tub
+        key -> the alias the record's own tub used, e.g. user/angle -> user/steering)."""
         if self.kind == "vector":
             if self.dtype == "float32":
                 # the shortest decimal that is this float32: 0.3 comes back as 0.3, not 0.30000001192...
@@ -111,7 +115,7 @@ class Column:
                 values = np.atleast_1d(np.asarray(value, dtype=np.float64)).tolist()
             i = 0
             for part in self.parts:
-                part.restore(values[i:i + part.width], record)
+                part.restore(values[i:i + part.width], record, renames.get(part.key) if renames else None)
                 i += part.width
         elif self.kind == "text":
             if value not in (None, ""):
@@ -122,6 +126,17 @@ class Column:
     def fields(self) -> list[tuple[str, str]]:
         """(tub key, tub type) of every field behind the column."""
         return [(p.key, p.type) for p in self.parts] if self.kind == "vector" else [(self.key, self.type)]
+
+    def renames(self, inputs: list[str]) -> dict[str, str]:
+        """For a tub with these inputs: part key -> the alias it used instead (user/angle ->
+        user/steering in a DonkeyCar 4.x tub)."""
+        out = {}
+        for part in self.parts:
+            if part.key not in inputs:
+                used = next((a for a in part.aliases if a in inputs), None)
+                if used:
+                    out[part.key] = used
+        return out
 
     def spec(self) -> dict[str, Any]:
         out: dict[str, Any] = {"feature": self.name, "kind": self.kind}

@@ -15,7 +15,6 @@ from __future__ import annotations
 import logging
 import math
 import os
-import shutil
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -25,11 +24,12 @@ from typing import Any
 import numpy as np
 
 from parts.tub.errors import TubError
-from parts.tub.format import IMAGE_TYPES, SESSION, TIMESTAMP, check_new_folder, new_folder_tmp, replace_folder
+from parts.tub.format import IMAGE_TYPES, SESSION, TIMESTAMP, building_folder, check_new_folder
 from parts.tub.lerobot import stats as st
 from parts.tub.lerobot.columns import CAMERA_PREFIX, Column, Part, camera_name
 from parts.tub.lerobot.format import (
     CAMERA_NAMES,
+    CHUNKS_SIZE,
     CODEBASE_VERSION,
     DATA_FILES_SIZE_IN_MB,
     DATA_PATH,
@@ -39,6 +39,7 @@ from parts.tub.lerobot.format import (
     SIDECAR_PATH,
     STATS_PATH,
     TASKS_PATH,
+    VIDEO_FILES_SIZE_IN_MB,
     LeRobotFormatError,
     chunk_file_path,
     data_schema,
@@ -53,7 +54,6 @@ from parts.tub.lerobot.survey import (
     DEFAULT_FPS,
     LABEL_KEY,
     ONE_HOT_KEY,
-    SPEED_KEYS,
     THROTTLE_KEY,
     TRACK_KEY,
     EpisodeSplitter,
@@ -63,8 +63,8 @@ from parts.tub.lerobot.survey import (
     short,
     survey_tubs,
 )
-from parts.tub.lerobot.video import DEFAULT_CODEC, DEFAULT_CRF, VideoFiles
-from parts.tub.reader import ANGLE_KEYS, TubRecord, iter_frames
+from parts.tub.lerobot.video import DEFAULT_CODEC, DEFAULT_CRF, VideoFiles, check_codec
+from parts.tub.reader import ANGLE_KEYS, SPEED_KEYS, TubRecord, iter_frames
 
 logger = logging.getLogger(__name__)
 
@@ -74,6 +74,11 @@ CAPTURE_FEATURE = "capture_timestamp"  # capture time of the frame, seconds sinc
 ROWS_PER_GROUP = 2000                  # data rows buffered before a parquet row group is written
 BYTES_PER_GROUP = 64 << 20             # ... or this many image bytes (--images)
 EPISODES_PER_GROUP = 64                # episode rows buffered before they are written
+# ``timestamp`` is float32 (LeRobot's schema): 24 bits, so past 2048 s its step is 2.4e-4 s and
+# frame_index / fps can be stored 1.2e-4 s off, beyond the 1e-4 s within which LeRobot's video
+# reader accepts a frame. Below 2048 s the error is at most 6.1e-5 s. Longer sessions are split.
+MAX_EPISODE_S = 2048
+DEFAULT_MAX_EPISODE_S = 1800           # 30 min: a margin below MAX_EPISODE_S
 _RESERVED = ("observation", "action", "next.", "task", "tub.", *DEFAULT_FEATURES, CAPTURE_FEATURE)
 
 
@@ -209,10 +214,11 @@ def _task_text(source: dict[str, Any], data: dict[str, Any]) -> str:
 class _ParquetFiles:
     """Parquet files of one kind (data or episodes), rolled over at ``max_mb``."""
 
-    def __init__(self, root: Path, template: str, max_mb: float = DATA_FILES_SIZE_IN_MB) -> None:
+    def __init__(self, root: Path, template: str, max_mb: float, chunks_size: int) -> None:
         self.root = root
         self.template = template
         self.max_mb = max_mb
+        self.chunks_size = chunks_size
         self.chunk, self.file = 0, 0
         self._writer: Any = None
         self._path: Path | None = None
@@ -222,7 +228,7 @@ class _ParquetFiles:
         """Close the current file if it reached the size limit (call at an episode boundary)."""
         if self._writer is not None and size_mb(self._path) >= self.max_mb:  # type: ignore[arg-type]
             self.close()
-            self.chunk, self.file = next_file(self.chunk, self.file)
+            self.chunk, self.file = next_file(self.chunk, self.file, self.chunks_size)
 
     def write(self, table: Any) -> None:
         pa = pyarrow()
@@ -257,12 +263,17 @@ class _Exporter:
         self.features: dict[str, dict[str, Any]] = {c.name: dict(c.feature) for c in columns}
         self.features[CAPTURE_FEATURE] = {"dtype": "float64", "shape": [1], "names": None}
         self.features.update({k: dict(v) for k, v in DEFAULT_FEATURES.items()})
+        # file limits read when the export starts (module constants: a test makes them tiny)
+        self.limits = {"chunks_size": CHUNKS_SIZE, "data_files_size_in_mb": DATA_FILES_SIZE_IN_MB,
+                       "video_files_size_in_mb": VIDEO_FILES_SIZE_IN_MB}
+        self.tub_index = {t.path: i for i, t in enumerate(survey.tubs)}
         self.videos = {c.name: VideoFiles(root, c.name, fps, c.feature["shape"][1], c.feature["shape"][0],
-                                          codec=codec, crf=crf)
+                                          codec=codec, crf=crf, max_mb=VIDEO_FILES_SIZE_IN_MB,
+                                          chunks_size=CHUNKS_SIZE)
                        for c in self.cameras if c.dtype == "video"}
-        self.data = _ParquetFiles(root, DATA_PATH)
+        self.data = _ParquetFiles(root, DATA_PATH, DATA_FILES_SIZE_IN_MB, CHUNKS_SIZE)
         self.data.schema = data_schema(self.features)
-        self.episode_files = _ParquetFiles(root, EPISODES_PATH)
+        self.episode_files = _ParquetFiles(root, EPISODES_PATH, DATA_FILES_SIZE_IN_MB, CHUNKS_SIZE)
         self.tasks: dict[str, int] = {}
         self.global_stats = self._new_stats()
         self.episode_rows: list[dict[str, Any]] = []
@@ -290,7 +301,7 @@ class _Exporter:
             "start_ms": int(ts) if isinstance(ts, int | float) else None,
             "data": (self.data.chunk, self.data.file), "stats": self._new_stats(),
             "videos": {name: v.start_episode() for name, v in self.videos.items()},
-            "tub": rec.tub.name, "session": rec.data.get(SESSION), "first": rec.index, "last": rec.index,
+            "tub": rec.tub, "session": rec.data.get(SESSION), "first": rec.index, "last": rec.index,
         }
 
     def _end_episode(self) -> None:
@@ -314,7 +325,8 @@ class _Exporter:
         row.update(st.flatten(episode_stats))
         row.update({"meta/episodes/chunk_index": self.episode_files.chunk,
                     "meta/episodes/file_index": self.episode_files.file,
-                    "tub/name": ep["tub"], "tub/session_id": str(ep["session"] or ""),
+                    "tub/index": self.tub_index[ep["tub"]], "tub/name": ep["tub"].name,
+                    "tub/session_id": str(ep["session"] or ""),
                     "tub/first_index": ep["first"], "tub/last_index": ep["last"],
                     "tub/capture_start_ms": ep["start_ms"] if ep["start_ms"] is not None else -1})
         self.episode_rows.append(row)
@@ -401,10 +413,10 @@ class _Exporter:
         self.row_bytes = 0
 
     # -- the whole run -----------------------------------------------------------------------------------
-    def run(self, max_gap_ms: float | None) -> None:
+    def run(self, max_gap_ms: float | None, max_frames: int) -> None:
         from tqdm import tqdm
 
-        splitter = EpisodeSplitter(max_gap_ms)
+        splitter = EpisodeSplitter(max_gap_ms, max_frames)
         errors: list[Any] = []
         # the records skipped here were reported by the survey already
         records = exported_records([t.path for t in self.survey.tubs], [])
@@ -421,13 +433,24 @@ class _Exporter:
                 self.add(rec, images)
             self._end_episode()
             self._flush_episodes()
-        finally:
-            for video in self.videos.values():
-                video.close()
-            self.data.close()
-            self.episode_files.close()
+        except BaseException:
+            self._close_files(quiet=True)
+            raise
+        self._close_files(quiet=False)
         known = set(self.survey.skipped)
         self.report.skipped.extend(r for r in map(short, errors) if r not in known)
+
+    def _close_files(self, *, quiet: bool) -> None:
+        """Close every writer (videos are flushed); the first error is raised once all are closed,
+        unless ``quiet`` (an error is already on its way, which a second must not hide)."""
+        first: Exception | None = None
+        for close in [v.close for v in self.videos.values()] + [self.data.close, self.episode_files.close]:
+            try:
+                close()
+            except Exception as exc:  # kept, raised below
+                first = first or exc
+        if first is not None and not quiet:
+            raise first
 
     def finish(self) -> None:
         """Write info.json, stats.json, tasks.parquet, the sidecar and the dataset card."""
@@ -438,7 +461,7 @@ class _Exporter:
         write_json(self.root / STATS_PATH, {k: st.to_json(v.result()) for k, v in self.global_stats.items()})
         info = info_dict(fps=self.fps, features=self.features, total_episodes=self.report.episodes,
                          total_frames=self.frames, total_tasks=len(self.tasks), robot_type=ROBOT_TYPE,
-                         videos=bool(self.videos))
+                         videos=bool(self.videos), **self.limits)
         write_json(self.root / INFO_PATH, info)
         write_json(self.root / SIDECAR_PATH, {
             "format": 1, "codebase_version": CODEBASE_VERSION,
@@ -465,40 +488,49 @@ def _card(info: dict[str, Any], tubs: list[str]) -> str:
 
 def export_lerobot(tubs: Sequence[str | os.PathLike[str]] | str | os.PathLike[str], out: str | os.PathLike[str], *,
                    fps: int | None = None, video: bool = True, codec: str = DEFAULT_CODEC, crf: int = DEFAULT_CRF,
-                   task: str = DEFAULT_TASK, max_gap_s: float | None = 1.0, progress: bool = False) -> ExportReport:
+                   task: str = DEFAULT_TASK, max_gap_s: float | None = 1.0,
+                   max_episode_s: float = DEFAULT_MAX_EPISODE_S, progress: bool = False) -> ExportReport:
     """Write the live records of ``tubs`` as a LeRobot v3.0 dataset in the new folder ``out``.
 
     Args:
         tubs: tub folders and/or folders of tubs (a car's ``data/``).
         out: the dataset folder; must not exist or be empty.
         fps: the nominal frame rate written to info.json, at which the videos play and from which
-            ``timestamp`` = frame_index / fps (default: measured, 1000 / median ms between records).
+            ``timestamp`` = frame_index / fps (default: measured from the capture times, see
+            ``survey.Intervals.fps``).
         video: camera frames as MP4 videos (LeRobot's default), else as JPEG bytes in the data files.
         codec, crf: video codec (libsvtav1 as LeRobot, h264 or hevc) and quality (lower = better).
         task: the task text of frames without a behaviour label or simulator track.
-        max_gap_s: a longer gap in capture time starts a new episode (None: only sessions and tracks).
+        max_gap_s: a longer gap in capture time starts a new episode (0 or None: only sessions and tracks).
+        max_episode_s: an episode holds at most this many seconds of frames (max_episode_s x fps),
+            longer sessions are split: ``timestamp`` is float32 and loses LeRobot's 1e-4 s
+            tolerance past 2048 s (``MAX_EPISODE_S``).
         progress: show a progress bar.
 
     Raises:
-        TubError: a path is not a tub, ``out`` is not empty, the tubs disagree on a field's type,
-            no record can be exported, or pyarrow/PyAV are missing (LeRobotFormatError).
+        TubError: a path is not a tub, ``out`` is not empty, an option is out of range, the tubs
+            disagree on a field's type, no record can be exported, or pyarrow/PyAV are missing or
+            the video encoder fails (LeRobotFormatError).
     """
     t0 = time.perf_counter()
     paths = [tubs] if isinstance(tubs, str | os.PathLike) else list(tubs)
     out = Path(os.path.expanduser(os.fspath(out))).absolute()
-    check_new_folder(out)
+    check_new_folder(out)  # before the survey: fail fast
     if fps is not None and (not isinstance(fps, int) or isinstance(fps, bool) or fps < 1):
         raise TubError(f"fps must be a whole number >= 1, got {fps!r}")
-    if not 0 <= int(crf) <= 63:
-        raise TubError(f"crf must be within 0..63, got {crf!r}")
-    if max_gap_s is not None and max_gap_s <= 0:
-        max_gap_s = None
+    check_codec(codec, crf)
+    if max_gap_s is not None and not max_gap_s >= 0:  # NaN too
+        raise TubError(f"max_gap_s must be >= 0 seconds (0: never split on a gap), got {max_gap_s:g}")
+    if not 0 < max_episode_s <= MAX_EPISODE_S:
+        raise TubError(f"max_episode_s must be > 0 and <= {MAX_EPISODE_S} s (LeRobot's float32 timestamps lose "
+                       f"its 1e-4 s tolerance beyond), got {max_episode_s:g}")
+    max_gap_ms = max_gap_s * 1000.0 if max_gap_s else None
     pyarrow()
     if video:
         from parts.tub.lerobot.format import av
 
         av()
-    survey = survey_tubs(paths, max_gap_ms=None if max_gap_s is None else max_gap_s * 1000.0)
+    survey = survey_tubs(paths, max_gap_ms=max_gap_ms)
     if survey.records == 0:
         why = f" ({len(survey.skipped)} skipped, first: {survey.skipped[0]})" if survey.skipped else ""
         raise TubError(f"{', '.join(map(str, paths))}: no records to export{why}")
@@ -508,19 +540,15 @@ def export_lerobot(tubs: Sequence[str | os.PathLike[str]] | str | os.PathLike[st
         logger.warning("no interval between records could be measured: fps set to %d (give --fps)", report.fps)
     columns = plan_columns(survey, video=video)
     task_from = task_source(survey, task)
-    tmp = new_folder_tmp(out)
-    try:
+    max_frames = max(1, math.floor(max_episode_s * report.fps + 1e-9))
+    with building_folder(out) as tmp:
         exporter = _Exporter(tmp, survey, columns, fps=report.fps, codec=codec, crf=int(crf), task=task_from,
                              report=report, progress=progress)
-        exporter.run(None if max_gap_s is None else max_gap_s * 1000.0)
+        exporter.run(max_gap_ms, max_frames)
         if exporter.frames == 0:
             raise TubError(f"{', '.join(map(str, paths))}: no record could be read ({len(report.skipped)} skipped)")
         exporter.finish()
         report.skipped[:0] = survey.skipped
-        replace_folder(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     report.seconds = time.perf_counter() - t0
     if report.skipped:
         logger.warning("%d records not exported, first: %s", len(report.skipped), report.skipped[0])

@@ -133,7 +133,9 @@ def write_json(path: Path, data: Any) -> None:
 
 
 def info_dict(*, fps: int, features: dict[str, dict[str, Any]], total_episodes: int, total_frames: int,
-              total_tasks: int, robot_type: str | None, videos: bool) -> dict[str, Any]:
+              total_tasks: int, robot_type: str | None, videos: bool, chunks_size: int = CHUNKS_SIZE,
+              data_files_size_in_mb: float = DATA_FILES_SIZE_IN_MB,
+              video_files_size_in_mb: float = VIDEO_FILES_SIZE_IN_MB) -> dict[str, Any]:
     """meta/info.json, keys in the order LeRobot's ``create_empty_dataset_info`` writes them."""
     return {
         "codebase_version": CODEBASE_VERSION,
@@ -141,9 +143,9 @@ def info_dict(*, fps: int, features: dict[str, dict[str, Any]], total_episodes: 
         "total_episodes": total_episodes,
         "total_frames": total_frames,
         "total_tasks": total_tasks,
-        "chunks_size": CHUNKS_SIZE,
-        "data_files_size_in_mb": DATA_FILES_SIZE_IN_MB,
-        "video_files_size_in_mb": VIDEO_FILES_SIZE_IN_MB,
+        "chunks_size": chunks_size,
+        "data_files_size_in_mb": data_files_size_in_mb,
+        "video_files_size_in_mb": video_files_size_in_mb,
         "fps": fps,
         "splits": {"train": f"0:{total_episodes}"},
         "data_path": DATA_PATH,
@@ -177,6 +179,11 @@ def read_info(root: Path) -> dict[str, Any]:
     for key in ("fps", "features", "data_path"):
         if key not in info:
             raise LeRobotFormatError(f"{path} lacks {key!r}: not a complete v3.0 info.json")
+    fps = info["fps"]
+    if isinstance(fps, bool) or not isinstance(fps, int | float) or not fps > 0:
+        raise LeRobotFormatError(f"{path}: fps is {fps!r}; it must be a number > 0")
+    if not isinstance(info["features"], dict) or not all(isinstance(f, dict) for f in info["features"].values()):
+        raise LeRobotFormatError(f"{path}: 'features' must map each feature name to its dtype, shape and names")
     return info
 
 
@@ -212,7 +219,11 @@ def read_tasks(root: Path) -> dict[int, str]:
     path = root / TASKS_PATH
     if not path.is_file():
         return {}
-    table = pa.parquet.read_table(path)
+    pf = open_parquet(path)
+    try:
+        table = pf.read()
+    except (pa.ArrowException, OSError) as exc:
+        raise not_parquet(path, exc) from exc
     names = table.column_names
     text_col = next((c for c in ("task", "__index_level_0__") if c in names), None)
     meta = table.schema.metadata or {}
@@ -222,6 +233,20 @@ def read_tasks(root: Path) -> dict[int, str]:
     if text_col is None or "task_index" not in names:
         raise LeRobotFormatError(f"{path} has columns {names}; expected task_index and the task text")
     return dict(zip(table.column("task_index").to_pylist(), table.column(text_col).to_pylist(), strict=True))
+
+
+def not_parquet(path: Path, exc: BaseException) -> LeRobotFormatError:
+    """The error for a file pyarrow cannot read (its message on one line)."""
+    return LeRobotFormatError(f"{path} cannot be read as parquet: {' '.join(str(exc).split())}")
+
+
+def open_parquet(path: Path) -> Any:
+    """A ``pyarrow.parquet.ParquetFile``; LeRobotFormatError naming the file when it is not one."""
+    pa = pyarrow()
+    try:
+        return pa.parquet.ParquetFile(path)
+    except (pa.ArrowException, OSError) as exc:
+        raise not_parquet(path, exc) from exc
 
 
 def parquet_files(folder: Path) -> list[Path]:

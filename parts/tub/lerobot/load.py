@@ -20,8 +20,8 @@ import json
 import logging
 import math
 import os
-import shutil
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from parts.tub.codec import decode_image, looks_whole_jpeg
-from parts.tub.format import check_new_folder, new_folder_tmp, replace_folder
+from parts.tub.format import building_folder, check_new_folder
 from parts.tub.lerobot.columns import CAMERA_PREFIX, Column, Part, column_from_spec
 from parts.tub.lerobot.format import (
     DEFAULT_FEATURES,
@@ -38,6 +38,8 @@ from parts.tub.lerobot.format import (
     VIDEO_PATH,
     LeRobotFormatError,
     chunk_file_path,
+    not_parquet,
+    open_parquet,
     parquet_files,
     pyarrow,
     read_info,
@@ -82,6 +84,17 @@ class _Mapping:
     capture: str | None = None     # feature holding capture seconds since the episode start
     task_key: str | None = None    # generic: field for the task text
     episode_key: str | None = None  # generic: field for the episode index
+    tub_names: list[str] = field(default_factory=list)              # ours: the exported tubs, in order
+    renames: list[dict[str, str]] = field(default_factory=list)     # ... the key each used for a field
+
+    def renames_of(self, ep: dict[str, Any]) -> dict[str, str] | None:
+        """The renames for the records of an episode: by its tub/index (by tub/name in datasets
+        exported before tub/index was written, where the name is unique)."""
+        index = ep.get("tub/index")
+        if not isinstance(index, int):
+            name = ep.get("tub/name")
+            index = self.tub_names.index(name) if self.tub_names.count(name) == 1 else None
+        return self.renames[index] if index is not None and 0 <= index < len(self.renames) else None
 
 
 def _own_mapping(sidecar: dict[str, Any], features: dict[str, dict[str, Any]], source: Path) -> _Mapping:
@@ -96,7 +109,10 @@ def _own_mapping(sidecar: dict[str, Any], features: dict[str, dict[str, Any]], s
                     inputs.append(key)
                     types.append(tp)
         metadata = dict(sidecar["tubs"][0].get("metadata") or {}) if sidecar["tubs"] else {}
-    except (KeyError, TypeError, ValueError) as exc:
+        tub_names = [str(tub.get("name")) for tub in sidecar["tubs"]]
+        renames = [{k: v for col in columns for k, v in col.renames(list(tub["inputs"])).items()}
+                   for tub in sidecar["tubs"]]
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise LeRobotFormatError(f"{source / SIDECAR_PATH} does not fit meta/info.json ({exc!r}); "
                                  "remove it to import the dataset by convention") from exc
     # fields the exported records held beyond the manifests' inputs (edited tubs)
@@ -106,7 +122,8 @@ def _own_mapping(sidecar: dict[str, Any], features: dict[str, dict[str, Any]], s
                 inputs.append(key)
                 types.append(tp)
     capture = sidecar.get("capture_feature")
-    return _Mapping(columns, inputs, types, metadata, capture if capture in features else None)
+    return _Mapping(columns, inputs, types, metadata, capture if capture in features else None,
+                    tub_names=tub_names, renames=renames)
 
 
 def _generic_mapping(features: dict[str, dict[str, Any]]) -> _Mapping:
@@ -146,19 +163,52 @@ def _generic_mapping(features: dict[str, dict[str, Any]]) -> _Mapping:
     return _Mapping(columns, inputs, types, {}, None, "lerobot/task", "lerobot/episode_index")
 
 
-def _episodes(root: Path) -> dict[int, dict[str, Any]]:
-    """episode_index -> the episode's offsets (the stats columns are not read)."""
+def _need_columns(path: Path, names: list[str], needed: list[str], why: str) -> None:
+    for name in needed:
+        if name not in names:
+            raise LeRobotFormatError(f"{path}: no column {name} ({why}); the dataset is incomplete")
+
+
+def _episodes(root: Path, videos: list[str]) -> dict[int, dict[str, Any]]:
+    """episode_index -> the episode's offsets (the stats columns are not read); every episode must
+    say where the frames of each video feature in ``videos`` are."""
     pa = pyarrow()
     out: dict[int, dict[str, Any]] = {}
     files = parquet_files(root / EPISODES_DIR)
     if not files:
         raise LeRobotFormatError(f"{root} has no {EPISODES_DIR}/chunk-*/file-*.parquet: not a complete v3.0 dataset")
+    located = [f"videos/{v}/{k}" for v in videos for k in ("chunk_index", "file_index", "from_timestamp")]
     for path in files:
-        pf = pa.parquet.ParquetFile(path)
-        wanted = [c for c in pf.schema_arrow.names if not c.startswith("stats/")]
-        for row in pf.read(columns=wanted).to_pylist():
-            out[int(row["episode_index"])] = row
+        pf = open_parquet(path)
+        names = pf.schema_arrow.names
+        _need_columns(path, names, ["episode_index"], "the episode of each row")
+        _need_columns(path, names, located, "where the episode's frames are in the videos")
+        try:
+            rows = pf.read(columns=[c for c in names if not c.startswith("stats/")]).to_pylist()
+        except (pa.ArrowException, OSError) as exc:
+            raise not_parquet(path, exc) from exc
+        for row in rows:
+            index = row["episode_index"]
+            if not isinstance(index, int):
+                raise LeRobotFormatError(f"{path}: an episode has episode_index {index!r}, not a whole number")
+            for name in located:
+                if not isinstance(row[name], int | float) or isinstance(row[name], bool):
+                    raise LeRobotFormatError(f"{path}: episode {index} has no {name} (found {row[name]!r})")
+            out[index] = row
     return out
+
+
+def _rows(path: Path, needed: list[str]) -> Iterator[dict[str, Any]]:
+    """The rows of a data file, a batch at a time; LeRobotFormatError naming the file when it is
+    not parquet or lacks a column the import reads."""
+    pa = pyarrow()
+    pf = open_parquet(path)
+    _need_columns(path, pf.schema_arrow.names, needed, "a feature of meta/info.json")
+    try:
+        for batch in pf.iter_batches(batch_size=BATCH_ROWS):
+            yield from batch.to_pylist()
+    except (pa.ArrowException, OSError) as exc:
+        raise not_parquet(path, exc) from exc
 
 
 def _image_value(value: Any, col: Column) -> Any:
@@ -196,78 +246,88 @@ def import_lerobot(source: str | os.PathLike[str], tub_path: str | os.PathLike[s
     check_new_folder(out)
     if not 1 <= int(jpeg_quality) <= 100:
         raise ValueError(f"jpeg_quality must be within 1..100, got {jpeg_quality!r}")
-    pa = pyarrow()
     features: dict[str, dict[str, Any]] = info["features"]
     fps = float(info["fps"])
-    sidecar_path = root / SIDECAR_PATH
-    sidecar = json.loads(sidecar_path.read_text(encoding="utf-8")) if sidecar_path.is_file() else None
-    mapping = _own_mapping(sidecar, features, root) if sidecar and sidecar.get("format") == 1 \
-        else _generic_mapping(features)
-    episodes = _episodes(root)
+    sidecar = _read_sidecar(root)
+    own = sidecar is not None and sidecar.get("format") == 1
+    mapping = _own_mapping(sidecar, features, root) if own else _generic_mapping(features)  # type: ignore[arg-type]
+    videos = [c.name for c in mapping.columns if c.kind == "camera" and c.dtype == "video"]
+    episodes = _episodes(root, videos)
     tasks = read_tasks(root)
     data_files = parquet_files(root / "data")
     if not data_files:
         raise LeRobotFormatError(f"{root} has no data/chunk-*/file-*.parquet: not a complete v3.0 dataset")
+    needed = [c.name for c in mapping.columns if c.dtype != "video"] + ["timestamp", "episode_index"] \
+        + (["task_index"] if mapping.task_key else [])
     video_path = info.get("video_path") or VIDEO_PATH
-    readers = {c.name: FrameReader(tolerance=0.49 / fps) for c in mapping.columns
-               if c.kind == "camera" and c.dtype == "video"}
-    report = ImportReport(root, out, exact=sidecar is not None, fields=list(mapping.inputs))
+    readers = {name: FrameReader(tolerance=0.49 / fps) for name in videos}
+    report = ImportReport(root, out, exact=own, fields=list(mapping.inputs))
     metadata = {**mapping.metadata, "source": "lerobot", "lerobot_dataset": root.name}
     base_ms = int(time.time() * 1000)
     offsets: dict[int, float] = {}  # generic: start of each episode on one time line, seconds
     next_start = 0.0
     seen_episodes: set[int] = set()
-    tmp = new_folder_tmp(out)
     try:
-        with Tub(tmp, mapping.inputs, mapping.types, metadata, fsync_records=200, fsync_ms=5000,
-                 jpeg_quality=int(jpeg_quality)) as tub:
-            bar = tqdm(total=int(info.get("total_frames") or 0), desc="import", unit="rec", disable=not progress,
-                       leave=False)
+        with building_folder(out) as tmp, \
+                Tub(tmp, mapping.inputs, mapping.types, metadata, fsync_records=200, fsync_ms=5000,
+                    jpeg_quality=int(jpeg_quality)) as tub, \
+                tqdm(total=int(info.get("total_frames") or 0), desc="import", unit="rec", disable=not progress,
+                     leave=False) as bar:
             for path in data_files:
-                for batch in pa.parquet.ParquetFile(path).iter_batches(batch_size=BATCH_ROWS):
-                    for row in batch.to_pylist():
-                        ep_index = int(row["episode_index"])
-                        ep = episodes.get(ep_index)
-                        if ep is None:
-                            raise LeRobotFormatError(f"{path}: row {row.get('index')} is in episode {ep_index}, "
-                                                     f"which {EPISODES_DIR} does not list")
-                        if ep_index not in seen_episodes:
-                            seen_episodes.add(ep_index)
-                            offsets[ep_index] = next_start
-                            next_start += int(ep.get("length") or 0) / fps + EPISODE_GAP_S
-                        record: dict[str, Any] = {}
-                        for col in mapping.columns:
-                            if col.kind == "camera":
-                                if col.dtype == "video":
-                                    file = root / chunk_file_path(video_path, ep[f"videos/{col.name}/chunk_index"],
-                                                                  ep[f"videos/{col.name}/file_index"],
-                                                                  video_key=col.name)
-                                    t = float(ep[f"videos/{col.name}/from_timestamp"]) + float(row["timestamp"])
-                                    record[col.key] = readers[col.name].frame(file, t)
-                                else:
-                                    record[col.key] = _image_value(row[col.name], col)
+                for row in _rows(path, needed):
+                    ep_index = int(row["episode_index"])
+                    ep = episodes.get(ep_index)
+                    if ep is None:
+                        raise LeRobotFormatError(f"{path}: row {row.get('index')} is in episode {ep_index}, "
+                                                 f"which {EPISODES_DIR} does not list")
+                    if ep_index not in seen_episodes:
+                        seen_episodes.add(ep_index)
+                        offsets[ep_index] = next_start
+                        next_start += int(ep.get("length") or 0) / fps + EPISODE_GAP_S
+                    renames = mapping.renames_of(ep)
+                    record: dict[str, Any] = {}
+                    for col in mapping.columns:
+                        if col.kind == "camera":
+                            if col.dtype == "video":
+                                v = f"videos/{col.name}/"
+                                file = root / chunk_file_path(video_path, int(ep[v + "chunk_index"]),
+                                                              int(ep[v + "file_index"]), video_key=col.name)
+                                t = float(ep[v + "from_timestamp"]) + float(row["timestamp"])
+                                record[col.key] = readers[col.name].frame(file, t)
                             else:
-                                col.restore(row[col.name], record)
-                        if mapping.task_key:
-                            record[mapping.task_key] = tasks.get(int(row["task_index"]), "")
-                            record[mapping.episode_key] = ep_index  # type: ignore[index]
-                        tub.write_record(record, timestamp_ms=_capture_ms(row, ep, mapping, base_ms, offsets[ep_index]))
-                        report.records += 1
-                        bar.update(1)
-            bar.close()
+                                record[col.key] = _image_value(row[col.name], col)
+                        else:
+                            col.restore(row[col.name], record, renames)
+                    if mapping.task_key:
+                        record[mapping.task_key] = tasks.get(int(row["task_index"]), "")
+                        record[mapping.episode_key] = ep_index  # type: ignore[index]
+                    tub.write_record(record, timestamp_ms=_capture_ms(row, ep, mapping, base_ms, offsets[ep_index]))
+                    report.records += 1
+                    bar.update(1)
+            if not report.records:
+                raise LeRobotFormatError(f"{root}: its data files hold no frames; nothing to import")
+    finally:
         for reader in readers.values():
             reader.close()
-        if not report.records:
-            raise LeRobotFormatError(f"{root}: its data files hold no frames; nothing to import")
-        report.episodes = len(seen_episodes)
-        replace_folder(tmp, out)
-    except BaseException:
-        for reader in readers.values():
-            reader.close()
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+    report.episodes = len(seen_episodes)
     report.seconds = time.perf_counter() - t0
     return report
+
+
+def _read_sidecar(root: Path) -> dict[str, Any] | None:
+    """meta/vehicle_rc.json, written by our export (None when the dataset has none)."""
+    path = root / SIDECAR_PATH
+    if not path.is_file():
+        return None
+    try:
+        sidecar = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise LeRobotFormatError(f"{path} is not valid JSON ({exc}); restore it, or remove it to import the "
+                                 "dataset by convention") from exc
+    if not isinstance(sidecar, dict):
+        raise LeRobotFormatError(f"{path} holds no JSON object; restore it, or remove it to import the dataset "
+                                 "by convention")
+    return sidecar
 
 
 def _capture_ms(row: dict[str, Any], ep: dict[str, Any], mapping: _Mapping, base_ms: int, offset: float) -> int:

@@ -22,7 +22,6 @@ from parts.tub.tub import Tub
 logger = logging.getLogger(__name__)
 
 THROTTLE_KEY = "user/throttle"
-SPEED_KEYS = ("enc/speed", "sim/speed")
 ONE_HOT_KEY = "behavior/one_hot_state_array"
 LABEL_KEY = "behavior/label"
 STATE_KEY = "behavior/state"
@@ -67,13 +66,16 @@ class FieldSurvey:
 
 class EpisodeSplitter:
     """Tells where an episode starts: a new tub, a new recording session, another simulator
-    track, or a gap in capture time longer than ``max_gap_ms`` (recording paused, records deleted,
-    clock set back)."""
+    track, a gap in capture time longer than ``max_gap_ms`` (recording paused, records deleted,
+    clock set back), or an episode that already holds ``max_frames`` frames (a long session cut
+    so that its float32 ``timestamp`` stays exact enough, see export.MAX_EPISODE_S)."""
 
-    def __init__(self, max_gap_ms: float | None) -> None:
+    def __init__(self, max_gap_ms: float | None, max_frames: int | None = None) -> None:
         self.max_gap_ms = max_gap_ms
+        self.max_frames = max_frames
         self._key: tuple[Any, ...] | None = None
         self._ts: float | None = None
+        self._frames = 0  # in the current episode
         self.interval_ms: float | None = None  # between the last two records, when in one episode
 
     def is_new(self, rec: TubRecord) -> bool:
@@ -88,6 +90,9 @@ class EpisodeSplitter:
                 new = True
             else:
                 self.interval_ms = gap
+        if not new and self.max_frames is not None and self._frames >= self.max_frames:
+            new = True
+        self._frames = 1 if new else self._frames + 1
         self._key, self._ts = key, ts
         return new
 
@@ -103,6 +108,40 @@ class TubSource:
 
 
 @dataclass
+class Intervals:
+    """Intervals between consecutive frames of an episode: a count per whole millisecond and the
+    exact sum of each bin, so memory stays bounded and the rate keeps sub-millisecond precision
+    (capture times are whole ms: a 60 Hz loop gives intervals of 16 and 17 ms)."""
+
+    counts: Counter[int] = field(default_factory=Counter)
+    sums: dict[int, float] = field(default_factory=dict)
+
+    def add(self, ms: float) -> None:
+        b = int(round(ms))
+        self.counts[b] += 1
+        self.sums[b] = self.sums.get(b, 0.0) + ms
+
+    def fps(self) -> int | None:
+        """Frames per second over the intervals within +-50 % of the median (a missed loop, or
+        two frames captured together, left out), rounded: LeRobot's fps is an integer. None when
+        no interval was measured."""
+        total = sum(self.counts.values())
+        if not total:
+            return None
+        seen = 0
+        median = 0
+        for ms in sorted(self.counts):
+            seen += self.counts[ms]
+            if seen * 2 >= total:
+                median = ms
+                break
+        kept = [b for b in self.counts if 0.5 * median <= b <= 1.5 * median]
+        span = sum(self.sums[b] for b in kept)
+        frames = sum(self.counts[b] for b in kept)
+        return max(1, round(1000.0 * frames / span)) if span > 0 else None
+
+
+@dataclass
 class Survey:
     """Everything the second pass needs to know in advance."""
 
@@ -111,21 +150,13 @@ class Survey:
     records: int = 0
     episodes: int = 0
     skipped: list[str] = field(default_factory=list)
-    intervals: Counter[int] = field(default_factory=Counter)  # ms between frames of an episode
+    intervals: Intervals = field(default_factory=Intervals)  # between frames of an episode
     behaviours: dict[int, str] = field(default_factory=dict)  # behaviour index -> label
     image_shapes: dict[str, tuple[int, ...]] = field(default_factory=dict)
 
     def fps(self) -> int | None:
-        """The loop rate: 1000 / the median interval between frames, rounded (None: unknown)."""
-        total = sum(self.intervals.values())
-        if not total:
-            return None
-        seen = 0
-        for ms in sorted(self.intervals):
-            seen += self.intervals[ms]
-            if seen * 2 >= total:
-                return max(1, round(1000.0 / ms)) if ms > 0 else None
-        return None
+        """The loop rate measured from the capture times (None: unknown), see :meth:`Intervals.fps`."""
+        return self.intervals.fps()
 
     def image_keys(self) -> list[str]:
         """Image fields in schema order (first tub first)."""
@@ -187,7 +218,7 @@ def survey_tubs(paths: list[str | Path], *, max_gap_ms: float | None) -> Survey:
         if splitter.is_new(rec):
             survey.episodes += 1
         elif splitter.interval_ms is not None and splitter.interval_ms > 0:
-            survey.intervals[int(round(splitter.interval_ms))] += 1
+            survey.intervals.add(splitter.interval_ms)
         for key, value in rec.data.items():
             if key.startswith("_"):
                 continue

@@ -11,6 +11,7 @@ an episode boundary once the current one holds ``VIDEO_FILES_SIZE_IN_MB``.
 
 from __future__ import annotations
 
+import contextlib
 import fractions
 import logging
 import os
@@ -20,13 +21,13 @@ from typing import Any
 import numpy as np
 
 from parts.tub.lerobot.format import (
+    CHUNKS_SIZE,
     VIDEO_FILES_SIZE_IN_MB,
     VIDEO_PATH,
     LeRobotFormatError,
     av,
     chunk_file_path,
     next_file,
-    size_mb,
 )
 
 logger = logging.getLogger(__name__)
@@ -34,15 +35,25 @@ logger = logging.getLogger(__name__)
 CODECS = ("libsvtav1", "h264", "hevc")
 DEFAULT_CODEC = "libsvtav1"
 DEFAULT_CRF = 30
+CRF_MAX = {"libsvtav1": 63, "h264": 51, "hevc": 51}  # the encoders' own ranges (x264/x265: 0..51)
+EVEN_SIZE = ("h264", "hevc")  # yuv420p halves the chroma planes: x264 and x265 refuse odd sizes
 GOP = 2                 # LeRobot's g: a keyframe every 2 frames makes random access cheap
 SVTAV1_PRESET = 12      # LeRobot's default preset for libsvtav1 (fast)
 PIX_FMT = "yuv420p"
 
 
-def codec_options(codec: str, crf: int) -> dict[str, str]:
-    """The encoder options LeRobot's VideoEncoderConfig gives this codec."""
+def check_codec(codec: str, crf: int) -> None:
+    """LeRobotFormatError unless ``codec`` is one LeRobot uses and ``crf`` is within its range."""
     if codec not in CODECS:
         raise LeRobotFormatError(f"video codec {codec!r} is not one LeRobot uses; choose one of {', '.join(CODECS)}")
+    if isinstance(crf, bool) or not isinstance(crf, int) or not 0 <= crf <= CRF_MAX[codec]:
+        raise LeRobotFormatError(f"crf must be within 0..{CRF_MAX[codec]} for {codec}, got {crf!r} "
+                                 "(lower = better quality, bigger files; LeRobot uses 30)")
+
+
+def codec_options(codec: str, crf: int) -> dict[str, str]:
+    """The encoder options LeRobot's VideoEncoderConfig gives this codec."""
+    check_codec(codec, crf)
     opts = {"g": str(GOP), "crf": str(crf)}
     if codec == "libsvtav1":
         opts["preset"] = str(SVTAV1_PRESET)
@@ -50,15 +61,23 @@ def codec_options(codec: str, crf: int) -> dict[str, str]:
 
 
 class VideoFiles:
-    """The video files of one camera feature: frames appended in order, episode by episode."""
+    """The video files of one camera feature: frames appended in order, episode by episode.
+
+    A file is closed at an episode boundary once the encoder has written ``max_mb`` MiB into it
+    (counted from the packets: the muxer buffers, so the file's size on disk lags behind).
+    A failure of the encoder is a LeRobotFormatError naming codec and frame size.
+    """
 
     def __init__(self, root: Path, video_key: str, fps: int, width: int, height: int, *,
                  codec: str = DEFAULT_CODEC, crf: int = DEFAULT_CRF,
-                 max_mb: float = VIDEO_FILES_SIZE_IN_MB) -> None:
+                 max_mb: float = VIDEO_FILES_SIZE_IN_MB, chunks_size: int = CHUNKS_SIZE) -> None:
         self._av = av()
         if codec not in self._av.codecs_available:
             raise LeRobotFormatError(f"this PyAV build cannot encode {codec}; choose another --vcodec "
                                      f"({', '.join(c for c in CODECS if c in self._av.codecs_available)})")
+        if codec in EVEN_SIZE and (width % 2 or height % 2):
+            raise LeRobotFormatError(f"{codec}: {width}x{height} frames: h264 and hevc need an even width and "
+                                     "height; use --vcodec libsvtav1 (LeRobot's default, any size)")
         self.root = root
         self.key = video_key
         self.fps = fps
@@ -67,18 +86,26 @@ class VideoFiles:
         self.crf = crf
         self.options = codec_options(codec, crf)
         self.max_mb = max_mb
+        self.chunks_size = chunks_size
         self.chunk, self.file = 0, 0
         self._container: Any = None
         self._stream: Any = None
         self._path: Path | None = None
         self.frames_in_file = 0
+        self.bytes_in_file = 0
         self.first_file: Path | None = None
+
+    def _failed(self, exc: Exception) -> LeRobotFormatError:
+        why = " ".join(str(exc).split())
+        return LeRobotFormatError(f"{self._path}: video encoder {self.codec} failed on {self.width}x{self.height} "
+                                  f"frames ({why}); change the codec or quality (--vcodec, --crf), or export "
+                                  "the frames as images (--images)")
 
     def start_episode(self) -> tuple[int, int, float]:
         """Begin an episode: (chunk, file, from_timestamp) where its frames will be."""
-        if self._container is not None and size_mb(self._path) >= self.max_mb:  # type: ignore[arg-type]
+        if self._container is not None and self.bytes_in_file / (1024 ** 2) >= self.max_mb:
             self._close()
-            self.chunk, self.file = next_file(self.chunk, self.file)
+            self.chunk, self.file = next_file(self.chunk, self.file, self.chunks_size)
         if self._container is None:
             self._open()
         return self.chunk, self.file, self.frames_in_file / self.fps
@@ -88,25 +115,41 @@ class VideoFiles:
         os.environ.setdefault("SVT_LOG", "1")
         self._path = self.root / chunk_file_path(VIDEO_PATH, self.chunk, self.file, video_key=self.key)
         self._path.parent.mkdir(parents=True, exist_ok=True)
-        # faststart: the index goes before the frames (as LeRobot's files), so players and the Hub's
-        # viewer can start without reading the whole file
-        self._container = self._av.open(str(self._path), "w", options={"movflags": "faststart"})
-        stream = self._container.add_stream(self.codec, rate=self.fps, options=self.options)
-        stream.pix_fmt = PIX_FMT
-        stream.width, stream.height = self.width, self.height
-        stream.codec_context.time_base = fractions.Fraction(1, self.fps)
+        try:
+            # faststart: the index goes before the frames (as LeRobot's files), so players and the
+            # Hub's viewer can start without reading the whole file
+            self._container = self._av.open(str(self._path), "w", options={"movflags": "faststart"})
+            stream = self._container.add_stream(self.codec, rate=self.fps, options=self.options)
+            stream.pix_fmt = PIX_FMT
+            stream.width, stream.height = self.width, self.height
+            stream.codec_context.time_base = fractions.Fraction(1, self.fps)
+        except self._av.FFmpegError as exc:
+            if self._container is not None:
+                with contextlib.suppress(self._av.FFmpegError):
+                    self._container.close()
+                self._container = None
+            raise self._failed(exc) from exc
         self._stream = stream
         self.frames_in_file = 0
+        self.bytes_in_file = 0
         if self.first_file is None:
             self.first_file = self._path
+
+    def _mux(self, frame: Any) -> None:
+        """Encode ``frame`` (None: flush) and write the packets that come out."""
+        try:
+            for packet in self._stream.encode(frame):
+                self.bytes_in_file += packet.size
+                self._container.mux(packet)
+        except self._av.FFmpegError as exc:  # the codec opens on the first frame: most failures show here
+            raise self._failed(exc) from exc
 
     def add(self, frame: np.ndarray) -> None:
         """Encode the next frame (HxWx3 uint8 RGB) of the current episode."""
         vf = self._av.VideoFrame.from_ndarray(np.ascontiguousarray(frame), format="rgb24")
         vf.pts = self.frames_in_file
         vf.time_base = fractions.Fraction(1, self.fps)
-        for packet in self._stream.encode(vf):
-            self._container.mux(packet)
+        self._mux(vf)
         self.frames_in_file += 1
 
     def end_episode(self) -> float:
@@ -117,11 +160,13 @@ class VideoFiles:
         if self._container is None:
             return
         try:
-            for packet in self._stream.encode(None):
-                self._container.mux(packet)
+            self._mux(None)
         finally:
-            self._container.close()
-            self._container = self._stream = None
+            container, self._container, self._stream = self._container, None, None
+            try:
+                container.close()
+            except self._av.FFmpegError as exc:
+                raise self._failed(exc) from exc
 
     def close(self) -> None:
         """Flush the encoder and close the current file."""
@@ -175,7 +220,10 @@ class FrameReader:
         if path != self._path or t < self._last_time - self.tolerance:
             self._open(path, t)
         while True:
-            frame = self._pending if self._pending is not None else next(self._frames, None)
+            try:
+                frame = self._pending if self._pending is not None else next(self._frames, None)
+            except self._av.FFmpegError as exc:
+                raise LeRobotFormatError(f"{path}: cannot be decoded near {t:.4f} s: {exc}") from exc
             self._pending = None
             if frame is None:
                 raise LeRobotFormatError(f"{path}: no frame at {t:.4f} s (the video ends before; "

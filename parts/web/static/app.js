@@ -230,6 +230,8 @@ function onState(s) {
     }
     trips = s.deadman_trips;
   }
+  $("behaviorrow").hidden = t.behavior === null;  // a car without behaviours has no lanes to show
+  $("behavior").textContent = t.behavior === null ? "–" : t.behavior.replace(/_/g, " ");
   if (c.estop) notice("Emergency stop latched: press the STOP button again to release");
   else if ($("notice").textContent.startsWith("Emergency")) notice("");
 }
@@ -255,6 +257,7 @@ $("load").onclick = () => { if ($("model").value) setSetting({ model: $("model")
 $("model").onfocus = () => sock.emit("models", undefined, (res) => {
   if (res && res.ok) { const cur = $("model").value; fillModels(res.models); $("model").value = cur; }
 });
+$("behaviornext").onclick = () => { if (role === "driver") send("behavior", { step: 1 }); };
 $("estop").onclick = () => {
   const latched = state && (state.command.estop);
   stopNow();
@@ -289,6 +292,7 @@ window.addEventListener("keydown", (e) => {
   else if (e.repeat) return;
   else if (e.code === "KeyR") $("record").onclick();
   else if (e.code === "KeyM") cycleMode();
+  else if (e.code === "KeyL") $("behaviornext").onclick();
   else if (e.code === "KeyC") setSetting({ constant_throttle: !(state && state.command.constant_throttle) });
   else if (e.key === "+" || e.key === "=") setSetting({ max_throttle: clamp(((state && state.command.max_throttle) || 0) + 0.05, 0, 1) });
   else if (e.key === "-") setSetting({ max_throttle: clamp(((state && state.command.max_throttle) || 0) - 0.05, 0, 1) });

@@ -291,3 +291,16 @@ def test_cli_runs_despite_an_invalid_myconfig(tmp_path, capsys, monkeypatch):
     captured = capsys.readouterr()
     assert "Did you mean STEERING_LEFT_PWM?" in captured.err and "using the default settings" in captured.err
     assert "channel 0 <- 400 ticks" in captured.out
+
+
+def test_cli_saves_into_the_myconfig_it_read(tmp_path, capsys, monkeypatch):
+    from vehicle.app import cli
+
+    monkeypatch.setattr(cli, "COMMAND_MODULES", ("vehicle.app.commands.calibrate",))
+    monkeypatch.setattr("sys.stdin", io.StringIO("360\nstopped\nq\n"))
+    (tmp_path / "myconfig.py").write_text("# the main settings\n")
+    (tmp_path / "bench.py").write_text("DRIVE_LOOP_HZ = 30\n")
+    assert cli.main(["calibrate", "--channel", "0", "--mock", "--car", str(tmp_path), "--myconfig", "bench.py",
+                     "--save"]) == 0
+    assert "THROTTLE_STOPPED_PWM = 360" in (tmp_path / "bench.py").read_text()
+    assert (tmp_path / "myconfig.py").read_text() == "# the main settings\n"

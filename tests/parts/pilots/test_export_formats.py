@@ -15,7 +15,7 @@ from vehicle.app.cli import main
 # every kind of input: plain, extra from memory (behaviour), fed-back history, frame sequence,
 # decoded outputs (categorical argmax, derived throttle)
 TYPES = [("linear", {}), ("behavior", {}), ("memory", {"mem_length": 2}), ("rnn", {"seq_length": 3}),
-         ("categorical", {}), ("pilotnet", {})]
+         ("categorical", {}), ("pilotnet", {}), ("lanes", {})]
 
 
 def drive(pilot, frames, extra):

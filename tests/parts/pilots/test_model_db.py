@@ -131,3 +131,129 @@ def test_cli_empty_registry_and_bad_car(tmp_path, capsys):
     assert "no models registered" in capsys.readouterr().out
     assert main(["models", "--car", str(tmp_path / "nowhere")]) == 2
     assert "no such folder" in capsys.readouterr().err
+
+
+# -- schema 2: migration, datasets, evaluations, rename (the console shares this database) ---------------
+_V1 = """
+CREATE TABLE models (id INTEGER PRIMARY KEY AUTOINCREMENT, name TEXT NOT NULL UNIQUE, path TEXT NOT NULL,
+    type TEXT NOT NULL, parameters TEXT NOT NULL DEFAULT '{}', metrics TEXT NOT NULL DEFAULT '{}', comment TEXT,
+    transfer TEXT, created TEXT NOT NULL);
+CREATE TABLE datasets (id INTEGER PRIMARY KEY AUTOINCREMENT, path TEXT NOT NULL UNIQUE);
+CREATE TABLE model_datasets (model_id INTEGER NOT NULL REFERENCES models(id) ON DELETE CASCADE,
+    dataset_id INTEGER NOT NULL REFERENCES datasets(id) ON DELETE CASCADE, PRIMARY KEY (model_id, dataset_id));
+INSERT INTO models (name, path, type, parameters, metrics, comment, created)
+    VALUES ('old', 'old.pt', 'linear', '{"epochs": 4}', '{"best_val_loss": 0.2}', 'kept', '2025-01-01T00:00:00+00:00');
+INSERT INTO datasets (path) VALUES ('/cars/c/data/tub_1');
+INSERT INTO model_datasets VALUES (1, 1);
+PRAGMA user_version = 1;
+"""
+
+
+def test_a_schema_1_registry_is_upgraded_in_place(car):
+    db = car / "models" / DB_FILENAME
+    with sqlite3.connect(db) as conn:
+        conn.executescript(_V1)
+    reg = ModelRegistry(db)
+    [entry] = reg.list()
+    assert (entry.name, entry.comment, entry.parameters, entry.datasets) == ("old", "kept", {"epochs": 4},
+                                                                              ("/cars/c/data/tub_1",))
+    with sqlite3.connect(db) as conn:
+        assert conn.execute("PRAGMA user_version").fetchone()[0] == 2
+        cols = {r[1] for r in conn.execute("PRAGMA table_info(datasets)")}
+        assert {"label", "comment", "added", "origin", "deleted", "kept_deleted"} <= cols
+        assert conn.execute("SELECT count(*) FROM evaluations").fetchone()[0] == 0
+    assert reg.datasets() == []  # a training reference is not a managed dataset
+    ModelRegistry(db).list()  # opening again changes nothing
+
+
+def test_a_newer_schema_is_refused(car):
+    db = car / "models" / DB_FILENAME
+    with sqlite3.connect(db) as conn:
+        conn.executescript(_V1.replace("user_version = 1", "user_version = 9"))
+    with pytest.raises(RegistryError, match="newer version"):
+        ModelRegistry(db).list()
+
+
+def _report(autonomy, cte, seeds=(1, 2), laps=1, completed=2):
+    return {"seeds": list(seeds), "laps": laps, "settings": {"dt": 0.05},
+            "overall": {"autonomy": autonomy, "mean_abs_cte": cte, "laps_completed": completed, "mean_speed": 1.0},
+            "tracks": [{"seed": s, "autonomy": autonomy, "trajectory": [[0.0, 0.0]] * 3, "off_track_at": []}
+                       for s in seeds]}
+
+
+def test_evaluations_and_the_leaderboard(car):
+    reg = ModelRegistry.for_models_dir(car / "models")
+    for name in ("a", "b", "c"):
+        reg.register(car / "models" / f"{name}.pt", model_type="linear")
+    reg.add_evaluation("a", _report(90.0, 0.2), picture=b"\x89PNG...")
+    reg.add_evaluation("b", _report(90.0, 0.1))
+    reg.add_evaluation("c", _report(100.0, 0.5, completed=1))
+    reg.add_evaluation("c", _report(20.0, 0.5, seeds=(2, 1)))  # latest on the same tracks (order ignored)
+    reg.add_evaluation("a", _report(100.0, 0.0, seeds=(7,)))
+    assert [e.model for e in reg.leaderboard([2, 1])] == ["b", "a", "c"]
+    assert [e.model for e in reg.leaderboard([7])] == ["a"]
+    assert reg.leaderboard([1, 2], laps=3) == []
+    ev = reg.evaluations("a")[1]
+    assert ev.tracks == (1, 2) and ev.has_picture and reg.evaluation_picture(ev.id) == b"\x89PNG..."
+    assert "trajectory" not in ev.per_track[0] and ev.per_track[0]["autonomy"] == 90.0
+    assert reg.track_sets() == [((1, 2), 1, 3), ((7,), 1, 1)]
+    # retraining a model to the same name drops its evaluations (they judged other weights)
+    reg.register(car / "models" / "c.pt", model_type="linear")
+    assert reg.evaluations("c") == []
+    reg.remove("a")
+    assert [e.model for e in reg.evaluations()] == ["b"]
+
+
+def test_rename_moves_the_files_and_keeps_everything_else(car):
+    reg = ModelRegistry.for_models_dir(car / "models")
+    for suffix in (".pt", ".onnx", ".loss.png"):
+        (car / "models" / f"m{suffix}").write_bytes(suffix.encode())
+    reg.register(car / "models" / "m.pt", model_type="linear", comment="c", datasets=[car / "data" / "t"])
+    reg.add_evaluation("m", _report(50.0, 0.1))
+    entry = reg.rename("m", "better.pt")
+    assert entry.name == "better" and entry.path == (car / "models" / "better.pt").resolve()
+    assert sorted(p.name for p in (car / "models").glob("better*")) == ["better.loss.png", "better.onnx", "better.pt"]
+    assert not list((car / "models").glob("m.*"))
+    assert entry.comment == "c" and len(entry.datasets) == 1 and len(reg.evaluations("better")) == 1
+    reg.register(car / "models" / "x.pt", model_type="linear")
+    with pytest.raises(RegistryError, match="already registered"):
+        reg.rename("better", "x")
+    with pytest.raises(RegistryError, match="must not be empty"):
+        reg.rename("better", "")
+    with pytest.raises(RegistryError, match="letters, digits"):
+        reg.rename("better", "../escape")
+    (car / "models" / "taken.onnx").write_bytes(b"someone else's")
+    with pytest.raises(RegistryError, match="taken.onnx exists"):
+        reg.rename("better", "taken")
+    assert (car / "models" / "better.pt").is_file()  # nothing moved
+    assert main(["models", "rename", "better", "best", "--car", str(car)]) == 0
+    assert reg.names() == ["best", "x"]
+
+
+def test_managed_datasets_survive_the_removal_of_their_models(car):
+    reg = ModelRegistry.for_models_dir(car / "models")
+    tub = car / "data" / "tub_1"
+    reg.register(car / "models" / "m.pt", model_type="linear", datasets=[tub, car / "data" / "tub_2"])
+    managed = reg.add_dataset(tub, "found", label="3")
+    assert [d.id for d in reg.datasets()] == [managed.id] and reg.models_of_dataset(managed.id) == ["m"]
+    reg.remove("m")
+    assert [d.path for d in reg.datasets()] == [tub.resolve()]
+    with sqlite3.connect(reg.db_path) as conn:  # the bare reference of tub_2 went with its model
+        assert conn.execute("SELECT count(*) FROM datasets").fetchone()[0] == 1
+    moved = reg.update_dataset(managed.id, path=car / "data" / "renamed", comment="x")
+    assert moved.name == "renamed" and moved.comment == "x" and moved.label == "3"
+    reg.forget_dataset(managed.id)
+    assert reg.datasets() == []
+
+
+def test_the_models_leaderboard_command(car, capsys):
+    reg = ModelRegistry.for_models_dir(car / "models")
+    reg.register(car / "models" / "a.pt", model_type="linear")
+    reg.add_evaluation("a", _report(75.5, 0.123, seeds=(101, 102, 103)))
+    assert main(["models", "leaderboard", "--car", str(car)]) == 0
+    out = capsys.readouterr().out
+    assert "tracks 101,102,103" in out and "75.5%" in out and "0.123 m" in out
+    assert main(["models", "leaderboard", "--car", str(car), "--tracks", "5"]) == 0
+    assert "no evaluations on tracks 5; evaluated track sets: --tracks 101,102,103 --laps 1" in capsys.readouterr().out
+    assert main(["models", "--car", str(car)]) == 0
+    assert "75.5% on 101,102,103" in capsys.readouterr().out

@@ -9,8 +9,9 @@ from parts.pilots.dataset import PilotDataset, build_samples, read_drive_data
 from parts.pilots.framecache import FrameCache
 from parts.pilots.models import create_model, model_type, model_type_names
 from parts.pilots.preprocess import Preprocess
+from parts.vision.lanes import LaneSettings
 
-ALL_TYPES = ["linear", "categorical", "inferred", "pilotnet", "memory", "behavior", "rnn", "3d"]
+ALL_TYPES = ["linear", "categorical", "inferred", "pilotnet", "memory", "behavior", "rnn", "3d", "lanes"]
 
 
 def test_registry_lists_every_type():
@@ -55,9 +56,10 @@ def test_declared_inputs_outputs(name):
     controls = model.controls(out)
     assert controls.shape == (n, 2)
     assert model.describe()["type"] == name
-    expected_extra = {"memory": 6, "behavior": 3}.get(name, 0)
+    expected_extra = {"memory": 6, "behavior": 3, "lanes": 2}.get(name, 0)
     assert model.extra_size == expected_extra
-    assert model.extra_inputs == (("behavior/one_hot_state_array",) if name == "behavior" else ())
+    behavior_types = ("behavior", "lanes")
+    assert model.extra_inputs == (("behavior/one_hot_state_array",) if name in behavior_types else ())
     assert model.frames == (3 if name in ("rnn", "3d") else 1)
     assert model.command_history == (3 if name == "memory" else 0)
 
@@ -80,11 +82,12 @@ def test_inferred_throttle_slows_in_curves():
 
 
 @pytest.mark.parametrize("name", ALL_TYPES)
-def test_each_type_learns_on_a_tiny_tub(name, tiny_tub, torch_one_thread):
+def test_each_type_learns_on_a_tiny_tub(name, tiny_tub, torch_one_thread, fit_steps):
     torch.manual_seed(0)
     data = read_drive_data([tiny_tub])
-    pre = Preprocess(image_shape=(64, 64, 3))
-    options = {"num_behaviors": 2} if name == "behavior" else {}
+    lanes = LaneSettings(color_mask="yellow").to_dict() if name == "lanes" else None  # the bar is yellow
+    pre = Preprocess(image_shape=(64, 64, 3), lanes=lanes)
+    options = {"num_behaviors": 2} if name in ("behavior", "lanes") else {}
     model = create_model(name, pre.output_shape((64, 64, 3)), **options)
     depth = max(model.frames - 1, model.command_history)
     samples = build_samples(data, range(len(data)), depth=depth)
@@ -96,7 +99,6 @@ def test_each_type_learns_on_a_tiny_tub(name, tiny_tub, torch_one_thread):
     x = pre.normalize_batch(torch.stack([b[0] for b in batch]))
     e = torch.stack([b[1] for b in batch]) if model.extra_size else None
     y = torch.stack([b[2] for b in batch])
-    opt = torch.optim.Adam(model.parameters(), lr=1e-3)
 
     def eval_loss() -> float:
         model.eval()
@@ -104,12 +106,7 @@ def test_each_type_learns_on_a_tiny_tub(name, tiny_tub, torch_one_thread):
             return float(model.loss(model(x, e), y))
 
     before = eval_loss()
-    for _ in range(25):
-        model.train()
-        loss = model.loss(model(x, e), y)
-        opt.zero_grad()
-        loss.backward()
-        opt.step()
+    fit_steps(model, x, e, y, 25)
     after = eval_loss()
     # Cross-entropy over 15 + 20 bins falls more slowly in 25 steps than a regression loss.
     ratio = 0.85 if name == "categorical" else 0.6

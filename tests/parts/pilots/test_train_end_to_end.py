@@ -40,14 +40,17 @@ def test_train_writes_model_metrics_plot_and_registry(tiny_tub, tmp_path, torch_
     assert entry.type == "linear" and entry.comment == "first try"
 
 
-@pytest.mark.parametrize("name", ["categorical", "behavior", "rnn"])
+@pytest.mark.parametrize("name", ["categorical", "behavior", "rnn", "lanes"])
 def test_other_types_train_through_the_whole_pipeline(name, tiny_tub, tmp_path, torch_one_thread):
     cfg = Config.defaults(**{**FAST, "MAX_EPOCHS": 1, "SEQUENCE_LENGTH": 2})
     train(cfg, [tiny_tub], tmp_path / "m.pt", model_type_name=name, register=False)
     model, meta = load_model(tmp_path / "m.pt")
     assert meta["type"] == name
-    if name == "behavior":
+    if name in ("behavior", "lanes"):
         assert model.num_behaviors == 2  # read from the records' one-hot arrays
+    if name == "lanes":  # the lane image is made by the preprocessing, stored with the model
+        assert meta["preprocess"]["lanes"]["s_threshold"] == [65, 255]
+        assert meta["preprocess"]["normalize"] == "unit" and model.input_shape[0] == 4
     if name == "rnn":
         assert model.frames == 2
 
@@ -119,7 +122,7 @@ def test_manage_py_and_vehicle_train_share_arguments(tiny_tub, tmp_path, capsys,
     assert meta["type"] == "inferred" and meta["training"]["augmentations"]["names"] == ["flip"]
     assert main(["train", "--car", str(tmp_path), "--tubs", str(tiny_tub), "--model", str(tmp_path / "c.pt"),
                  "--type", "lstm"]) == 2
-    assert "unknown model type 'lstm'" in capsys.readouterr().err
+    assert "--type lstm: must be one of 3d, behavior, categorical" in capsys.readouterr().err
 
 
 def test_training_without_validation_split_monitors_training_loss(tiny_tub, tmp_path, torch_one_thread):

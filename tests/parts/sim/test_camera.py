@@ -83,3 +83,56 @@ def test_jitter_is_seeded_and_changes_images():
     assert 0 < blurred[10, 14, 0] < 200
     with pytest.raises(ValueError, match="jitter"):
         ImageJitter(brightness=1.5)
+
+
+def test_lens_distortion_bends_the_pinhole_image_as_opencvs_model(track_and_texture):
+    import cv2
+
+    track, tex = track_and_texture
+    dist = (-0.25, 0.07, 0.001, -0.0015, 0.0)
+    pinhole, lens = Camera(320, 240), Camera(320, 240, distortion=dist)
+    assert not pinhole.distorted and lens.distorted
+    assert lens.canvas_size[0] > 320 and lens.canvas_size[1] > 240  # barrel: the lens sees wider
+    pose = track.pose_at(2.0, -0.2)
+    a, b = pinhole.render(tex, *pose), lens.render(tex, *pose)
+    assert b.shape == a.shape and np.abs(a.astype(int) - b.astype(int)).mean() > 5
+    # a ground point seen by the pinhole at pixel p is seen through the lens where OpenCV's model
+    # distorts p to (the lens image is the pinhole image bent by cv2.projectPoints' mapping)
+    ground = np.array([[0.6, 0.15], [1.0, -0.3], [0.45, 0.25]])
+    p_pin, p_lens = pinhole.project_ground(ground), lens.project_ground(ground)
+    k = pinhole.intrinsics
+    rays = np.column_stack([(p_pin - k[:2, 2]) / k[0, 0], np.ones(3)])
+    expected, _ = cv2.projectPoints(rays, np.zeros(3), np.zeros(3), k, np.array(dist))
+    assert np.allclose(p_lens, expected.reshape(-1, 2), atol=1e-6)
+    # and the rendered images agree there (bilinear sampling: a few grey levels)
+    for (u0, v0), (u1, v1) in zip(p_pin, p_lens, strict=True):
+        pa = a[int(round(v0)), int(round(u0))].astype(int)
+        pb = b[int(round(v1)), int(round(u1))].astype(int)
+        assert np.abs(pa - pb).max() < 40
+    assert Camera(160, 120, distortion=(0, 0, 0, 0, 0)).distortion is None  # all zero = a pinhole
+    with pytest.raises(ValueError, match="cannot be inverted"):
+        Camera(320, 240, distortion=(-0.1, 0.0, 0.0, 0.0, 0.0))  # folds before the image corners
+    with pytest.raises(ValueError, match="4, 5 or 8"):
+        Camera(distortion=(0.1, 0.2))
+
+
+def test_lane_region_points_make_a_true_birds_eye_view():
+    import cv2
+
+    from parts.sim.camera import lane_region_points
+
+    cam = Camera(160, 120)
+    pts = lane_region_points(cam, near=0.4, far=1.2, half_width=0.5)
+    assert pts["LANE_POINTS_SIZE"] == [160, 120]
+    src = np.float32(pts["LANE_SOURCE_POINTS"])
+    dst = np.float32(pts["LANE_DESTINATION_POINTS"])
+    m = cv2.getPerspectiveTransform(src, dst)
+    # two parallel lines on the ground (0.2 m either side) stay parallel and equally apart in the warp
+    along = np.linspace(0.45, 1.15, 6)
+    for y in (0.2, -0.2):
+        line = cam.project_ground(np.column_stack([along, np.full(6, y)]))
+        warped = cv2.perspectiveTransform(line.reshape(-1, 1, 2).astype(np.float32), m).reshape(-1, 2)
+        assert np.ptp(warped[:, 0]) < 0.05  # vertical in the bird's-eye view
+        assert warped[0, 0] == pytest.approx(77.5 - y / 0.5 * 37.5, abs=0.05)
+    with pytest.raises(ValueError, match="near < far"):
+        lane_region_points(cam, near=2.0, far=1.0)

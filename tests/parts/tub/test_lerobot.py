@@ -104,13 +104,19 @@ def arrow_type_ok(field: Any, ft: dict[str, Any]) -> bool:
         and field.type.value_type == dtypes[ft["dtype"]]
 
 
+def chunk_file(path: Path) -> tuple[int, int]:
+    """``.../chunk-001/file-002.parquet`` -> (1, 2)."""
+    return int(path.parent.name.split("-")[1]), int(path.stem.split("-")[1])
+
+
 def read_dataset(root: Path) -> dict[str, Any]:
-    """Every file of a v3.0 dataset, checked against info.json on the way."""
+    """Every file of a v3.0 dataset, checked against info.json on the way (across file rollovers:
+    each episode's rows, episode row and frames are in the files its indexes name)."""
     info = json.loads((root / "meta/info.json").read_text())
     assert info["codebase_version"] == "v3.0"
     assert info["data_path"] == "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
-    assert info["chunks_size"] == 1000 and info["data_files_size_in_mb"] == 100
     assert info["splits"] == {"train": f"0:{info['total_episodes']}"}
+    chunks_size = info["chunks_size"]
     features = info["features"]
     for name, default in (("timestamp", "float32"), ("frame_index", "int64"), ("episode_index", "int64"),
                           ("index", "int64"), ("task_index", "int64")):
@@ -121,8 +127,11 @@ def read_dataset(root: Path) -> dict[str, Any]:
     if videos:
         assert info["video_path"] == "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4"
 
-    tables = [pq.read_table(p) for p in sorted((root / "data").glob("chunk-*/file-*.parquet"))]
+    data_files = sorted((root / "data").glob("chunk-*/file-*.parquet"))
+    assert all(chunk_file(p)[1] < chunks_size for p in data_files)
+    tables = [pq.read_table(p) for p in data_files]
     data = pa.concat_tables(tables)
+    row_file = [chunk_file(p) for p, t in zip(data_files, tables, strict=True) for _ in range(t.num_rows)]
     columns = [k for k, f in features.items() if f["dtype"] != "video"]
     assert data.column_names == columns
     hf = json.loads(tables[0].schema.metadata[b"huggingface"])["info"]["features"]
@@ -145,12 +154,30 @@ def read_dataset(root: Path) -> dict[str, Any]:
                      strict=True))
     assert sorted(tasks) == list(range(info["total_tasks"]))
 
-    episodes = pa.concat_tables([pq.read_table(p) for p in
-                                 sorted((root / "meta/episodes").glob("chunk-*/file-*.parquet"))]).to_pylist()
+    episodes = []
+    for path in sorted((root / "meta/episodes").glob("chunk-*/file-*.parquet")):
+        for ep in pq.read_table(path).to_pylist():  # each episode row says which file holds it
+            assert (ep["meta/episodes/chunk_index"], ep["meta/episodes/file_index"]) == chunk_file(path)
+            episodes.append(ep)
     assert [e["episode_index"] for e in episodes] == list(range(info["total_episodes"]))
-    end = 0
-    video_end: dict[str, float] = {}
     fps = info["fps"]
+    decoded: dict[str, dict[tuple[int, int], list[tuple[float, np.ndarray]]]] = {}
+    for key in videos:
+        vinfo = features[key]["info"]
+        assert vinfo["video.codec"] == "av1" and vinfo["video.pix_fmt"] == "yuv420p"
+        assert vinfo["video.fps"] == fps and vinfo["has_audio"] is False
+        assert [vinfo["video.height"], vinfo["video.width"], vinfo["video.channels"]] == features[key]["shape"]
+        decoded[key] = {}
+        for path in sorted((root / "videos" / key).glob("chunk-*/file-*.mp4")):
+            with av.open(str(path)) as container:
+                stream = container.streams.video[0]
+                assert stream.codec_context.name in ("libdav1d", "av1") and stream.pix_fmt == "yuv420p"
+                decoded[key][chunk_file(path)] = [(float(f.time), f.to_ndarray(format="rgb24"))
+                                                  for f in container.decode(stream)]
+        assert sum(map(len, decoded[key].values())) == info["total_frames"]
+    end = 0
+    video_end: dict[tuple[str, int, int], float] = {}
+    frames: dict[str, list[tuple[float, np.ndarray]]] = {key: [] for key in videos}
     for ep in episodes:
         mine = [r for r in rows if r["episode_index"] == ep["episode_index"]]
         assert ep["dataset_from_index"] == end == mine[0]["index"]
@@ -159,13 +186,22 @@ def read_dataset(root: Path) -> dict[str, Any]:
         assert [r["frame_index"] for r in mine] == list(range(ep["length"]))
         for r in mine:  # LeRobot finds a video frame at from_timestamp + timestamp, frame_index / fps
             assert r["timestamp"] == pytest.approx(r["frame_index"] / fps, abs=1e-6)
+            assert row_file[r["index"]] == (ep["data/chunk_index"], ep["data/file_index"])
         assert set(ep["tasks"]) == {tasks[r["task_index"]] for r in mine}
-        assert ep["data/chunk_index"] == 0 and ep["data/file_index"] == 0
         for key in videos:
-            assert ep[f"videos/{key}/from_timestamp"] == pytest.approx(video_end.get(key, 0.0))
+            where = (key, ep[f"videos/{key}/chunk_index"], ep[f"videos/{key}/file_index"])
+            assert where[2] < chunks_size
+            # episodes follow each other in a file, the first at 0
+            assert ep[f"videos/{key}/from_timestamp"] == pytest.approx(video_end.get(where, 0.0))
             assert ep[f"videos/{key}/to_timestamp"] == pytest.approx(ep[f"videos/{key}/from_timestamp"]
                                                                      + ep["length"] / fps)
-            video_end[key] = ep[f"videos/{key}/to_timestamp"]
+            video_end[where] = ep[f"videos/{key}/to_timestamp"]
+            in_file = decoded[key][where[1:]]
+            for r in mine:  # the frame LeRobot would look up for each row, within its 1e-4 s tolerance
+                t = ep[f"videos/{key}/from_timestamp"] + r["timestamp"]
+                found = in_file[int(round(t * fps))]
+                assert abs(found[0] - t) < 1e-4
+                frames[key].append(found)
         for name, ft in features.items():
             if ft["dtype"] == "string":
                 assert f"stats/{name}/mean" not in ep
@@ -175,30 +211,14 @@ def read_dataset(root: Path) -> dict[str, Any]:
                 assert np.asarray(ep[f"stats/{name}/{stat}"]).shape == shape, (name, stat)
             if ft["dtype"] not in ("video", "image"):
                 check_stats(ep, f"stats/{name}/", column(mine, name, ft))
+    for key in videos:  # every frame of every file belongs to exactly one row
+        assert len(frames[key]) == info["total_frames"]
+        assert {id(f[1]) for f in frames[key]} == {id(f[1]) for fs in decoded[key].values() for f in fs}
     stats = json.loads((root / "meta/stats.json").read_text())
     assert set(stats) == {k for k, f in features.items() if f["dtype"] != "string"}
     for name, ft in features.items():
         if ft["dtype"] not in ("video", "image", "string"):
             check_stats({f"{name}/{k}": v for k, v in stats[name].items()}, f"{name}/", column(rows, name, ft))
-
-    frames: dict[str, list[tuple[float, np.ndarray]]] = {}
-    for key in videos:
-        vinfo = features[key]["info"]
-        assert vinfo["video.codec"] == "av1" and vinfo["video.pix_fmt"] == "yuv420p"
-        assert vinfo["video.fps"] == fps and vinfo["has_audio"] is False
-        assert [vinfo["video.height"], vinfo["video.width"], vinfo["video.channels"]] == features[key]["shape"]
-        decoded = []
-        for path in sorted((root / "videos" / key).glob("chunk-*/file-*.mp4")):
-            with av.open(str(path)) as container:
-                stream = container.streams.video[0]
-                assert stream.codec_context.name in ("libdav1d", "av1") and stream.pix_fmt == "yuv420p"
-                decoded += [(float(f.time), f.to_ndarray(format="rgb24")) for f in container.decode(stream)]
-        assert len(decoded) == info["total_frames"]
-        frames[key] = decoded
-        for r in rows:  # the frame LeRobot would look up for each row, within its 1e-4 s tolerance
-            ep = episodes[r["episode_index"]]
-            t = ep[f"videos/{key}/from_timestamp"] + r["timestamp"]
-            assert abs(decoded[r["index"]][0] - t) < 1e-4
     return {"info": info, "rows": rows, "episodes": episodes, "tasks": tasks, "stats": stats, "frames": frames}
 
 
@@ -241,6 +261,8 @@ def test_export_matches_the_v3_schema_field_by_field(source, exported):
     info, rows, episodes = ds["info"], ds["rows"], ds["episodes"]
     features = info["features"]
     assert info["fps"] == 20 and info["total_frames"] == len(written) == 52
+    assert (info["chunks_size"], info["data_files_size_in_mb"], info["video_files_size_in_mb"]) == (1000, 100, 200)
+    assert {(e["data/chunk_index"], e["data/file_index"]) for e in episodes} == {(0, 0)}
     # episodes: session 0 track 1, session 0 track 2, session 1 before and after the 3 s pause
     assert [e["length"] for e in episodes] == [15, 15, 10, 12]
     assert info["total_episodes"] == 4 and info["robot_type"] == "donkeycar"
@@ -267,6 +289,7 @@ def test_export_matches_the_v3_schema_field_by_field(source, exported):
         ep = episodes[row["episode_index"]]
         assert ep["tub/capture_start_ms"] + round(row["capture_timestamp"] * 1000) == ts
     assert [e["tub/session_id"].rsplit("_", 1)[1] for e in episodes] == ["0", "0", "1", "1"]
+    assert [e["tub/index"] for e in episodes] == [0, 0, 0, 0] and {e["tub/name"] for e in episodes} == {"tub"}
     assert (episodes[3]["tub/first_index"], episodes[3]["tub/last_index"]) == (40, 54)
     # image statistics: per channel, in [0, 1], from every source frame
     src = np.stack([r.image() for r in load_records(tub)]).astype(np.float64) / 255
@@ -276,6 +299,16 @@ def test_export_matches_the_v3_schema_field_by_field(source, exported):
     np.testing.assert_allclose(np.asarray(img["std"]).ravel(), src.std(axis=(0, 1, 2)), atol=1e-9)
     np.testing.assert_allclose(np.asarray(img["q50"]).ravel(), np.quantile(src, 0.5, axis=(0, 1, 2),
                                                                            method="inverted_cdf"), atol=1e-9)
+    # ... and per episode, from the episode's frames
+    for ep in episodes:
+        mine = src[ep["dataset_from_index"]:ep["dataset_to_index"]]
+        assert ep["stats/observation.images.cam/count"] == [ep["length"]]
+        for stat, value in (("mean", mine.mean(axis=(0, 1, 2))), ("std", mine.std(axis=(0, 1, 2))),
+                            ("min", mine.min(axis=(0, 1, 2))), ("max", mine.max(axis=(0, 1, 2))),
+                            ("q10", np.quantile(mine, 0.1, axis=(0, 1, 2), method="inverted_cdf")),
+                            ("q99", np.quantile(mine, 0.99, axis=(0, 1, 2), method="inverted_cdf"))):
+            np.testing.assert_allclose(np.asarray(ep[f"stats/observation.images.cam/{stat}"]).ravel(), value,
+                                       atol=1e-9, err_msg=f"episode {ep['episode_index']} {stat}")
     # the video holds the frames, within the codec's loss
     for (_, got), rec in zip(ds["frames"]["observation.images.cam"], load_records(tub), strict=True):
         assert psnr(rec.image(), got) >= VIDEO_PSNR_DB
@@ -490,3 +523,202 @@ def test_missing_pyarrow_says_how_to_install(source, tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "pyarrow", None)
     with pytest.raises(LeRobotFormatError, match=r"pyarrow is not installed.*pip install 'vehicle-rc\[datasets\]'"):
         export_lerobot(source[0], tmp_path / "x")
+
+
+# -- the loop rate ---------------------------------------------------------------------------------------
+
+def loop_tub(path: Path, hz: int, n: int = 400) -> None:
+    """A recording at ``hz`` as a real loop makes it: capture times in whole milliseconds, a few ms
+    of jitter around the schedule (std 1.5 ms, at most 4) and now and then a missed loop (a frame
+    one period late)."""
+    rng = np.random.default_rng(hz)
+    period = 1000.0 / hz
+    t = 0.0
+    with Tub(path, ["user/angle", "user/throttle"], ["float", "float"], fsync=False) as tub:
+        for i in range(n):
+            t += period * (2 if i % 41 == 40 else 1)
+            jitter = float(np.clip(rng.normal(0.0, 1.5), -4.0, 4.0))
+            tub.write_record({"user/angle": 0.0, "user/throttle": 0.3}, timestamp_ms=T0 + round(t + jitter))
+
+
+@pytest.mark.parametrize("hz", [15, 20, 30, 50, 60])
+def test_fps_is_measured_from_sub_millisecond_intervals(tmp_path, hz):
+    """At 60 Hz the intervals are 16 or 17 whole ms: the median of those gave 59 (or 62) fps."""
+    loop_tub(tmp_path / "t", hz)
+    report = export_lerobot(tmp_path / "t", tmp_path / "ds", video=False)
+    assert report.fps_measured and report.fps == hz
+    assert json.loads((tmp_path / "ds/meta/info.json").read_text())["fps"] == hz
+
+
+# -- the video encoder -----------------------------------------------------------------------------------
+
+def test_an_encoder_failure_is_one_clear_error_and_leaves_nothing(donkey_tub, tmp_path, monkeypatch):
+    odd, _ = donkey_tub(4, name="odd", image_size=(47, 63))
+    out = tmp_path / "ds"
+    for codec in ("h264", "hevc"):  # yuv420p: x264 and x265 refuse odd sizes (checked before encoding)
+        with pytest.raises(LeRobotFormatError, match=rf"{codec}: .*63x47 .*even width and height.*libsvtav1"):
+            export_lerobot(odd, out, codec=codec)
+    assert export_lerobot(odd, tmp_path / "av1").frames == 4  # AV1 takes them
+    # any failure of the encoder itself (here an option libx264 refuses) names codec and frame size
+    from parts.tub.lerobot import video as video_module
+
+    even, _ = donkey_tub(4, name="even", image_size=(48, 64))
+    monkeypatch.setattr(video_module, "codec_options", lambda codec, crf: {"g": "2", "crf": "30", "preset": "warp9"})
+    with pytest.raises(LeRobotFormatError, match=r"h264 .*64x48 frames.*\(--vcodec, --crf\)") as info:
+        export_lerobot(even, out, codec="h264")
+    assert "\n" not in str(info.value)
+    assert not out.exists() and not list(tmp_path.glob(".ds.partial*"))
+
+
+def test_crf_out_of_the_codecs_range_is_refused_up_front(donkey_tub, tmp_path):
+    path, _ = donkey_tub(2, image_size=(48, 64))
+    with pytest.raises(TubError, match=r"crf must be within 0\.\.51 for hevc, got 63"):
+        export_lerobot(path, tmp_path / "ds", codec="hevc", crf=63)
+    assert not (tmp_path / "ds").exists()
+
+
+# -- malformed datasets ----------------------------------------------------------------------------------
+
+EPISODES_FILE = "meta/episodes/chunk-000/file-000.parquet"
+DATA_FILE = "data/chunk-000/file-000.parquet"
+
+
+def _drop_column(ds: Path, file: str, name: str) -> None:
+    pq.write_table(pq.read_table(ds / file).drop_columns([name]), ds / file)
+
+
+def _null_column(ds: Path, file: str, name: str) -> None:
+    table = pq.read_table(ds / file)
+    i = table.column_names.index(name)
+    table = table.set_column(i, name, pa.nulls(table.num_rows, table.schema.field(name).type))
+    pq.write_table(table, ds / file)
+
+
+def test_malformed_datasets_are_one_line_errors_naming_the_file(exported, tmp_path):
+    cam = "videos/observation.images.cam"
+    cases = [
+        (lambda ds: _drop_column(ds, EPISODES_FILE, f"{cam}/from_timestamp"),
+         rf"{EPISODES_FILE}: no column {cam}/from_timestamp"),
+        (lambda ds: _null_column(ds, EPISODES_FILE, f"{cam}/file_index"),
+         rf"{EPISODES_FILE}: episode 0 has no {cam}/file_index"),
+        (lambda ds: _drop_column(ds, EPISODES_FILE, "episode_index"), rf"{EPISODES_FILE}: no column episode_index"),
+        (lambda ds: (ds / "meta/vehicle_rc.json").write_text('{"format": 1, "tubs": ['),
+         r"meta/vehicle_rc\.json is not valid JSON"),
+        (lambda ds: _drop_column(ds, DATA_FILE, "action"), rf"{DATA_FILE}: no column action"),
+        (lambda ds: (ds / DATA_FILE).write_bytes(b"not parquet at all"), rf"{DATA_FILE} cannot be read as parquet"),
+        (lambda ds: (ds / EPISODES_FILE).write_bytes(b"PAR1"), rf"{EPISODES_FILE} cannot be read as parquet"),
+    ]
+    for i, (edit, message) in enumerate(cases):
+        ds = tmp_path / f"bad{i}"
+        shutil.copytree(exported, ds)
+        edit(ds)
+        with pytest.raises(LeRobotFormatError, match=message) as info:
+            import_lerobot(ds, tmp_path / f"tub{i}")
+        assert "\n" not in str(info.value)
+        assert not (tmp_path / f"tub{i}").exists()
+    assert not list(tmp_path.glob(".*partial*"))
+
+
+# -- files rolling over ----------------------------------------------------------------------------------
+
+def test_files_roll_over_and_read_back_across_them(source, tmp_path, monkeypatch):
+    """Size limits of a millionth of a MB: every episode starts a new data, video and episodes file,
+    two files per chunk: chunk-000/file-000, file-001, chunk-001/file-000, file-001."""
+    from parts.tub.lerobot import export as export_module
+    from parts.tub.lerobot.video import FrameReader
+
+    monkeypatch.setattr(export_module, "DATA_FILES_SIZE_IN_MB", 1e-6)
+    monkeypatch.setattr(export_module, "VIDEO_FILES_SIZE_IN_MB", 1e-6)
+    monkeypatch.setattr(export_module, "CHUNKS_SIZE", 2)
+    monkeypatch.setattr(export_module, "EPISODES_PER_GROUP", 1)
+    tub, written = source
+    out = tmp_path / "rolled"
+    export_lerobot(tub, out)
+    ds = read_dataset(out)
+    info, episodes = ds["info"], ds["episodes"]
+    assert (info["chunks_size"], info["data_files_size_in_mb"], info["video_files_size_in_mb"]) == (2, 1e-6, 1e-6)
+    files = [(0, 0), (0, 1), (1, 0), (1, 1)]
+    for folder in ("data", "meta/episodes"):
+        assert sorted(chunk_file(p) for p in (out / folder).glob("chunk-*/file-*.parquet")) == files, folder
+    assert [(e["data/chunk_index"], e["data/file_index"]) for e in episodes] == files
+    assert [(e["meta/episodes/chunk_index"], e["meta/episodes/file_index"]) for e in episodes] == files
+    # a video file counts the bytes the encoder gave out; SVT-AV1 holds back a mini-GOP of frames
+    # (up to 32), so these episodes of 10 to 15 frames go two to a file
+    cam = "videos/observation.images.cam"
+    assert sorted(chunk_file(p) for p in (out / cam).glob("chunk-*/file-*.mp4")) == files[:2]
+    assert [(e[f"{cam}/chunk_index"], e[f"{cam}/file_index"], e[f"{cam}/from_timestamp"]) for e in episodes] \
+        == [(0, 0, 0.0), (0, 0, 0.75), (0, 1, 0.0), (0, 1, 0.5)]
+
+    # the way back reads every file: every value, every frame
+    report = import_lerobot(out, tmp_path / "back")
+    assert report.records == len(written) and report.episodes == 4
+    for rec, (ts, values), src in zip(load_records(tmp_path / "back"), written, load_records(tub), strict=True):
+        assert rec.timestamp_ms == ts and rec["sim/pos"] == values["sim/pos"]
+        assert rec.angle == pytest.approx(values["user/angle"], rel=2 ** -24, abs=1e-30)
+        assert np.mean(np.abs(rec.image().astype(int) - src.image().astype(int))) <= VIDEO_MEAN_ABS
+
+    # random access: the reader seeks back and forth within files and jumps between them
+    reader = FrameReader()
+    order = np.random.default_rng(1).permutation(len(ds["rows"]))
+    for i in order:
+        row = ds["rows"][i]
+        ep = episodes[row["episode_index"]]
+        path = out / cam / f"chunk-{ep[f'{cam}/chunk_index']:03d}/file-{ep[f'{cam}/file_index']:03d}.mp4"
+        got = reader.frame(path, ep[f"{cam}/from_timestamp"] + row["timestamp"])
+        assert np.array_equal(got, ds["frames"]["observation.images.cam"][i][1]), i
+    reader.close()
+
+
+# -- options ---------------------------------------------------------------------------------------------
+
+def test_a_negative_max_gap_is_an_error(source, tmp_path):
+    with pytest.raises(TubError, match=r"max_gap_s must be >= 0 seconds \(0: never split on a gap\), got -1"):
+        export_lerobot(source[0], tmp_path / "ds", max_gap_s=-1, video=False)
+    assert not (tmp_path / "ds").exists()
+
+
+def test_each_record_comes_back_under_the_angle_key_its_tub_used(donkey_tub, tmp_path):
+    """DonkeyCar 4.x tubs (user/steering) and newer ones (user/angle) exported together."""
+    old, old_written = donkey_tub(5, name="old", angle_key="user/steering", image_size=(48, 64))
+    new, new_written = donkey_tub(4, name="new", image_size=(48, 64))
+    export_lerobot([new, old], tmp_path / "ds", video=False)
+    import_lerobot(tmp_path / "ds", tmp_path / "back")
+    assert Tub(tmp_path / "back", read_only=True).inputs == ["cam/image_array", "user/angle", "user/throttle",
+                                                              "user/mode", "user/steering"]
+    back = load_records(tmp_path / "back")
+    assert [sorted(k for k in r.data if k.startswith("user/")) for r in back] == \
+        [["user/angle", "user/mode", "user/throttle"]] * 4 + [["user/mode", "user/steering", "user/throttle"]] * 5
+    assert [r.angle for r in back] == pytest.approx([r["user/angle"] for r in new_written]
+                                                    + [r["user/steering"] for r in old_written], rel=2 ** -24)
+    # a dataset without tub/index in its episodes (exported before it was written): by tub/name
+    _drop_column(tmp_path / "ds", EPISODES_FILE, "tub/index")
+    import_lerobot(tmp_path / "ds", tmp_path / "back2")
+    assert [sorted(r.data) for r in load_records(tmp_path / "back2")] == [sorted(r.data) for r in back]
+
+
+def test_long_sessions_are_split_so_timestamps_keep_lerobots_tolerance(tmp_path):
+    synthetic_tub(tmp_path / "t", 100)  # 5 s at 20 Hz, one session
+    report = export_lerobot(tmp_path / "t", tmp_path / "ds", video=False, max_episode_s=1.5)
+    ds = read_dataset(tmp_path / "ds")
+    assert report.episodes == 4 and [e["length"] for e in ds["episodes"]] == [30, 30, 30, 10]
+    assert max(r["timestamp"] for r in ds["rows"]) == pytest.approx(29 / 20)
+    for bad in (0, -5, 2049):
+        with pytest.raises(TubError, match=r"max_episode_s must be > 0 and <= 2048 s"):
+            export_lerobot(tmp_path / "t", tmp_path / "x", video=False, max_episode_s=bad)
+
+
+def test_the_default_episode_limit_keeps_float32_timestamps_within_1e4_s():
+    """float32 has 24 bits: past 2048 s its step is 2.4e-4 s, and frame_index / fps stored as
+    float32 can be up to 1.2e-4 s off (at 15, 30, 50, 60 fps), beyond the 1e-4 s LeRobot accepts."""
+    from parts.tub.lerobot.export import DEFAULT_MAX_EPISODE_S, MAX_EPISODE_S
+
+    assert DEFAULT_MAX_EPISODE_S == 1800 and MAX_EPISODE_S == 2048
+
+    def worst(fps: int, start_s: int, end_s: int) -> float:
+        t = np.arange(start_s * fps, end_s * fps, dtype=np.float64) / fps
+        return float(np.max(np.abs(t.astype(np.float32).astype(np.float64) - t)))
+
+    for fps in (10, 15, 20, 30, 50, 60):
+        assert worst(fps, 0, MAX_EPISODE_S) < 1e-4
+    assert [fps for fps in (10, 15, 20, 30, 50, 60) if worst(fps, MAX_EPISODE_S, MAX_EPISODE_S + 60) > 1e-4] \
+        == [15, 30, 50, 60]

@@ -9,7 +9,7 @@ import re
 import numpy as np
 import pytest
 
-from parts.tub.errors import TubSchemaError
+from parts.tub.errors import TubError, TubSchemaError
 from parts.tub.reader import load_records
 from parts.tub.tub import Tub
 
@@ -224,3 +224,21 @@ def test_skipped_indexes_are_deleted_in_the_manifest_before_their_lines_are_writ
     tub.close()
     done = Tub(tmp_path / "t", read_only=True)
     assert done.current_index == 4 and done.deleted_indexes == {1, 2} and len(done) == 2
+
+
+def test_building_folder_is_all_or_nothing(tmp_path):
+    from parts.tub.format import building_folder
+
+    out = tmp_path / "new"
+    with pytest.raises(KeyboardInterrupt), building_folder(out) as tmp:
+        (tmp / "half.txt").write_text("half")
+        raise KeyboardInterrupt
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+    out.mkdir()  # an empty folder is replaced
+    with building_folder(out) as tmp:
+        assert tmp.parent == tmp_path and tmp.name.startswith(".new.partial")
+        (tmp / "done.txt").write_text("done")
+    assert [p.name for p in out.iterdir()] == ["done.txt"] and list(tmp_path.iterdir()) == [out]
+    with pytest.raises(TubError, match="exists and is not empty"), building_folder(out):
+        pass
+    assert (out / "done.txt").read_text() == "done"

@@ -1,13 +1,18 @@
-"""Udacity driving_log.csv import: both file forms, decimal commas, left/right images."""
+"""Udacity driving_log.csv import (both file forms, decimal commas, left/right images) and export."""
 
 from __future__ import annotations
 
+import csv
+import json
+import math
 import time
+from pathlib import Path
 
 import pytest
 
 from parts.tub.reader import load_records
-from parts.tub.udacity import _rebuild, import_udacity, read_driving_log, timestamp_from_name
+from parts.tub.tub import Tub
+from parts.tub.udacity import COLUMNS, _rebuild, export_udacity, import_udacity, read_driving_log, timestamp_from_name
 from vehicle.app.cli import main
 
 NAMES = ["2016_12_01_13_30_48_287", "2016_12_01_13_30_48_404", "2016_12_01_13_30_48_520"]
@@ -88,3 +93,93 @@ def test_bad_logs_name_the_line(tmp_path):
     with pytest.raises(ValueError, match="no way"):
         _rebuild(["0", "5", "0", "5", "0"], 7)
     assert timestamp_from_name("center.jpg") is None
+
+
+# -- export ------------------------------------------------------------------------------------------
+
+T0 = 1_700_000_000_000
+SIDE_KEYS = {"center": "cam/image_array", "left": "cam/image_array_left", "right": "cam/image_array_right"}
+MPH_PER_MS = 2.2369362920544023  # 1 m/s in miles per hour (3600 / 1609.344)
+
+
+def read_log(out: Path) -> list[list[str]]:
+    with open(out / "driving_log.csv", newline="") as f:
+        return list(csv.reader(f, skipinitialspace=True))
+
+
+def test_export_writes_speed_in_mph_brake_and_the_side_cameras(tmp_path, image):
+    keys = [*SIDE_KEYS.values(), "user/angle", "user/throttle", "user/brake", "enc/speed"]
+    with Tub(tmp_path / "t", keys, ["image_array"] * 3 + ["float"] * 4, fsync=False) as tub:
+        for i in range(4):
+            tub.write_record({"cam/image_array": image(i, 48, 64), "cam/image_array_left": image(10 + i, 48, 64),
+                              "cam/image_array_right": image(20 + i, 48, 64), "user/angle": 0.1 * i - 0.2,
+                              "user/throttle": 0.5 - 0.1 * i, "user/brake": 0.25 * i, "enc/speed": 2.0 + i},
+                             timestamp_ms=T0 + 50 * i)
+    report = export_udacity(tmp_path / "t", tmp_path / "out", style="sample")
+    assert report.rows == 4 and report.cameras == ["center", "left", "right"] and not report.skipped
+    rows = read_log(tmp_path / "out")
+    assert rows[0] == list(COLUMNS)
+    for rec, row in zip(load_records(tmp_path / "t"), rows[1:], strict=True):
+        stamp = time.strftime("%Y_%m_%d_%H_%M_%S", time.localtime(rec.timestamp_ms // 1000)) \
+            + f"_{rec.timestamp_ms % 1000:03d}"
+        for side, path in zip(SIDE_KEYS, row[:3], strict=True):
+            assert path == f"IMG/{side}_{stamp}.jpg"
+            assert (tmp_path / "out" / path).read_bytes() == rec.image_bytes(SIDE_KEYS[side])
+        steering, throttle, brake, speed = map(float, row[3:])
+        assert (steering, throttle, brake) == (rec.angle, rec.throttle, rec["user/brake"])
+        assert speed == pytest.approx(rec["enc/speed"] * MPH_PER_MS, rel=1e-12)  # m/s -> mph
+    back = load_records(import_udacity(tmp_path / "out", tmp_path / "back").tub)
+    assert [r["enc/speed"] for r in back] == pytest.approx([2.0, 3.0, 4.0, 5.0], rel=1e-12)
+    assert [r["user/brake"] for r in back] == [0.0, 0.25, 0.5, 0.75]
+
+
+def put_nan(tub: Path, index: int, key: str) -> None:
+    """Make a record's value NaN in its catalog, as DonkeyCar's json.dumps writes it."""
+    for catalog in tub.glob("catalog_*.catalog"):
+        lines = catalog.read_text().splitlines(keepends=True)
+        for i, line in enumerate(lines):
+            rec = json.loads(line)
+            if rec["_index"] == index:
+                rec[key] = math.nan
+                lines[i] = json.dumps(rec, sort_keys=True) + "\n"
+        catalog.write_text("".join(lines))
+        manifest = catalog.with_name(catalog.stem + ".catalog_manifest")
+        meta = json.loads(manifest.read_text())
+        meta["line_lengths"] = [len(ln) for ln in lines]
+        manifest.write_text(json.dumps(meta))
+
+
+def test_export_skips_records_without_a_centre_image_or_with_nan_and_says_so(tmp_path, image, capsys):
+    keys = ["cam/image_array", "cam/image_array_left", "user/angle", "user/throttle"]
+    path = tmp_path / "t"
+    with Tub(path, keys, ["image_array", "image_array", "float", "float"], fsync=False) as tub:
+        def write(i: int, ts: int, center: bool = True, left: bool = True) -> None:
+            rec = {"user/angle": 0.1 * i, "user/throttle": 0.5}
+            if center:
+                rec["cam/image_array"] = image(i, 48, 64)
+            if left:
+                rec["cam/image_array_left"] = image(10 + i, 48, 64)
+            tub.write_record(rec, timestamp_ms=ts)
+        write(0, T0)
+        write(1, T0 + 50, center=False)         # a left image only: skipped
+        write(2, T0 + 50)                       # the same millisecond: its own names
+        write(3, T0 + 100)                      # NaN steering: skipped
+        write(4, T0 + 150, center=False, left=False)  # no image at all: skipped
+        write(5, T0 + 200)
+        write(6, T0 + 200)                      # the same millisecond again: moved on by 1 ms
+    put_nan(path, 3, "user/angle")
+    out = tmp_path / "out"
+    assert main(["tub", "export-udacity", str(path), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert f"{out}: 4 rows (center, left cameras), skipped 3: 2 without a cam/image_array image, " \
+           "1 with a non-finite number" in printed
+    rows = read_log(out)
+    assert [float(r[3]) for r in rows] == pytest.approx([0.0, 0.2, 0.5, 0.6])
+    assert "nan" not in (out / "driving_log.csv").read_text().lower()
+    names = [Path(p).name for r in rows for p in r[:2]]
+    assert names[-2:] == [n.replace("_200.jpg", "_201.jpg") for n in names[-4:-2]]
+    assert len(set(names)) == 8 and sorted(p.name for p in (out / "IMG").iterdir()) == sorted(names)
+    for rec, row in zip([r for r in load_records(path) if r.index in (0, 2, 5, 6)], rows, strict=True):
+        assert row[2] == ""  # the tub has no right camera
+        for key, p in zip(("cam/image_array", "cam/image_array_left"), row[:2], strict=True):
+            assert Path(p).read_bytes() == rec.image_bytes(key), (rec.index, key)

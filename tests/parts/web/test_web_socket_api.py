@@ -192,6 +192,8 @@ MALFORMED = [
     ("set", {"max_throttle": 2.0}), ("set", {"speed_limit": -1.0}), ("set", {"speed_limit": 0}),
     ("set", {"speed_limit": 99.0}), ("set", {"constant_throttle": 1}), ("set", {"steer": 1}),
     ("estop", {}), ("estop", {"on": "true"}), ("estop", 1),
+    ("behavior", {}), ("behavior", {"step": 2}), ("behavior", {"step": True}), ("behavior", {"step": "1"}),
+    ("behavior", {"step": 1, "lane": "left"}), ("behavior", None),
     ("launch_missiles", {"now": True}),
 ]
 
@@ -317,3 +319,31 @@ def test_a_stalled_viewer_gets_no_queue_of_stale_frames(web, loop_side, client_c
 def test_port_in_use_says_what_to_change(web, web_factory):
     with pytest.raises(OSError, match="WEB_CONTROL_PORT"):
         web_factory(port=web.port)
+
+
+def test_change_lane_steps_the_behaviour_once_and_the_page_sees_the_lane(web, loop_side, client_cls, arun):
+    async def main():
+        c = client_cls()
+        await c.connect(web.port)
+        viewer = client_cls()
+        await viewer.connect(web.port)
+        assert loop_side.step(**{"behavior/label": "Left_Lane"})["web/behavior_step"] == 0
+        assert await c.call("behavior", {"step": 1}) == {"ok": True}
+        assert await c.call("behavior", {"step": 1}) == {"ok": True}
+        assert loop_side.step()["web/behavior_step"] == 2  # two presses between two loops
+        assert loop_side.step()["web/behavior_step"] == 0  # applied once
+        assert await c.call("behavior", {"step": -1}) == {"ok": True}
+        assert loop_side.step()["web/behavior_step"] == -1
+        res = await viewer.call("behavior", {"step": 1})  # only the driver changes lanes
+        assert res["ok"] is False and "Take control" in res["error"]
+        assert loop_side.step()["web/behavior_step"] == 0
+
+        async def lane_shown():
+            while not any(s["telemetry"]["behavior"] == "Right_Lane" for s in c.states):
+                loop_side.step(**{"behavior/label": "Right_Lane"})
+                await asyncio.sleep(0.02)
+        await asyncio.wait_for(lane_shown(), 5)
+        await viewer.close()
+        await c.close()
+
+    arun(main())

@@ -39,3 +39,14 @@ def test_errors_are_one_line_and_name_the_option(tmp_path):
     (tmp_path / "myconfig.py").write_text("DRIVE_LOOP_HZZ = 30\n")
     with pytest.raises(ConfigError, match=r"myconfig.py.*unknown setting DRIVE_LOOP_HZZ\. Did you mean DRIVE_LOOP_HZ"):
         load_for_command(parse("--car", str(tmp_path)))
+
+
+def test_myconfig_without_car_makes_its_folder_the_car(tmp_path, monkeypatch):
+    car = tmp_path / "mycar"
+    car.mkdir()
+    (car / "myconfig.py").write_text("DRIVE_LOOP_HZ = 40\n")
+    monkeypatch.chdir(tmp_path)
+    cfg = load_for_command(parse("--myconfig", "mycar/myconfig.py"))
+    assert cfg.CAR_PATH == str(car) and cfg.DRIVE_LOOP_HZ == 40 and cfg.path("DATA_PATH") == car / "data"
+    with pytest.raises(UserError, match="--myconfig mycar/other.py: no such file"):
+        load_for_command(parse("--myconfig", "mycar/other.py"))

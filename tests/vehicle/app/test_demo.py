@@ -48,3 +48,32 @@ def test_tiny_demo_writes_model_export_reports_and_registry(tmp_path, capsys):
 def test_demo_refuses_bad_arguments(tmp_path, capsys, args, message):
     assert main(["demo", "--out", str(tmp_path / "d"), *args]) == 2
     assert message in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_tiny_lanes_demo_trains_both_models_and_scores_commanded_lane_changes(tmp_path, capsys):
+    out = tmp_path / "lanes"
+    code = main(["demo", "--lanes", "--out", str(out), "--records", "300", "--lane-changes", "2", "--epochs", "1",
+                 "--train-tracks", "1", "--eval-tracks", "101", "--laps", "1", "--threads", "1"])
+    assert code == 0
+    printed = capsys.readouterr().out
+    for text in ("[1/4] the expert drives two-lane tracks [1]: 300 records, 2 commanded lane changes",
+                 "training the lanes model (1 of 2)", "training the behavior model (2 of 2)",
+                 "lane change on demand, unseen tracks:", "the thesis's claim"):
+        assert text in printed
+    for stem in ("lanes", "behavior", "expert"):
+        report = json.loads((out / "eval" / f"{stem}.json").read_text())
+        lanes = report["overall"]["lanes"]
+        assert report["seeds"] == [101] and lanes["lane_changes"] >= 1  # changes were commanded and judged
+        assert (out / "eval" / f"{stem}.png").stat().st_size > 1000
+    expert = json.loads((out / "eval" / "expert.json").read_text())["overall"]
+    assert expert["lanes"]["lane_change_success_rate"] == 1.0 and expert["interventions"] == 0
+    from parts.pilots.modelfile import load_model
+    from vehicle.config import load_config
+
+    cfg = load_config(car_path=out)  # a car folder with the lane settings
+    assert cfg.SIM_LANES == 2 and cfg.TRAIN_BEHAVIORS and cfg.LANE_POINTS_SIZE == (160, 120)
+    model, meta = load_model(out / "models" / "demo_lanes.pt")
+    assert meta["type"] == "lanes" and meta["preprocess"]["lanes"]["color_mask"] == "white"
+    assert meta["training"]["behaviors"] == ["Left_Lane", "Right_Lane"]
+    assert "flip" in meta["training"]["augmentations"]["names"]  # mirrored with the behaviour

@@ -171,3 +171,45 @@ def test_tracks_are_scored_independently(cfg):
     pilot = Weaving()
     alone = evaluate(pilot, [12], laps=1, cfg=cfg, max_time=3.0)["tracks"]
     assert pilot.resets == 1 and both[1] == alone[0]
+
+
+def test_lane_changes_are_commanded_and_scored(cfg, tmp_path):
+    lanes = cfg.replace(SIM_LANES=2, TRAIN_BEHAVIORS=True, SIM_EXPERT_SPEED=1.5, SIM_EVAL_LANE_CHANGE_EVERY=(6.0, 8.0))
+    r = evaluate("expert", [101], laps=1, cfg=lanes)
+    t = r["tracks"][0]["lanes"]
+    assert t["lane_changes"] >= 2 and t["lane_change_success_rate"] == 1.0 and t["wrong_lane_s"] == 0.0
+    assert all(c["success"] and c["pos"] is not None and c["lane"] in ("Left_Lane", "Right_Lane")
+               for c in t["commands"] if c["success"] is not None)
+    assert [c["lane"] for c in t["commands"]][:2] == ["Right_Lane", "Left_Lane"]  # starts left, alternates
+    assert r["overall"]["lanes"]["lane_changes_ok"] == t["lane_changes_ok"]
+    table = format_table(r)
+    assert "wrong lane s" in table and "commanded lane changes:" in table
+    png = write_png(r, tmp_path / "lanes.png", lanes)
+    assert png.stat().st_size > 1000
+
+    class IgnoresTheBehaviour:
+        """Reads the behaviour but keeps the left lane by standing still: every change fails."""
+
+        INPUTS = ("cam/image_array", "behavior/one_hot_state_array")
+
+        def __init__(self):
+            self.seen = set()
+
+        def run(self, image, one_hot):
+            self.seen.add(tuple(one_hot))
+            return 0.0, 0.0
+
+    pilot = IgnoresTheBehaviour()
+    r2 = evaluate(pilot, [101], laps=1, cfg=lanes, max_time=30.0)
+    l2 = r2["overall"]["lanes"]
+    assert pilot.seen == {(1.0, 0.0), (0.0, 1.0)}  # the schedule stepped the behaviour
+    judged = [c for c in r2["tracks"][0]["lanes"]["commands"] if c["success"] is not None]
+    assert len(judged) >= 2 and l2["wrong_lane_s"] > 0
+    # standing in the left lane: a change "to the left lane" is trivially done, every other fails
+    assert all(c["success"] == (c["lane"] == "Left_Lane") for c in judged)
+    # off on request, and impossible on one-lane tracks
+    assert "lanes" not in evaluate("expert", [101], laps=1, cfg=lanes, max_time=5.0, lane_changes=False)["overall"]
+    with pytest.raises(ValueError, match="SIM_LANES = 2"):
+        evaluate("expert", [101], laps=1, cfg=cfg, max_time=5.0, lane_changes=True)
+    with pytest.raises(ValueError, match="does not read"):
+        evaluate(StandStill(), [101], laps=1, cfg=lanes, max_time=5.0, lane_changes=True)

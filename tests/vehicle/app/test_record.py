@@ -40,3 +40,29 @@ def test_record_expert_into_a_new_tub_of_the_car(cfg, tmp_path):
     assert first.parent == second.parent == tmp_path / "data" and first != second
     with Tub(second, read_only=True) as tub:
         assert len(tub) == 10
+
+
+def test_record_with_lane_changes_flips_the_behaviour_and_the_expert_follows(cfg, tmp_path):
+    from vehicle.errors import UserError
+
+    two = cfg.replace(SIM_LANES=2)
+    path = record_expert(two, [1, 2], 800, tmp_path / "lanes", lane_changes=4)
+    with Tub(path, read_only=True) as tub:
+        records = [r for _, r in tub.records()]
+        assert {"behavior/state", "behavior/label", "behavior/one_hot_state_array"} <= set(tub.inputs)
+        assert tub.metadata.get("lane_changes") == "4"
+    states = [r["behavior/state"] for r in records]
+    assert sum(a != b for a, b in zip(states, states[1:], strict=False)) == 4
+    assert all(r["behavior/one_hot_state_array"] == [1.0 - s, float(s)] for r, s in zip(records, states, strict=True))
+    assert {r["behavior/label"] for r in records} == {"Left_Lane", "Right_Lane"}
+    # the car starts in the initial behaviour's lane (left: CTE < 0) and is in the commanded lane
+    # four seconds (80 records) after every change
+    assert records[0]["sim/cte"] == pytest.approx(-0.2, abs=1e-3)
+    changes = [i for i in range(1, len(states)) if states[i] != states[i - 1]]
+    for i in changes:
+        later = records[min(i + 80, len(records) - 1)]
+        assert (later["sim/cte"] < 0) == (later["behavior/label"] == "Left_Lane")
+    with pytest.raises(UserError, match="SIM_LANES = 2"):
+        record_expert(cfg, [1], 100, tmp_path / "x", lane_changes=2)
+    with pytest.raises(UserError, match="do not fit"):
+        record_expert(two, [1], 100, tmp_path / "y", lane_changes=5)

@@ -15,9 +15,12 @@ from typing import Any
 HELPERS: dict[str, str] = {
     "add_drive_mode": "drive",
     "add_simulator": "sim",
+    "sim_clock": "sim",
+    "add_simulator_commands": "sim",
     "add_expert": "sim",
     "add_expert_noise": "sim",
     "add_camera": "camera",
+    "add_undistort": "camera",
     "add_gamepad": "gamepad",
     "add_behavior": "drive",
     "add_camera_watchdog": "drive",

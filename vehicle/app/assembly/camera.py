@@ -63,4 +63,24 @@ def add_camera(V: Any, cfg: Config) -> Any:
                     timeout_s=cfg.CAMERA_TIMEOUT_S)
     V.add(camera, threaded=True)
     logger.info("camera: %s (%dx%d)", cfg.CAMERA_TYPE, cfg.IMAGE_W, cfg.IMAGE_H)
+    add_undistort(V, cfg)
     return camera
+
+
+def add_undistort(V: Any, cfg: Config) -> Any:
+    """With CAMERA_UNDISTORT: add the Undistort part (``cam/image_array`` in place) right after the
+    camera, with the car's calibration (CAMERA_CALIBRATION_PATH). Returns it, or None when off.
+
+    Raises:
+        CalibrationError: no usable calibration file (the message says how to make one).
+    """
+    if not cfg.CAMERA_UNDISTORT:
+        return None
+    from parts.vision.undistort import Undistort
+
+    part = Undistort.from_config(cfg)
+    V.add(part)
+    cal = part.calibration
+    logger.info("camera: undistorting with %s (made at %dx%d, RMS %.2f px)", cfg.path("CAMERA_CALIBRATION_PATH"),
+                *cal.image_size, cal.rms)
+    return part

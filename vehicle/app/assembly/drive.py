@@ -40,9 +40,10 @@ def add_camera_watchdog(V: Any, cfg: Config) -> Any:
 
 
 def add_behavior(V: Any, cfg: Config) -> Any:
-    """Add the behaviour state (with TRAIN_BEHAVIORS): ``behavior/step`` -> ``behavior/state,
-    behavior/label, behavior/one_hot_state_array``. Returns the BehaviorState part, or None when
-    TRAIN_BEHAVIORS is off. A car without behaviour buttons reads no ``behavior/step``.
+    """Add the behaviour state (with TRAIN_BEHAVIORS): ``behavior/step`` (gamepad) and, when the web
+    page was added before, ``web/behavior_step`` -> ``behavior/state, behavior/label,
+    behavior/one_hot_state_array``. Returns the BehaviorState part, or None when TRAIN_BEHAVIORS
+    is off.
     """
     from parts.drive.behavior import BehaviorState
 
@@ -52,7 +53,7 @@ def add_behavior(V: Any, cfg: Config) -> Any:
         part = BehaviorState(cfg.BEHAVIOR_LIST, cfg.BEHAVIOR_INITIAL)
     except (TypeError, ValueError) as exc:
         raise UserError(f"{exc} (check BEHAVIOR_LIST and BEHAVIOR_INITIAL in myconfig.py)") from exc
-    V.add(part)
+    V.add(part)  # the gamepad's behavior/step and the web page's web/behavior_step, when present
     return part
 
 

@@ -61,11 +61,12 @@ def build_drivetrain(cfg: Config, *, bus_factory: BusFactory | None = None,
 
     from parts.actuators.esc import ReverseStateMachine
     from parts.actuators.pwm import PWMSteeringThrottle, SteeringCalibration, ThrottleCalibration
+    from vehicle.errors import UserError
 
     kind = cfg.DRIVE_TRAIN_TYPE
     if kind not in ("PWM_STEERING_THROTTLE", "MOCK"):
-        raise ValueError(f"DRIVE_TRAIN_TYPE {kind!r} is not supported; use 'PWM_STEERING_THROTTLE' "
-                         "or 'MOCK'")
+        raise UserError(f"DRIVE_TRAIN_TYPE = {kind!r} is not supported: set it to 'PWM_STEERING_THROTTLE' "
+                        "or 'MOCK' in myconfig.py")
     clock = clock or time.monotonic
     if bus_factory is None and kind == "MOCK":
         bus_factory, _ = mock_board(cfg)
@@ -93,5 +94,5 @@ def add_drivetrain(V: Any, cfg: Config, *, bus_factory: BusFactory | None = None
     clock = getattr(getattr(V, "clock", None), "now", None)
     part = build_drivetrain(cfg, bus_factory=bus_factory, clock=clock)
     part.open()
-    V.add(part, inputs=["angle", "throttle"])
+    V.add(part)
     return part

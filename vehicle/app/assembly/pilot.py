@@ -27,12 +27,32 @@ def add_pilot(V: Any, cfg: Config, model_path: str | Path) -> Any:
         UserError: the model file is missing, unreadable, or the backend setting cannot be met.
     """
     from parts.drive.modes import PilotCondition
-    from parts.pilots import load_pilot
     from parts.pilots.pilot import ModelSwitch
+
+    pilot = make_pilot(cfg, model_path, measured_speed_key="sim/speed" if V.produces("sim/speed") else "enc/speed")
+    V.add(PilotCondition())
+    V.add(ModelSwitch(pilot))
+    pilot.lock_inputs = True  # the vehicle's wiring is fixed from here on
+    V.add(pilot, run_condition="run_pilot")
+    return pilot
+
+
+def make_pilot(cfg: Config, model_path: str | Path, measured_speed_key: str = "enc/speed") -> Any:
+    """The Pilot part for a model file with the car's settings: back-end (PILOT_BACKEND,
+    PILOT_ONNX_THREADS) and speed control (PILOT_SPEED_*), exactly as the car drives with it.
+
+    ``measured_speed_key`` is where the car's speed comes from when PILOT_SPEED_KEY is not set: the
+    simulator's ``sim/speed``, or ``enc/speed`` from an encoder part. A relative path that does not
+    exist here is looked up in the car folder (manage.py may run from another folder).
+
+    Raises:
+        UserError: the model file is missing, unreadable, or the backend setting cannot be met.
+    """
+    from parts.pilots import load_pilot
 
     path = Path(model_path)
     if not path.is_absolute() and not path.exists():
-        path = Path(cfg.CAR_PATH) / path  # manage.py may run from another folder
+        path = Path(cfg.CAR_PATH) / path
     speed_control = None
     speed_key = "enc/speed"
     if cfg.PILOT_SPEED_CONTROL != "off":
@@ -42,15 +62,9 @@ def add_pilot(V: Any, cfg: Config, model_path: str | Path) -> Any:
                                      kp=cfg.PILOT_SPEED_KP, ki=cfg.PILOT_SPEED_KI,
                                      max_throttle=cfg.PILOT_SPEED_MAX_THROTTLE,
                                      default_limit=cfg.PILOT_SPEED_LIMIT)
-        # the simulator measures its speed; a real car needs an encoder part writing enc/speed
-        speed_key = cfg.PILOT_SPEED_KEY or ("sim/speed" if V.produces("sim/speed") else "enc/speed")
+        speed_key = cfg.PILOT_SPEED_KEY or measured_speed_key
     try:
-        pilot = load_pilot(path, backend=cfg.PILOT_BACKEND, speed_control=speed_control, speed_key=speed_key,
-                           onnx_threads=cfg.PILOT_ONNX_THREADS, models_dir=cfg.path("MODELS_PATH"))
+        return load_pilot(path, backend=cfg.PILOT_BACKEND, speed_control=speed_control, speed_key=speed_key,
+                          onnx_threads=cfg.PILOT_ONNX_THREADS, models_dir=cfg.path("MODELS_PATH"))
     except (ValueError, ImportError, OSError) as exc:
         raise UserError(f"cannot drive with {path}: {exc}") from exc
-    V.add(PilotCondition())
-    V.add(ModelSwitch(pilot))
-    pilot.lock_inputs = True  # the vehicle's wiring is fixed from here on
-    V.add(pilot, run_condition="run_pilot")
-    return pilot

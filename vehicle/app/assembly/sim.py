@@ -8,29 +8,150 @@ tub records the expert's clean ``user/angle``).
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Sequence
 from typing import Any
 
+from vehicle.errors import UserError
 
-def add_simulator(V: Any, cfg: Any, seeds: Sequence[int] | None = None) -> Any:
-    """Add the simulated car: in ``angle``, ``throttle``, ``sim/reset``; out ``cam/image_array``,
-    ``cam/timestamp``, ``sim/*`` telemetry and ``enc/speed``. Drives the tracks of SIM_TRACK_SEEDS
-    unless ``seeds``. A part that sets ``sim/reset`` True (e.g. a button) puts the car back on the
-    start line."""
-    from parts.sim.simulator import SimCar
+logger = logging.getLogger(__name__)
 
-    sim = SimCar.from_config(cfg, seeds=seeds)
-    V.add(sim)
+
+SIM_TYPES: tuple[str, ...] = ("builtin", "udacity", "donkey")
+
+
+def resolve_sim_type(cfg: Any, sim_type: str | None = None) -> str:
+    """The simulator a car drives: ``sim_type`` (``--sim``) if given, else SIM_TYPE."""
+    kind = sim_type or cfg.SIM_TYPE
+    if kind not in SIM_TYPES:
+        raise UserError(f"unknown simulator {kind!r}: use one of {', '.join(SIM_TYPES)} (SIM_TYPE or --sim)")
+    return kind
+
+
+def sim_clock(cfg: Any, sim_type: str | None = None) -> Any:
+    """The clock of a simulator car's Vehicle: simulated time (as fast as the CPU allows) for the
+    built-in simulator with SIM_REALTIME False, else the wall clock (None). An external simulator
+    runs in real time, so its car always paces itself."""
+    if resolve_sim_type(cfg, sim_type) == "builtin" and not cfg.SIM_REALTIME:
+        from vehicle.clock import SimulatedClock
+
+        return SimulatedClock()
+    return None
+
+
+def add_simulator(V: Any, cfg: Any, seeds: Sequence[int] | None = None, sim_type: str | None = None) -> Any:
+    """Add the simulated car, chosen by SIM_TYPE (or ``sim_type``, the ``--sim`` option).
+
+    In: ``angle``, ``throttle`` (the previous loop's commands), ``sim/reset``; out:
+    ``cam/image_array``, ``cam/timestamp``, ``sim/*`` telemetry and ``enc/speed``.
+
+    - "builtin": our simulator in this process, on the tracks of SIM_TRACK_SEEDS unless ``seeds``.
+    - "udacity": :class:`parts.bridges.udacity.UdacitySim`, the server the Udacity simulator
+      connects to (UDACITY_*); also ``cam/ok``, ``sim/manual``, ``sim/steering_deg``.
+    - "donkey": :class:`parts.bridges.donkey_client.DonkeySim`, connected to SIM_HOST:SIM_PORT
+      (DONKEY_GYM_ENV_NAME, GYM_CONF, DONKEY_MAX_CTE); also ``cam/ok``, ``sim/hit``.
+
+    The external simulators' parts are threaded: the loop never waits for them, and a stale camera
+    (SIM_TIMEOUT_S) makes ``cam/ok`` False for :func:`add_camera_watchdog`. A rising ``sim/reset``
+    puts the car back on its start line (the Udacity simulator cannot: it has no reset). With
+    CAMERA_UNDISTORT the frames are undistorted next (see ``add_undistort``).
+
+    Raises:
+        UserError: a setting is out of range, the port is taken, the Donkey simulator cannot be
+            reached or lacks the scene (the message names the setting).
+    """
+    from vehicle.app.assembly.camera import add_undistort
+
+    kind = resolve_sim_type(cfg, sim_type)
+    if kind == "builtin":
+        from parts.sim.simulator import SimCar
+
+        sim = SimCar.from_config(cfg, seeds=seeds)
+        V.add(sim)
+        add_undistort(V, cfg)  # a simulated lens (SIM_CAMERA_DISTORTION) is undistorted like a real one
+        return sim
+    if seeds:
+        logger.warning("--tracks applies to the built-in simulator only; the %s simulator chooses its own "
+                       "track%s", kind, " (DONKEY_GYM_ENV_NAME)" if kind == "donkey" else "")
+    sim = make_bridge(cfg, kind)
+    V.add(sim, threaded=True)
+    add_undistort(V, cfg)
     return sim
+
+
+def add_simulator_commands(V: Any) -> Any:
+    """Add, last in the loop, the part that sends this loop's ``angle``/``throttle`` to the Udacity
+    or Donkey simulator at once (:class:`parts.bridges.commands.SendCommands`); without it they
+    leave one loop later. Returns the part, or None for the built-in simulator (it applies the
+    commands at its next step, in simulated time) or a car without a simulator.
+    """
+    from parts.bridges.commands import SendCommands
+    from parts.bridges.donkey_client import DonkeySim
+    from parts.bridges.udacity import UdacitySim
+
+    bridges = V.find(UdacitySim) + V.find(DonkeySim)
+    if not bridges:
+        return None
+    part = SendCommands(bridges[0])
+    V.add(part)
+    return part
+
+
+def make_bridge(cfg: Any, sim_type: str, **options: Any) -> Any:
+    """The part of an external simulator ("udacity" or "donkey") built from the car's settings,
+    not added to a vehicle; ``options`` go to the part (e.g. ``synchronous=True`` for the Donkey
+    simulator's step mode).
+
+    Raises:
+        UserError: a setting is out of range (the message names it).
+    """
+    if sim_type == "udacity":
+        return _udacity(cfg, **options)
+    if sim_type == "donkey":
+        return _donkey(cfg, **options)
+    raise UserError(f"{sim_type!r} is not an external simulator: use udacity or donkey")
+
+
+def _udacity(cfg: Any, **options: Any) -> Any:
+    from parts.bridges.udacity import UdacitySim
+
+    try:
+        return UdacitySim(cfg.UDACITY_HOST, cfg.UDACITY_PORT, timeout_s=cfg.SIM_TIMEOUT_S,
+                          # a stuck loop gets the simulator a neutral steer after 3 loop periods (>= 0.5 s)
+                          command_timeout_s=max(0.5, 3.0 / cfg.DRIVE_LOOP_HZ), decimal=cfg.UDACITY_DECIMAL,
+                          extra_keys=tuple(cfg.UDACITY_EXTRA_KEYS), **options)
+    except ValueError as exc:
+        raise UserError(f"{exc} (check UDACITY_PORT, SIM_TIMEOUT_S and UDACITY_EXTRA_KEYS in myconfig.py)") from exc
+
+
+def _donkey(cfg: Any, **options: Any) -> Any:
+    from parts.bridges.donkey_client import CarLook, DonkeySim
+
+    conf = dict(cfg.GYM_CONF)
+    known = ("body_style", "body_rgb", "car_name", "font_size", "racer_name", "country", "bio", "guid")
+    unknown = sorted(set(conf) - set(known))
+    if unknown:
+        raise UserError(f"GYM_CONF has unknown keys {unknown}: use {', '.join(known)}")
+    try:
+        look = CarLook(**{k: tuple(v) if k == "body_rgb" else v for k, v in conf.items()})
+        return DonkeySim(cfg.SIM_HOST, cfg.SIM_PORT, scene=cfg.DONKEY_GYM_ENV_NAME, image_w=cfg.IMAGE_W,
+                         image_h=cfg.IMAGE_H, look=look, max_cte=cfg.DONKEY_MAX_CTE, timeout_s=cfg.SIM_TIMEOUT_S,
+                         connect_timeout_s=cfg.SIM_CONNECT_TIMEOUT_S, **options)
+    except (TypeError, ValueError) as exc:
+        raise UserError(f"{exc} (check SIM_PORT, GYM_CONF, DONKEY_MAX_CTE, SIM_TIMEOUT_S and SIM_CONNECT_TIMEOUT_S "
+                        "in myconfig.py)") from exc
 
 
 def add_expert(V: Any, cfg: Any, sim: Any) -> Any:
     """Add the pure-pursuit expert driving ``sim``: out ``user/angle``, ``user/throttle``,
-    ``user/mode`` (always "user") and ``recording`` (always True)."""
+    ``user/mode`` (always "user") and ``recording`` (always True). On two-lane tracks with
+    TRAIN_BEHAVIORS it reads ``behavior/state`` (add the behaviour part first) and keeps to, or
+    changes to, the lane of the active behaviour."""
     from parts.sim.expert import Expert
 
     expert = Expert.from_config(cfg, sim)
-    V.add(expert)
+    # following behaviours, it reads the active one (add_behavior before add_expert)
+    V.add(expert, inputs=["behavior/state"] if expert.behavior_lanes is not None else None)
     return expert
 
 

@@ -11,6 +11,8 @@ from vehicle.errors import UserError
 
 TIMESTAMP_KEY = "cam/timestamp"
 ERASE_KEY = "tub/erase"
+#: what a drive with TRAIN_BEHAVIORS records besides TUB_INPUTS (DonkeyCar's keys and tub types)
+BEHAVIOR_FIELDS = (("behavior/state", "int"), ("behavior/label", "str"), ("behavior/one_hot_state_array", "vector"))
 
 
 def new_tub_path(data_path: Path) -> Path:
@@ -36,9 +38,9 @@ def add_tub_writer(V: Any, cfg: Any, inputs: list[str] | None = None, types: lis
     """Add a TubWriter (run_condition ``recording``, output ``tub/num_records``) and return it.
 
     ``inputs``/``types`` default to TUB_INPUTS/TUB_TYPES (plus pilot/angle and pilot/throttle with
-    RECORD_DURING_AI, when a pilot part was added). When a part produces ``cam/timestamp`` it is
-    recorded as ``_timestamp_ms``. When a part produces ``tub/erase``, a TubWiper deletes the last
-    ERASE_LAST_N_RECORDS records on each press.
+    RECORD_DURING_AI, when a pilot part was added, and the behaviour keys with TRAIN_BEHAVIORS).
+    When a part produces ``cam/timestamp`` it is recorded as ``_timestamp_ms``. When a part
+    produces ``tub/erase``, a TubWiper deletes the last ERASE_LAST_N_RECORDS records on each press.
     """
     from parts.tub.errors import TubError
     from parts.tub.writer import TubWiper, TubWriter
@@ -52,6 +54,11 @@ def add_tub_writer(V: Any, cfg: Any, inputs: list[str] | None = None, types: lis
                 if key not in inputs and _produced(V, key):  # a drive without a model has no pilot
                     inputs.append(key)
                     types.append("float")
+        if getattr(cfg, "TRAIN_BEHAVIORS", False):  # as DonkeyCar: behaviour drives record it
+            for key, tp in BEHAVIOR_FIELDS:
+                if key not in inputs and _produced(V, key):
+                    inputs.append(key)
+                    types.append(tp)
     inputs, types = list(inputs), list(types or [])
     if len(inputs) != len(types):
         raise UserError(f"add_tub_writer: {len(inputs)} inputs {inputs} but {len(types)} types {types}; "

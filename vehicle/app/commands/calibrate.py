@@ -145,14 +145,13 @@ def _calibrate(args: argparse.Namespace) -> int:
         if value != (busnum(cfg) if name == "PCA9685_I2C_BUSNUM" else cfg[name]):
             values[name] = value
     print("recorded:\n" + "\n".join(f"  {k} = {v}" for k, v in values.items()))  # noqa: T201
-    _save(car, values, args.save, interrupted)
+    _save(car / (getattr(args, 'myconfig', None) or 'myconfig.py'), values, args.save, interrupted)
     return 130 if interrupted else 0
 
 
-def _save(car: Path, values: dict[str, Any], save: bool, interrupted: bool) -> None:
+def _save(path: Path, values: dict[str, Any], save: bool, interrupted: bool) -> None:
     from parts.actuators.config_writer import update_myconfig
 
-    path = car / "myconfig.py"
     if not save:
         if interrupted or not sys.stdin.isatty():
             print(f"not saved: copy these lines into {path}, or run with --save")  # noqa: T201

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from vehicle.app.demo import DEFAULTS
+from vehicle.app.demo_lanes import DEFAULTS as LANE_DEFAULTS
 from vehicle.errors import UserError
 
 
@@ -38,6 +39,12 @@ def register(subparsers: Any) -> None:
     p.add_argument("--laps", type=int, default=DEFAULTS["laps"], help="laps per evaluation track")
     p.add_argument("--type", dest="model_type", default="linear", help="model type to train")
     p.add_argument("--threads", type=int, default=None, help="torch threads (default: all cores)")
+    p.add_argument("--lanes", action="store_true",
+                   help="the thesis's lane change on demand: record with lane changes on two-lane tracks, train the "
+                        "two-stream lanes model and the single-stream behavior model, evaluate both with commanded "
+                        "lane changes (default folder ./demo_lanes)")
+    p.add_argument("--lane-changes", type=int, default=LANE_DEFAULTS["lane_changes"], metavar="N",
+                   help="--lanes: lane changes commanded while recording")
     p.set_defaults(func=_cmd_demo)
 
 
@@ -51,6 +58,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     from vehicle.app.demo import run_demo
     from vehicle.app.demo import say as _say
 
+    if args.lanes:
+        return _cmd_lanes(args)
     started = time.perf_counter()
     try:
         result = run_demo(Path(args.out), records=args.records, epochs=args.epochs, noise=args.noise,
@@ -76,7 +85,36 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_lanes(args: argparse.Namespace) -> int:
+    import torch
+
+    from vehicle.app.demo import say
+    from vehicle.app.demo_lanes import run_lanes_demo, thesis_claim_met
+
+    out = Path("demo_lanes" if args.out == "demo" else args.out)
+    started = time.perf_counter()
+    try:
+        result = run_lanes_demo(out, records=args.records, lane_changes=args.lane_changes, epochs=args.epochs,
+                                noise=args.noise, train_tracks=args.train_tracks, eval_tracks=args.eval_tracks,
+                                laps=args.laps)
+    except ValueError as exc:
+        raise UserError(f"demo --lanes: {exc}") from exc
+    total = time.perf_counter() - started
+    steps = ", ".join(f"{k} {v:.0f} s" for k, v in result["seconds"].items())
+    say(f"\ndemo finished in {total:.0f} s ({steps}); torch threads: {torch.get_num_threads()}")
+    for name, report in result["reports"].items():
+        lanes = report["overall"]["lanes"]
+        verdict = "meets" if thesis_claim_met(report) else "does NOT meet"
+        say(f"{name} {verdict} the thesis's claim: {lanes['lane_changes_ok']} of {lanes['lane_changes']} commanded "
+            f"lane changes done, {report['overall']['interventions']} times off the road")
+    say(f"next: vehicle sim eval --car {out} --pilot {out / 'models' / 'demo_lanes.pt'}  |  "
+        f"reports and trajectory maps in {out / 'eval'}")
+    sys.stdout.flush()
+    return 0
+
+
 def _demo_doc() -> str:
     import vehicle.app.demo
+    import vehicle.app.demo_lanes
 
-    return vehicle.app.demo.__doc__ or ""
+    return (vehicle.app.demo.__doc__ or "") + "\n" + (vehicle.app.demo_lanes.__doc__ or "")

@@ -3,11 +3,14 @@
     vehicle models [list] [--car DIR] [--json]
     vehicle models show NAME [--car DIR]
     vehicle models comment NAME "works on track 3"
+    vehicle models rename NAME NEW_NAME
     vehicle models export NAME|FILE --format onnx|onnx-int8|torchscript [--out FILE]
                           [--int8 static|dynamic] [--calibration TUB ...]
     vehicle models rm NAME [--delete-files]
+    vehicle models leaderboard [--tracks 101,102,103] [--laps 2]
 
-The registry is ``<car>/<MODELS_PATH>/models.sqlite3`` (training fills it).
+The registry is ``<car>/<MODELS_PATH>/models.sqlite3`` (training fills it; the trainer console,
+``vehicle console``, reads and writes the same file, evaluations included).
 """
 
 from __future__ import annotations
@@ -58,6 +61,17 @@ def register(subparsers: Any) -> None:
     p.add_argument("text")
     p.set_defaults(func=_cmd_comment)
 
+    p = sub.add_parser("rename", parents=[car], help="rename a model and its files")
+    p.add_argument("name")
+    p.add_argument("new_name")
+    p.set_defaults(func=_cmd_rename)
+
+    p = sub.add_parser("leaderboard", parents=[car],
+                       help="models ranked by their stored evaluation on the same tracks")
+    p.add_argument("--tracks", help="comma-separated track seeds (default SIM_EVAL_TRACK_SEEDS)")
+    p.add_argument("--laps", type=int, help="only evaluations of this many laps per track")
+    p.set_defaults(func=_cmd_leaderboard)
+
     p = sub.add_parser("export", parents=[car], help="export a model to ONNX, int8 ONNX or TorchScript")
     p.add_argument("name", help="model name or path of a .pt file")
     p.add_argument("--format", choices=("onnx", "onnx-int8", "torchscript"), default="onnx")
@@ -78,11 +92,14 @@ def register(subparsers: Any) -> None:
     p.set_defaults(func=_cmd_rm)
 
 
+def _config(args: argparse.Namespace) -> Any:
+    return load_for_command(args)
+
+
 def _registry(args: argparse.Namespace) -> Any:
     from parts.pilots.model_db import ModelRegistry
 
-    cfg = load_for_command(args)
-    return ModelRegistry.for_models_dir(cfg.path("MODELS_PATH"))
+    return ModelRegistry.for_models_dir(_config(args).path("MODELS_PATH"))
 
 
 def _short(mapping: dict[str, Any], keys: tuple[str, ...]) -> str:
@@ -95,15 +112,24 @@ def _short(mapping: dict[str, Any], keys: tuple[str, ...]) -> str:
     return " ".join(parts)
 
 
-def format_table(entries: list[Any]) -> str:
-    """The ``vehicle models`` table: one row per model."""
-    header = ("NAME", "TYPE", "CREATED", "DATASETS", "METRICS", "COMMENT")
+def _eval_summary(ev: Any) -> str:
+    if ev is None:
+        return ""
+    autonomy = ev.overall.get("autonomy")
+    shown = f"{autonomy:.1f}%" if isinstance(autonomy, int | float) else "?"
+    return f"{shown} on {','.join(map(str, ev.tracks))}"
+
+
+def format_table(entries: list[Any], latest: dict[str, Any] | None = None) -> str:
+    """The ``vehicle models`` table: one row per model (``latest``: name -> latest evaluation)."""
+    header = ("NAME", "TYPE", "CREATED", "DATASETS", "METRICS", "EVALUATION", "COMMENT")
     rows = [header]
     for e in entries:
         name = e.name if e.exists else f"{e.name} (missing)"
         datasets = ",".join(Path(d).name for d in e.datasets)
         metrics = _short(e.metrics, ("best_val_loss", "val_loss", "best_epoch", "epochs"))
-        rows.append((name, e.type, e.created.replace("+00:00", "Z"), datasets, metrics, e.comment or ""))
+        rows.append((name, e.type, e.created.replace("+00:00", "Z"), datasets, metrics,
+                     _eval_summary((latest or {}).get(e.name)), e.comment or ""))
     widths = [max(len(r[i]) for r in rows) for i in range(len(header) - 1)]
     return "\n".join("  ".join(c.ljust(w) for c, w in zip(r[:-1], widths, strict=True)) + "  " + r[-1]
                      for r in rows).rstrip()
@@ -112,18 +138,68 @@ def format_table(entries: list[Any]) -> str:
 def _cmd_list(args: argparse.Namespace) -> int:
     registry = _registry(args)
     entries = registry.list()
+    latest: dict[str, Any] = {}
+    for ev in registry.evaluations():  # newest first
+        latest.setdefault(ev.model, ev)
     if getattr(args, "json", False):
-        _out(json.dumps([e.as_dict() for e in entries], indent=2))
+        _out(json.dumps([{**e.as_dict(), "latest_evaluation": latest[e.name].as_dict() if e.name in latest
+                          else None} for e in entries], indent=2))
     elif not entries:
         _out(f"no models registered in {registry.db_path} (train one: manage.py train)")
     else:
-        _out(format_table(entries))
+        _out(format_table(entries, latest))
     return 0
 
 
 def _cmd_show(args: argparse.Namespace) -> int:
-    entry = _registry(args).get(args.name)
-    _out(json.dumps(entry.as_dict(), indent=2))
+    registry = _registry(args)
+    entry = registry.get(args.name)
+    _out(json.dumps({**entry.as_dict(), "evaluations": [ev.as_dict() for ev in registry.evaluations(entry.name)]},
+                    indent=2))
+    return 0
+
+
+def _cmd_rename(args: argparse.Namespace) -> int:
+    entry = _registry(args).rename(args.name, args.new_name)
+    _out(f"renamed {args.name} to {entry.name} ({entry.path})")
+    return 0
+
+
+def format_leaderboard(evaluations: list[Any]) -> str:
+    """The leaderboard table: rank, model and its overall evaluation figures."""
+    rows = [("#", "MODEL", "AUTONOMY", "LAPS", "MEAN|CTE|", "SPEED", "OFF-TRACK", "EVALUATED")]
+    for i, ev in enumerate(evaluations, 1):
+        def f(key: str, fmt: str, o: dict[str, Any] = ev.overall) -> str:
+            v = o.get(key)
+            return format(v, fmt) if isinstance(v, int | float) and not isinstance(v, bool) else "-"
+
+        rows.append((str(i), ev.model, f("autonomy", ".1f") + "%", f("laps_completed", "d"),
+                     f("mean_abs_cte", ".3f") + " m", f("mean_speed", ".2f") + " m/s", f("interventions", "d"),
+                     ev.created.replace("+00:00", "Z")))
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows)
+
+
+def _cmd_leaderboard(args: argparse.Namespace) -> int:
+    cfg = _config(args)
+    from parts.pilots.model_db import ModelRegistry
+
+    registry = ModelRegistry.for_models_dir(cfg.path("MODELS_PATH"))
+    try:
+        tracks = [int(t) for t in args.tracks.split(",") if t.strip()] if args.tracks else \
+            list(cfg.SIM_EVAL_TRACK_SEEDS)
+    except ValueError:
+        raise UserError(f"--tracks {args.tracks}: give comma-separated track seeds, e.g. 101,102,103") from None
+    board = registry.leaderboard(tracks, args.laps)
+    if not board:
+        sets = registry.track_sets()
+        hint = ("; evaluated track sets: " + "; ".join(f"--tracks {','.join(map(str, t))} --laps {lp}"
+                                                       for t, lp, _n in sets)) if sets else \
+            "; evaluate a model first (vehicle console, or vehicle sim eval --pilot MODEL --store)"
+        _out(f"no evaluations on tracks {','.join(map(str, tracks))}{hint}")
+        return 0
+    _out(f"tracks {','.join(map(str, tracks))}" + (f", {args.laps} laps" if args.laps else ""))
+    _out(format_leaderboard(board))
     return 0
 
 

@@ -1,4 +1,5 @@
-"""``vehicle sim ...``: draw tracks, evaluate pilots, record expert demonstrations."""
+"""``vehicle sim ...``: draw tracks, evaluate pilots, record expert demonstrations, serve the
+simulator to Donkey-simulator clients (gym-donkeycar, DonkeyCar)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from vehicle.app.carconfig import add_car_options, load_for_command
-from vehicle.errors import UserError
+from vehicle.errors import PartError, UserError
 
 logger = logging.getLogger(__name__)
 
@@ -36,8 +37,17 @@ def register(subparsers: Any) -> None:
     ev.add_argument("--throttle", type=float, help="fixed throttle: use only the pilot's steering")
     ev.add_argument("--workers", type=int, metavar="N",
                     help="tracks evaluated in parallel processes (default SIM_EVAL_WORKERS: 0 = one per core)")
+    ev.add_argument("--sim", choices=["builtin", "donkey", "udacity"], default="builtin",
+                    help="simulator to evaluate in: ours, the Donkey simulator (SIM_HOST:SIM_PORT, or `vehicle sim "
+                         "serve`; synchronous steps) or the Udacity simulator (real time, on the track it shows)")
+    ev.add_argument("--scenes", help="with --sim donkey: comma-separated scenes, one episode each (default "
+                                     "DONKEY_GYM_ENV_NAME; --tracks N stands for scene track_N of `vehicle sim serve`)")
     ev.add_argument("--json", help="write the full report (metrics and trajectories) here")
     ev.add_argument("--png", help="write the driven trajectories over the track maps here")
+    ev.add_argument("--lane-changes", action=argparse.BooleanOptionalAction, default=None,
+                    help="command lane changes and score them (default: for a behaviour pilot when SIM_LANES = 2)")
+    ev.add_argument("--store", action="store_true",
+                    help="keep the result in the car's model registry (the leaderboard ranks stored results)")
     add_car_options(ev)
     ev.set_defaults(func=cmd_eval)
 
@@ -46,8 +56,28 @@ def register(subparsers: Any) -> None:
     rec.add_argument("--tracks", type=_seeds, help="comma-separated track seeds (default SIM_TRACK_SEEDS)")
     rec.add_argument("--tub", help="tub folder (default: a new tub in the car's data folder)")
     rec.add_argument("--noise", type=float, help="steering noise injection amplitude (default SIM_EXPERT_NOISE)")
+    rec.add_argument("--lane-changes", type=int, metavar="N",
+                     help="two-lane tracks (SIM_LANES = 2): switch the behaviour (Left_Lane / Right_Lane) N times at "
+                          "random; the expert changes lanes and the records carry the behaviour")
     add_car_options(rec)
     rec.set_defaults(func=cmd_record)
+
+    serve = sub.add_parser("serve", formatter_class=fmt,
+                           help="serve the simulator over the Donkey simulator's protocol (gym-donkeycar, DonkeyCar)",
+                           description="Serve the built-in simulator over the Donkey simulator's TCP protocol: "
+                                       "gym-donkeycar environments, DonkeyCar's DonkeyGymEnv part and any Donkey "
+                                       "client drive it, headless, one car per connection, faster than real time "
+                                       "when the client asks for step_mode synchronous. See docs/simulators.md.")
+    serve.add_argument("--port", type=int, default=9091, help="TCP port (the Donkey simulator's is 9091)")
+    serve.add_argument("--host", default="127.0.0.1",
+                       help="interface to listen on; 0.0.0.0 lets clients on other machines connect")
+    serve.add_argument("--tracks", type=_seeds,
+                       help="comma-separated track seeds served (default SIM_TRACK_SEEDS); every Donkey scene "
+                            "name maps onto them in turn, and track_<seed> loads a seed")
+    serve.add_argument("--hz", type=float, default=20.0, help="telemetry rate in real-time mode")
+    serve.add_argument("--max-clients", type=int, default=16, help="connections served at once")
+    add_car_options(serve)
+    serve.set_defaults(func=cmd_serve)
 
 
 def _seeds(text: str) -> list[int]:
@@ -105,16 +135,40 @@ def cmd_eval(args: argparse.Namespace) -> int:
     if args.pilot != "expert" and not Path(args.pilot).exists():
         raise UserError(f"--pilot {args.pilot}: no such model file; pass 'expert' or a trained model "
                         "(e.g. models/mypilot.pt)")
+    if args.sim != "builtin" and args.png:
+        raise UserError("--png draws the built-in simulator's tracks: drop it with --sim " + args.sim)
+    if args.scenes and args.sim != "donkey":
+        raise UserError("--scenes names Donkey simulator scenes: use it with --sim donkey")
+    if args.sim == "udacity" and args.tracks:
+        raise UserError("--tracks: the Udacity simulator drives the track it shows (choose it in its menu)")
+    scenes = None
+    if args.sim == "donkey":
+        scenes = [x.strip() for x in args.scenes.split(",") if x.strip()] if args.scenes else (
+            [f"track_{s}" for s in args.tracks] if args.tracks else None)
     try:
         report = evaluate(args.pilot, seeds, laps, cfg=cfg, max_time=args.max_time,
-                          fixed_throttle=args.throttle, workers=workers)
+                          fixed_throttle=args.throttle, sim=args.sim, scenes=scenes,
+                          lane_changes=args.lane_changes, workers=workers)
     except (ValueError, FileNotFoundError) as exc:
         raise UserError(str(exc)) from exc
+    except PartError as exc:  # e.g. a model made for another image size: the loop stopped safely
+        raise UserError(f"evaluation stopped: {exc}") from exc
     print(format_table(report))  # noqa: T201 - CLI output
     if args.json:
         print(f"wrote {write_json(report, args.json)}")  # noqa: T201
     if args.png:
         print(f"wrote {write_png(report, args.png, cfg)}")  # noqa: T201
+    if args.store:
+        from parts.pilots.model_db import RegistryError
+        from vehicle.app.eval_store import store_report
+
+        if args.pilot == "expert":
+            raise UserError("--store keeps evaluations of registered models; the expert is not one")
+        try:
+            ev = store_report(cfg, Path(args.pilot), report)
+        except RegistryError as exc:
+            raise UserError(f"--store: {exc}") from exc
+        print(f"stored as evaluation {ev.id} of {ev.model}")  # noqa: T201
     return 0
 
 
@@ -125,9 +179,41 @@ def cmd_record(args: argparse.Namespace) -> int:
     cfg = load_for_command(args)
     if args.records < 1:
         raise UserError(f"--records {args.records}: give at least 1 record")
+    if args.lane_changes is not None and args.lane_changes < 0:
+        raise UserError(f"--lane-changes {args.lane_changes}: give 0 or more")
     try:
-        path = record_expert(cfg, args.tracks, args.records, args.tub, noise=args.noise)
+        path = record_expert(cfg, args.tracks, args.records, args.tub, noise=args.noise,
+                             lane_changes=args.lane_changes)
     except ValueError as exc:
         raise UserError(str(exc)) from exc
     print(f"recorded {args.records} records into {path}")  # noqa: T201
+    return 0
+
+
+def cmd_serve(args: argparse.Namespace) -> int:
+    """Serve until Ctrl-C."""
+    from parts.bridges.donkey_server import DonkeyServer, scene_names
+
+    cfg = load_for_command(args)
+    if not 0 < args.port <= 65535:
+        raise UserError(f"--port {args.port}: give a TCP port in 1..65535")
+    if not 0 < args.hz <= 1000:
+        raise UserError(f"--hz {args.hz}: give a telemetry rate in (0, 1000] Hz")
+    if args.max_clients < 1:
+        raise UserError(f"--max-clients {args.max_clients}: give at least 1")
+    seeds = args.tracks or list(cfg.SIM_TRACK_SEEDS)
+    try:
+        server = DonkeyServer(args.host, args.port, seeds=seeds, cfg=cfg, telemetry_hz=args.hz,
+                              max_clients=args.max_clients)
+    except ValueError as exc:
+        raise UserError(str(exc)) from exc
+    server.start()
+    print(f"Donkey-protocol simulator on {args.host}:{server.port} (tracks {','.join(map(str, seeds))}); "  # noqa: T201
+          f"scenes: {', '.join(scene_names(seeds))}. Ctrl-C to stop.", flush=True)
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.stop()
     return 0

@@ -61,21 +61,18 @@ def write_preview(cfg: Any, tubs: list[str], out: Path, rows: int = 4, variants:
                   augmentations: list[str] | None = None, seed: int = 0) -> Path:
     """Write a PNG grid: ``rows`` frames spread over the tubs, each with ``variants`` augmented copies."""
     import cv2
-    import numpy as np
 
-    from parts.pilots.augment import Augmenter, AugmentSettings, preview_grid
-    from parts.pilots.dataset import IMAGE_KEY, read_drive_data
+    from parts.pilots.augment import Augmenter, AugmentSettings, preview_frames, preview_grid
+    from parts.tub.errors import TubError
 
     if rows < 1 or variants < 1:
         raise UserError("--rows and --variants must be >= 1")
     try:
-        data = read_drive_data(tubs, modes=None)
+        frames, angles = preview_frames(tubs, rows)
         settings = AugmentSettings.from_config(cfg, augmentations)
-    except ValueError as exc:
+    except (ValueError, TubError) as exc:
         raise UserError(str(exc)) from exc
-    picks = np.unique(np.linspace(0, len(data) - 1, min(rows, len(data))).round().astype(int))
-    frames = [data.records[i].image(IMAGE_KEY) for i in picks]
-    grid = preview_grid(frames, [float(data.angles[i]) for i in picks], Augmenter(settings), variants, seed)
+    grid = preview_grid(frames, angles, Augmenter(settings), variants, seed)
     out.parent.mkdir(parents=True, exist_ok=True)
     if not cv2.imwrite(str(out), cv2.cvtColor(grid, cv2.COLOR_RGB2BGR)):
         raise UserError(f"cannot write {out}; check the folder and the .png extension")
@@ -83,25 +80,57 @@ def write_preview(cfg: Any, tubs: list[str], out: Path, rows: int = 4, variants:
 
 
 def add_train_arguments(parser: argparse.ArgumentParser) -> None:
-    """The training options shared by ``manage.py train`` and ``vehicle train``."""
+    """The training options shared by ``manage.py train`` and ``vehicle train``: the data, the
+    model file, and every hyper-parameter of :mod:`parts.pilots.hyperparams` (the trainer
+    console's form shows the same table and checks it with the same function)."""
+    from parts.pilots.hyperparams import HYPERPARAMS
+
     parser.add_argument("--tubs", nargs="+", metavar="PATH",
                         help="tubs or folders of tubs (comma-separated also accepted); default: the car's data/")
     parser.add_argument("--model", metavar="FILE.pt", help="model file to write (default models/pilot_<date>.pt)")
-    parser.add_argument("--type", dest="model_type", metavar="TYPE",
-                        help="model type: linear (default), categorical, inferred, pilotnet, memory, behavior, "
-                             "rnn, 3d")
     parser.add_argument("--transfer", metavar="OLD.pt", help="start from the weights of an earlier model")
-    parser.add_argument("--epochs", type=int, help="most epochs (MAX_EPOCHS)")
-    parser.add_argument("--batch-size", type=int, help="samples per step (BATCH_SIZE)")
-    parser.add_argument("--lr", type=float, dest="learning_rate", help="Adam learning rate (LEARNING_RATE)")
-    parser.add_argument("--device", help="auto, cpu, cuda, cuda:1 (TRAIN_DEVICE)")
-    parser.add_argument("--workers", type=int, help="DataLoader worker processes (TRAIN_NUM_WORKERS)")
-    parser.add_argument("--precision", choices=("auto", "fp32", "bf16", "fp16"),
-                        help="arithmetic precision (TRAIN_PRECISION); auto: bf16 where the CPU or GPU has it")
-    parser.add_argument("--aug", nargs="*", metavar="NAME", dest="augmentations",
-                        help="augmentations to use (AUGMENTATIONS); --aug with no name turns them off")
     parser.add_argument("--comment", help="free text stored with the model in the registry")
     parser.add_argument("--no-register", action="store_true", help="do not add the model to the registry")
+    groups: dict[str, Any] = {}
+    for p in HYPERPARAMS:
+        group = groups.get(p.group) or groups.setdefault(
+            p.group, parser.add_argument_group(f"{p.group.lower()} (default: the car's setting)"))
+        rule = p.rule()
+        if p.kind == "multi" and not p.min_items:
+            rule += "; the option alone for none"
+        elif p.name == "model_type":
+            rule += ": linear, categorical, inferred, pilotnet, memory, behavior, rnn, 3d"
+        text = f"{p.help} {rule[0].upper()}{rule[1:]} ({p.setting}).".replace("%", "%%")  # argparse formats help
+        if p.kind == "bool":
+            group.add_argument(p.cli_flag, dest=p.name, action=argparse.BooleanOptionalAction, default=None,
+                               help=text)
+        elif p.kind == "multi":
+            group.add_argument(p.cli_flag, dest=p.name, nargs="+" if p.min_items else "*", metavar="NAME",
+                               help=text)
+        else:
+            # strings: parsed by hyperparams.parse, so a bad value gets the console's message
+            group.add_argument(p.cli_flag, dest=p.name, metavar=p.kind.upper() if p.kind != "choice" else "NAME",
+                               help=text)
+
+
+def hyperparams_from_args(args: argparse.Namespace) -> dict[str, Any]:
+    """The checked hyper-parameters given on the command line (absent ones keep the car's settings).
+
+    Raises UserError naming each bad option with the rule and its reason.
+    """
+    from parts.pilots.hyperparams import HYPERPARAMS, parse
+    from parts.pilots.models import model_type_names
+
+    given = {p.name: getattr(args, p.name) for p in HYPERPARAMS if getattr(args, p.name, None) is not None}
+    clean, errors = parse(given, model_types=model_type_names())
+    if errors:
+        flags = {p.name: p.cli_flag for p in HYPERPARAMS}
+        raise UserError("; ".join(f"{flags[n]} {_shown(given[n])}: {m}" for n, m in errors.items()))
+    return clean
+
+
+def _shown(value: Any) -> str:
+    return " ".join(map(str, value)) if isinstance(value, list) else str(value)
 
 
 def tub_list(values: Sequence[str] | None) -> list[str]:
@@ -118,17 +147,21 @@ def run_from_args(cfg: Any, args: argparse.Namespace) -> int:
     Returns the exit code (0); bad input raises :class:`vehicle.errors.UserError`.
     """
     from parts.pilots.fit import TrainingDiverged
+    from parts.pilots.hyperparams import settings_for
     from parts.pilots.train_report import sidecar
     from parts.pilots.training import default_model_path, train
 
+    clean = hyperparams_from_args(args)
+    model_type_name = clean.pop("model_type", None)
+    try:
+        cfg = cfg.replace(**settings_for(clean))
+    except ValueError as exc:
+        raise UserError(str(exc)) from exc
     tubs = tub_list(args.tubs) or [str(cfg.path("DATA_PATH"))]
     model_path = Path(args.model) if args.model else default_model_path(cfg.path("MODELS_PATH"))
     try:
-        metrics = train(cfg, tubs, model_path, model_type_name=args.model_type, transfer=args.transfer,
-                        epochs=args.epochs, batch_size=args.batch_size, learning_rate=args.learning_rate,
-                        device=args.device, workers=args.workers, augmentations=args.augmentations,
-                        comment=args.comment, register=not args.no_register,
-                        precision=getattr(args, "precision", None))
+        metrics = train(cfg, tubs, model_path, model_type_name=model_type_name, transfer=args.transfer,
+                        comment=args.comment, register=not args.no_register)
     except UserError:
         raise
     except (ValueError, TrainingDiverged) as exc:

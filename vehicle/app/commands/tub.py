@@ -98,6 +98,9 @@ def register(subparsers: Any) -> None:
                         "(default: 'drive along the track')")
     p.add_argument("--max-gap", type=float, default=1.0, metavar="SECONDS",
                    help="a longer gap between capture times starts a new episode (0: never)")
+    p.add_argument("--max-episode-s", type=float, default=None, metavar="SECONDS",
+                   help="longer sessions are split into episodes of at most this length (default: 1800, "
+                        "30 min; at most 2048: LeRobot's float32 timestamps lose its 1e-4 s tolerance beyond)")
     p.set_defaults(func=cmd_export_lerobot)
 
     p = sub.add_parser("import-lerobot", help="read a LeRobot v3.0 dataset into a new tub (needs the datasets extra)")
@@ -254,19 +257,26 @@ def cmd_export_udacity(args: argparse.Namespace) -> int:
     except _errors() as exc:
         raise _user_error(exc) from exc
     _out(f"{report.out}: {report.rows} rows ({', '.join(report.cameras)} camera"
-         f"{'s' if len(report.cameras) > 1 else ''}), skipped {len(report.skipped)}")
+         f"{'s' if len(report.cameras) > 1 else ''}), {report.skipped_summary()}")
     for line in report.skipped[:10]:
         _out(f"  skipped {line}")
     return 0
 
 
 def cmd_export_lerobot(args: argparse.Namespace) -> int:
-    from parts.tub.lerobot.export import DEFAULT_TASK, export_lerobot
+    from parts.tub.lerobot.export import DEFAULT_MAX_EPISODE_S, DEFAULT_TASK, MAX_EPISODE_S, export_lerobot
 
+    # the options' own names in the message (the library names its parameters)
+    max_episode_s = DEFAULT_MAX_EPISODE_S if args.max_episode_s is None else args.max_episode_s
+    if not args.max_gap >= 0:
+        raise UserError(f"--max-gap must be >= 0 seconds (0: never split on a gap), got {args.max_gap:g}")
+    if not 0 < max_episode_s <= MAX_EPISODE_S:
+        raise UserError(f"--max-episode-s must be > 0 and <= {MAX_EPISODE_S} s (LeRobot's float32 timestamps "
+                        f"lose its 1e-4 s tolerance beyond), got {max_episode_s:g}")
     try:
         report = export_lerobot(args.tubs, args.out, fps=args.fps, video=args.video, codec=args.vcodec,
                                 crf=args.crf, task=args.task or DEFAULT_TASK, max_gap_s=args.max_gap,
-                                progress=_tty())
+                                max_episode_s=max_episode_s, progress=_tty())
     except _errors() as exc:
         raise _user_error(exc) from exc
     _out("\n".join(report.lines()))

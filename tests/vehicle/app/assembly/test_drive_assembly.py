@@ -45,7 +45,7 @@ def test_behavior_and_watchdog_in_a_vehicle():
     assert type(watchdog).__name__ == "CameraWatchdog"
     assert V.parts[-1].part is watchdog and V.parts[-1].outputs == ("user/mode", "user/throttle")
     part = add_behavior(V, cfg)
-    assert V.parts[-1].part is part and V.parts[-1].inputs == ("behavior/step",)
+    assert V.parts[-1].part is part and V.parts[-1].inputs == ("behavior/step", "web/behavior_step")
     assert V.parts[-1].outputs == ("behavior/state", "behavior/label", "behavior/one_hot_state_array")
     assert add_camera_watchdog(V, cfg) is None  # only one watchdog per vehicle
     log = Log()

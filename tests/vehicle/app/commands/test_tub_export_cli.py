@@ -42,6 +42,7 @@ def test_export_and_import_a_donkeycar_tub(donkey_tub, tmp_path, capsys):
 
 def test_bad_input_exits_2_with_one_line_and_writes_nothing(donkey_tub, tmp_path, capsys):
     path, _ = donkey_tub(4, image_size=(48, 64))
+    odd, _ = donkey_tub(2, name="odd", image_size=(47, 63))
     (tmp_path / "empty").mkdir()
     full = tmp_path / "full"
     full.mkdir()
@@ -52,6 +53,12 @@ def test_bad_input_exits_2_with_one_line_and_writes_nothing(donkey_tub, tmp_path
         (["tub", "export-lerobot", str(path), "--out", str(tmp_path / "a"), "--fps", "0"], "fps must be"),
         (["tub", "export-udacity", str(path), "--out", str(full)], "exists and is not empty"),
         (["tub", "import-lerobot", str(path), "--out", str(tmp_path / "b")], "not a LeRobot dataset"),
+        (["tub", "export-lerobot", str(path), "--out", str(tmp_path / "a"), "--max-gap", "-1"],
+         "--max-gap must be >= 0 seconds (0: never split on a gap), got -1"),
+        (["tub", "export-lerobot", str(path), "--out", str(tmp_path / "a"), "--max-episode-s", "3000"],
+         "--max-episode-s must be > 0 and <= 2048 s"),
+        (["tub", "export-lerobot", str(odd), "--out", str(tmp_path / "a"), "--vcodec", "h264"],
+         "h264: 63x47 frames: h264 and hevc need an even width and height; use --vcodec libsvtav1"),
     ]
     for argv, message in cases:
         assert main(argv) == 2
@@ -98,3 +105,10 @@ def test_export_udacity_for_seed_001_scripts(donkey_tub, tmp_path, capsys):
         assert [r.timestamp_ms for r in back] == [r["_timestamp_ms"] for r in written]
         assert [r.image_bytes() for r in back] == [(path / "images" / r["cam/image_array"]).read_bytes()
                                                    for r in written]
+
+
+def test_max_episode_s_splits_long_sessions(donkey_tub, tmp_path, capsys):
+    path, _ = donkey_tub(12, image_size=(48, 64))  # 0.6 s at 20 Hz, one session
+    ds = tmp_path / "ds"
+    assert main(["tub", "export-lerobot", str(path), "--out", str(ds), "--images", "--max-episode-s", "0.25"]) == 0
+    assert f"{ds}: 12 frames in 3 episodes" in capsys.readouterr().out  # 5 + 5 + 2 frames

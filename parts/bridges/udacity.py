@@ -1,0 +1,499 @@
+"""The Udacity self-driving-car simulator as a car: we are the Socket.IO server it connects to.
+
+>>> sim = UdacitySim(port=4567)                       # the simulator's hard-coded port
+>>> V.add(sim, inputs=list(UdacitySim.INPUTS), outputs=list(sim.outputs),
+...       threaded=True)                              # doctest: +SKIP
+
+The simulator (Term 1, autonomous mode) connects to ``ws://127.0.0.1:4567/socket.io/`` and sends a
+``telemetry`` event (centre camera JPEG, speed, steering, throttle, all as strings); it then waits
+for exactly one ``steer`` or ``manual`` before it sends the next. This part runs that server in its
+own thread (python-socketio on aiohttp, with :mod:`parts.bridges.engineio3` for the simulator's
+Engine.IO v3 dialect) and keeps the lockstep with the drive loop:
+
+- a telemetry's frame is handed to the loop at its next run; the steer that answers it carries
+  the ``angle``/``throttle`` the loop computed from that frame: sent at the end of that loop by
+  :class:`parts.bridges.commands.SendCommands` (added last), else at the start of the next. The
+  loop never waits for the simulator, and the simulator never gets a command older than the frame
+  it answers;
+- a telemetry the loop does not answer within ``command_timeout_s`` (the loop is stuck) is
+  answered with a neutral steer (0, 0), as an actuator watchdog would;
+- ``telemetry`` with ``null`` (the user holds W/S in autonomous mode) is answered with ``manual``
+  at once and reported as ``sim/manual`` True (an intervention for evaluation);
+- no telemetry for ``timeout_s`` makes ``cam/ok`` False (the camera watchdog then takes the pilot
+  out) and logs one line that says what to check;
+- numbers in telemetry are read whatever the simulator's locale (``"0,1234"``); steer values are
+  JSON strings, with the decimal separator the simulator parses (it uses ``float.Parse`` in its
+  own locale, so a simulator that sends decimal commas gets decimal commas back).
+
+Outputs: ``cam/image_array`` (160x320x3 RGB), ``cam/timestamp``, ``cam/ok``, ``cam/frame_id`` (the
+telemetry's number: a new value means a new frame), ``sim/speed`` (m/s,
+from mph), ``enc/speed`` (the same), ``sim/steering_deg`` (degrees, ±25, positive = right),
+``sim/throttle``, ``sim/manual``, ``sim/cte`` and ``sim/lap`` (research forks' ``cte`` and
+``lapNumber``; None from the stock simulator), ``sim/extra`` (every other key a fork sends, parsed),
+then ``sim/<key>`` for each name in ``extra_keys`` (in snake case: ``lapNumber`` -> ``sim/lap_number``).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import base64
+import binascii
+import contextlib
+import logging
+import math
+import re
+import threading
+import time
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Final
+
+import numpy as np
+
+from parts.bridges.errors import BridgeError
+from vehicle.part import ThreadedPart, run_event_loop
+
+logger = logging.getLogger(__name__)
+
+MS_PER_MPH: Final = 0.44704
+#: telemetry keys of the stock simulator; everything else is a fork's extra
+STOCK_KEYS: Final = ("steering_angle", "throttle", "speed", "image")
+#: fork keys with a standard memory key of their own
+FORK_KEYS: Final = {"cte": "sim/cte", "lapNumber": "sim/lap"}
+DECIMALS: Final = ("auto", ".", ",")
+_COMMA_NUMBER = re.compile(r"^\s*[-+]?\d+,\d+\s*$")
+
+
+def parse_number(value: Any) -> float | None:
+    """A telemetry number whatever the simulator's locale; None when it is not a finite number.
+
+    ``"0.1234"``, ``"0,1234"``, ``"1,234.5"``, ``"1.234,5"``, ``"-3"`` and JSON numbers are read;
+    with both separators the last one is the decimal separator.
+    """
+    if isinstance(value, bool) or value is None:
+        return None
+    if isinstance(value, int | float):
+        out = float(value)
+    elif isinstance(value, str):
+        text = value.strip().replace("\u00a0", "").replace(" ", "")  # fr: a space groups thousands
+        if "," in text and "." in text:
+            if text.rfind(",") > text.rfind("."):
+                text = text.replace(".", "").replace(",", ".")
+            else:
+                text = text.replace(",", "")
+        elif "," in text:
+            text = text.replace(",", ".") if text.count(",") == 1 else text.replace(",", "")
+        try:
+            out = float(text)
+        except ValueError:
+            return None
+    else:
+        return None
+    return out if math.isfinite(out) else None
+
+
+def extra_key(name: str) -> str:
+    """The memory key of a fork's telemetry key: ``sim/`` + snake case (``currentWayPoint`` ->
+    ``sim/current_way_point``)."""
+    snake = re.sub(r"(?<=[a-z0-9])([A-Z])", r"_\1", name).lower()
+    return "sim/" + re.sub(r"[^a-z0-9_]+", "_", snake).strip("_")
+
+
+def format_command(value: Any, decimal: str = ".") -> str:
+    """A steer value as the simulator parses it: a string, fixed point, no exponent; 0 for junk."""
+    number = parse_number(value)
+    number = 0.0 if number is None else min(1.0, max(-1.0, number))
+    text = f"{number:.6f}"
+    return text.replace(".", ",") if decimal == "," else text
+
+
+@dataclass(frozen=True)
+class Telemetry:
+    """One telemetry message, parsed."""
+
+    seq: int  # 1 for the first telemetry since the part started
+    sid: str  # the connection it came on (the steer must go back there)
+    image: np.ndarray  # HxWx3 uint8 RGB
+    timestamp: float  # time.time() when it arrived
+    steering_deg: float | None
+    throttle: float | None
+    speed: float | None  # m/s
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+class UdacitySim(ThreadedPart):
+    """The Udacity simulator as a car part (add it with ``threaded=True``).
+
+    Args:
+        host: interface to listen on. Default ``"127.0.0.1"``: the simulator connects to
+            127.0.0.1 (hard-coded in its build); use ``"0.0.0.0"`` only when it runs elsewhere.
+        port: TCP port. Default 4567 (hard-coded in the simulator); 0 picks a free one (tests).
+        timeout_s: no telemetry for this long means a stale camera (``cam/ok`` False). Default 1.
+        command_timeout_s: a telemetry the loop has not answered after this long is answered with
+            a neutral steer. Default 0.5; keep it above two loop periods.
+        decimal: decimal separator of steer values: "auto" (the one the simulator's telemetry
+            uses), "." or ",".
+        extra_keys: fork telemetry keys to publish as ``sim/<key>`` outputs of their own.
+        start_timeout: seconds :meth:`start` waits for the server to listen. Default 10.
+    """
+
+    #: memory keys the part reads, in this order: the commands of the previous loop
+    INPUTS: ClassVar[tuple[str, ...]] = ("angle", "throttle")
+    FEEDBACK: ClassVar[tuple[str, ...]] = ("angle", "throttle")
+    #: memory keys the part writes, in this order (an instance adds ``sim/<key>`` per extra key)
+    OUTPUTS: tuple[str, ...] = ("cam/image_array", "cam/timestamp", "cam/ok", "cam/frame_id", "sim/speed", "enc/speed",
+                      "sim/steering_deg", "sim/throttle", "sim/manual", "sim/cte", "sim/lap", "sim/extra")
+
+    def __init__(self, host: str = "127.0.0.1", port: int = 4567, *, timeout_s: float = 1.0,
+                 command_timeout_s: float = 0.5, decimal: str = "auto", extra_keys: Sequence[str] = (),
+                 start_timeout: float = 10.0) -> None:
+        super().__init__()
+        for name, value in (("timeout_s", timeout_s), ("command_timeout_s", command_timeout_s)):
+            if isinstance(value, bool) or not isinstance(value, int | float) or not value > 0:
+                raise ValueError(f"UdacitySim: {name} must be > 0 seconds, got {value!r}")
+        if decimal not in DECIMALS:
+            raise ValueError(f"UdacitySim: decimal must be one of {DECIMALS}, got {decimal!r}")
+        if not isinstance(port, int) or isinstance(port, bool) or not 0 <= port <= 65535:
+            raise ValueError(f"UdacitySim: port must be 0..65535, got {port!r}")
+        bad = [k for k in extra_keys if not isinstance(k, str) or not k or k in STOCK_KEYS]
+        if bad:
+            raise ValueError(f"UdacitySim: extra_keys must be names of fork telemetry keys other than "
+                             f"{STOCK_KEYS}, got {bad!r}")
+        self.name = "UdacitySim"
+        self.host = host
+        self.port = port
+        self.timeout_s = float(timeout_s)
+        self.command_timeout_s = float(command_timeout_s)
+        self.decimal = decimal
+        self.extra_keys = tuple(extra_keys)
+        self.OUTPUTS = type(self).OUTPUTS + tuple(extra_key(k) for k in self.extra_keys)
+        self.start_timeout = start_timeout
+        self.join_timeout = 5.0
+        self._ready = threading.Event()
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._sio: Any = None
+        self._runner: Any = None
+        self._site: Any = None
+        self._stop_server: asyncio.Event | None = None
+        # shared with the server thread, under self._state
+        self._state = threading.Lock()
+        self._telemetry: Telemetry | None = None
+        self._seq = 0
+        self._pending: deque[tuple[str, int, float]] = deque()  # (sid, seq, arrival monotonic)
+        self._delivered = 0  # seq of the frame handed to the loop at its previous run
+        self._last_message: float | None = None  # monotonic time of the latest telemetry (null too)
+        self._manual = False
+        self._connections = 0
+        self._connected_at: float | None = None
+        self._comma = decimal == ","
+        self._neutral = False
+        # statistics and reporting (loop thread unless noted)
+        self.telemetry_count = 0
+        self.null_count = 0
+        self.steers_sent = 0
+        self.neutral_replies = 0
+        self._started_at: float | None = None
+        self._stale_reported = False
+        self._waiting_reported = False
+        self._stall_reported = False
+        self._bad_reported: set[str] = set()
+
+    # -- lifecycle --------------------------------------------------------------------------------
+    def start(self) -> UdacitySim:
+        """Start the server thread and wait until it listens.
+
+        Raises:
+            BridgeError: the port cannot be bound or python-socketio cannot serve the simulator.
+        """
+        if self._thread is not None:
+            return self
+        from parts.bridges.engineio3 import check_support
+
+        check_support()
+        super().start()
+        if not self._ready.wait(self.start_timeout):
+            self.shutdown()
+            raise BridgeError(f"Udacity bridge: server did not start within {self.start_timeout} s")
+        if self.error is not None:
+            error = self.error
+            self.shutdown()
+            if isinstance(error, OSError):
+                raise BridgeError(f"Udacity bridge cannot listen on {self.host}:{self.port} "
+                                  f"({error.strerror or error}): another drive.py or manage.py may be running; "
+                                  "stop it, or set UDACITY_PORT (the stock simulator only connects to 4567)") from error
+            raise error
+        self._started_at = time.monotonic()
+        logger.info("Udacity bridge listening on %s:%d: start the simulator and choose Autonomous Mode",
+                    self.host, self.port)
+        return self
+
+    def open(self) -> None:
+        """In the server thread: make the event loop and listen."""
+        self._loop = asyncio.new_event_loop()
+        asyncio.set_event_loop(self._loop)
+        try:
+            self._runner = self._loop.run_until_complete(self._serve())
+        except Exception as exc:  # reported by start() as one line (port taken ...), no traceback
+            self.error = exc
+            self.stop_event.set()
+            self._loop.close()
+            self._loop = None
+        self._ready.set()
+
+    def poll(self) -> Any:
+        """In the server thread: serve until shutdown, then close every connection."""
+        loop = self._loop
+        if loop is None or loop.is_closed():
+            return self.NOTHING
+        try:
+            run_event_loop(loop, self._serve_until_stopped())
+        finally:
+            self.stop_event.set()
+        return self.NOTHING
+
+    def shutdown(self) -> None:
+        """Stop the server and join its thread."""
+        loop, stop = self._loop, self._stop_server
+        if loop is not None and stop is not None and not loop.is_closed():
+            with contextlib.suppress(RuntimeError):  # closed between the check and the call
+                loop.call_soon_threadsafe(stop.set)
+        super().shutdown()
+        logger.info("Udacity bridge: %d telemetry messages (%d manual), %d steers sent (%d neutral)",
+                    self.telemetry_count, self.null_count, self.steers_sent, self.neutral_replies)
+
+    def neutral(self) -> None:
+        """Answer every waiting telemetry, and all that follow, with steer (0, 0)."""
+        with self._state:
+            self._neutral = True
+            pending = [sid for sid, _, _ in self._pending]
+            self._pending.clear()
+        if pending:
+            self._send_threadsafe([(sid, 0.0, 0.0) for sid in pending], neutral=True)
+
+    # -- the loop's side --------------------------------------------------------------------------
+    def run_threaded(self, angle: Any = None, throttle: Any = None) -> tuple[Any, ...]:
+        """Answer the telemetries whose frame the loop has seen, and return the latest telemetry."""
+        if self.error is not None:
+            raise RuntimeError(f"Udacity bridge server failed: {self.error!r}") from self.error
+        self.command(angle, throttle)  # frames of the previous loop not answered by SendCommands yet
+        with self._state:
+            tel = self._telemetry
+            self._delivered = tel.seq if tel is not None else 0
+            last, manual, connections = self._last_message, self._manual, self._connections
+            connected_at = self._connected_at
+        now = time.monotonic()
+        ok = tel is not None and last is not None and now - last <= self.timeout_s
+        self._report(ok, now, last, connections, connected_at)
+        extra = tel.extra if tel is not None else {}
+        cte = parse_number(extra.get("cte"))
+        lap = parse_number(extra.get("lapNumber"))
+        base = (None, None, False, 0, None, None, None, None, manual, None, None, {}) if tel is None else (
+            tel.image, tel.timestamp, ok, tel.seq, tel.speed, tel.speed, tel.steering_deg, tel.throttle, manual,
+            cte, int(lap) if lap is not None else None,
+            {k: v for k, v in extra.items() if k not in FORK_KEYS})
+        return base + tuple(extra.get(k) for k in self.extra_keys)
+
+    def command(self, angle: Any, throttle: Any) -> None:
+        """Answer, with these commands, the telemetries whose frame the loop has been given.
+
+        :meth:`run_threaded` does it at the start of the next loop with the loop's previous
+        commands; :class:`parts.bridges.commands.SendCommands` at the end of the loop calls it at
+        once, which saves the simulator a loop period per telemetry.
+        """
+        with self._state:
+            replies = []
+            while self._pending and self._pending[0][1] <= self._delivered:
+                replies.append(self._pending.popleft()[0])
+        if replies:
+            self._send_threadsafe([(sid, angle, throttle) for sid in replies])
+
+    def run(self, angle: Any = None, throttle: Any = None) -> tuple[Any, ...]:
+        """Non-threaded use: start the server on the first call, then as :meth:`run_threaded`."""
+        self.start()
+        return self.run_threaded(angle, throttle)
+
+    def _report(self, ok: bool, now: float, last: float | None, connections: int,
+                connected_at: float | None) -> None:
+        """One log line per problem: never connected, connected but silent, telemetry stopped."""
+        if ok:
+            if self._stale_reported:
+                logger.info("Udacity simulator: telemetry resumed")
+            self._stale_reported = self._waiting_reported = self._stall_reported = False
+            return
+        if last is None:
+            if connections and connected_at is not None and now - connected_at > self.timeout_s:
+                if not self._stall_reported:
+                    self._stall_reported = True
+                    logger.error("Udacity bridge: a client connected to %s:%d but sent no telemetry for %.1f s: "
+                                 "is it the Udacity simulator in Autonomous Mode? (a Socket.IO client of "
+                                 "another protocol version stays silent)", self.host, self.port,
+                                 now - connected_at)
+            elif (not connections and not self._waiting_reported and self._started_at is not None
+                  and now - self._started_at > self.timeout_s):
+                self._waiting_reported = True
+                logger.warning("Udacity bridge: waiting for the simulator on %s:%d: start it and choose "
+                               "Autonomous Mode (camera stale, pilot held until frames arrive)",
+                               self.host, self.port)
+            return
+        if not self._stale_reported:
+            self._stale_reported = True
+            logger.warning("Udacity simulator: no telemetry for %.1f s (SIM_TIMEOUT_S = %.1f): camera marked "
+                           "stale, pilot disengaged; check the simulator is running, not paused and still "
+                           "in Autonomous Mode%s", now - last, self.timeout_s,
+                           "" if connections else " (it disconnected)")
+
+    # -- the server thread ------------------------------------------------------------------------
+    async def _serve(self) -> Any:
+        from aiohttp import web
+
+        from parts.bridges.engineio3 import legacy_server
+
+        self._stop_server = asyncio.Event()
+        # websocket only: the simulator never polls; the default origin check keeps browser pages
+        # of other sites from posing as the simulator
+        sio = legacy_server(async_mode="aiohttp", transports=["websocket"], logger=False,
+                            engineio_logger=False, max_http_buffer_size=4_000_000)
+        self._sio = sio
+        sio.on("connect", self._on_connect)
+        sio.on("disconnect", self._on_disconnect)
+        sio.on("telemetry", self._on_telemetry)
+        app = web.Application()
+        sio.attach(app)
+        # shutdown_timeout: a connection still open at shutdown is dropped after 0.25 s, not 60
+        runner = web.AppRunner(app, access_log=None, handle_signals=False, shutdown_timeout=0.25)
+        await runner.setup()
+        site = web.TCPSite(runner, self.host, self.port)
+        self._site = site
+        try:
+            await site.start()
+        except BaseException:
+            await runner.cleanup()
+            raise
+        if self.port == 0:
+            server = getattr(site, "_server", None)
+            sockets = getattr(server, "sockets", None) or []
+            if sockets:
+                self.port = sockets[0].getsockname()[1]
+        return runner
+
+    async def _serve_until_stopped(self) -> None:
+        stop = self._stop_server
+        if stop is None:
+            return
+        watchdog = asyncio.ensure_future(self._command_watchdog())
+        try:
+            await stop.wait()
+        finally:
+            watchdog.cancel()
+            try:
+                await self._site.stop()  # first stop listening: the simulator reconnects within 5 ms
+                if self._sio.eio.sockets:  # close the simulator's websocket, or cleanup waits for it
+                    await asyncio.wait_for(self._sio.eio.disconnect(), 2.0)
+                await self._sio.shutdown()
+            except (TimeoutError, OSError) as exc:
+                logger.debug("Udacity bridge: closing the connection: %r", exc)
+            finally:
+                await self._runner.cleanup()
+
+    async def _command_watchdog(self) -> None:
+        """Answer telemetries the loop left unanswered for command_timeout_s with a neutral steer."""
+        period = min(0.05, self.command_timeout_s / 4)
+        while True:
+            await asyncio.sleep(period)
+            now = time.monotonic()
+            with self._state:
+                late = []
+                while self._pending and now - self._pending[0][2] > self.command_timeout_s:
+                    late.append(self._pending.popleft()[0])
+            if late:
+                logger.warning("Udacity bridge: the drive loop gave no command for %.2f s: answered the "
+                               "simulator with a neutral steer", self.command_timeout_s)
+                await self._emit_steers([(sid, 0.0, 0.0) for sid in late], neutral=True)
+
+    async def _on_connect(self, sid: str, environ: dict[str, Any], auth: Any = None) -> None:
+        with self._state:
+            self._connections += 1
+            self._connected_at = time.monotonic()
+        logger.info("Udacity simulator connected from %s", environ.get("REMOTE_ADDR", "?"))
+
+    async def _on_disconnect(self, sid: str, reason: Any = None) -> None:
+        with self._state:
+            self._connections = max(0, self._connections - 1)
+            self._pending = deque(p for p in self._pending if p[0] != sid)
+        logger.info("Udacity simulator disconnected%s", f" ({reason})" if reason else "")
+
+    async def _on_telemetry(self, sid: str, data: Any = None) -> None:
+        now = time.monotonic()
+        if data is None:  # manual override: keep the chain alive, apply nothing
+            with self._state:
+                self._last_message = now
+                self._manual = True
+            self.null_count += 1
+            await self._sio.emit("manual", {}, to=sid)
+            return
+        try:
+            tel = self._parse(sid, data)
+        except ValueError as exc:
+            if str(exc) not in self._bad_reported:
+                self._bad_reported.add(str(exc))
+                logger.error("Udacity bridge: unusable telemetry (%s): answered with a neutral steer", exc)
+            await self._emit_steers([(sid, 0.0, 0.0)], neutral=True)
+            return
+        self.telemetry_count += 1
+        with self._state:
+            self._seq += 1
+            tel = Telemetry(self._seq, tel.sid, tel.image, tel.timestamp, tel.steering_deg, tel.throttle,
+                            tel.speed, tel.extra)
+            self._telemetry = tel
+            self._last_message = now
+            self._manual = False
+            neutral = self._neutral
+            if not neutral:
+                self._pending.append((sid, tel.seq, now))
+        if neutral:
+            await self._emit_steers([(sid, 0.0, 0.0)], neutral=True)
+
+    def _parse(self, sid: str, data: Any) -> Telemetry:
+        """Telemetry from the event's data; ValueError says what is wrong with it."""
+        from parts.tub.codec import decode_image
+
+        if not isinstance(data, dict):
+            raise ValueError(f"expected an object, got {type(data).__name__}")
+        encoded = data.get("image")
+        if not isinstance(encoded, str) or not encoded:
+            raise ValueError("no 'image' field")
+        try:
+            image = decode_image(base64.b64decode(encoded, validate=False))
+        except (binascii.Error, ValueError) as exc:
+            raise ValueError(f"'image' is not base64: {exc}") from None
+        if image is None or image.ndim != 3:
+            raise ValueError("'image' is not a JPEG/PNG colour image")
+        if self.decimal == "auto" and not self._comma and any(
+                isinstance(data.get(k), str) and _COMMA_NUMBER.match(data[k]) for k in STOCK_KEYS[:3]):
+            self._comma = True
+            logger.info("Udacity simulator sends decimal commas (its locale): steer values follow")
+        speed = parse_number(data.get("speed"))
+        extra = {}
+        for key, value in data.items():
+            if key not in STOCK_KEYS:
+                number = parse_number(value)
+                extra[key] = value if number is None else number
+        return Telemetry(0, sid, image, time.time(), parse_number(data.get("steering_angle")),
+                         parse_number(data.get("throttle")), None if speed is None else speed * MS_PER_MPH, extra)
+
+    def _send_threadsafe(self, replies: list[tuple[str, Any, Any]], neutral: bool = False) -> None:
+        """Hand steers to the server thread (never blocks the caller)."""
+        loop = self._loop
+        if loop is None or loop.is_closed():
+            return
+        with contextlib.suppress(RuntimeError):  # the loop closed meanwhile: nobody to answer
+            asyncio.run_coroutine_threadsafe(self._emit_steers(replies, neutral), loop)
+
+    async def _emit_steers(self, replies: list[tuple[str, Any, Any]], neutral: bool = False) -> None:
+        decimal = "," if self._comma else "."
+        for sid, angle, throttle in replies:
+            await self._sio.emit("steer", {"steering_angle": format_command(angle, decimal),
+                                           "throttle": format_command(throttle, decimal)}, to=sid)
+            self.steers_sent += 1
+            self.neutral_replies += int(neutral)

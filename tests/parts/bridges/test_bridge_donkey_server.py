@@ -1,0 +1,324 @@
+"""Our simulator behind the Donkey protocol: a gym-donkeycar-style client, and our own client."""
+
+from __future__ import annotations
+
+import base64
+import json
+import math
+import re
+import select
+import socket
+import threading
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+
+from parts.bridges import donkey_protocol as proto
+from parts.bridges.donkey_client import DonkeySim
+from parts.bridges.donkey_server import DonkeyServer, scene_names, seed_for_scene
+from parts.bridges.errors import BridgeError
+from parts.sim.expert import Expert
+from parts.sim.simulator import SimCar
+from vehicle.config import Config
+
+
+@pytest.fixture(scope="module")
+def server() -> Iterator[DonkeyServer]:
+    with DonkeyServer(port=0, seeds=[5, 6]) as srv:
+        yield srv
+
+
+# -- a client that follows gym-donkeycar 1.3.1's documented sequence and semantics ------------------
+def replace_float_notation(text: str) -> str:
+    """gym-donkeycar's repair of Unity's comma floats: ``"key":1,2`` -> ``"key":1.2``."""
+    return re.sub(r'("[A-Za-z_]+":\s*-?\d+),(\d+)', r"\1.\2", text)
+
+
+class GymStyleClient:
+    """SDClient + DonkeyUnitySimHandler as docs/simulators.md §3.5 describes them (not their code)."""
+
+    def __init__(self, port: int, level: str = "generated_track", max_cte: float = 8.0) -> None:
+        self.level, self.max_cte = level, max_cte
+        self.sock = socket.create_connection(("127.0.0.1", port))
+        self.sock.setblocking(False)
+        self.msg: str | None = None  # lossy one-slot queue for control
+        self.buffer = ""
+        self.error: Exception | None = None
+        self.loaded = False
+        self.telemetry: dict[str, Any] = {}
+        self.received_at = 0.0  # time of the last telemetry
+        self.hit, self.cte, self.speed = "none", 0.0, 0.0
+        self.lap_count, self.last_lap_time = 0, 0.0
+        self.starting_line_index, self.lap_start = -1, None
+        self.over = False
+        self.running = True
+        self.thread = threading.Thread(target=self.proc_msg, daemon=True)
+        self.thread.start()
+
+    # SDClient
+    def proc_msg(self) -> None:
+        while self.running:
+            readable, writable, _ = select.select([self.sock], [self.sock], [], 0.01)
+            if writable and self.msg is not None:
+                self.sock.sendall(self.msg.encode())
+                self.msg = None
+            if readable:
+                try:
+                    data = self.sock.recv(1024 * 256)
+                except BlockingIOError:
+                    continue
+                if not data:
+                    return
+                self.buffer += data.decode()
+                start, end = self.buffer.find("{"), self.buffer.rfind("}\n")
+                if start < 0 or end < 0:
+                    continue
+                chunk, self.buffer = self.buffer[start:end + 1], self.buffer[end + 2:]
+                for part in chunk.split("\n"):
+                    if len(part) <= 2:
+                        continue
+                    msg = json.loads(replace_float_notation(part))
+                    if "msg_type" in msg:
+                        self.on_msg_recv(msg)
+            time.sleep(0.001)
+
+    def queue_message(self, msg: dict[str, Any]) -> None:
+        self.msg = json.dumps(msg)
+
+    def blocking_send(self, msg: dict[str, Any]) -> None:
+        self.sock.setblocking(True)
+        self.sock.sendall(json.dumps(msg).encode())
+        self.sock.setblocking(False)
+        time.sleep(0.1)
+
+    # handler
+    def on_msg_recv(self, msg: dict[str, Any]) -> None:
+        kind = msg["msg_type"]
+        if kind == "scene_selection_ready":
+            self.blocking_send({"msg_type": "get_scene_names"})
+        elif kind == "scene_names":
+            if self.level not in msg["scene_names"]:
+                self.error = ValueError(f"{self.level} is not in the list of scenes")
+            else:
+                self.blocking_send({"msg_type": "load_scene", "scene_name": self.level})
+        elif kind == "car_loaded":
+            self.send_control(0, 0, brake=1.0)
+            self.blocking_send({"msg_type": "car_config", "body_style": "donkey", "body_r": "128", "body_g": "128",
+                                "body_b": "128", "car_name": "gym", "font_size": "100"})
+            self.blocking_send({"msg_type": "cam_config", "img_w": "160", "img_h": "120", "img_d": "3",
+                                "img_enc": "JPG", "fov": "0"})
+            self.loaded = True
+        elif kind == "telemetry":
+            self.telemetry = msg
+            self.hit, self.cte, self.speed = msg["hit"], msg["cte"], msg["speed"]
+            self.received_at = time.monotonic()
+            self.determine_episode_over()
+        elif kind == "collision_with_starting_line":
+            if self.lap_start is None or msg["starting_line_index"] != self.starting_line_index:
+                self.starting_line_index, self.lap_start = msg["starting_line_index"], msg["timeStamp"]
+            else:
+                self.last_lap_time = msg["timeStamp"] - self.lap_start
+                self.lap_start = msg["timeStamp"]
+                self.lap_count += 1
+
+    def determine_episode_over(self) -> None:
+        if abs(self.cte) > 2 * self.max_cte:
+            pass  # a spawn glitch, ignored
+        elif abs(self.cte) > self.max_cte or self.hit != "none":
+            self.over = True
+
+    def send_control(self, steer: float, throttle: float, brake: float = 0.0) -> None:
+        self.queue_message({"msg_type": "control", "steering": str(steer), "throttle": str(throttle),
+                            "brake": str(brake)})
+
+    def observe(self, timeout: float = 5.0) -> dict[str, Any]:
+        last = self.received_at
+        end = time.monotonic() + timeout
+        while self.received_at == last and time.monotonic() < end:
+            time.sleep(0.001)
+        assert self.received_at != last, "no telemetry"
+        return self.telemetry
+
+    def calc_reward(self) -> float:
+        if self.over:
+            return -1.0
+        if self.hit != "none":
+            return -2.0
+        t = self.telemetry
+        yaw = math.radians(t["yaw"])  # heading projection of the velocity (pitch, roll are 0 here)
+        forward_vel = t["vel_x"] * math.sin(yaw) + t["vel_z"] * math.cos(yaw)
+        return (1.0 - abs(self.cte) / self.max_cte) * forward_vel if forward_vel > 0 else forward_vel
+
+    def reset(self) -> dict[str, Any]:
+        self.send_control(0, 0, 1.0)
+        time.sleep(0.1)
+        self.blocking_send({"msg_type": "reset_car"})
+        time.sleep(1.0)
+        self.over, self.hit = False, "none"
+        self.lap_count, self.lap_start = 0, None
+        self.send_control(0, 0, 1.0)
+        time.sleep(0.1)
+        return self.observe()
+
+    def step(self, steer: float, throttle: float) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
+        self.send_control(steer, throttle)
+        obs = self.observe()
+        info = {"cte": self.cte, "speed": self.speed, "hit": self.hit, "lap_count": self.lap_count,
+                "last_lap_time": self.last_lap_time, "pos": (obs["pos_x"], obs["pos_y"], obs["pos_z"])}
+        return obs, self.calc_reward(), self.over, False, info
+
+    def close(self) -> None:
+        self.blocking_send({"msg_type": "exit_scene"})
+        self.running = False
+        self.thread.join(2)
+        self.sock.close()
+
+    def wait_loaded(self, timeout: float = 10.0) -> None:
+        end = time.monotonic() + timeout
+        while not self.loaded and self.error is None and time.monotonic() < end:
+            time.sleep(0.01)
+
+
+def test_gym_style_client_runs_episodes(server: DonkeyServer) -> None:
+    env = GymStyleClient(server.port, level="generated_track", max_cte=8.0)
+    try:
+        env.wait_loaded()
+        assert env.loaded and env.error is None
+        obs = env.reset()
+        assert obs["speed"] == pytest.approx(0.0, abs=1e-6) and abs(obs["cte"]) < 0.01
+        image = base64.b64decode(obs["image"])
+        assert image[:2] == b"\xff\xd8"  # a JPEG, 160x120 asked with cam_config
+        rewards, over, info = [], False, {}
+        for _ in range(400):  # full throttle, wheels straight: the road bends away, the car leaves it
+            _, reward, over, truncated, info = env.step(0.0, 1.0)
+            rewards.append(reward)
+            assert truncated is False
+            if over:
+                break
+        assert over and info["hit"] == "off_track"  # gym's max_cte 8 is metres here: the hit ends it
+        assert rewards[-1] == -1.0 and max(rewards) > 0
+        assert env.lap_start is not None and env.lap_count == 0  # the start crossing began the clock
+        obs = env.reset()
+        assert abs(obs["cte"]) < 0.01 and obs["speed"] == pytest.approx(0.0, abs=1e-6)
+        assert not env.over
+        _, reward, over, _, _ = env.step(0.0, 0.5)
+        assert not over
+    finally:
+        env.close()
+
+
+def test_gym_style_client_gets_every_scene_of_the_gym_ids(server: DonkeyServer) -> None:
+    env = GymStyleClient(server.port, level="no_such_level")
+    try:
+        env.wait_loaded(3)
+        assert isinstance(env.error, ValueError) and not env.loaded
+    finally:
+        env.close()
+    assert set(proto.GYM_SCENES.values()) <= set(scene_names([5]))
+    assert seed_for_scene("generated_road", [5, 6]) == 5 and seed_for_scene("warehouse", [5, 6]) == 6
+    assert seed_for_scene("track_42", [5]) == 42 and seed_for_scene("nope", [5]) is None
+
+
+# -- our client against our server --------------------------------------------------------------
+class ShadowExpert:
+    """The built-in expert driving from telemetry only (pose from pos_x/pos_z/yaw)."""
+
+    def __init__(self, seed: int) -> None:
+        self.shadow = SimCar.from_config(Config.defaults(), seeds=[seed])
+        self.expert = Expert(self.shadow, speed=1.5)
+
+    def command(self, extra: dict[str, Any], pos: tuple[float, float], speed: float) -> tuple[float, float]:
+        st = self.shadow.car.state
+        st.x, st.y = pos
+        st.heading = math.radians(90.0 - extra["yaw"])
+        st.speed = speed
+        return self.expert.command()
+
+
+def test_our_client_laps_our_server_in_synchronous_steps(server: DonkeyServer) -> None:
+    sim = DonkeySim(port=server.port, scene="track_5", synchronous=True, time_step=0.05, connect_timeout_s=3)
+    driver = ShadowExpert(5)
+    try:
+        out = dict(zip(DonkeySim.OUTPUTS, sim.run(0.0, 0.0, False), strict=True))
+        session = next(s for s in server.sessions if s.alive and s.scene == "track_5")
+        t0 = out["sim/time"]
+        for step in range(1, 2000):
+            angle, throttle = driver.command(out["sim/extra"], out["sim/pos"], out["sim/speed"])
+            out = dict(zip(DonkeySim.OUTPUTS, sim.run(angle, throttle, False), strict=True))
+            # one step per control, in simulated time
+            assert out["sim/time"] == pytest.approx(t0 + 0.05 * step, abs=1e-6)
+            assert out["sim/cte"] == pytest.approx(session.sim.frame.cte, abs=1e-9)  # our sign both ends
+            if out["sim/lap"] == 1:
+                break
+        assert out["sim/lap"] == 1 and out["sim/off_track"] is False
+        # gym's rule: from the first crossing (the car drove off the line at the first step) to the next
+        assert out["sim/lap_time"] == pytest.approx(out["sim/time"] - (t0 + 0.05), abs=1e-6)
+        assert session.sim.tracker.laps == 1
+        assert out["cam/image_array"].shape == (120, 160, 3) and out["cam/image_array"].std() > 10
+        assert 0 <= out["sim/progress"] < 0.1
+    finally:
+        sim.shutdown()
+    assert session.synchronous and session.telemetry_sent == session.steps + 1  # + the first observation
+
+
+def test_several_clients_each_with_their_own_car_and_track(server: DonkeyServer) -> None:
+    a = DonkeySim(port=server.port, scene="track_5", connect_timeout_s=3).start()
+    b = DonkeySim(port=server.port, scene="track_6", connect_timeout_s=3).start()
+    try:
+        for _ in range(30):
+            out_a = dict(zip(DonkeySim.OUTPUTS, a.run_threaded(0.0, 0.6, False), strict=True))
+            out_b = dict(zip(DonkeySim.OUTPUTS, b.run_threaded(0.0, 0.0, False), strict=True))
+            time.sleep(0.05)
+        seeds = {s.sim.seed for s in server.sessions if s.alive and s.sim is not None}
+        assert {5, 6} <= seeds
+    finally:
+        a.shutdown()
+        b.shutdown()
+    assert out_a["cam/ok"] and out_b["cam/ok"]
+    assert out_a["sim/speed"] > 0.5 and out_b["sim/speed"] == pytest.approx(0.0, abs=1e-6)
+    assert not np.array_equal(out_a["cam/image_array"], out_b["cam/image_array"])
+
+
+def test_exit_scene_regen_road_and_node_position(server: DonkeyServer) -> None:
+    with socket.create_connection(("127.0.0.1", server.port), timeout=5) as s:
+        stream = proto.JsonStream()
+
+        def expect(kind: str) -> dict[str, Any]:
+            end = time.monotonic() + 5
+            while time.monotonic() < end:
+                for msg in stream.feed(s.recv(1 << 16)):
+                    if msg["msg_type"] == kind:
+                        return msg
+            raise AssertionError(f"no {kind}")
+
+        def send(msg_type: str, **fields: Any) -> None:
+            s.sendall(proto.client_message(msg_type, **fields))
+            time.sleep(0.05)
+
+        expect("scene_selection_ready")
+        send("load_scene", scene_name="track_6")
+        expect("car_loaded")
+        assert expect("telemetry")["totalNodes"] > 10
+        send("regen_road", road_style="0", rand_seed="9", turn_increment="1")
+        send("node_position", index="0")
+        node = expect("node_position")
+        session = next(x for x in server.sessions if x.alive and x.scene == "track_9")
+        x, y, _ = session.sim.track.pose_at(0.0)
+        assert (node["pos_x"], node["pos_z"]) == pytest.approx((x, y), abs=0.05)
+        send("exit_scene")
+        expect("scene_selection_ready")
+        send("get_protocol_version")
+        assert expect("protocol_version")["version"] == "2"
+
+
+def test_client_sees_a_missing_scene(server: DonkeyServer) -> None:
+    with pytest.raises(BridgeError, match="no scene 'mars'"):
+        DonkeySim(port=server.port, scene="mars", connect_timeout_s=3).start()
+
+
+def test_port_in_use_is_one_clear_error(server: DonkeyServer) -> None:
+    with pytest.raises(BridgeError, match=rf"cannot listen on 127.0.0.1:{server.port} .*--port"):
+        DonkeyServer(port=server.port).start()

@@ -1,0 +1,129 @@
+"""Lane change on demand in the simulator: the expert follows behavior/state, changes lanes smoothly,
+waits in tight corners; the behaviour schedule; the lane metrics."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from parts.drive.behavior import BehaviorSchedule, BehaviorState, behavior_lane, random_change_times
+from parts.sim.expert import Expert
+from parts.sim.lane_metrics import LaneCommand, lane_metrics, overall_lane_metrics
+from parts.sim.simulator import SimCar
+
+
+@pytest.fixture
+def lanes_cfg(cfg):
+    return cfg.replace(SIM_LANES=2, TRAIN_BEHAVIORS=True, SIM_EXPERT_SPEED=1.5)
+
+
+def _drive(cfg, seed: int, times: list[float], steps: int, initial: int = 1):
+    sim = SimCar.from_config(cfg, seeds=[seed], reset_to="nearest")
+    expert = Expert.from_config(cfg, sim)
+    state = BehaviorState(cfg.BEHAVIOR_LIST, initial)
+    schedule = BehaviorSchedule(times, sim.dt)
+    rec = {"t": [], "lat": [], "cmd": [], "off": [], "curv": [], "state": []}
+    commands = []
+    for _ in range(steps):
+        step = schedule.run()
+        s, label, _ = state.run(step)
+        if step:
+            commands.append(LaneCommand(sim.time, sim.track.lane_offset(behavior_lane(label)), label))
+        frame = sim.step(*expert.command(s))
+        proj = sim.track.project((sim.car.state.x, sim.car.state.y))
+        rec["t"].append(sim.time)
+        rec["lat"].append(-frame.cte)
+        rec["cmd"].append(sim.track.lane_offset(behavior_lane(label)))
+        rec["off"].append(frame.off_track)
+        rec["curv"].append(abs(sim.track.curvature[proj.index]))
+        rec["state"].append(s)
+    return sim, expert, {k: np.asarray(v) for k, v in rec.items()}, commands
+
+
+def test_behaviour_names_give_lanes():
+    assert [behavior_lane(n) for n in ("Left_Lane", "Right_Lane", "centre", "Stop")] == ["left", "right", "center",
+                                                                                       None]
+    with pytest.raises(ValueError, match="Left/Right"):
+        Expert(SimCar([1], world={"res": 0.02, "lanes": 2}), behaviors=["Fast", "Slow"])
+
+
+def test_expert_changes_lane_on_demand_smoothly_and_never_leaves_the_road(lanes_cfg):
+    times = random_change_times(6, 75.0, seed=3)
+    sim, expert, rec, commands = _drive(lanes_cfg, 2, times, 1600)
+    assert expert.changes_started == 6 and len(commands) == 6
+    assert sim.tracker.off_track_events == 0 and not rec["off"].any()
+    width = sim.track.width / 2  # one lane
+    m = lane_metrics(rec["t"], rec["lat"], rec["cmd"], rec["off"], width, commands)
+    assert m["lane_changes"] == 6 and m["lane_change_success_rate"] == 1.0
+    assert m["wrong_lane_s"] == 0.0 and m["lane_mean_abs_error"] < 0.03
+    assert 0.5 < m["mean_time_to_change_s"] < 5.0
+    # smooth: the lateral position never jumps, and the car crosses the centre line once per change
+    assert np.abs(np.diff(rec["lat"])).max() < 0.05
+    crossings = np.count_nonzero(np.diff(np.sign(rec["lat"])) != 0)
+    assert crossings == 6
+
+
+def test_expert_waits_for_a_straighter_road_in_tight_corners(lanes_cfg):
+    sim = SimCar.from_config(lanes_cfg, seeds=[3])
+    curv = np.abs(sim.track.curvature)
+    # command a change just before the tightest corner of the track
+    expert = Expert.from_config(lanes_cfg, sim)
+    tight = int(np.argmax(curv))
+    state = 1
+    waited = None
+    for _ in range(3000):
+        s = sim.track.project((sim.car.state.x, sim.car.state.y)).index
+        ahead = (tight - s) % sim.track.n * sim.track.length / sim.track.n
+        if state == 1 and ahead < 0.5 and sim.time > 2:
+            state = 0
+            asked = sim.time
+        sim.step(*expert.command(state))
+        if state == 0 and waited is None and expert.changes_started:
+            waited = sim.time - asked
+            break
+    assert waited is not None and expert.changes_delayed == 1
+    assert 0.2 < waited <= lanes_cfg.SIM_EXPERT_LANE_CHANGE_MAX_DELAY + 0.1
+
+
+def test_behaviour_schedule_and_random_times():
+    times = random_change_times(5, 60.0, seed=1, min_gap=6.0, start=3.0)
+    assert len(times) == 5 and times == sorted(times) and times[0] >= 3.0 and times[-1] <= 54.0
+    assert min(np.diff(times)) >= 6.0 - 1e-9
+    assert random_change_times(5, 60.0, seed=1) == times and random_change_times(5, 60.0, seed=2) != times
+    with pytest.raises(ValueError, match="do not fit"):
+        random_change_times(10, 30.0)
+    sched = BehaviorSchedule([0.5, 1.0], dt=0.1)
+    steps = [sched.run() for _ in range(20)]
+    assert steps[4] == 1 and steps[9] == 1 and sum(steps) == 2
+
+
+def test_lane_metrics_on_a_scripted_drive():
+    dt = 0.1
+    t = np.arange(0, 30, dt) + dt
+    cmd = np.where(t < 10, 0.2, -0.2)
+    lat = np.full(t.size, 0.2)
+    # change 1 (t=10): reaches the right lane at t=12 and stays
+    lat[t >= 10] = np.interp(t[t >= 10], [10, 12], [0.2, -0.2])
+    # then from t=20 the command goes left again but the car stays right: a failed change
+    cmd[t >= 20] = 0.2
+    off = np.zeros(t.size, bool)
+    commands = [LaneCommand(10.0, -0.2, "Right_Lane"), LaneCommand(20.0, 0.2, "Left_Lane")]
+    m = lane_metrics(t, lat, cmd, off, 0.4, commands, time_limit=6.0, hold=1.0)
+    first, second = m["commands"]
+    # in the lane once the centre is past the centre line (strictly): the first step after t = 11 s
+    assert first["success"] and first["time_to_change_s"] == pytest.approx(1.1, abs=1e-6)
+    assert second["success"] is False
+    assert m["lane_changes"] == 2 and m["lane_change_success_rate"] == 0.5
+    # after the failed change's window (20..26 s) the car is in the wrong lane until the end
+    assert m["wrong_lane_s"] == pytest.approx(30 - 26, abs=2 * dt)
+    assert m["off_track_events"] == 0
+    # a change still being judged when the episode ends is not counted
+    late = lane_metrics(t, lat, cmd, off, 0.4, [LaneCommand(29.5, 0.2)], time_limit=6.0)
+    assert late["lane_changes"] == 0 and late["commands"][0]["success"] is None
+    # leaving the road during a change fails it
+    off2 = off.copy()
+    off2[(t > 10.5) & (t < 11)] = True
+    m2 = lane_metrics(t, lat, cmd, off2, 0.4, commands[:1])
+    assert m2["commands"][0]["success"] is False and m2["off_track_events"] == 1
+    both = overall_lane_metrics([m, m2])
+    assert both["lane_changes"] == 3 and both["lane_changes_ok"] == 1

@@ -1,0 +1,135 @@
+"""The console's server without a browser: the pairing token, Host and Origin rules, JSON errors, the
+event stream, and the job queue (one at a time, cancel, restart)."""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import time
+import urllib.error
+import urllib.request
+
+import pytest
+
+
+def request(port, path, method="GET", body=None, headers=None):
+    """(status, headers, body) of one request to the console."""
+    data = json.dumps(body).encode() if body is not None else None
+    req = urllib.request.Request(f"http://127.0.0.1:{port}{path}", data=data, method=method,
+                                 headers={**({"Content-Type": "application/json"} if body is not None else {}),
+                                          **(headers or {})})
+    try:
+        with urllib.request.urlopen(req, timeout=30) as resp:
+            return resp.status, resp.headers, resp.read()
+    except urllib.error.HTTPError as exc:
+        return exc.code, exc.headers, exc.read()
+
+
+def test_off_loopback_rules_need_the_token(console_factory):
+    app = console_factory(token="secret-token-1")
+    status, _, body = request(app.port, "/api/datasets")
+    assert status == 401 and b"pairing token" in body
+    assert request(app.port, "/api/datasets", headers={"X-Vehicle-Token": "wrong-token"})[0] == 401
+    assert request(app.port, "/api/datasets", headers={"X-Vehicle-Token": "secret-token-1"})[0] == 200
+    assert request(app.port, "/")[0] == 401
+    status, headers, _ = request(app.port, "/?token=secret-token-1")
+    cookie = headers["Set-Cookie"]
+    assert status == 200 and "vehicle_console_token=secret-token-1" in cookie and "HttpOnly" in cookie
+    assert "SameSite=Strict" in cookie
+    assert request(app.port, "/api/datasets", headers={"Cookie": "vehicle_console_token=secret-token-1"})[0] == 200
+    # the page itself and its static files hold no data: served without the token
+    assert request(app.port, "/static/console.js")[0] == 200
+    assert request(app.port, "/static/vendor/uPlot.iife.min.js")[0] == 200
+    assert request(app.port, "/static/../server.py")[0] == 404
+
+
+def test_loopback_refuses_other_host_names_and_other_sites(console):
+    port = console.port
+    assert request(port, "/api/datasets")[0] == 200
+    assert request(port, "/api/datasets", headers={"Host": f"localhost:{port}"})[0] == 200
+    status, _, body = request(port, "/api/datasets", headers={"Host": f"evil.example:{port}"})  # DNS rebinding
+    assert status == 421 and b"unexpected Host" in body
+    status, _, body = request(port, "/api/datasets", "POST", {"action": "create", "name": "x"},
+                              headers={"Origin": "http://evil.example"})
+    assert status == 403 and not (console.datasets.data_path / "x").exists()
+    status, _, _ = request(port, "/api/datasets", "POST", {"action": "create", "name": "x"},
+                           headers={"Origin": f"http://127.0.0.1:{port}"})
+    assert status == 201 and (console.datasets.data_path / "x" / "manifest.json").is_file()
+
+
+def test_errors_are_json_with_the_field(console):
+    port = console.port
+    status, _, body = request(port, "/api/jobs/train", "POST", {"datasets": [], "name": "", "hyper": {"epochs": "0"}})
+    errors = json.loads(body)["errors"]
+    assert status == 400 and set(errors) == {"datasets", "name", "epochs"}
+    assert errors["epochs"] == "must be a whole number ≥ 1 (got '0'): training needs at least one epoch"
+    req = urllib.request.Request(f"http://127.0.0.1:{port}/api/datasets", data=b"name=x", method="POST",
+                                 headers={"Content-Type": "application/x-www-form-urlencoded"})
+    with pytest.raises(urllib.error.HTTPError) as info:
+        urllib.request.urlopen(req, timeout=10)
+    assert info.value.code == 415
+    assert request(port, "/api/datasets/999")[0] == 404
+    assert request(port, "/api/models/nothing")[0] == 404
+    assert request(port, "/api/jobs/abc")[0] == 400
+
+
+def test_the_event_stream_starts_with_the_jobs(console):
+    with urllib.request.urlopen(f"http://127.0.0.1:{console.port}/api/events", timeout=10) as resp:
+        assert resp.headers["Content-Type"] == "text/event-stream"
+        line = resp.readline().decode()
+    hello = json.loads(line.removeprefix("data: "))
+    assert hello["event"] == "hello" and hello["jobs"] == []
+
+
+def _wait(port, job, cond, timeout=120.0):
+    end = time.monotonic() + timeout
+    while True:
+        state = json.loads(request(port, f"/api/jobs/{job}")[2])
+        if cond(state):
+            return state
+        if time.monotonic() > end:
+            raise AssertionError(f"job {job} stuck: {state['status']} {state['message']} {state['log'][-3:]}")
+        time.sleep(0.2)
+
+
+@pytest.mark.slow
+def test_jobs_run_one_at_a_time_and_cancel(console):
+    port = console.port
+    ids = [d["id"] for d in json.loads(request(port, "/api/datasets")[2])]
+    hyper = {"epochs": "500", "steps_per_epoch": "1", "val_steps": "1", "batch_size": "4", "early_stop": "false"}
+    a = json.loads(request(port, "/api/jobs/train", "POST", {"datasets": ids, "name": "first", "hyper": hyper})[2])
+    b = json.loads(request(port, "/api/jobs/train", "POST", {"datasets": ids[:1], "name": "second",
+                                                             "hyper": hyper})[2])
+    status, _, body = request(port, "/api/jobs/train", "POST", {"datasets": ids, "name": "first", "hyper": hyper})
+    assert status == 400 and "queued training already writes 'first'" in json.loads(body)["errors"]["name"]
+    _wait(port, a["id"], lambda s: len(s["epochs"]) >= 1)
+    assert json.loads(request(port, f"/api/jobs/{b['id']}")[2])["status"] == "queued"
+    # the running training's tubs are busy: the datasets page leaves them alone
+    status, _, body = request(port, f"/api/datasets/{ids[0]}/delete", "POST")
+    assert status == 409 and b"queued or running job" in body
+    assert request(port, f"/api/jobs/{b['id']}/cancel", "POST")[0] == 200
+    assert json.loads(request(port, f"/api/jobs/{b['id']}")[2])["status"] == "cancelled"
+    assert request(port, f"/api/jobs/{a['id']}/cancel", "POST")[0] == 200
+    done = _wait(port, a["id"], lambda s: s["status"] not in ("running", "cancelling"))
+    assert done["status"] == "cancelled" and done["result"]["model"] == "first"
+    assert console.registry.get("first").metrics["cancelled"] is True
+    assert not (console.cfg.path("MODELS_PATH") / "second.pt").exists()
+    assert request(port, f"/api/jobs/{a['id']}/cancel", "POST")[0] == 409
+
+
+def test_a_job_left_running_by_a_stopped_console_is_marked_interrupted(console_factory, config):
+    first = console_factory()
+    first.close()
+    with sqlite3.connect(first.registry.db_path) as conn:
+        conn.execute("INSERT INTO console_jobs (kind, status, title, params, created) "
+                     "VALUES ('train', 'running', 'train x', '{}', '2026-01-01T00:00:00+00:00')")
+    app = console_factory()
+    [job] = json.loads(request(app.port, "/api/jobs")[2])
+    assert job["status"] == "interrupted" and "console stopped" in job["message"]
+
+
+def test_the_console_command_checks_its_car(tmp_path, capsys):
+    from vehicle.app.cli import main
+
+    assert main(["console", "--car", str(tmp_path / "nowhere")]) == 2
+    assert "no such folder" in capsys.readouterr().err

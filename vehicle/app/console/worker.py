@@ -1,0 +1,289 @@
+"""The console's worker process: trains or evaluates one job, far from the web server's process.
+
+    python -m vehicle.app.console.worker run JOB.json     # a queued job (train | evaluate)
+    python -m vehicle.app.console.worker describe         # the registered model types, as JSON
+    python -m vehicle.app.console.worker export --car DIR NAME onnx|torchscript
+
+``run`` writes one JSON event per line on its standard output (progress, epochs, log records,
+the result, then ``{"event": "end", "status": ...}``); anything else a library prints goes to
+standard error. A line ``cancel`` on its standard input, or the input closing (the console went
+away), stops the job cleanly: a training ends after the current step and keeps its best model
+so far (finished, plotted and registered as usual); an evaluation stops without storing a result.
+"""
+
+from __future__ import annotations
+
+import _thread
+import argparse
+import inspect
+import json
+import logging
+import os
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any, TextIO
+
+from vehicle.app.console.jsonsafe import finite
+
+logger = logging.getLogger(__name__)
+
+#: seconds between two batch/progress events (the page needs a few per second, not thousands)
+PROGRESS_INTERVAL_S = 0.25
+
+
+class Cancelled(Exception):
+    """The job was cancelled."""
+
+
+class Events:
+    """Writes events as JSON lines to the real standard output (thread-safe)."""
+
+    def __init__(self, out: TextIO) -> None:
+        self.out = out
+        self._lock = threading.Lock()
+        self._last_progress = 0.0
+
+    def emit(self, event: dict[str, Any]) -> None:
+        """Write one event (NaN and infinities become null)."""
+        line = json.dumps(finite(event), default=str)
+        with self._lock:
+            self.out.write(line + "\n")
+            self.out.flush()
+
+    def progress(self, event: dict[str, Any], force: bool = False) -> None:
+        """Write a progress event at most every PROGRESS_INTERVAL_S (``force``: now)."""
+        now = time.monotonic()
+        if force or now - self._last_progress >= PROGRESS_INTERVAL_S:
+            self._last_progress = now
+            self.emit(event)
+
+
+class EventLogHandler(logging.Handler):
+    """Log records as ``{"event": "log", ...}`` events."""
+
+    def __init__(self, events: Events) -> None:
+        super().__init__(logging.INFO)
+        self.events = events
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            message = record.getMessage()
+            if record.exc_info and record.levelno >= logging.ERROR:
+                message += "\n" + logging.Formatter().formatException(record.exc_info)
+            self.events.emit({"event": "log", "time": record.created, "level": record.levelname,
+                              "logger": record.name, "message": message})
+        except Exception:  # noqa: BLE001 - a log line must never end the job
+            self.handleError(record)
+
+
+class StopWatcher:
+    """Reads the standard input: ``cancel`` or end of input sets :attr:`stop`. While ``interruptible``
+    (reading data, not in the training loop) the main thread is interrupted at once."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self.stop = threading.Event()
+        self.interruptible = True
+        self._stream = stream
+        threading.Thread(target=self._watch, name="stop-watcher", daemon=True).start()
+
+    def _watch(self) -> None:
+        for line in self._stream:
+            if line.strip() == "cancel":
+                break
+        self.request()
+
+    def request(self) -> None:
+        """Ask the job to stop (from any thread)."""
+        self.stop.set()
+        if self.interruptible:
+            _thread.interrupt_main()
+
+    def install_signals(self) -> None:
+        """SIGINT (Ctrl-C in the console's terminal reaches the worker too) and SIGTERM stop the job
+        the same clean way as a cancel, instead of killing it between two files."""
+        import signal
+
+        def handler(signum: int, frame: Any) -> None:
+            self.stop.set()
+            if self.interruptible:
+                raise KeyboardInterrupt
+
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, handler)
+
+
+def _config(job: dict[str, Any]) -> Any:
+    from vehicle.config import load_config
+
+    cfg = load_config(job.get("myconfig"), car_path=job["car"])
+    settings = job.get("params", {}).get("settings") or {}
+    return cfg.replace(**settings) if settings else cfg
+
+
+def run_train(job: dict[str, Any], events: Events, watcher: StopWatcher) -> dict[str, Any]:
+    """Train as asked by the console; returns the result event."""
+    from parts.pilots.training import train
+
+    params = job["params"]
+    cfg = _config(job)
+    model_path = cfg.path("MODELS_PATH") / f"{params['model_name']}.pt"
+
+    def on_event(event: dict[str, Any]) -> None:
+        if event["event"] == "phase":
+            watcher.interruptible = event["phase"] != "training"
+            if watcher.stop.is_set() and watcher.interruptible:
+                raise Cancelled()
+        if event["event"] == "batch":
+            events.progress(event, force=event["batch"] == event["batches"])
+        else:
+            events.emit(event)
+
+    metrics = train(cfg, params["tubs"], model_path, model_type_name=params.get("model_type"),
+                    transfer=params.get("transfer"), comment=params.get("comment"), register=True,
+                    progress=False, on_event=on_event, should_stop=watcher.stop.is_set)
+    watcher.interruptible = True
+    keys = ("best_epoch", "best_val_loss", "best_train_loss", "epochs", "stopped_early", "cancelled",
+            "train_loss", "val_loss", "wall_seconds", "train_samples", "val_samples")
+    return {"event": "result", "model": params["model_name"], "path": str(model_path),
+            "metrics": {k: metrics.get(k) for k in keys}}
+
+
+def run_evaluate(job: dict[str, Any], events: Events, watcher: StopWatcher) -> dict[str, Any]:
+    """Evaluate a registered model in the built-in simulator and store the result."""
+    from parts.pilots.model_db import ModelRegistry
+    from vehicle.app.eval_store import store_report
+    from vehicle.app.evaluate import evaluate
+
+    params = job["params"]
+    cfg = _config(job)
+    entry = ModelRegistry.for_models_dir(cfg.path("MODELS_PATH")).get(params["model"])
+    tracks, laps = [int(t) for t in params["tracks"]], int(params["laps"])
+    state = {"sim": None, "index": -1}
+
+    def on_step(sim: Any) -> None:
+        if watcher.stop.is_set():
+            raise Cancelled()
+        if sim is not state["sim"]:
+            state["sim"], state["index"] = sim, state["index"] + 1
+            events.emit({"event": "track", "index": state["index"], "tracks": len(tracks),
+                         "seed": tracks[min(state["index"], len(tracks) - 1)]})
+        tracker = getattr(sim, "tracker", None)
+        events.progress({"event": "eval_progress", "index": state["index"], "tracks": len(tracks),
+                         "seed": tracks[min(state["index"], len(tracks) - 1)],
+                         "sim_time": float(getattr(sim, "time", 0.0)),
+                         "laps": int(getattr(tracker, "laps", 0)), "laps_target": laps})
+
+    kwargs: dict[str, Any] = {"cfg": cfg}
+    if "on_step" in inspect.signature(evaluate).parameters:
+        kwargs["on_step"] = on_step
+    events.emit({"event": "phase", "phase": "evaluating"})
+    watcher.interruptible = True
+    report = evaluate(str(entry.path), tracks, laps, **kwargs)
+    if watcher.stop.is_set():
+        raise Cancelled()
+    stored = store_report(cfg, entry.name, report)
+    return {"event": "result", "model": entry.name, "evaluation_id": stored.id, "overall": stored.overall,
+            "per_track": stored.per_track}
+
+
+def _run(job_file: Path) -> int:
+    job = json.loads(job_file.read_text())
+    events = Events(os.fdopen(os.dup(1), "w", buffering=1, encoding="utf-8"))
+    os.dup2(2, 1)  # whatever else prints (libraries, C code) goes to stderr, not into the events
+    sys.stdout = sys.stderr
+    logging.basicConfig(level=logging.INFO, handlers=[EventLogHandler(events)], force=True)
+    watcher = StopWatcher(sys.stdin)
+    watcher.install_signals()
+    events.emit({"event": "started", "pid": os.getpid(), "kind": job["kind"]})
+    runner = {"train": run_train, "evaluate": run_evaluate}.get(job["kind"])
+    if runner is None:
+        events.emit({"event": "end", "status": "failed", "message": f"unknown job kind {job['kind']!r}"})
+        return 2
+    try:
+        result = runner(job, events, watcher)
+    except (Cancelled, KeyboardInterrupt):
+        events.emit({"event": "end", "status": "cancelled", "message": "cancelled before a result was saved"})
+        return 0
+    except Exception as exc:  # noqa: BLE001 - every failure becomes a message on the page
+        from vehicle.errors import VehicleError
+
+        if watcher.stop.is_set() and "cancelled" in str(exc):
+            events.emit({"event": "end", "status": "cancelled", "message": str(exc)})
+            return 0
+        if not isinstance(exc, ValueError | VehicleError | OSError):
+            logger.exception("the job failed")
+        events.emit({"event": "end", "status": "failed", "message": f"{type(exc).__name__}: {exc}"
+                     if not isinstance(exc, ValueError | VehicleError) else str(exc)})
+        return 1
+    events.emit(result)
+    cancelled = bool(result.get("metrics", {}).get("cancelled"))
+    events.emit({"event": "end", "status": "cancelled" if cancelled else "done",
+                 "message": "cancelled; the best model so far was kept" if cancelled else "finished"})
+    return 0
+
+
+def describe_model_types() -> list[dict[str, Any]]:
+    """Every registered model type: what it is and what it needs from the data."""
+    from parts.pilots.models import model_type, model_type_names
+
+    out = []
+    for name in model_type_names():
+        cls = model_type(name)
+        doc = " ".join((inspect.getdoc(cls) or "").split("\n\n")[0].replace("``", "").split())
+        defaults = dict(getattr(cls, "defaults", {}))
+        needs = ["camera frames (cam/image_array) with the recorded steering and throttle"]
+        if "seq_length" in defaults:
+            needs.append("SEQUENCE_LENGTH consecutive frames of one session before each sample")
+        if "mem_length" in defaults:
+            needs.append("the previous SEQUENCE_LENGTH (angle, throttle) commands, read from the records")
+        for key in cls.extra_inputs:
+            needs.append(f"records with {key} (record with TRAIN_BEHAVIORS = True)")
+        if "throttle_decay" in defaults:
+            needs.append("learns steering only: the throttle is derived from it")
+        out.append({"name": name, "doc": doc, "needs": needs, "extra_inputs": list(cls.extra_inputs),
+                    "sequence": "seq_length" in defaults or "mem_length" in defaults,
+                    "options": {k: v for k, v in defaults.items() if isinstance(v, int | float | str | bool)}})
+    return out
+
+
+def _export(car: str, name: str, fmt: str) -> int:
+    from parts.pilots.export import export_model
+    from parts.pilots.model_db import ModelRegistry
+    from vehicle.config import load_config
+
+    cfg = load_config(car_path=car)
+    entry = ModelRegistry.for_models_dir(cfg.path("MODELS_PATH")).get(name)
+    out = export_model(entry.path, fmt)
+    print(json.dumps({"path": str(out), "bytes": Path(out).stat().st_size}))  # noqa: T201 - the answer
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``python -m vehicle.app.console.worker``."""
+    parser = argparse.ArgumentParser(prog="python -m vehicle.app.console.worker", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest="command", required=True)
+    run = sub.add_parser("run")
+    run.add_argument("job", type=Path)
+    sub.add_parser("describe")
+    exp = sub.add_parser("export")
+    exp.add_argument("--car", required=True)
+    exp.add_argument("name")
+    exp.add_argument("format", choices=("onnx", "torchscript"))
+    args = parser.parse_args(argv)
+    if args.command == "run":
+        return _run(args.job)
+    if args.command == "describe":
+        print(json.dumps({"model_types": describe_model_types()}))  # noqa: T201 - the answer
+        return 0
+    try:
+        return _export(args.car, args.name, args.format)
+    except Exception as exc:  # noqa: BLE001 - the console shows the message
+        print(json.dumps({"error": str(exc)}))  # noqa: T201
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
