@@ -44,6 +44,14 @@ def test_model_file_pilot_in_workers_equals_serial(cfg, make_model_file, caplog)
     _same(serial, parallel)
 
 
+def test_commanded_lane_changes_in_workers_equal_serial(cfg):
+    lanes = cfg.replace(SIM_LANES=2, TRAIN_BEHAVIORS=True, SIM_EXPERT_SPEED=1.5, SIM_EVAL_LANE_CHANGE_EVERY=(4.0, 5.0))
+    serial = evaluate("expert", [101, 102], laps=1, cfg=lanes, max_time=12.0)
+    parallel = evaluate("expert", [101, 102], laps=1, cfg=lanes, max_time=12.0, workers=2)
+    assert parallel["tracks"][0]["lanes"]["lane_changes"] >= 1  # commanded in the workers
+    _same(serial, parallel)
+
+
 def test_hand_made_tracks_travel_to_the_workers(cfg):
     from parts.sim.simulator import register_track
     from parts.sim.track import track_from_points
