@@ -69,6 +69,7 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
          f"(steering noise {noise}) ...")
     record_expert(cfg, train_tracks, records, tub, noise=noise)
     seconds["record"] = time.perf_counter() - t
+    say(f"      recorded in {seconds['record']:.0f} s")
 
     t = time.perf_counter()
     say(f"[2/4] training a {model_type} model for up to {epochs} epochs ...")
@@ -89,6 +90,7 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
     pilot_report = evaluate(model_path, eval_tracks, laps, cfg=cfg, workers=cfg.SIM_EVAL_WORKERS)
     expert_report = evaluate("expert", eval_tracks, laps, cfg=cfg, workers=cfg.SIM_EVAL_WORKERS)
     seconds["evaluate"] = time.perf_counter() - t
+    say(f"      evaluated in {seconds['evaluate']:.0f} s")
     write_json(pilot_report, out / "eval" / "pilot.json")
     write_json(expert_report, out / "eval" / "expert.json")
     say("\ntrained pilot on unseen tracks:")
@@ -97,6 +99,25 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
     say(format_table(expert_report))
     return {"pilot": pilot_report, "expert": expert_report, "model": model_path, "seconds": seconds,
             "metrics": metrics}
+
+
+def torch_threads(requested: int | None) -> tuple[int, str]:
+    """Torch threads for the demo's training and why: ``requested`` when given; otherwise every
+    core, or one when the machine is already busy (load average at least the cores less one).
+
+    On a busy machine a multi-threaded step waits at every parallel operation for a thread that
+    another process has descheduled: measured on 2 cores next to other jobs, 2 threads trained at
+    0.25x the speed of one (docs/benchmarks.md, "training"); one thread is then the robust choice.
+    """
+    import os
+
+    cores = os.cpu_count() or 1
+    if requested is not None:
+        return requested, "--threads"
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else 0.0
+    if cores > 1 and load >= cores - 1:
+        return 1, f"the machine is busy (load average {load:.1f} on {cores} cores)"
+    return cores, f"one per core (load average {load:.1f})"
 
 
 def write_myconfig(out: Path, settings: dict[str, Any], source: str) -> None:
