@@ -44,7 +44,8 @@ def say(text: str) -> None:
 def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks: list[int],
              eval_tracks: list[int], laps: int, model_type: str = "linear") -> dict[str, Any]:
     """Run the four steps in ``out``; returns ``{"pilot": report, "expert": report, "model": path,
-    "seconds": {step: s}}``. Raises ValueError on bad arguments."""
+    "seconds": {step: s}, "cpu_seconds": {step: s}}`` (wall time, and CPU time of this process and
+    its finished workers: on a shared machine the two differ). Raises ValueError on bad arguments."""
     from parts.sim.eval_report import format_table, write_json
     from vehicle.app.evaluate import evaluate
     from vehicle.app.record import record_expert
@@ -63,33 +64,38 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
         shutil.rmtree(tub)  # the demo records afresh each run; it never touches other folders
     model_path = out / "models" / f"demo_{model_type}.pt"
     seconds: dict[str, float] = {}
+    cpu: dict[str, float] = {}
 
-    t = time.perf_counter()
+    t, c = time.perf_counter(), cpu_seconds()
     say(f"[1/4] the expert drives training tracks {train_tracks}: recording {records} records "
          f"(steering noise {noise}) ...")
     record_expert(cfg, train_tracks, records, tub, noise=noise)
     seconds["record"] = time.perf_counter() - t
+    cpu["record"] = cpu_seconds() - c
     say(f"      recorded in {seconds['record']:.0f} s")
 
-    t = time.perf_counter()
+    t, c = time.perf_counter(), cpu_seconds()
     say(f"[2/4] training a {model_type} model for up to {epochs} epochs ...")
     from parts.pilots.training import train
 
     metrics = train(cfg, [tub], model_path, model_type_name=model_type, epochs=epochs,
                     comment="vehicle demo")
     seconds["train"] = time.perf_counter() - t
+    cpu["train"] = cpu_seconds() - c
     say(f"      best val_loss {metrics['best_val_loss']:.5f} at epoch {metrics['best_epoch']} of "
          f"{metrics['epochs']} ({seconds['train']:.0f} s)")
 
-    t = time.perf_counter()
+    t, c = time.perf_counter(), cpu_seconds()
     export_onnx(model_path)
     seconds["export"] = time.perf_counter() - t
+    cpu["export"] = cpu_seconds() - c
 
-    t = time.perf_counter()
+    t, c = time.perf_counter(), cpu_seconds()
     say(f"[4/4] driving {laps} laps on each of the unseen tracks {eval_tracks} ...")
     pilot_report = evaluate(model_path, eval_tracks, laps, cfg=cfg, workers=cfg.SIM_EVAL_WORKERS)
     expert_report = evaluate("expert", eval_tracks, laps, cfg=cfg, workers=cfg.SIM_EVAL_WORKERS)
     seconds["evaluate"] = time.perf_counter() - t
+    cpu["evaluate"] = cpu_seconds() - c
     say(f"      evaluated in {seconds['evaluate']:.0f} s")
     write_json(pilot_report, out / "eval" / "pilot.json")
     write_json(expert_report, out / "eval" / "expert.json")
@@ -98,7 +104,15 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
     say("\nthe expert on the same tracks, for comparison:")
     say(format_table(expert_report))
     return {"pilot": pilot_report, "expert": expert_report, "model": model_path, "seconds": seconds,
-            "metrics": metrics}
+            "cpu_seconds": cpu, "metrics": metrics}
+
+
+def cpu_seconds() -> float:
+    """User + system CPU seconds of this process and of its children that have ended."""
+    import resource
+
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
 
 
 def torch_threads(requested: int | None) -> tuple[int, str]:

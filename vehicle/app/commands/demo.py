@@ -74,7 +74,9 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     overall = result["pilot"]["overall"]
     laps_needed = args.laps * len(args.eval_tracks)
     steps = ", ".join(f"{k} {v:.0f} s" for k, v in result["seconds"].items())
-    _say(f"\ndemo finished in {total:.0f} s ({steps}); torch threads: {torch.get_num_threads()}")
+    cpu = sum(result["cpu_seconds"].values())
+    _say(f"\ndemo finished in {total:.0f} s ({steps}; CPU time {cpu:.0f} s); torch threads: "
+         f"{torch.get_num_threads()}")
     # a lap only counts as driven by the pilot when nobody had to put the car back on the road
     done = overall["laps_completed"] >= laps_needed and overall["interventions"] == 0
     verdict = "completed" if done else "did NOT complete"
