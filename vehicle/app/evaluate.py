@@ -13,10 +13,11 @@ simulated car applies them. Leaving the road counts as an intervention: the car 
 road next to where it left (what a person would do) and the episode goes on. Metrics:
 :mod:`parts.sim.metrics` (DAVE-2 autonomy, time-weighted |CTE| over autonomous frames, ...).
 
-The same loop drives the other simulators (``sim="donkey"`` / ``"udacity"``): the Donkey simulator
-(or ``vehicle sim serve``) in synchronous steps of 1 / DRIVE_LOOP_HZ, one episode per scene, an
-off-track event answered with ``reset_car`` (back to the start line: the simulator cannot
-re-centre); the Udacity simulator in real time on the track it shows, where the user's manual
+The same loop drives the other simulators (``sim="donkey"`` / ``"udacity"``): ``vehicle sim serve``
+in synchronous steps of 1 / DRIVE_LOOP_HZ (it says it can step), the Donkey simulator in real time
+(its step mode only pauses it), one episode per scene, an off-track event answered with
+``reset_car`` (back to the start line: the simulator cannot re-centre); the Udacity simulator in
+real time on the track it shows, where the user's manual
 overrides (W/S held) are the interventions and only frames that arrived are scored. What a
 simulator does not report (stock Udacity: CTE, laps, progress, position) is named in the report as
 unavailable, never counted as zero.
@@ -209,6 +210,7 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
     # and the pilot's inputs decide the lane changes
     driver, name, owned = resolve_pilot(pilot, cfg)
     started = time.perf_counter()
+    modes: dict[str, Any] = {}  # what the bridge episodes found out (Donkey: stepped or real time)
     try:
         if driver == "expert" and sim != "builtin":
             raise ValueError(f"the expert drives the built-in simulator only: pass a model file to evaluate on "
@@ -229,7 +231,7 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
                 else:
                     metrics = run_bridge_episode(driver, sim, episode, laps, cfg, max_time=max_time,
                                                  penalty_s=penalty, fixed_throttle=fixed_throttle,
-                                                 extra_inputs=extra_inputs)
+                                                 extra_inputs=extra_inputs, info=modes)
                     outcomes.append((metrics.result(), metrics.autonomous_abs_cte()))
                 _log_episode(name, episode, laps, outcomes[-1][0])
     finally:
@@ -244,7 +246,7 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
                          "image": [cfg.SIM_CAMERA_W, cfg.SIM_CAMERA_H], "off_track_cte_m": cfg.SIM_OFF_TRACK_CTE,
                          "track_size_m": cfg.SIM_TRACK_SIZE})
     elif sim == "donkey":
-        settings.update({"host": cfg.SIM_HOST, "port": cfg.SIM_PORT, "synchronous": True,
+        settings.update({"host": cfg.SIM_HOST, "port": cfg.SIM_PORT, "synchronous": modes.get("synchronous", False),
                          "max_cte": cfg.DONKEY_MAX_CTE, "image": [cfg.IMAGE_W, cfg.IMAGE_H]})
     else:
         settings.update({"port": cfg.UDACITY_PORT, "realtime": True, "interventions": "manual overrides"})
@@ -454,17 +456,30 @@ class StopIfNoSimulator:
 
 def run_bridge_episode(driver: Any, sim_type: str, scene: str, laps: int, cfg: Any, *, max_time: float,
                        penalty_s: float, fixed_throttle: float | None = None,
-                       extra_inputs: dict[str, Any] | None = None) -> EpisodeMetrics:
-    """One episode on the Donkey simulator (synchronous steps, scene ``scene``) or the Udacity
-    simulator (real time): the same loop as :func:`run_episode` around the bridge part."""
+                       extra_inputs: dict[str, Any] | None = None,
+                       info: dict[str, Any] | None = None) -> EpisodeMetrics:
+    """One episode on the Donkey simulator (scene ``scene``) or the Udacity simulator (real time):
+    the same loop as :func:`run_episode` around the bridge part.
+
+    Donkey: in synchronous steps of 1 / DRIVE_LOOP_HZ where the server steps (``vehicle sim
+    serve``), else in real time with the threaded part; ``info["synchronous"]`` says which.
+    """
     from vehicle.app.assembly.sim import add_simulator, add_simulator_commands, make_bridge
 
     dt = 1.0 / cfg.DRIVE_LOOP_HZ
+    stepped = False
     if sim_type == "donkey":
-        V = Vehicle(clock=SimulatedClock())  # each loop is one synchronous simulator step
         bridge = make_bridge(cfg.replace(DONKEY_GYM_ENV_NAME=scene), "donkey", synchronous=True, time_step=dt)
         bridge.start()  # connect now: an unreachable simulator is an error, not a failed loop
-        V.add(bridge, feedback=("angle", "throttle", "sim/reset"))  # run(): send, then wait for the step
+        stepped = bridge.synchronous
+        if info is not None:
+            info["synchronous"] = stepped
+        if stepped:
+            V = Vehicle(clock=SimulatedClock())  # each loop is one synchronous simulator step
+            V.add(bridge, feedback=("angle", "throttle", "sim/reset"))  # run(): send, then wait for the step
+        else:
+            V = Vehicle()  # the Donkey simulator runs in real time: the loop paces itself
+            V.add(bridge, threaded=True, feedback=("angle", "throttle", "sim/reset"))
     else:
         V = Vehicle()  # the Udacity simulator runs in real time
         add_simulator(V, cfg, sim_type="udacity")
@@ -474,8 +489,11 @@ def run_bridge_episode(driver: Any, sim_type: str, scene: str, laps: int, cfg: A
     metrics = EpisodeMetrics(dt, laps, max_time, penalty_s, stop=V.stop, seed=scene)  # type: ignore[arg-type]
     waiter = None
     if sim_type == "donkey":
-        V.add(metrics)
+        # in real time, score only loops with a live frame (the part says so with cam/ok)
+        V.add(metrics, run_condition=None if stepped else "cam/ok")
         V.add(ResetOnOffTrack())
+        if not stepped:
+            add_simulator_commands(V)
     else:
         # score only frames that arrived; the user's manual overrides are the interventions
         V.add(metrics, inputs=list(rename(EpisodeMetrics.INPUTS, {"sim/off_track": "sim/manual"})),

@@ -136,7 +136,9 @@ def _donkey(cfg: Any, **options: Any) -> Any:
         look = CarLook(**{k: tuple(v) if k == "body_rgb" else v for k, v in conf.items()})
         return DonkeySim(cfg.SIM_HOST, cfg.SIM_PORT, scene=cfg.DONKEY_GYM_ENV_NAME, image_w=cfg.IMAGE_W,
                          image_h=cfg.IMAGE_H, look=look, max_cte=cfg.DONKEY_MAX_CTE, timeout_s=cfg.SIM_TIMEOUT_S,
-                         connect_timeout_s=cfg.SIM_CONNECT_TIMEOUT_S, **options)
+                         connect_timeout_s=cfg.SIM_CONNECT_TIMEOUT_S,
+                         # a stuck loop brakes the car after 3 loop periods (>= 0.5 s), like the Udacity bridge
+                         command_timeout_s=max(0.5, 3.0 / cfg.DRIVE_LOOP_HZ), **options)
     except (TypeError, ValueError) as exc:
         raise UserError(f"{exc} (check SIM_PORT, GYM_CONF, DONKEY_MAX_CTE, SIM_TIMEOUT_S and SIM_CONNECT_TIMEOUT_S "
                         "in myconfig.py)") from exc
