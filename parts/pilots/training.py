@@ -22,6 +22,7 @@ import numpy as np
 import torch
 from torch.utils.data import DataLoader, DistributedSampler
 
+from parts.pilots.acceleration import TrainPlan, apply_layout, plan_for
 from parts.pilots.augment import Augmenter, AugmentSettings
 from parts.pilots.balance import balance_by_steering
 from parts.pilots.compat import camera_meta
@@ -175,12 +176,12 @@ def _behavior_inputs(data: DriveData, model: PilotModel, augmentations: Sequence
     return mirror, names if names is not None else [], values
 
 
-def _loaders(prep: PreparedData, batch_size: int, workers: int, dist_info: DistInfo, device: torch.device,
+def _loaders(prep: PreparedData, batch_size: int, workers: int, dist_info: DistInfo, plan: TrainPlan,
              seed: int) -> tuple[DataLoader, DataLoader | None]:
     # Workers are not persistent: each epoch forks them afresh with the dataset's current epoch (the
     # augmentation draws depend on it) and the frame cache shared copy-on-write.
     common: dict[str, Any] = {"batch_size": batch_size, "num_workers": workers,
-                              "pin_memory": device.type == "cuda"}
+                              "pin_memory": plan.pin_memory}
     if dist_info.enabled:
         train_sampler = DistributedSampler(prep.train, num_replicas=dist_info.world_size, rank=dist_info.rank,
                                            shuffle=True, seed=seed)
@@ -203,18 +204,14 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
           epochs: int | None = None, batch_size: int | None = None, learning_rate: float | None = None,
           device: str | None = None, workers: int | None = None, augmentations: Sequence[str] | None = None,
           comment: str | None = None, register: bool = True, progress: bool | None = None,
-          on_event: EventSink | None = None, should_stop: Callable[[], bool] | None = None) -> dict[str, Any]:
+          precision: str | None = None, on_event: EventSink | None = None,
+          should_stop: Callable[[], bool] | None = None) -> dict[str, Any]:
     """Train a model on ``tubs`` and write it to ``model_path``; returns the metrics.
 
     Arguments left None take the car's settings (MAX_EPOCHS, BATCH_SIZE, LEARNING_RATE,
-    TRAIN_DEVICE, TRAIN_NUM_WORKERS, AUGMENTATIONS, DEFAULT_MODEL_TYPE). The car's settings are
-    checked by :func:`parts.pilots.hyperparams.check_config`, the rules the CLI and the console use.
-
-    ``on_event`` gets progress events: ``{"event": "phase", "phase": "reading" | "preparing" |
-    "training"}``, ``{"event": "start", ...}`` (model and data figures), then :func:`fit`'s batch and
-    epoch events. ``should_stop()`` ends training cleanly (see :func:`fit`): the model file then
-    holds the best epoch so far and is finished, plotted and registered as usual, with
-    ``metrics["cancelled"]`` True.
+    TRAIN_DEVICE, TRAIN_NUM_WORKERS, AUGMENTATIONS, DEFAULT_MODEL_TYPE, TRAIN_PRECISION). The car's
+    settings are checked by :func:`parts.pilots.hyperparams.check_config`, the rules the CLI and the
+    console use.
 
     Raises:
         ValueError: bad settings or no usable data (the message says what to change).
@@ -271,17 +268,20 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
                             progress=dist_info.is_main and (progress if progress is not None else _tty()),
                             behavior_order=order or None)
         model.to(dev)
+        plan = plan_for(dev, precision or cfg.TRAIN_PRECISION, cfg.TRAIN_COMPILE, spatial_model=model.frames == 1)
+        apply_layout(model, plan)
         n_params = sum(p.numel() for p in model.parameters())
         if dist_info.is_main:
             logger.info("training %s model (%d parameters) on %s: %d training / %d validation samples",
                         type_name, n_params, dev, prep.info["train_samples"], prep.info["val_samples"])
+            logger.info("training plan on %s: %s", _device_name(dev), plan.describe())
             if cfg.PRINT_MODEL_SUMMARY:
                 logger.info("%s", model)
         train_model: torch.nn.Module = model
         if dist_info.enabled:
             ids = [dev.index] if dev.type == "cuda" else None
             train_model = torch.nn.parallel.DistributedDataParallel(model, device_ids=ids)
-        train_loader, val_loader = _loaders(prep, batch_size, workers, dist_info, dev, cfg.TRAIN_SEED)
+        train_loader, val_loader = _loaders(prep, batch_size, workers, dist_info, plan, cfg.TRAIN_SEED)
         training = {"epochs": epochs, "batch_size": batch_size, "learning_rate": learning_rate,
                     "weight_decay": cfg.TRAIN_WEIGHT_DECAY, "early_stop_patience":
                     cfg.EARLY_STOP_PATIENCE if cfg.USE_EARLY_STOP else None, "min_delta": cfg.MIN_DELTA,
@@ -291,7 +291,7 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
                     "balance": {"bins": cfg.TRAIN_BALANCE_BINS, "max_per_bin": cfg.TRAIN_BALANCE_MAX_PER_BIN}
                     if cfg.TRAIN_BALANCE else None,
                     "steps_per_epoch": cfg.TRAIN_STEPS_PER_EPOCH, "val_steps": cfg.TRAIN_VAL_STEPS,
-                    "device": str(dev), "world_size": dist_info.world_size, "parameters": n_params,
+                    "device": str(dev), **plan.to_dict(), "world_size": dist_info.world_size, "parameters": n_params,
                     **{k: v for k, v in prep.info.items() if k not in ("records",)}}
         # the frames it learns from: undistorted (CAMERA_UNDISTORT) or not; the car must match
         base_meta = {"type": type_name, "preprocess": preprocess.to_dict(), "training": training,
@@ -315,7 +315,7 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
                       "model": str(model_path)})
             phase("training")
         history = fit(train_model, train_loader, val_loader, preprocess, dev, settings, dist_info, save_best,
-                      on_event=on_event, should_stop=should_stop)
+                      plan=plan, on_event=on_event, should_stop=should_stop)
         # every rank got through the last collective: from here each leaves through the barrier,
         # rank 0 even when its own file writing below fails, so no peer waits for it in vain
         clean = True
@@ -325,6 +325,12 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
         return metrics
     finally:
         shutdown_distributed(clean=clean)
+
+
+def _device_name(dev: torch.device) -> str:
+    if dev.type == "cuda":
+        return f"{dev} ({torch.cuda.get_device_name(dev)})"
+    return str(dev)
 
 
 def _tty() -> bool:

@@ -44,7 +44,8 @@ def say(text: str) -> None:
 def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks: list[int],
              eval_tracks: list[int], laps: int, model_type: str = "linear") -> dict[str, Any]:
     """Run the four steps in ``out``; returns ``{"pilot": report, "expert": report, "model": path,
-    "seconds": {step: s}}``. Raises ValueError on bad arguments."""
+    "seconds": {step: s}, "cpu_seconds": {step: s}}`` (wall time, and CPU time of this process and
+    its finished workers: on a shared machine the two differ). Raises ValueError on bad arguments."""
     from parts.sim.eval_report import format_table, write_json
     from vehicle.app.evaluate import evaluate
     from vehicle.app.record import record_expert
@@ -63,32 +64,39 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
         shutil.rmtree(tub)  # the demo records afresh each run; it never touches other folders
     model_path = out / "models" / f"demo_{model_type}.pt"
     seconds: dict[str, float] = {}
+    cpu: dict[str, float] = {}
 
-    t = time.perf_counter()
+    t, c = time.perf_counter(), cpu_seconds()
     say(f"[1/4] the expert drives training tracks {train_tracks}: recording {records} records "
          f"(steering noise {noise}) ...")
     record_expert(cfg, train_tracks, records, tub, noise=noise)
     seconds["record"] = time.perf_counter() - t
+    cpu["record"] = cpu_seconds() - c
+    say(f"      recorded in {seconds['record']:.0f} s")
 
-    t = time.perf_counter()
+    t, c = time.perf_counter(), cpu_seconds()
     say(f"[2/4] training a {model_type} model for up to {epochs} epochs ...")
     from parts.pilots.training import train
 
     metrics = train(cfg, [tub], model_path, model_type_name=model_type, epochs=epochs,
                     comment="vehicle demo")
     seconds["train"] = time.perf_counter() - t
+    cpu["train"] = cpu_seconds() - c
     say(f"      best val_loss {metrics['best_val_loss']:.5f} at epoch {metrics['best_epoch']} of "
          f"{metrics['epochs']} ({seconds['train']:.0f} s)")
 
-    t = time.perf_counter()
+    t, c = time.perf_counter(), cpu_seconds()
     export_onnx(model_path)
     seconds["export"] = time.perf_counter() - t
+    cpu["export"] = cpu_seconds() - c
 
-    t = time.perf_counter()
+    t, c = time.perf_counter(), cpu_seconds()
     say(f"[4/4] driving {laps} laps on each of the unseen tracks {eval_tracks} ...")
-    pilot_report = evaluate(model_path, eval_tracks, laps, cfg=cfg)
-    expert_report = evaluate("expert", eval_tracks, laps, cfg=cfg)
+    pilot_report = evaluate(model_path, eval_tracks, laps, cfg=cfg, workers=cfg.SIM_EVAL_WORKERS)
+    expert_report = evaluate("expert", eval_tracks, laps, cfg=cfg, workers=cfg.SIM_EVAL_WORKERS)
     seconds["evaluate"] = time.perf_counter() - t
+    cpu["evaluate"] = cpu_seconds() - c
+    say(f"      evaluated in {seconds['evaluate']:.0f} s")
     write_json(pilot_report, out / "eval" / "pilot.json")
     write_json(expert_report, out / "eval" / "expert.json")
     say("\ntrained pilot on unseen tracks:")
@@ -96,7 +104,34 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
     say("\nthe expert on the same tracks, for comparison:")
     say(format_table(expert_report))
     return {"pilot": pilot_report, "expert": expert_report, "model": model_path, "seconds": seconds,
-            "metrics": metrics}
+            "cpu_seconds": cpu, "metrics": metrics}
+
+
+def cpu_seconds() -> float:
+    """User + system CPU seconds of this process and of its children that have ended."""
+    import resource
+
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
+def torch_threads(requested: int | None) -> tuple[int, str]:
+    """Torch threads for the demo's training and why: ``requested`` when given; otherwise every
+    core, or one when the machine is already busy (load average at least the cores less one).
+
+    On a busy machine a multi-threaded step waits at every parallel operation for a thread that
+    another process has descheduled: measured on 2 cores next to other jobs, 2 threads trained at
+    0.25x the speed of one (docs/benchmarks.md, "training"); one thread is then the robust choice.
+    """
+    import os
+
+    cores = os.cpu_count() or 1
+    if requested is not None:
+        return requested, "--threads"
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else 0.0
+    if cores > 1 and load >= cores - 1:
+        return 1, f"the machine is busy (load average {load:.1f} on {cores} cores)"
+    return cores, f"one per core (load average {load:.1f})"
 
 
 def write_myconfig(out: Path, settings: dict[str, Any], source: str) -> None:

@@ -30,11 +30,19 @@ A behaviour pilot on two-lane tracks (SIM_LANES = 2, a pilot reading
 (SIM_EVAL_LANE_CHANGE_EVERY), and :class:`parts.sim.lane_metrics.LaneMetrics` scores lane keeping
 and every change (success within SIM_EVAL_LANE_CHANGE_TIME_LIMIT, time to change, wrong-lane
 time); the report gets a ``lanes`` section per track and overall.
+
+On the built-in simulator, with ``workers > 1`` the tracks run in parallel worker processes, each
+with its own simulator and its own copy of the pilot (loaded from the model file, or the expert),
+torch and OpenCV limited to ``cores // workers`` threads so the workers do not oversubscribe the
+machine. Every episode depends only on its seed, so the report is the serial one (a test checks
+they are identical).
 """
 
 from __future__ import annotations
 
 import logging
+import os
+import pickle
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -133,7 +141,8 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
              max_time: float | None = None, penalty_s: float | None = None,
              fixed_throttle: float | None = None, extra_inputs: dict[str, Any] | None = None,
              on_step: Callable[[SimCar], None] | None = None, sim: str = "builtin",
-             scenes: Sequence[str] | None = None, lane_changes: bool | None = None) -> dict[str, Any]:
+             scenes: Sequence[str] | None = None, lane_changes: bool | None = None,
+             workers: int = 1) -> dict[str, Any]:
     """Drive ``pilot`` for ``laps`` laps on each track seed and return the report (a JSON-able dict).
 
     Args:
@@ -151,10 +160,13 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
         on_step: called with the sim car after every step (e.g. to show or record frames).
         sim: "builtin", "donkey" (SIM_HOST:SIM_PORT) or "udacity" (UDACITY_PORT).
         scenes: Donkey scenes, one episode each (default DONKEY_GYM_ENV_NAME).
-
         lane_changes: command lane changes and score them (see the module docstring); None: when
             SIM_LANES = 2 and the pilot reads the behaviour (or is the expert with TRAIN_BEHAVIORS)
             and ``extra_inputs`` does not fix it.
+        workers: built-in simulator: processes running tracks in parallel (0: one per core;
+            capped at the number of tracks). Needs ``pilot`` to be "expert" or a model file (a
+            worker loads its own copy) and no ``on_step``; otherwise the tracks run one after
+            another. The report is the same either way.
 
     Returns:
         ``{"pilot", "simulator", "laps", "seeds", "settings", "tracks": [per-track metrics],
@@ -189,42 +201,49 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
     if fixed_throttle is not None and not -1.0 <= fixed_throttle <= 1.0:
         raise ValueError(f"fixed_throttle must be in [-1, 1], got {fixed_throttle}")
 
+    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 0:
+        raise ValueError(f"workers must be an int >= 0 (0 = one per core), got {workers!r}")
+    n_workers = min(workers or os.cpu_count() or 1, len(episodes)) if sim == "builtin" else 1
+    parallel = n_workers > 1 and on_step is None and (pilot == "expert" or isinstance(pilot, str | Path))
+    if n_workers > 1 and not parallel:
+        logger.info("evaluating the tracks one after another: parallel workers need 'expert' or a model "
+                    "file (each loads its own copy) and no on_step callback")
+
+    # loaded here also for a parallel run: a missing or broken model file fails with its own message,
+    # and the pilot's inputs decide the lane changes
     driver, name, owned = resolve_pilot(pilot, cfg)
-    if driver == "expert" and sim != "builtin":
-        raise ValueError(f"the expert drives the built-in simulator only: pass a model file to evaluate on the "
-                         f"{sim} simulator")
-    lanes_on = sim == "builtin" and _lane_changes(driver, cfg, extra_inputs, lane_changes)
-    if lanes_on:
-        _check_change_schedule(cfg)
     started = time.perf_counter()
-    results = []
-    pooled: list[np.ndarray] = []  # |cte| of autonomous frames, for the overall percentile
     modes: dict[str, Any] = {}  # what the bridge episodes found out (Donkey: stepped or real time)
     try:
-        for episode in episodes:
-            lane_part = None
-            if lanes_on:
-                lane_part = LaneMetrics(1.0 / cfg.DRIVE_LOOP_HZ, cfg.SIM_ROAD_WIDTH / 2,
-                                        time_limit=cfg.SIM_EVAL_LANE_CHANGE_TIME_LIMIT,
-                                        hold=cfg.SIM_EVAL_LANE_CHANGE_HOLD)
-            if sim == "builtin":
-                metrics = run_episode(driver, episode, laps, cfg, max_time=max_time, penalty_s=penalty,
-                                      fixed_throttle=fixed_throttle, extra_inputs=extra_inputs, on_step=on_step,
-                                      lanes=lane_part)
-            else:
-                metrics = run_bridge_episode(driver, sim, episode, laps, cfg, max_time=max_time, penalty_s=penalty,
-                                             fixed_throttle=fixed_throttle, extra_inputs=extra_inputs, info=modes)
-            res = metrics.result()
-            if lane_part is not None:
-                res["lanes"] = lane_part.result()
-            pooled.append(metrics.autonomous_abs_cte())
-            logger.info("eval %s on %s: autonomy %.1f %%, %s/%d laps, mean |cte| %s, %d interventions",
-                        name, episode, res["autonomy"], res["laps_completed"], laps,
-                        "-" if res["mean_abs_cte"] is None else f"{res['mean_abs_cte']:.3f}", res["interventions"])
-            results.append(res)
+        if driver == "expert" and sim != "builtin":
+            raise ValueError(f"the expert drives the built-in simulator only: pass a model file to evaluate on "
+                             f"the {sim} simulator")
+        lanes_on = sim == "builtin" and _lane_changes(driver, cfg, extra_inputs, lane_changes)
+        if lanes_on:
+            _check_change_schedule(cfg)
+        episode_args = {"max_time": max_time, "penalty_s": penalty, "fixed_throttle": fixed_throttle,
+                        "extra_inputs": extra_inputs, "lanes": lanes_on}
+        if parallel:
+            if owned and callable(getattr(driver, "shutdown", None)):
+                owned = False
+                driver.shutdown()
+            outcomes = _run_parallel(pilot, episodes, laps, cfg, n_workers, episode_args, name)
+        else:
+            outcomes = []
+            for episode in episodes:
+                if sim == "builtin":
+                    outcomes.append(_builtin_episode(driver, episode, laps, cfg, episode_args, on_step))
+                else:
+                    metrics = run_bridge_episode(driver, sim, episode, laps, cfg, max_time=max_time,
+                                                 penalty_s=penalty, fixed_throttle=fixed_throttle,
+                                                 extra_inputs=extra_inputs, info=modes)
+                    outcomes.append((metrics.result(), metrics.autonomous_abs_cte()))
+                _log_episode(name, episode, laps, outcomes[-1][0])
     finally:
         if owned and callable(getattr(driver, "shutdown", None)):
             driver.shutdown()
+    results = [res for res, _ in outcomes]
+    pooled = [abs_cte for _, abs_cte in outcomes]  # |cte| of autonomous frames, for the overall percentile
     settings: dict[str, Any] = {"dt": 1.0 / cfg.DRIVE_LOOP_HZ, "penalty_s": penalty, "max_time_s": max_time,
                                 "fixed_throttle": fixed_throttle}
     if sim == "builtin":
@@ -247,6 +266,96 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
                     **({"lanes": overall_lane_metrics([r["lanes"] for r in results])} if lanes_on else {})},
         "wall_time_s": round(time.perf_counter() - started, 3),
     }
+
+
+def _log_episode(name: str, episode: Any, laps: int, res: dict[str, Any]) -> None:
+    logger.info("eval %s on %s: autonomy %.1f %%, %s/%d laps, mean |cte| %s, %d interventions",
+                name, episode, res["autonomy"], res["laps_completed"], laps,
+                "-" if res["mean_abs_cte"] is None else f"{res['mean_abs_cte']:.3f}", res["interventions"])
+
+
+def _builtin_episode(driver: Any, seed: int, laps: int, cfg: Any, episode_args: dict[str, Any],
+                     on_step: Callable[[SimCar], None] | None = None) -> tuple[dict[str, Any], np.ndarray]:
+    """One built-in episode's (metrics, |cte| of its autonomous frames), lane metrics included
+    when ``episode_args["lanes"]``."""
+    args = dict(episode_args)
+    lane_part = None
+    if args.pop("lanes"):
+        lane_part = LaneMetrics(1.0 / cfg.DRIVE_LOOP_HZ, cfg.SIM_ROAD_WIDTH / 2,
+                                time_limit=cfg.SIM_EVAL_LANE_CHANGE_TIME_LIMIT, hold=cfg.SIM_EVAL_LANE_CHANGE_HOLD)
+    metrics = run_episode(driver, seed, laps, cfg, **args, on_step=on_step, lanes=lane_part)
+    res = metrics.result()
+    if lane_part is not None:
+        res["lanes"] = lane_part.result()
+    return res, metrics.autonomous_abs_cte()
+
+
+# -- parallel evaluation -----------------------------------------------------------------------------
+# State of a worker process, set once by _init_worker: the pilot, the settings, what each episode gets.
+_WORKER: dict[str, Any] = {}
+
+
+def _sendable_config(cfg: Any) -> tuple[dict[str, Any], frozenset[str], Any]:
+    """The Config's values for a worker process; a value that cannot be pickled (a function defined
+    in myconfig.py, e.g. TRAIN_FILTER) takes its default, which evaluation never reads anyway."""
+    from vehicle.config import Config
+
+    values = dict(cfg.items())
+    defaults: Config | None = None
+    for key, value in values.items():
+        try:
+            pickle.dumps(value)
+        except Exception:  # noqa: BLE001 - any reason a value cannot travel
+            defaults = defaults or Config.defaults()
+            values[key] = defaults[key]
+    return values, frozenset(getattr(cfg, "overridden", ())), getattr(cfg, "source", None)
+
+
+def _init_worker(pilot: Any, config: tuple[dict[str, Any], frozenset[str], Any], tracks: dict[int, Any],
+                 threads: int, laps: int, episode_args: dict[str, Any]) -> None:
+    """Runs once in each worker: thread limits, the parent's hand-made tracks, settings, pilot."""
+    import sys
+
+    import cv2
+
+    from parts.sim.simulator import register_track
+    from vehicle.config import Config
+
+    cv2.setNumThreads(threads)
+    for track in tracks.values():
+        register_track(track)
+    cfg = Config(*config)
+    driver, _, _ = resolve_pilot(pilot, cfg)
+    if "torch" in sys.modules:  # a model pilot loaded it; the expert needs none (0.75 s to import)
+        sys.modules["torch"].set_num_threads(threads)
+    _WORKER.update(cfg=cfg, driver=driver, laps=laps, episode_args=episode_args)
+
+
+def _worker_episode(seed: int) -> tuple[dict[str, Any], np.ndarray]:
+    w = _WORKER
+    return _builtin_episode(w["driver"], seed, w["laps"], w["cfg"], w["episode_args"])
+
+
+def _run_parallel(pilot: Any, seeds: list[int], laps: int, cfg: Any, n_workers: int,
+                  episode_args: dict[str, Any], name: str) -> list[tuple[dict[str, Any], np.ndarray]]:
+    """The episodes of ``seeds`` in ``n_workers`` processes, in seed order."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from parts.sim.simulator import registered_tracks
+
+    threads = max(1, (os.cpu_count() or 1) // n_workers)
+    logger.info("evaluating %d tracks in %d worker processes (%d thread(s) each)", len(seeds), n_workers, threads)
+    # spawn, not fork: a forked copy of a process whose OpenMP threads already ran can hang
+    context = multiprocessing.get_context("spawn")
+    pilot_arg = pilot if pilot == "expert" else str(Path(pilot).expanduser().resolve())
+    initargs = (pilot_arg, _sendable_config(cfg), registered_tracks(), threads, laps, episode_args)
+    outcomes = []
+    with ProcessPoolExecutor(n_workers, mp_context=context, initializer=_init_worker, initargs=initargs) as pool:
+        for seed, (res, abs_cte) in zip(seeds, pool.map(_worker_episode, seeds), strict=True):
+            _log_episode(name, seed, laps, res)
+            outcomes.append((res, abs_cte))
+    return outcomes
 
 
 def add_engaged_pilot(V: Vehicle, driver: Any, fixed_throttle: float | None) -> None:

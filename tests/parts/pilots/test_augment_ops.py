@@ -96,3 +96,18 @@ def test_preview_aug_command_writes_png(tiny_tub, tmp_path):
                  "--variants", "4", "--car", str(tmp_path)]) == 0
     png = cv2.imread(str(out))
     assert png.shape == (3 * 128, 5 * 128, 3)
+
+
+@pytest.mark.parametrize("side", [0.0, 1.0])
+def test_shadow_darkens_exactly_one_side_of_the_band(image, side):
+    params = {"top": 0.2, "bottom": 0.9, "side": side, "factor": 0.63}
+    out = _only("shadow").apply(image, [("shadow", params)])
+    h, w = image.shape[:2]
+    # the definition: x left of (side 0) or right of (side 1) the line from top to bottom, scaled
+    # by factor in float32 and rounded
+    edge = (0.2 + 0.7 * np.arange(h, dtype=np.float32)[:, None] / (h - 1)) * w
+    xs = np.arange(w, dtype=np.float32)[None, :]
+    mask = (xs < edge) if side < 0.5 else (xs >= edge)
+    want = np.where(mask[:, :, None], np.rint(image.astype(np.float32) * np.float32(0.63)), image)
+    assert np.array_equal(out, want.astype(np.uint8))
+    assert out is not image and not np.shares_memory(out, image)
