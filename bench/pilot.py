@@ -1,9 +1,9 @@
-"""Pilot benchmarks: inference latency per model type and runtime, pilot-part overhead, and training
-throughput with the real data path vs the same model fed from memory.
+"""Pilot benchmarks: inference latency per model type and runtime, and the pilot part's overhead.
 
-    .venv/bin/python bench/pilot.py                 # everything (about 2 minutes on 2 cores)
-    .venv/bin/python bench/pilot.py --skip-train    # inference only
+    .venv/bin/python bench/pilot.py                 # every type (about 1 minute on 2 cores)
     .venv/bin/python bench/pilot.py --types linear --iters 300 --repeats 5
+
+Training throughput is bench/train.py; int8 exports are bench/int8.py.
 
 Inference: batch 1, 1 CPU thread (torch.set_num_threads(1); ONNX Runtime intra_op_num_threads=1),
 120x160 camera frames with the car's default preprocessing for each type (pilotnet: 66x200 YUV).
@@ -12,16 +12,11 @@ them see the same load of the shared, noisy machine; median and p99 are over all
 the model alone on an already preprocessed tensor; "part" is ``Pilot.run(frame)``, preprocessing
 included; the overhead compares the part with the same runtime's preprocessing + bare forward,
 the least work that turns a frame into a command.
-
-Training: samples/s of forward + backward + Adam at batch 64 over a tub recorded by the simulator
-expert, through the training data path (tub reader, frame cache, augmentations, preprocessing,
-DataLoader), vs the same model on batches already in memory.
 """
 
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
 import tempfile
 import time
@@ -183,60 +178,11 @@ def print_inference(rows: list[dict]) -> None:
               f"{(r['part_torch'][0] / r['eager'][0] - 1) * 100:+.1f} % |")
 
 
-def training(records: int, epochs: int, threads_list: list[int], folder: Path) -> list[dict]:
-    """samples/s of the linear model trained by the training loop (parts.pilots.fit.fit) on the
-    real data path vs on the same batches already in memory."""
-    from torch.utils.data import DataLoader, TensorDataset
-
-    from parts.pilots.dataset import read_drive_data
-    from parts.pilots.fit import FitSettings, fit
-    from parts.pilots.training import prepare_data
-    from vehicle.app.record import record_expert
-
-    cfg = Config.defaults(CAR_PATH=str(folder))
-    t = time.perf_counter()
-    tub = record_expert(cfg, [1, 2], records, folder / "data" / "bench_tub", noise=0.3)
-    print(f"  recorded {records} expert records in {time.perf_counter() - t:.1f} s")
-    data = read_drive_data([tub], modes=cfg.TRAIN_MODES)
-    pre = preprocess_from_config(cfg, "linear", FRAME_SHAPE)
-    model = create_model("linear", pre.output_shape(FRAME_SHAPE))
-    prep = prepare_data(cfg, data, model, pre)  # split, frame cache, augmentations: the real path
-    batch = 64
-    real = DataLoader(prep.train, batch_size=batch, shuffle=True, generator=torch.Generator().manual_seed(0))
-    xs, es, ys = zip(*(prep.train[i] for i in range(len(prep.train))), strict=True)
-    memory = DataLoader(TensorDataset(torch.stack(xs), torch.stack(es), torch.stack(ys)), batch_size=batch,
-                        shuffle=True, generator=torch.Generator().manual_seed(0))
-    settings = FitSettings(epochs=1, patience=None, progress=False)
-    rows = []
-    for threads in threads_list:
-        torch.set_num_threads(threads)
-        rates: dict[str, list[float]] = {"real": [], "memory": []}
-        for _ in range(epochs):
-            for name, loader in (("real", real), ("memory", memory)):
-                history = fit(model, loader, None, pre, torch.device("cpu"), settings)
-                rates[name].append(history.samples_per_s[-1])
-        row = {"threads": threads, "samples": len(prep.train), "batch": batch,
-               "real": statistics.median(rates["real"]), "memory": statistics.median(rates["memory"])}
-        rows.append(row)
-        print(f"  {threads} thread(s): real data path {row['real']:.0f} samples/s, from memory "
-              f"{row['memory']:.0f} samples/s ({row['real'] / row['memory'] * 100:.0f} %)", flush=True)
-    torch.set_num_threads(1)
-    print("\n| threads | batch | samples/epoch | real data path samples/s | from memory samples/s | ratio |")
-    print("|---|---|---|---|---|---|")
-    for r in rows:
-        print(f"| {r['threads']} | {r['batch']} | {r['samples']} | {r['real']:.0f} | {r['memory']:.0f} | "
-              f"{r['real'] / r['memory'] * 100:.0f} % |")
-    return rows
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--types", default="all", help="comma-separated model types (default: all)")
     parser.add_argument("--iters", type=int, default=200, help="calls per timing run")
     parser.add_argument("--repeats", type=int, default=3, help="timing rounds (x iters calls per runtime)")
-    parser.add_argument("--skip-train", action="store_true", help="inference only")
-    parser.add_argument("--records", type=int, default=2000, help="expert records for the training bench")
-    parser.add_argument("--epochs", type=int, default=2, help="timed epochs per variant and thread count")
     args = parser.parse_args(argv)
     types = model_type_names() if args.types == "all" else args.types.split(",")
     torch.set_num_threads(1)
@@ -244,9 +190,6 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         rows = inference(types, args.iters, args.repeats, Path(tmp))
         print_inference(rows)
-        if not args.skip_train:
-            print("\ntraining throughput (linear, batch 64, median of the timed epochs)")
-            training(args.records, args.epochs, [1, 2], Path(tmp))
     return 0
 
 

@@ -178,6 +178,15 @@ TRAIN_NUM_WORKERS: int = 0
 TRAIN_CACHE_IMAGES: bool = True
 # Largest frame cache in MB; with more frames than fit, frames are decoded every epoch instead.
 TRAIN_CACHE_MAX_MB: int = 4096
+# Arithmetic precision of training. "auto": bf16 autocast on CPUs with AVX512-BF16 or AMX and on
+# GPUs of compute capability 8.0+, fp16 with a gradient scaler on GPUs of 7.x, else fp32; the choice
+# is logged at start. "fp32" forces full precision; "bf16"/"fp16" force autocast in that type. The
+# weights and the model file stay float32 either way (docs/training.md, "Speed").
+TRAIN_PRECISION: Literal["auto", "fp32", "bf16", "fp16"] = "auto"
+# Compile the model with torch.compile before training (needs a C++ compiler on CPUs, Triton on
+# GPUs). Off by default: on the measured CPUs its compile time outweighs what it saves
+# (docs/benchmarks.md, "training").
+TRAIN_COMPILE: bool = False
 # Write the loss curve as a PNG next to the model.
 SHOW_PLOT: bool = True
 # Log the model's layers and parameter count before training.
@@ -389,12 +398,18 @@ SIM_INTERVENTION_PENALTY: float = 6.0
 # Longest simulated time of one evaluation episode in seconds (None: 60 s per lap), so a pilot
 # that stands still cannot hang the evaluation.
 SIM_EVAL_MAX_TIME: float | None = None
+# Processes that evaluate tracks in parallel (`vehicle sim eval`, the demo): 0 = one per core
+# (capped at the number of tracks), 1 = one track after another. Each runs its own simulator and
+# copy of the pilot with cores / workers threads; the report is the same either way.
+SIM_EVAL_WORKERS: int = 0
 # Evaluation of a behaviour pilot on two-lane tracks: the lane is changed on command (the behaviour
-# steps), the first time after 4 s, then every (min, max) seconds, drawn per track from SIM_SEED.
+# steps), the first time after 4 s, then every (min, max) seconds, drawn per track from SIM_SEED;
+# min at least SIM_EVAL_LANE_CHANGE_TIME_LIMIT + SIM_EVAL_LANE_CHANGE_HOLD (one change judged at a time).
 SIM_EVAL_LANE_CHANGE_EVERY: tuple[float, float] = (8.0, 12.0)
-# Seconds a commanded lane change may take to count as done (the car must be in the new lane by then).
+# Seconds a commanded lane change may take to count as done: by then the car's centre must be within
+# a quarter lane width of the new lane's centre.
 SIM_EVAL_LANE_CHANGE_TIME_LIMIT: float = 6.0
-# Seconds the car must then stay in the new lane.
+# Seconds the car must then stay that close to the new lane's centre.
 SIM_EVAL_LANE_CHANGE_HOLD: float = 1.0
 
 # == Simulator bridges ==
@@ -440,8 +455,10 @@ UDACITY_EXTRA_KEYS: list[str] = []
 
 # Runtime that drives a .pt model: "auto" runs NAME.onnx next to it when onnxruntime is installed
 # and that export was made from this very .pt (same SHA-256; `vehicle models export NAME`), else
-# PyTorch; "torch", "onnx" and "torchscript" force one (a missing or stale export is an error).
-PILOT_BACKEND: Literal["auto", "torch", "onnx", "torchscript"] = "auto"
+# PyTorch; "torch", "onnx" and "torchscript" force one (a missing or stale export is an error);
+# "onnx-int8" runs the int8 export NAME.int8.onnx (`vehicle models export NAME --format onnx-int8`;
+# check its speed and steering against the float export with bench/int8.py first).
+PILOT_BACKEND: Literal["auto", "torch", "onnx", "onnx-int8", "torchscript"] = "auto"
 # ONNX Runtime intra-op threads for the pilot. 1: batch-1 inference gains little from more, and
 # the drive loop's other parts need the other cores.
 PILOT_ONNX_THREADS: int = 1

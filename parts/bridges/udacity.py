@@ -66,6 +66,8 @@ STOCK_KEYS: Final = ("steering_angle", "throttle", "speed", "image")
 #: fork keys with a standard memory key of their own
 FORK_KEYS: Final = {"cte": "sim/cte", "lapNumber": "sim/lap"}
 DECIMALS: Final = ("auto", ".", ",")
+#: (width, height) of the frames the Udacity simulator sends
+FRAME_SIZE: Final = (320, 160)
 _COMMA_NUMBER = re.compile(r"^\s*[-+]?\d+,\d+\s*$")
 
 

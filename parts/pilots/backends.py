@@ -1,4 +1,4 @@
-"""Inference backends behind the Pilot part: eager PyTorch, TorchScript and ONNX Runtime.
+"""Inference backends behind the Pilot part: eager PyTorch, TorchScript and ONNX Runtime (float or int8).
 
 A :class:`Runner` turns one *preprocessed* input (batch 1) into ``(angle, throttle)``; every
 backend is fed by the same preprocessing code as training (:mod:`parts.pilots.preprocess`), built
@@ -11,6 +11,9 @@ from the metadata stored in the model file (and copied into each export).
   export was made from the .pt as it is now (same SHA-256, recorded in the export by
   :mod:`parts.pilots.export`). A stale or foreign .onnx is ignored with a log line, never used.
 - ``backend="torch" | "onnx" | "torchscript"`` forces one (for .pt: the sibling export).
+- ``backend="onnx-int8"`` runs the int8 export ``NAME.int8.onnx`` (:mod:`parts.pilots.quantize`);
+  only when asked, never by "auto": whether int8 pays depends on the CPU and the model
+  (``bench/int8.py`` measures both speed and steering difference).
 """
 
 from __future__ import annotations
@@ -21,15 +24,17 @@ import logging
 import os
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
-import torch
+
+if TYPE_CHECKING:
+    import torch
 
 logger = logging.getLogger(__name__)
 
-Backend = Literal["auto", "torch", "onnx", "torchscript"]
-BACKENDS: tuple[str, ...] = ("auto", "torch", "onnx", "torchscript")
+Backend = Literal["auto", "torch", "onnx", "onnx-int8", "torchscript"]
+BACKENDS: tuple[str, ...] = ("auto", "torch", "onnx", "onnx-int8", "torchscript")
 
 
 def preprocessor_from_meta(meta: dict[str, Any]) -> Callable[[np.ndarray], np.ndarray]:
@@ -40,11 +45,7 @@ def preprocessor_from_meta(meta: dict[str, Any]) -> Callable[[np.ndarray], np.nd
         pre = Preprocess.from_dict(meta.get("preprocess") or {})
     except (TypeError, ValueError) as exc:
         raise ValueError(f"the model's preprocessing settings are invalid: {exc}") from exc
-
-    def preprocess(image: np.ndarray) -> np.ndarray:
-        return pre(image).numpy()  # shares memory with the tensor: no copy
-
-    return preprocess
+    return pre.array  # numpy only: an ONNX pilot runs without torch
 
 
 class Runner(abc.ABC):
@@ -98,6 +99,8 @@ class TorchRunner(Runner):
         self.model = model.eval()
 
     def predict(self, images: np.ndarray, extra: np.ndarray | None) -> tuple[float, float]:
+        import torch
+
         with torch.inference_mode():
             x = torch.from_numpy(images)
             e = None if extra is None else torch.from_numpy(extra)
@@ -119,6 +122,8 @@ class TorchScriptRunner(Runner):
         super().__init__(path, json.loads(props[META_KEY]))
 
     def predict(self, images: np.ndarray, extra: np.ndarray | None) -> tuple[float, float]:
+        import torch
+
         with torch.inference_mode():
             args = (torch.from_numpy(images),) if extra is None else (torch.from_numpy(images),
                                                                       torch.from_numpy(extra))
@@ -141,7 +146,7 @@ class OnnxRunner(Runner):
     backend = "onnx"
 
     def __init__(self, path: Path, threads: int = 1) -> None:
-        from parts.pilots.export import META_KEY, SOURCE_KEY
+        from parts.pilots.export_files import META_KEY, SOURCE_KEY
 
         try:
             import onnxruntime as ort
@@ -163,6 +168,11 @@ class OnnxRunner(Runner):
             raise ValueError(f"{path}: not an ONNX export of a pilot model (no {META_KEY} metadata); "
                              "export one with `vehicle models export MODEL --format onnx`")
         self.source_sha256 = props.get(SOURCE_KEY)
+        from parts.pilots.quantize import quant_record
+
+        self.quantization = quant_record(props)
+        if self.quantization is not None:
+            self.backend = "onnx-int8"
         self.input_names = [i.name for i in self.session.get_inputs()]
         super().__init__(path, json.loads(props[META_KEY]))
 
@@ -177,7 +187,7 @@ class OnnxRunner(Runner):
 def sibling_onnx(path: Path, threads: int = 1) -> OnnxRunner | None:
     """The ONNX export next to the .pt ``path`` if it exists, onnxruntime is installed and the
     export matches the .pt as it is now; None (with a log line saying why) otherwise."""
-    from parts.pilots.export import export_matches
+    from parts.pilots.export_files import export_matches
 
     onnx_path = path.with_suffix(".onnx")
     if not onnx_path.is_file():
@@ -211,9 +221,13 @@ def open_runner(path: str | os.PathLike[str], backend: Backend | str = "auto",
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".onnx":
-        if backend not in ("auto", "onnx"):
-            raise ValueError(f"{path} is an ONNX file: it runs with backend 'onnx', not {backend!r}")
-        return OnnxRunner(path, onnx_threads)
+        if backend not in ("auto", "onnx", "onnx-int8"):
+            raise ValueError(f"{path} is an ONNX file: it runs with backend 'onnx' or 'onnx-int8', not {backend!r}")
+        runner = OnnxRunner(path, onnx_threads)
+        if backend == "onnx-int8" and runner.backend != "onnx-int8":
+            raise ValueError(f"{path} is a float ONNX export, not an int8 one; create one with "
+                             "`vehicle models export MODEL --format onnx-int8`")
+        return runner
     if suffix == ".ts":
         if backend not in ("auto", "torchscript"):
             raise ValueError(f"{path} is a TorchScript file: it runs with backend 'torchscript', "
@@ -221,18 +235,21 @@ def open_runner(path: str | os.PathLike[str], backend: Backend | str = "auto",
         return TorchScriptRunner(path)
     if backend == "torch":
         return TorchRunner(path)
-    if backend in ("onnx", "torchscript"):
-        from parts.pilots.export import SUFFIXES, export_matches
+    if backend in ("onnx", "onnx-int8", "torchscript"):
+        from parts.pilots.export_files import SUFFIXES, export_matches
 
         export = path.with_suffix(SUFFIXES[backend])
         if not export.is_file():
             raise ValueError(f"{export}: no {backend} export of {path.name}; create it with "
                              f"`vehicle models export {path} --format {backend}`")
-        runner: Runner = OnnxRunner(export, onnx_threads) if backend == "onnx" else TorchScriptRunner(export)
-        if path.is_file() and not export_matches(path, getattr(runner, "source_sha256", None)):
+        forced: Runner = TorchScriptRunner(export) if backend == "torchscript" else OnnxRunner(export, onnx_threads)
+        if path.is_file() and not export_matches(path, getattr(forced, "source_sha256", None)):
             raise ValueError(f"{export} was exported from another version of {path.name}; re-export it "
                              f"with `vehicle models export {path} --format {backend}`")
-        return runner
+        if forced.backend != backend:
+            raise ValueError(f"{export} is not an {backend} export (it runs as {forced.backend}); re-export "
+                             f"it with `vehicle models export {path} --format {backend}`")
+        return forced
     if not path.is_file():
         from parts.pilots.modelfile import ModelFileError
 

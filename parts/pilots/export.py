@@ -1,4 +1,4 @@
-"""Export a model file to TorchScript (``.ts``) or ONNX (``.onnx``) for faster inference.
+"""Export a model file to TorchScript (``.ts``), ONNX (``.onnx``) or int8 ONNX (``.int8.onnx``).
 
 Both exports compute the *controls* (angle, throttle) — the model's forward followed by its
 ``controls()`` decoding — from the preprocessed input, so every runtime needs only the shared
@@ -8,40 +8,36 @@ preprocessing (:mod:`parts.pilots.preprocess`) in front. Inputs: ``images`` ``(1
 
 Each export carries the source model file's metadata (JSON) and the SHA-256 of the source file,
 so an export is self-contained (``load_pilot("x.onnx")`` works without the .pt) and a stale export
-(the .pt was retrained since) is detected: :func:`export_matches`.
+(the .pt was retrained since) is detected: :func:`parts.pilots.export_files.export_matches`.
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import os
 import warnings
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import torch
 from torch import nn
 
+# the export file format's facts live in the torch-free export_files; imported here for callers
+from parts.pilots.export_files import (  # noqa: F401
+    META_KEY,
+    SOURCE_KEY,
+    SUFFIXES,
+    ExportFormat,
+    export_matches,
+    file_sha256,
+)
 from parts.pilots.modelfile import load_model
 
 logger = logging.getLogger(__name__)
 
-ExportFormat = Literal["onnx", "torchscript"]
-SUFFIXES: dict[str, str] = {"onnx": ".onnx", "torchscript": ".ts"}
-META_KEY = "vehicle_meta"  # JSON of the source model file's metadata
-SOURCE_KEY = "source_sha256"  # SHA-256 of the source model file
 ONNX_OPSET = 17
-
-
-def file_sha256(path: str | os.PathLike[str]) -> str:
-    """Hex SHA-256 of a file (1 MiB chunks)."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            digest.update(chunk)
-    return digest.hexdigest()
 
 
 class ControlsModule(nn.Module):
@@ -83,11 +79,18 @@ def default_output(source: Path, fmt: str) -> Path:
 
 
 def export_model(source: str | os.PathLike[str], fmt: ExportFormat | str = "onnx",
-                 out: str | os.PathLike[str] | None = None) -> Path:
-    """Export the model file ``source`` to ``fmt`` ("onnx" or "torchscript"); returns the file.
+                 out: str | os.PathLike[str] | None = None, *, int8: str = "static",
+                 calibration: Sequence[str | os.PathLike[str]] | None = None,
+                 calibration_frames: int | None = None) -> Path:
+    """Export the model file ``source`` to ``fmt`` ("onnx", "onnx-int8" or "torchscript"); returns
+    the file.
+
+    For "onnx-int8": ``int8`` is the method ("static" or "dynamic", :mod:`parts.pilots.quantize`),
+    ``calibration`` the tubs whose frames set the activation ranges (default: the tubs the model
+    was trained on), ``calibration_frames`` how many (default 300).
 
     Raises:
-        ValueError: unknown format.
+        ValueError: unknown format or method, no calibration data for static int8.
         ImportError: ONNX export without the ``onnx`` package (``pip install vehicle-rc[export]``).
         parts.pilots.modelfile.ModelFileError: the source is not a valid model file.
     """
@@ -105,6 +108,17 @@ def export_model(source: str | os.PathLike[str], fmt: ExportFormat | str = "onnx
     try:
         if fmt == "onnx":
             _export_onnx(wrapper, inputs, tmp, props)
+        elif fmt == "onnx-int8":
+            from parts.pilots.quantize import DEFAULT_CALIBRATION_FRAMES, QUANT_KEY, quantize_onnx
+
+            float_tmp = out_path.with_name(f".{out_path.name}.float{os.getpid()}")
+            try:
+                _export_onnx(wrapper, inputs, float_tmp, {})
+                record = quantize_onnx(float_tmp, tmp, meta, int8, calibration,
+                                       calibration_frames or DEFAULT_CALIBRATION_FRAMES)
+            finally:
+                float_tmp.unlink(missing_ok=True)
+            _add_onnx_props(tmp, {**props, QUANT_KEY: json.dumps(record, sort_keys=True)})
         else:
             _export_torchscript(wrapper, inputs, tmp, props)
         os.replace(tmp, out_path)
@@ -117,7 +131,7 @@ def export_model(source: str | os.PathLike[str], fmt: ExportFormat | str = "onnx
 def _export_onnx(wrapper: nn.Module, inputs: tuple[torch.Tensor, ...], out: Path,
                  props: dict[str, str]) -> None:
     try:
-        import onnx
+        import onnx  # noqa: F401 - checked here, used by _add_onnx_props
     except ImportError as exc:
         raise ImportError("ONNX export needs the onnx package: pip install 'vehicle-rc[export]'") from exc
     names = ["images", "extra"][:len(inputs)]
@@ -127,11 +141,17 @@ def _export_onnx(wrapper: nn.Module, inputs: tuple[torch.Tensor, ...], out: Path
         warnings.simplefilter("ignore")
         torch.onnx.export(wrapper, inputs, str(out), dynamo=False, input_names=names,
                           output_names=["controls"], opset_version=ONNX_OPSET)
-    proto = onnx.load(str(out))
+    _add_onnx_props(out, props)
+
+
+def _add_onnx_props(path: Path, props: dict[str, str]) -> None:
+    import onnx
+
+    proto = onnx.load(str(path))
     for key, value in props.items():
         entry = proto.metadata_props.add()
         entry.key, entry.value = key, value
-    onnx.save(proto, str(out))
+    onnx.save(proto, str(path))
 
 
 def _export_torchscript(wrapper: nn.Module, inputs: tuple[torch.Tensor, ...], out: Path,
@@ -153,8 +173,3 @@ def read_torchscript(path: str | os.PathLike[str]) -> tuple[Any, dict[str, str]]
         raise ValueError(f"{path}: not a TorchScript export of a pilot model (no {META_KEY}); "
                          "export one with `vehicle models export MODEL --format torchscript`")
     return module.eval(), props
-
-
-def export_matches(source: str | os.PathLike[str], export_sha256: str | None) -> bool:
-    """Whether an export made from a file with hash ``export_sha256`` is of ``source`` as it is now."""
-    return bool(export_sha256) and Path(source).is_file() and file_sha256(source) == export_sha256

@@ -1,5 +1,10 @@
 """The training loop: Adam, early stopping on the validation loss, best-model callback, progress bar,
-progress events for a live view (the trainer console) and a clean stop on request."""
+progress events for a live view (the trainer console) and a clean stop on request.
+
+It runs the device plan of :mod:`parts.pilots.acceleration` (autocast precision, gradient scaler,
+channels_last batches, non-blocking copies, torch.compile) and measures per epoch how long the loop
+waited for its next batch (``History.data_seconds``): the data path's cost to training.
+"""
 
 from __future__ import annotations
 
@@ -16,6 +21,7 @@ import torch
 from torch import nn
 from torch.utils.data import DataLoader
 
+from parts.pilots.acceleration import TrainPlan, autocast, grad_scaler, to_layout
 from parts.pilots.distributed import DistInfo, all_sum
 from parts.pilots.models import PilotModel
 from parts.pilots.prefetch import Prefetcher
@@ -25,6 +31,8 @@ from vehicle.errors import VehicleError
 logger = logging.getLogger(__name__)
 
 _SINGLE = DistInfo()  # one process, rank 0
+#: training steps between two reads of the loss on a GPU (each read waits for the GPU to finish)
+SYNC_STEPS = 25
 
 
 class TrainingDiverged(VehicleError, RuntimeError):
@@ -59,6 +67,7 @@ class History:
     seconds: list[float] = field(default_factory=list)
     samples_per_s: list[float] = field(default_factory=list)
     samples: list[int] = field(default_factory=list)  # training samples per epoch, all processes
+    data_seconds: list[float] = field(default_factory=list)  # of each epoch's seconds, waiting for batches
     best_epoch: int = 0
     best_loss: float = math.inf
     stopped_early: bool = False
@@ -67,6 +76,7 @@ class History:
     def as_dict(self) -> dict[str, Any]:
         return {"train_loss": self.train_loss, "val_loss": self.val_loss, "epoch_seconds": self.seconds,
                 "train_samples_per_s": self.samples_per_s, "epoch_samples": self.samples,
+                "epoch_data_seconds": self.data_seconds,
                 "best_epoch": self.best_epoch,
                 "best_loss": self.best_loss if math.isfinite(self.best_loss) else None,
                 "epochs": len(self.train_loss), "stopped_early": self.stopped_early,
@@ -79,35 +89,65 @@ def _set_epoch(loader: DataLoader, epoch: int) -> None:
             obj.set_epoch(epoch)
 
 
-def _batches(loader: DataLoader, device: torch.device, pre: Preprocess, needs_extra: bool):
-    non_blocking = device.type == "cuda"
+def plain_plan(device: torch.device) -> TrainPlan:
+    """fp32, default layout, eager: what :func:`fit` runs when given no plan."""
+    cuda = device.type == "cuda"
+    return TrainPlan(device.type, pin_memory=cuda, non_blocking=cuda)
+
+
+def _batches(loader: DataLoader, device: torch.device, pre: Preprocess, needs_extra: bool,
+             plan: TrainPlan):
+    # uint8 images travel to the device (4x fewer bytes than floats), are laid out there, then
+    # become floats in one pass that keeps the layout
+    nb = plan.non_blocking
     for x, extra, y in loader:
-        x = pre.normalize_batch(x.to(device, non_blocking=non_blocking))
-        e = extra.to(device, non_blocking=non_blocking) if needs_extra else None
-        yield x, e, y.to(device, non_blocking=non_blocking)
+        x = pre.normalize_batch(to_layout(x.to(device, non_blocking=nb), plan))
+        e = extra.to(device, non_blocking=nb) if needs_extra else None
+        yield x, e, y.to(device, non_blocking=nb)
 
 
 def evaluate(model: PilotModel, loader: DataLoader, pre: Preprocess, device: torch.device,
-             info: DistInfo = _SINGLE, max_batches: int | None = None) -> float:
+             info: DistInfo = _SINGLE, plan: TrainPlan | None = None, max_batches: int | None = None) -> float:
     """Mean loss of ``model`` over ``loader`` (summed over every process when distributed), over its
-    first ``max_batches`` batches when given."""
+    first ``max_batches`` batches when given, in the plan's precision (default fp32)."""
+    plan = plan or plain_plan(device)
     model.eval()
-    total, count = 0.0, 0
+    loss_sum = torch.zeros((), dtype=torch.float64, device=device)  # read once: no GPU wait per batch
+    count = 0
     with torch.no_grad():
-        for x, e, y in islice(_batches(loader, device, pre, model.extra_size > 0), max_batches):
-            loss = model.loss(model(x, e), y)
-            total += float(loss) * len(y)
+        for x, e, y in islice(_batches(loader, device, pre, model.extra_size > 0, plan), max_batches):
+            with autocast(plan):
+                out = model(x, e)
+            loss_sum += model.loss(out.float(), y) * len(y)
             count += len(y)
-    total, count = all_sum([total, float(count)], info, device)
+    total, count = all_sum([float(loss_sum), float(count)], info, device)
     return total / count if count else math.nan
+
+
+def _check_finite(loss_sum: float, epoch: int, settings: FitSettings) -> None:
+    if not math.isfinite(loss_sum):
+        raise TrainingDiverged(f"the training loss became {loss_sum} in epoch {epoch}; lower "
+                               f"LEARNING_RATE (now {settings.learning_rate}) or check the labels")
+
+
+def make_optimizer(model: nn.Module, settings: FitSettings, device: torch.device) -> torch.optim.Optimizer:
+    """Adam with LEARNING_RATE and TRAIN_WEIGHT_DECAY; the fused kernel (one pass over all the
+    parameters instead of a dozen small operations per tensor) on CPUs and GPUs."""
+    fused = device.type in ("cpu", "cuda")
+    return torch.optim.Adam(model.parameters(), lr=settings.learning_rate, weight_decay=settings.weight_decay,
+                            fused=fused or None)
 
 
 def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | None, pre: Preprocess,
         device: torch.device, settings: FitSettings, info: DistInfo = _SINGLE,
         on_best: Callable[[int, History], None] | None = None,
-        optimizer: torch.optim.Optimizer | None = None, on_event: EventSink | None = None,
-        should_stop: Callable[[], bool] | None = None) -> History:
+        optimizer: torch.optim.Optimizer | None = None, plan: TrainPlan | None = None,
+        on_event: EventSink | None = None, should_stop: Callable[[], bool] | None = None) -> History:
     """Train ``model`` (a PilotModel, or DDP around one) and return the history.
+
+    ``plan`` (:func:`parts.pilots.acceleration.plan_for`; default fp32 eager) sets the precision,
+    the batches' layout and compilation; a channels_last plan expects the model already laid out
+    by :func:`parts.pilots.acceleration.apply_layout`.
 
     Each epoch trains on ``train_loader`` (its first ``steps_per_epoch`` batches when set) then
     measures ``val_loader`` (the training loss stands in when there is no validation data).
@@ -115,17 +155,23 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
     than ``min_delta``; training stops after ``patience`` epochs without improvement.
 
     ``on_event`` (main process) gets ``{"event": "batch", "epoch", "epochs", "batch", "batches",
-    "loss", "samples", "samples_per_s"}`` after every step and ``{"event": "epoch", "epoch",
-    "epochs", "train_loss", "val_loss", "seconds", "samples_per_s", "best", "best_epoch"}`` after
-    every epoch. ``should_stop()`` is asked after every step (single process only): when it says
-    yes, training ends at once, the unfinished epoch is dropped and ``history.cancelled`` is set;
-    the best model so far has already been handed to ``on_best``.
+    "loss", "samples", "samples_per_s"}`` after every step (on a GPU every ``SYNC_STEPS`` steps:
+    reading the loss waits for the GPU) and ``{"event": "epoch", "epoch", "epochs", "train_loss",
+    "val_loss", "seconds", "samples_per_s", "best", "best_epoch"}`` after every epoch.
+    ``should_stop()`` is asked after every step (single process only): when it says yes, training
+    ends at once, the unfinished epoch is dropped and ``history.cancelled`` is set; the best model
+    so far has already been handed to ``on_best``.
     """
     core: PilotModel = model.module if isinstance(model, nn.parallel.DistributedDataParallel) else model
     needs_extra = core.extra_size > 0
+    plan = plan or plain_plan(device)
     if optimizer is None:
-        optimizer = torch.optim.Adam(model.parameters(), lr=settings.learning_rate,
-                                     weight_decay=settings.weight_decay)
+        optimizer = make_optimizer(model, settings, device)
+    scaler = grad_scaler(plan)
+    forward: Callable[..., torch.Tensor] = model
+    if plan.compile:
+        forward = torch.compile(model)
+    compile_pending = plan.compile
     show = settings.progress if settings.progress is not None else sys.stderr.isatty()
     show = bool(show and info.is_main)
     history = History()
@@ -148,33 +194,61 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
 
             bar = tqdm(total=n_batches, desc=f"epoch {epoch}/{settings.epochs}", unit="batch",
                        leave=False, dynamic_ncols=True)
-        batches = islice(_batches(train_loader, device, pre, needs_extra), n_batches)
+        batches = islice(_batches(train_loader, device, pre, needs_extra, plan), n_batches)
         source = Prefetcher(batches, settings.prefetch) if settings.prefetch > 0 else None
+        data_wait = 0.0
+        clock = time.perf_counter
+        # the loss sum stays on the device; reading it waits for the device, so a GPU is read only
+        # every SYNC_STEPS steps (a CPU every step: free there)
+        loss_sum = torch.zeros((), dtype=torch.float64, device=device)
+        sync_every = 1 if device.type == "cpu" else SYNC_STEPS
         step = 0
         try:
-            for x, e, y in source if source is not None else batches:
-                loss = core.loss(model(x, e), y)
-                value = float(loss.detach())
-                if not math.isfinite(value):
-                    raise TrainingDiverged(f"the training loss became {value} in epoch {epoch}; lower "
-                                           f"LEARNING_RATE (now {settings.learning_rate}) or check the labels")
+            it = iter(source if source is not None else batches)
+            while True:
+                t = clock()
+                try:
+                    x, e, y = next(it)
+                except StopIteration:
+                    data_wait += clock() - t
+                    break
+                t_step = clock()
+                data_wait += t_step - t
+                with autocast(plan):
+                    out = forward(x, e)
+                loss = core.loss(out.float(), y)
                 optimizer.zero_grad(set_to_none=True)
-                loss.backward()
-                optimizer.step()
-                total += value * len(y)
+                if scaler is not None:
+                    scaler.scale(loss).backward()
+                    scaler.step(optimizer)
+                    scaler.update()
+                else:
+                    loss.backward()
+                    optimizer.step()
+                loss_sum += loss.detach() * len(y)
                 count += len(y)
                 step += 1
-                if bar is not None:
-                    bar.update(1)
-                    bar.set_postfix(loss=f"{total / count:.4f}")
-                if emit is not None:
-                    elapsed = time.perf_counter() - start
-                    emit({"event": "batch", "epoch": epoch, "epochs": settings.epochs, "batch": step,
-                          "batches": n_batches, "loss": total / count, "samples": count,
-                          "samples_per_s": count / elapsed if elapsed > 0 else 0.0})
+                if step % sync_every == 0 or bar is not None:
+                    total = float(loss_sum)
+                    _check_finite(total, epoch, settings)
+                    if bar is not None:
+                        bar.update(1)
+                        bar.set_postfix(loss=f"{total / count:.4f}")
+                    if emit is not None:
+                        elapsed = clock() - start
+                        emit({"event": "batch", "epoch": epoch, "epochs": settings.epochs, "batch": step,
+                              "batches": n_batches, "loss": total / count, "samples": count,
+                              "samples_per_s": count / elapsed if elapsed > 0 else 0.0})
+                if compile_pending:
+                    compile_pending = False
+                    if info.is_main:
+                        logger.info("torch.compile: the first training step took %.1f s (compiling)",
+                                    clock() - t_step)
                 if should_stop is not None and should_stop():
                     history.cancelled = True
                     break
+            total = float(loss_sum)
+            _check_finite(total, epoch, settings)
         finally:
             if source is not None:
                 source.close()
@@ -188,18 +262,20 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
         seconds = time.perf_counter() - start
         total, count = all_sum([total, float(count)], info, device)
         train_loss = total / max(count, 1.0)
-        val_loss = evaluate(core, val_loader, pre, device, info, settings.val_steps) \
+        val_loss = evaluate(core, val_loader, pre, device, info, plan, settings.val_steps) \
             if val_loader is not None else math.nan
         history.train_loss.append(train_loss)
         history.val_loss.append(val_loss)
         history.seconds.append(seconds)
         history.samples_per_s.append(count / seconds if seconds > 0 else 0.0)
         history.samples.append(int(count))
+        history.data_seconds.append(data_wait)
         monitored = val_loss if math.isfinite(val_loss) else train_loss
         improved = monitored < history.best_loss - settings.min_delta
         if info.is_main:
-            logger.info("epoch %d/%d: loss %.5f, val_loss %.5f, %.0f samples/s%s", epoch, settings.epochs,
-                        train_loss, val_loss, history.samples_per_s[-1], " (best)" if improved else "")
+            logger.info("epoch %d/%d: loss %.5f, val_loss %.5f, %.0f samples/s, %.0f %% waiting for data%s",
+                        epoch, settings.epochs, train_loss, val_loss, history.samples_per_s[-1],
+                        100.0 * data_wait / seconds if seconds > 0 else 0.0, " (best)" if improved else "")
         if improved:
             history.best_loss, history.best_epoch, waited = monitored, epoch, 0
             if on_best is not None:

@@ -210,6 +210,13 @@ HYPERPARAMS: tuple[HyperParam, ...] = (
     HyperParam("workers", "TRAIN_NUM_WORKERS", "Data workers", "Hardware", "int",
                "DataLoader worker processes (0 = load in the training process).",
                "a count of processes cannot be negative", 0, 64),
+    HyperParam("precision", "TRAIN_PRECISION", "Precision", "Hardware", "choice",
+               "Arithmetic precision: auto = bf16 where the CPU or GPU computes it natively, fp16 "
+               "on older GPUs, fp32 elsewhere; fp32 forces full precision.",
+               "only these precisions are implemented", choices=("auto", "fp32", "bf16", "fp16")),
+    HyperParam("compile", "TRAIN_COMPILE", "Compile", "Hardware", "bool",
+               "Compile the model with torch.compile first (needs a C++ compiler on CPUs); pays "
+               "only on long trainings."),
 )
 
 _BY_NAME = {p.name: p for p in HYPERPARAMS}

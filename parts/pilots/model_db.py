@@ -49,7 +49,7 @@ logger = logging.getLogger(__name__)
 DB_FILENAME = "models.sqlite3"
 SCHEMA_VERSION = 2
 # Files that training or export write next to a model and that `remove(delete_files=True)` removes.
-SIDECAR_SUFFIXES: tuple[str, ...] = (".onnx", ".ts", ".loss.png", ".metrics.json")
+SIDECAR_SUFFIXES: tuple[str, ...] = (".onnx", ".int8.onnx", ".ts", ".loss.png", ".metrics.json")
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS models (

@@ -23,9 +23,10 @@ from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
-import torch
 
 if TYPE_CHECKING:
+    import torch
+
     from parts.vision.lanes import LaneExtractor
 
 COLORS = ("rgb", "yuv", "hsv", "gray")
@@ -134,20 +135,40 @@ class Preprocess:
     @staticmethod
     def to_chw(frame: np.ndarray) -> torch.Tensor:
         """uint8 HxWxC array -> uint8 tensor CxHxW (no copy of the values' meaning)."""
+        import torch
+
         return torch.from_numpy(np.ascontiguousarray(frame.transpose(2, 0, 1)))
 
     # -- stage 2: per batch, float
     def normalize_batch(self, x: torch.Tensor) -> torch.Tensor:
         """uint8 (or float 0..255) tensor ``(..., C, H, W)`` -> float32 model input."""
+        import torch
+
         # One new tensor, scaled in place: a batch is tens of MB and fresh allocations cost page faults.
         x = x.to(torch.float32, copy=True)
         if self.normalize == "unit":
             return x.mul_(1.0 / 255.0)
         return x.mul_(1.0 / 127.5).sub_(1.0)
 
+    def array(self, image: np.ndarray) -> np.ndarray:
+        """The inference path without torch: one RGB uint8 frame -> float32 array (C, H', W').
+
+        Normalised in numpy with the same float32 multiply (and subtract) as :meth:`normalize_batch`,
+        bit for bit (a test checks it). Also faster: in torch, one frame is above the size at which
+        an operation fans out to the thread pool, and on a busy machine each call then waited for
+        every thread (measured: 20 ms per frame instead of 0.1 ms during the demo's evaluation).
+        """
+        chw = np.ascontiguousarray(self.frame(image).transpose(2, 0, 1))
+        if self.normalize == "unit":
+            return np.multiply(chw, np.float32(1.0 / 255.0), dtype=np.float32)
+        out = np.multiply(chw, np.float32(1.0 / 127.5), dtype=np.float32)
+        return np.subtract(out, np.float32(1.0), out=out)
+
     def __call__(self, image: np.ndarray) -> torch.Tensor:
-        """The inference path: one RGB uint8 frame -> float32 tensor (C, H', W')."""
-        return self.normalize_batch(self.to_chw(self.frame(image)))
+        """:meth:`array` as a float32 tensor (sharing its memory)."""
+        import torch
+
+        return torch.from_numpy(self.array(image))
 
     # -- storage
     def to_dict(self) -> dict[str, Any]:

@@ -22,14 +22,16 @@ import numpy as np
 import torch
 from torch.utils.data import DataLoader, DistributedSampler
 
+from parts.pilots.acceleration import TrainPlan, apply_layout, plan_for
 from parts.pilots.augment import Augmenter, AugmentSettings
 from parts.pilots.balance import balance_by_steering
+from parts.pilots.compat import camera_meta
 from parts.pilots.dataset import (
     IMAGE_KEY,
     DriveData,
     PilotDataset,
+    behavior_labels,
     behavior_mirror,
-    behavior_names,
     build_samples,
     read_drive_data,
 )
@@ -73,7 +75,8 @@ def model_options(cfg: Any, type_name: str, data: DriveData) -> dict[str, Any]:
         if value is None:
             raise ValueError(f"the records have no {key!r}: record with behaviours (BEHAVIOR_LIST) to train "
                              "a behavior model")
-        opts["num_behaviors"] = len(value)
+        names, _ = behavior_labels(data, cfg.BEHAVIOR_LIST)
+        opts["num_behaviors"] = len(names) if names is not None else len(value)
     return opts
 
 
@@ -90,8 +93,14 @@ class PreparedData:
 
 
 def prepare_data(cfg: Any, data: DriveData, model: PilotModel, preprocess: Preprocess,
-                 augmentations: Sequence[str] | None = None, progress: bool = False) -> PreparedData:
-    """Split, balance, expand side cameras, cache frames and wrap everything as datasets."""
+                 augmentations: Sequence[str] | None = None, progress: bool = False,
+                 behavior_order: Sequence[str] | None = None) -> PreparedData:
+    """Split, balance, expand side cameras, cache frames and wrap everything as datasets.
+
+    A behaviour model's one-hot input follows ``behavior_order`` (default BEHAVIOR_LIST; a
+    transferred model's own order), each record placed by its behaviour's name
+    (:func:`parts.pilots.dataset.behavior_labels`).
+    """
     train_pos, val_pos = split_train_val(data.segments, cfg.TRAIN_TEST_SPLIT, cfg.TRAIN_SPLIT_BY,
                                          cfg.TRAIN_SPLIT_BLOCK, cfg.TRAIN_SEED)
     n_split = len(train_pos)
@@ -114,14 +123,15 @@ def prepare_data(cfg: Any, data: DriveData, model: PilotModel, preprocess: Prepr
         raise ValueError(f"no training samples left from {len(data)} records (sequence models need "
                          f"{depth} consecutive records before each sample); record more data")
     names = cfg.AUGMENTATIONS if augmentations is None else list(augmentations)
-    mirror, behaviors = _behavior_flip(data, model, names)
+    order = cfg.BEHAVIOR_LIST if behavior_order is None else behavior_order
+    mirror, behaviors, extra_values = _behavior_inputs(data, model, names, order)
     if mirror is None and behaviors is not None and "flip" in names:
         names = [n for n in names if n != "flip"]
     aug_settings = AugmentSettings.from_config(cfg, names)
     augmenter = Augmenter(aug_settings) if aug_settings.names else None
     common = {"frames": model.frames, "command_history": model.command_history,
               "extra_key": model.extra_inputs[0] if model.extra_inputs else None,
-              "extra_size": model.extra_size, "extra_mirror": mirror}
+              "extra_size": model.extra_size, "extra_mirror": mirror, "extra_values": extra_values}
     train_ds = PilotDataset(data, train_s, cache, preprocess, key_offsets=offsets, augmenter=augmenter,
                             seed=cfg.TRAIN_SEED, **common)
     val_ds = PilotDataset(data, val_s, cache, preprocess, **common) if len(val_s) else None
@@ -133,31 +143,45 @@ def prepare_data(cfg: Any, data: DriveData, model: PilotModel, preprocess: Prepr
                         info)
 
 
-def _behavior_flip(data: DriveData, model: PilotModel,
-                   augmentations: Sequence[str]) -> tuple[np.ndarray | None, list[str] | None]:
-    """For a behaviour model: (permutation of the one-hot for flipped frames, behaviour names).
+def _behavior_inputs(data: DriveData, model: PilotModel, augmentations: Sequence[str], order: Sequence[str]
+                     ) -> tuple[np.ndarray | None, list[str] | None, np.ndarray | None]:
+    """For a behaviour model: (permutation of the one-hot for flipped frames, behaviour names, the
+    one-hot of every record in the order of the names).
 
-    A flipped frame of the left lane shows the right lane, so its behaviour is swapped; when the
-    records do not name the behaviours or a name has no mirror, flipping would teach wrong labels
-    and is left out (with a warning). (None, None) for models without a behaviour input.
+    The one-hot is rebuilt from each record's behaviour name, so tubs recorded with different
+    BEHAVIOR_LIST orders train one meaning per input (see :func:`behavior_labels`). A flipped
+    frame of the left lane shows the right lane, so its behaviour is swapped; when the records do
+    not name the behaviours or a name has no mirror, flipping would teach wrong labels and is left
+    out (with a warning). (None, None, None) for models without a behaviour input.
+
+    Raises:
+        ValueError: the behaviours cannot be placed (see :func:`behavior_labels`), or the model
+            takes another number of behaviours than the records name.
     """
     if "behavior/one_hot_state_array" not in model.extra_inputs:
-        return None, None
-    names = behavior_names(data)
+        return None, None, None
+    names, index = behavior_labels(data, order)
+    values = None
+    if names is not None and index is not None:
+        if len(names) != model.extra_size:
+            raise ValueError(f"the model takes {model.extra_size} behaviours but the records are placed on "
+                             f"{len(names)} ({names}): train a new model, or set BEHAVIOR_LIST to the model's")
+        values = np.zeros((len(index), len(names)), np.float32)
+        values[np.arange(len(index)), index] = 1.0
     mirror = behavior_mirror(names) if names is not None else None
     if mirror is None and "flip" in augmentations:
         why = (f"behaviours {names} have no left/right mirror" if names is not None
                else "the records do not name every behaviour (behavior/state, behavior/label)")
         logger.warning("flip augmentation left out: %s, so a flipped frame has no correct behaviour", why)
-    return mirror, names if names is not None else []
+    return mirror, names if names is not None else [], values
 
 
-def _loaders(prep: PreparedData, batch_size: int, workers: int, dist_info: DistInfo, device: torch.device,
+def _loaders(prep: PreparedData, batch_size: int, workers: int, dist_info: DistInfo, plan: TrainPlan,
              seed: int) -> tuple[DataLoader, DataLoader | None]:
     # Workers are not persistent: each epoch forks them afresh with the dataset's current epoch (the
     # augmentation draws depend on it) and the frame cache shared copy-on-write.
     common: dict[str, Any] = {"batch_size": batch_size, "num_workers": workers,
-                              "pin_memory": device.type == "cuda"}
+                              "pin_memory": plan.pin_memory}
     if dist_info.enabled:
         train_sampler = DistributedSampler(prep.train, num_replicas=dist_info.world_size, rank=dist_info.rank,
                                            shuffle=True, seed=seed)
@@ -180,18 +204,14 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
           epochs: int | None = None, batch_size: int | None = None, learning_rate: float | None = None,
           device: str | None = None, workers: int | None = None, augmentations: Sequence[str] | None = None,
           comment: str | None = None, register: bool = True, progress: bool | None = None,
-          on_event: EventSink | None = None, should_stop: Callable[[], bool] | None = None) -> dict[str, Any]:
+          precision: str | None = None, on_event: EventSink | None = None,
+          should_stop: Callable[[], bool] | None = None) -> dict[str, Any]:
     """Train a model on ``tubs`` and write it to ``model_path``; returns the metrics.
 
     Arguments left None take the car's settings (MAX_EPOCHS, BATCH_SIZE, LEARNING_RATE,
-    TRAIN_DEVICE, TRAIN_NUM_WORKERS, AUGMENTATIONS, DEFAULT_MODEL_TYPE). The car's settings are
-    checked by :func:`parts.pilots.hyperparams.check_config`, the rules the CLI and the console use.
-
-    ``on_event`` gets progress events: ``{"event": "phase", "phase": "reading" | "preparing" |
-    "training"}``, ``{"event": "start", ...}`` (model and data figures), then :func:`fit`'s batch and
-    epoch events. ``should_stop()`` ends training cleanly (see :func:`fit`): the model file then
-    holds the best epoch so far and is finished, plotted and registered as usual, with
-    ``metrics["cancelled"]`` True.
+    TRAIN_DEVICE, TRAIN_NUM_WORKERS, AUGMENTATIONS, DEFAULT_MODEL_TYPE, TRAIN_PRECISION). The car's
+    settings are checked by :func:`parts.pilots.hyperparams.check_config`, the rules the CLI and the
+    console use.
 
     Raises:
         ValueError: bad settings or no usable data (the message says what to change).
@@ -242,20 +262,26 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
             model = create_model(type_name, preprocess.output_shape(image_shape),
                                  **model_options(cfg, type_name, data))
         phase("preparing")
+        # a transferred behaviour model keeps the order of its one-hot inputs
+        order = (old_meta.get("training") or {}).get("behaviors") if old_meta is not None else None
         prep = prepare_data(cfg, data, model, preprocess, augmentations,
-                            progress=dist_info.is_main and (progress if progress is not None else _tty()))
+                            progress=dist_info.is_main and (progress if progress is not None else _tty()),
+                            behavior_order=order or None)
         model.to(dev)
+        plan = plan_for(dev, precision or cfg.TRAIN_PRECISION, cfg.TRAIN_COMPILE, spatial_model=model.frames == 1)
+        apply_layout(model, plan)
         n_params = sum(p.numel() for p in model.parameters())
         if dist_info.is_main:
             logger.info("training %s model (%d parameters) on %s: %d training / %d validation samples",
                         type_name, n_params, dev, prep.info["train_samples"], prep.info["val_samples"])
+            logger.info("training plan on %s: %s", _device_name(dev), plan.describe())
             if cfg.PRINT_MODEL_SUMMARY:
                 logger.info("%s", model)
         train_model: torch.nn.Module = model
         if dist_info.enabled:
             ids = [dev.index] if dev.type == "cuda" else None
             train_model = torch.nn.parallel.DistributedDataParallel(model, device_ids=ids)
-        train_loader, val_loader = _loaders(prep, batch_size, workers, dist_info, dev, cfg.TRAIN_SEED)
+        train_loader, val_loader = _loaders(prep, batch_size, workers, dist_info, plan, cfg.TRAIN_SEED)
         training = {"epochs": epochs, "batch_size": batch_size, "learning_rate": learning_rate,
                     "weight_decay": cfg.TRAIN_WEIGHT_DECAY, "early_stop_patience":
                     cfg.EARLY_STOP_PATIENCE if cfg.USE_EARLY_STOP else None, "min_delta": cfg.MIN_DELTA,
@@ -265,9 +291,11 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
                     "balance": {"bins": cfg.TRAIN_BALANCE_BINS, "max_per_bin": cfg.TRAIN_BALANCE_MAX_PER_BIN}
                     if cfg.TRAIN_BALANCE else None,
                     "steps_per_epoch": cfg.TRAIN_STEPS_PER_EPOCH, "val_steps": cfg.TRAIN_VAL_STEPS,
-                    "device": str(dev), "world_size": dist_info.world_size, "parameters": n_params,
+                    "device": str(dev), **plan.to_dict(), "world_size": dist_info.world_size, "parameters": n_params,
                     **{k: v for k, v in prep.info.items() if k not in ("records",)}}
+        # the frames it learns from: undistorted (CAMERA_UNDISTORT) or not; the car must match
         base_meta = {"type": type_name, "preprocess": preprocess.to_dict(), "training": training,
+                     "camera": camera_meta(cfg),
                      "datasets": data.tubs, "transfer": str(transfer) if transfer else None,
                      "comment": comment, "created": datetime.now(UTC).isoformat(timespec="seconds")}
 
@@ -287,7 +315,7 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
                       "model": str(model_path)})
             phase("training")
         history = fit(train_model, train_loader, val_loader, preprocess, dev, settings, dist_info, save_best,
-                      on_event=on_event, should_stop=should_stop)
+                      plan=plan, on_event=on_event, should_stop=should_stop)
         # every rank got through the last collective: from here each leaves through the barrier,
         # rank 0 even when its own file writing below fails, so no peer waits for it in vain
         clean = True
@@ -297,6 +325,12 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
         return metrics
     finally:
         shutdown_distributed(clean=clean)
+
+
+def _device_name(dev: torch.device) -> str:
+    if dev.type == "cuda":
+        return f"{dev} ({torch.cuda.get_device_name(dev)})"
+    return str(dev)
 
 
 def _tty() -> bool:

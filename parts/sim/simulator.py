@@ -22,7 +22,16 @@ from parts.sim.randomize import Conditions, check_ranges
 from parts.sim.sensor import Sensor
 from parts.sim.telemetry import LapTracker, TelemetryFrame
 from parts.sim.themes import get_theme, theme_list, theme_of
-from parts.sim.world import World, conditions_for, load_track, load_world, prefetch_world, register_track, world_params
+from parts.sim.world import (
+    World,
+    conditions_for,
+    load_track,
+    load_world,
+    prefetch_world,
+    register_track,
+    registered_tracks,
+    world_params,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -31,7 +40,7 @@ OUTPUTS: tuple[str, ...] = (
     "cam/image_array", "cam/timestamp", "sim/cte", "sim/heading_error", "sim/speed", "sim/progress",
     "sim/lap", "sim/lap_time", "sim/off_track", "sim/pos", "sim/track", "enc/speed",
 )
-__all__ = ["OUTPUTS", "SimCar", "load_world", "register_track", "world_params"]
+__all__ = ["OUTPUTS", "SimCar", "load_world", "register_track", "registered_tracks", "world_params"]
 
 
 class SimCar:

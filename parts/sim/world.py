@@ -64,6 +64,11 @@ def register_track(track: Track) -> None:
             del _WORLDS[key]
 
 
+def registered_tracks() -> dict[int, Track]:
+    """The hand-made tracks registered with :func:`register_track`, by seed (a copy)."""
+    return dict(_CUSTOM)
+
+
 def load_track(seed: int, *, size: float = 8.0, width: float = 0.8, min_radius: float = 1.2, lanes: int = 1,
                line_width: float = 0.04, **_: Any) -> Track:
     """The track of a seed: a registered hand-made one, else a generated one (other keyword

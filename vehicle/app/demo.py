@@ -63,7 +63,8 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
              unseen_theme: str = DEFAULTS["unseen_theme"]) -> dict[str, Any]:
     """Run the four steps in ``out``; returns ``{"reports": {theme: {"pilot": report, "expert":
     report}}, "trained_themes": [...], "unseen_theme": name, "model": path, "seconds": {step: s},
-    "metrics": {...}}``. Raises ValueError on bad arguments."""
+    "cpu_seconds": {step: s}, "metrics": {...}}`` (wall time, and CPU time of this process and its
+    finished workers: on a shared machine the two differ). Raises ValueError on bad arguments."""
     from parts.sim.eval_report import describe, format_table, write_json
     from parts.sim.themes import theme_list
     from vehicle.app.evaluate import evaluate
@@ -89,49 +90,48 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
         shutil.rmtree(tub)  # the demo records afresh each run; it never touches other folders
     model_path = out / "models" / f"demo_{model_type}.pt"
     seconds: dict[str, float] = {}
+    cpu: dict[str, float] = {}
 
-    t = time.perf_counter()
+    t, c = time.perf_counter(), cpu_seconds()
     say(f"[1/4] the expert drives training tracks {train_tracks} (themes {', '.join(trained)}, randomised "
         f"with seed {cfg.SIM_RANDOMIZE}): recording {records} records (steering noise {noise}) ...")
     record_expert(cfg, train_tracks, records, tub, noise=noise)
     seconds["record"] = time.perf_counter() - t
+    cpu["record"] = cpu_seconds() - c
+    say(f"      recorded in {seconds['record']:.0f} s")
 
-    t = time.perf_counter()
+    t, c = time.perf_counter(), cpu_seconds()
     say(f"[2/4] training a {model_type} model for up to {epochs} epochs ...")
     from parts.pilots.training import train
 
     metrics = train(cfg, [tub], model_path, model_type_name=model_type, epochs=epochs,
                     comment="vehicle demo")
     seconds["train"] = time.perf_counter() - t
+    cpu["train"] = cpu_seconds() - c
     say(f"      best val_loss {metrics['best_val_loss']:.5f} at epoch {metrics['best_epoch']} of "
          f"{metrics['epochs']} ({seconds['train']:.0f} s)")
 
-    t = time.perf_counter()
+    t, c = time.perf_counter(), cpu_seconds()
     export_onnx(model_path)
     seconds["export"] = time.perf_counter() - t
+    cpu["export"] = cpu_seconds() - c
 
-    t = time.perf_counter()
+    t, c = time.perf_counter(), cpu_seconds()
     how = ("in each theme's plain look" if eval_randomize is None
            else f"randomised with seed {eval_randomize} (a draw never trained on)")
     say(f"[4/4] driving {laps} laps on each of the unseen tracks {eval_tracks}, {how}, in the trained themes "
         f"{', '.join(trained)} and in the {unseen_theme} theme it never saw ...")
     reports: dict[str, dict[str, Any]] = {}
-    import torch
-
-    threads = torch.get_num_threads()
-    # one frame at a time: a small model runs fastest in one thread, and on a busy machine several
-    # threads wait on each other every frame (12x slower measured with 2 threads under load)
-    torch.set_num_threads(1)
-    try:
-        for theme in [*trained, unseen_theme]:
-            c = cfg.replace(SIM_THEME=theme, SIM_RANDOMIZE=eval_randomize)
-            reports[theme] = {"pilot": evaluate(model_path, eval_tracks, laps, cfg=c),
-                              "expert": evaluate("expert", eval_tracks, laps, cfg=c)}
-            for who, report in reports[theme].items():
-                write_json(report, out / "eval" / f"{who}_{theme}.json")
-    finally:
-        torch.set_num_threads(threads)
+    for theme in [*trained, unseen_theme]:
+        c_theme = cfg.replace(SIM_THEME=theme, SIM_RANDOMIZE=eval_randomize)
+        reports[theme] = {
+            "pilot": evaluate(model_path, eval_tracks, laps, cfg=c_theme, workers=cfg.SIM_EVAL_WORKERS),
+            "expert": evaluate("expert", eval_tracks, laps, cfg=c_theme, workers=cfg.SIM_EVAL_WORKERS)}
+        for who, report in reports[theme].items():
+            write_json(report, out / "eval" / f"{who}_{theme}.json")
     seconds["evaluate"] = time.perf_counter() - t
+    cpu["evaluate"] = cpu_seconds() - c
+    say(f"      evaluated in {seconds['evaluate']:.0f} s")
     for theme, pair in reports.items():
         seen = "a trained theme" if theme in trained else "a theme the pilot never saw"
         say(f"\ntrained pilot on unseen tracks, theme {theme} ({seen}):")
@@ -141,7 +141,34 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
             f"{e['laps_completed']} laps, {e['interventions']} interventions, mean |cte| {e['mean_abs_cte']:.3f} m "
             f"({describe(pair['expert'])[len('conditions: '):]})")
     return {"reports": reports, "trained_themes": trained, "unseen_theme": unseen_theme, "model": model_path,
-            "seconds": seconds, "metrics": metrics}
+            "seconds": seconds, "cpu_seconds": cpu, "metrics": metrics}
+
+
+def cpu_seconds() -> float:
+    """User + system CPU seconds of this process and of its children that have ended."""
+    import resource
+
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
+def torch_threads(requested: int | None) -> tuple[int, str]:
+    """Torch threads for the demo's training and why: ``requested`` when given; otherwise every
+    core, or one when the machine is already busy (load average at least the cores less one).
+
+    On a busy machine a multi-threaded step waits at every parallel operation for a thread that
+    another process has descheduled: measured on 2 cores next to other jobs, 2 threads trained at
+    0.25x the speed of one (docs/benchmarks.md, "training"); one thread is then the robust choice.
+    """
+    import os
+
+    cores = os.cpu_count() or 1
+    if requested is not None:
+        return requested, "--threads"
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else 0.0
+    if cores > 1 and load >= cores - 1:
+        return 1, f"the machine is busy (load average {load:.1f} on {cores} cores)"
+    return cores, f"one per core (load average {load:.1f})"
 
 
 def write_myconfig(out: Path, settings: dict[str, Any], source: str) -> None:

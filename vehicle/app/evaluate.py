@@ -9,8 +9,10 @@ One episode per track seed, each a real :class:`vehicle.Vehicle` on a
 
 so what is evaluated is what drives: the pilot's outputs go through the same DriveMode (a NaN or
 None command becomes centre and zero throttle, AI_THROTTLE_MULT scales the throttle) before the
-simulated car applies them. Leaving the road counts as an intervention: the car is re-centred on the
-road next to where it left (what a person would do) and the episode goes on. Metrics:
+simulated car applies them, and the pilot sees the frames the car drives with (undistorted after
+the simulator with CAMERA_UNDISTORT, as ``add_simulator`` does). Leaving the road counts as an
+intervention: the car is re-centred on the road next to where it left (what a person would do) and
+the episode goes on. Metrics:
 :mod:`parts.sim.metrics` (DAVE-2 autonomy, time-weighted |CTE| over autonomous frames, ...).
 
 The same loop drives the other simulators (``sim="donkey"`` / ``"udacity"``): ``vehicle sim serve``
@@ -28,11 +30,19 @@ A behaviour pilot on two-lane tracks (SIM_LANES = 2, a pilot reading
 (SIM_EVAL_LANE_CHANGE_EVERY), and :class:`parts.sim.lane_metrics.LaneMetrics` scores lane keeping
 and every change (success within SIM_EVAL_LANE_CHANGE_TIME_LIMIT, time to change, wrong-lane
 time); the report gets a ``lanes`` section per track and overall.
+
+On the built-in simulator, with ``workers > 1`` the tracks run in parallel worker processes, each
+with its own simulator and its own copy of the pilot (loaded from the model file, or the expert),
+torch and OpenCV limited to ``cores // workers`` threads so the workers do not oversubscribe the
+machine. Every episode depends only on its seed, so the report is the serial one (a test checks
+they are identical).
 """
 
 from __future__ import annotations
 
 import logging
+import os
+import pickle
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -49,6 +59,7 @@ from parts.sim.simulator import SimCar
 from parts.sim.themes import theme_list, theme_of
 from parts.sim.world import prefetch_world, world_params
 from vehicle import Vehicle
+from vehicle.app.assembly.camera import add_undistort
 from vehicle.app.assembly.drive import add_behavior, add_drive_mode
 from vehicle.app.assembly.sim import add_expert
 from vehicle.clock import SimulatedClock
@@ -133,7 +144,8 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
              max_time: float | None = None, penalty_s: float | None = None,
              fixed_throttle: float | None = None, extra_inputs: dict[str, Any] | None = None,
              on_step: Callable[[SimCar], None] | None = None, sim: str = "builtin",
-             scenes: Sequence[str] | None = None, lane_changes: bool | None = None) -> dict[str, Any]:
+             scenes: Sequence[str] | None = None, lane_changes: bool | None = None,
+             workers: int = 1) -> dict[str, Any]:
     """Drive ``pilot`` for ``laps`` laps on each track seed and return the report (a JSON-able dict).
 
     Args:
@@ -153,10 +165,13 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
         on_step: called with the sim car after every step (e.g. to show or record frames).
         sim: "builtin", "donkey" (SIM_HOST:SIM_PORT) or "udacity" (UDACITY_PORT).
         scenes: Donkey scenes, one episode each (default DONKEY_GYM_ENV_NAME).
-
         lane_changes: command lane changes and score them (see the module docstring); None: when
             SIM_LANES = 2 and the pilot reads the behaviour (or is the expert with TRAIN_BEHAVIORS)
             and ``extra_inputs`` does not fix it.
+        workers: built-in simulator: processes running tracks in parallel (0: one per core;
+            capped at the number of tracks). Needs ``pilot`` to be "expert" or a model file (a
+            worker loads its own copy) and no ``on_step``; otherwise the tracks run one after
+            another. The report is the same either way.
 
     Returns:
         ``{"pilot", "simulator", "laps", "seeds", "conditions", "settings", "tracks": [per-track
@@ -194,43 +209,54 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
 
     themes = theme_list(cfg.SIM_THEME)
     check_ranges(cfg.SIM_RANDOMIZE_RANGES)
+    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 0:
+        raise ValueError(f"workers must be an int >= 0 (0 = one per core), got {workers!r}")
+    n_workers = min(workers or os.cpu_count() or 1, len(episodes)) if sim == "builtin" else 1
+    parallel = n_workers > 1 and on_step is None and (pilot == "expert" or isinstance(pilot, str | Path))
+    if n_workers > 1 and not parallel:
+        logger.info("evaluating the tracks one after another: parallel workers need 'expert' or a model "
+                    "file (each loads its own copy) and no on_step callback")
+
+    # loaded here also for a parallel run: a missing or broken model file fails with its own message,
+    # and the pilot's inputs decide the lane changes
     driver, name, owned = resolve_pilot(pilot, cfg)
-    if driver == "expert" and sim != "builtin":
-        raise ValueError(f"the expert drives the built-in simulator only: pass a model file to evaluate on the "
-                         f"{sim} simulator")
-    lanes_on = sim == "builtin" and _lane_changes(driver, cfg, extra_inputs, lane_changes)
     started = time.perf_counter()
-    results = []
-    pooled: list[np.ndarray] = []  # |cte| of autonomous frames, for the overall percentile
     modes: dict[str, Any] = {}  # what the bridge episodes found out (Donkey: stepped or real time)
     try:
-        for i, episode in enumerate(episodes):
-            if sim == "builtin" and driver != "expert" and i + 1 < len(episodes):
-                # the next track is drawn in the background while this one is driven
-                prefetch_world(episodes[i + 1], theme=theme_of(themes, i + 1), **world_params(cfg))
-            lane_part = None
-            if lanes_on:
-                lane_part = LaneMetrics(1.0 / cfg.DRIVE_LOOP_HZ, cfg.SIM_ROAD_WIDTH / 2,
-                                        time_limit=cfg.SIM_EVAL_LANE_CHANGE_TIME_LIMIT,
-                                        hold=cfg.SIM_EVAL_LANE_CHANGE_HOLD)
-            if sim == "builtin":
-                metrics = run_episode(driver, episode, laps, cfg, max_time=max_time, penalty_s=penalty,
-                                      fixed_throttle=fixed_throttle, extra_inputs=extra_inputs, on_step=on_step,
-                                      lanes=lane_part, theme=theme_of(themes, i))
-            else:
-                metrics = run_bridge_episode(driver, sim, episode, laps, cfg, max_time=max_time, penalty_s=penalty,
-                                             fixed_throttle=fixed_throttle, extra_inputs=extra_inputs, info=modes)
-            res = metrics.result()
-            if lane_part is not None:
-                res["lanes"] = lane_part.result()
-            pooled.append(metrics.autonomous_abs_cte())
-            logger.info("eval %s on %s: autonomy %.1f %%, %s/%d laps, mean |cte| %s, %d interventions",
-                        name, episode, res["autonomy"], res["laps_completed"], laps,
-                        "-" if res["mean_abs_cte"] is None else f"{res['mean_abs_cte']:.3f}", res["interventions"])
-            results.append(res)
+        if driver == "expert" and sim != "builtin":
+            raise ValueError(f"the expert drives the built-in simulator only: pass a model file to evaluate on "
+                             f"the {sim} simulator")
+        lanes_on = sim == "builtin" and _lane_changes(driver, cfg, extra_inputs, lane_changes)
+        if lanes_on:
+            _check_change_schedule(cfg)
+        episode_args = {"max_time": max_time, "penalty_s": penalty, "fixed_throttle": fixed_throttle,
+                        "extra_inputs": extra_inputs, "lanes": lanes_on}
+        if parallel:
+            if owned and callable(getattr(driver, "shutdown", None)):
+                owned = False
+                driver.shutdown()
+            outcomes = _run_parallel(pilot, episodes, laps, cfg, n_workers, episode_args, name,
+                                     [theme_of(themes, i) for i in range(len(episodes))])
+        else:
+            outcomes = []
+            for i, episode in enumerate(episodes):
+                if sim == "builtin":
+                    if driver != "expert" and i + 1 < len(episodes):
+                        # the next track is drawn in the background while this one is driven
+                        prefetch_world(episodes[i + 1], theme=theme_of(themes, i + 1), **world_params(cfg))
+                    outcomes.append(_builtin_episode(driver, episode, laps, cfg, episode_args, on_step,
+                                                     theme=theme_of(themes, i)))
+                else:
+                    metrics = run_bridge_episode(driver, sim, episode, laps, cfg, max_time=max_time,
+                                                 penalty_s=penalty, fixed_throttle=fixed_throttle,
+                                                 extra_inputs=extra_inputs, info=modes)
+                    outcomes.append((metrics.result(), metrics.autonomous_abs_cte()))
+                _log_episode(name, episode, laps, outcomes[-1][0])
     finally:
         if owned and callable(getattr(driver, "shutdown", None)):
             driver.shutdown()
+    results = [res for res, _ in outcomes]
+    pooled = [abs_cte for _, abs_cte in outcomes]  # |cte| of autonomous frames, for the overall percentile
     settings: dict[str, Any] = {"dt": 1.0 / cfg.DRIVE_LOOP_HZ, "penalty_s": penalty, "max_time_s": max_time,
                                 "fixed_throttle": fixed_throttle}
     if sim == "builtin":
@@ -264,6 +290,99 @@ def describe_conditions(cfg: Any, themes: Sequence[str] | None = None) -> dict[s
             "lanes": cfg.SIM_LANES}
 
 
+def _log_episode(name: str, episode: Any, laps: int, res: dict[str, Any]) -> None:
+    logger.info("eval %s on %s: autonomy %.1f %%, %s/%d laps, mean |cte| %s, %d interventions",
+                name, episode, res["autonomy"], res["laps_completed"], laps,
+                "-" if res["mean_abs_cte"] is None else f"{res['mean_abs_cte']:.3f}", res["interventions"])
+
+
+def _builtin_episode(driver: Any, seed: int, laps: int, cfg: Any, episode_args: dict[str, Any],
+                     on_step: Callable[[SimCar], None] | None = None,
+                     theme: str | None = None) -> tuple[dict[str, Any], np.ndarray]:
+    """One built-in episode's (metrics, |cte| of its autonomous frames) on track ``seed`` in
+    ``theme``, lane metrics included when ``episode_args["lanes"]``."""
+    args = dict(episode_args)
+    lane_part = None
+    if args.pop("lanes"):
+        lane_part = LaneMetrics(1.0 / cfg.DRIVE_LOOP_HZ, cfg.SIM_ROAD_WIDTH / 2,
+                                time_limit=cfg.SIM_EVAL_LANE_CHANGE_TIME_LIMIT, hold=cfg.SIM_EVAL_LANE_CHANGE_HOLD)
+    metrics = run_episode(driver, seed, laps, cfg, **args, on_step=on_step, lanes=lane_part, theme=theme)
+    res = metrics.result()
+    if lane_part is not None:
+        res["lanes"] = lane_part.result()
+    return res, metrics.autonomous_abs_cte()
+
+
+# -- parallel evaluation -----------------------------------------------------------------------------
+# State of a worker process, set once by _init_worker: the pilot, the settings, what each episode gets.
+_WORKER: dict[str, Any] = {}
+
+
+def _sendable_config(cfg: Any) -> tuple[dict[str, Any], frozenset[str], Any]:
+    """The Config's values for a worker process; a value that cannot be pickled (a function defined
+    in myconfig.py, e.g. TRAIN_FILTER) takes its default, which evaluation never reads anyway."""
+    from vehicle.config import Config
+
+    values = dict(cfg.items())
+    defaults: Config | None = None
+    for key, value in values.items():
+        try:
+            pickle.dumps(value)
+        except Exception:  # noqa: BLE001 - any reason a value cannot travel
+            defaults = defaults or Config.defaults()
+            values[key] = defaults[key]
+    return values, frozenset(getattr(cfg, "overridden", ())), getattr(cfg, "source", None)
+
+
+def _init_worker(pilot: Any, config: tuple[dict[str, Any], frozenset[str], Any], tracks: dict[int, Any],
+                 threads: int, laps: int, episode_args: dict[str, Any]) -> None:
+    """Runs once in each worker: thread limits, the parent's hand-made tracks, settings, pilot."""
+    import sys
+
+    import cv2
+
+    from parts.sim.simulator import register_track
+    from vehicle.config import Config
+
+    cv2.setNumThreads(threads)
+    for track in tracks.values():
+        register_track(track)
+    cfg = Config(*config)
+    driver, _, _ = resolve_pilot(pilot, cfg)
+    if "torch" in sys.modules:  # a model pilot loaded it; the expert needs none (0.75 s to import)
+        sys.modules["torch"].set_num_threads(threads)
+    _WORKER.update(cfg=cfg, driver=driver, laps=laps, episode_args=episode_args)
+
+
+def _worker_episode(seed: int, theme: str) -> tuple[dict[str, Any], np.ndarray]:
+    w = _WORKER
+    return _builtin_episode(w["driver"], seed, w["laps"], w["cfg"], w["episode_args"], theme=theme)
+
+
+def _run_parallel(pilot: Any, seeds: list[int], laps: int, cfg: Any, n_workers: int,
+                  episode_args: dict[str, Any], name: str,
+                  themes: list[str]) -> list[tuple[dict[str, Any], np.ndarray]]:
+    """The episodes of ``seeds`` (each in its theme of ``themes``) in ``n_workers`` processes, in
+    seed order."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from parts.sim.simulator import registered_tracks
+
+    threads = max(1, (os.cpu_count() or 1) // n_workers)
+    logger.info("evaluating %d tracks in %d worker processes (%d thread(s) each)", len(seeds), n_workers, threads)
+    # spawn, not fork: a forked copy of a process whose OpenMP threads already ran can hang
+    context = multiprocessing.get_context("spawn")
+    pilot_arg = pilot if pilot == "expert" else str(Path(pilot).expanduser().resolve())
+    initargs = (pilot_arg, _sendable_config(cfg), registered_tracks(), threads, laps, episode_args)
+    outcomes = []
+    with ProcessPoolExecutor(n_workers, mp_context=context, initializer=_init_worker, initargs=initargs) as pool:
+        for seed, (res, abs_cte) in zip(seeds, pool.map(_worker_episode, seeds, themes), strict=True):
+            _log_episode(name, seed, laps, res)
+            outcomes.append((res, abs_cte))
+    return outcomes
+
+
 def add_engaged_pilot(V: Vehicle, driver: Any, fixed_throttle: float | None) -> None:
     """The driver engages the pilot (``user/mode`` local, or local_angle with a fixed throttle) and
     the pilot part runs; a pilot with ``reset()`` (sequence models) starts with no memory of the
@@ -292,6 +411,19 @@ def _lane_changes(driver: Any, cfg: Any, extra_inputs: dict[str, Any] | None, as
     return True
 
 
+def _check_change_schedule(cfg: Any) -> None:
+    """Raise ValueError when commanded lane changes may come closer together than one change is
+    given to succeed (time limit, then hold): one would be judged while the next is under way."""
+    every = tuple(cfg.SIM_EVAL_LANE_CHANGE_EVERY)
+    needed = cfg.SIM_EVAL_LANE_CHANGE_TIME_LIMIT + cfg.SIM_EVAL_LANE_CHANGE_HOLD
+    if len(every) != 2 or not 0 < every[0] <= every[1]:
+        raise ValueError(f"SIM_EVAL_LANE_CHANGE_EVERY = {every!r}: give (min, max) seconds with 0 < min <= max")
+    if every[0] < needed:
+        raise ValueError(f"SIM_EVAL_LANE_CHANGE_EVERY = {every!r} may command a change {every[0]:g} s after the last, "
+                         f"before that one is judged (SIM_EVAL_LANE_CHANGE_TIME_LIMIT + SIM_EVAL_LANE_CHANGE_HOLD = "
+                         f"{needed:g} s): raise its minimum to at least {needed:g}")
+
+
 def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float, penalty_s: float,
                 fixed_throttle: float | None = None, extra_inputs: dict[str, Any] | None = None,
                 on_step: Callable[[SimCar], None] | None = None, lanes: LaneMetrics | None = None,
@@ -311,6 +443,8 @@ def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float,
     V = Vehicle(clock=SimulatedClock())
     V.mem.update(extra_inputs or {})  # seeded: keys the simulator does not make
     V.add(sim)
+    # as add_simulator: the pilot sees what the car drives with
+    add_undistort(V, cfg, (cfg.SIM_CAMERA_W, cfg.SIM_CAMERA_H), "SIM_CAMERA_W x SIM_CAMERA_H")
     if lanes is not None:
         cfg = cfg.replace(TRAIN_BEHAVIORS=True)
         times = periodic_change_times(max_time, tuple(cfg.SIM_EVAL_LANE_CHANGE_EVERY),
@@ -383,7 +517,7 @@ def run_bridge_episode(driver: Any, sim_type: str, scene: str, laps: int, cfg: A
     Donkey: in synchronous steps of 1 / DRIVE_LOOP_HZ where the server steps (``vehicle sim
     serve``), else in real time with the threaded part; ``info["synchronous"]`` says which.
     """
-    from vehicle.app.assembly.sim import add_simulator, add_simulator_commands, make_bridge
+    from vehicle.app.assembly.sim import add_simulator, add_simulator_commands, bridge_frame_size, make_bridge
 
     dt = 1.0 / cfg.DRIVE_LOOP_HZ
     stepped = False
@@ -399,6 +533,7 @@ def run_bridge_episode(driver: Any, sim_type: str, scene: str, laps: int, cfg: A
         else:
             V = Vehicle()  # the Donkey simulator runs in real time: the loop paces itself
             V.add(bridge, threaded=True, feedback=("angle", "throttle", "sim/reset"))
+        add_undistort(V, cfg, *bridge_frame_size(cfg, "donkey"))  # as add_simulator
     else:
         V = Vehicle()  # the Udacity simulator runs in real time
         add_simulator(V, cfg, sim_type="udacity")

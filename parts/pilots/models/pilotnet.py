@@ -7,7 +7,7 @@ from typing import Any
 import torch
 from torch import nn
 
-from parts.pilots.models.base import PilotModel, check_option, dense_head, flat_size
+from parts.pilots.models.base import FastDropout, PilotModel, check_option, dense_head, flat_size
 from parts.pilots.models.cnn import InferredModel
 
 
@@ -33,7 +33,7 @@ class PilotNetModel(InferredModel):
         for out_ch, k, s in ((24, 5, 2), (36, 5, 2), (48, 5, 2), (64, 3, 1), (64, 3, 1)):
             layers += [nn.Conv2d(in_ch, out_ch, k, stride=s), nn.ReLU(inplace=True)]
             in_ch = out_ch
-        layers += [nn.Dropout(dropout), nn.Flatten()]
+        layers += [FastDropout(dropout), nn.Flatten()]
         self.features = nn.Sequential(*layers)
         self.head = dense_head(flat_size(self.features, input_shape), (100, 50, 10), 1, 0.0)
 

@@ -8,7 +8,7 @@ from typing import Any
 import torch
 from torch import nn
 
-from parts.pilots.models.base import PilotModel, check_option, dense_head, donkey_convs, flat_size
+from parts.pilots.models.base import FastDropout, PilotModel, check_option, dense_head, donkey_convs, flat_size
 
 
 class _SequenceModel(PilotModel):
@@ -65,7 +65,7 @@ class Conv3DModel(_SequenceModel):
         plan = ((c, 16, 5, 2, 3), (16, 32, 5, 2, 3), (32, 64, 5, 2, 1), (64, 64, 3, 1, 1))
         for in_ch, out_ch, k, s, tk in plan:
             layers += [nn.Conv3d(in_ch, out_ch, (tk, k, k), stride=(1, s, s), padding=(tk // 2, 0, 0)),
-                       nn.ReLU(inplace=True), nn.Dropout(self.dropout)]
+                       nn.ReLU(inplace=True), FastDropout(self.dropout)]
         layers.append(nn.Flatten())
         self.features = nn.Sequential(*layers)
         size = flat_size(_Permuted(self.features), (self.seq_length, *input_shape))

@@ -119,3 +119,18 @@ def test_every_augmentation_is_a_hyperparameter_choice():
 
     assert AUGMENTATION_CHOICES == AUGMENTATION_NAMES  # the console and the CLI offer what training does
     assert by_name("aug_hue_p").setting == "AUG_HUE_P" and by_name("aug_hue_range").high == 180.0
+
+
+@pytest.mark.parametrize("side", [0.0, 1.0])
+def test_shadow_darkens_exactly_one_side_of_the_band(image, side):
+    params = {"top": 0.2, "bottom": 0.9, "side": side, "factor": 0.63}
+    out = _only("shadow").apply(image, [("shadow", params)])
+    h, w = image.shape[:2]
+    # the definition: x left of (side 0) or right of (side 1) the line from top to bottom, scaled
+    # by factor in float32 and rounded
+    edge = (0.2 + 0.7 * np.arange(h, dtype=np.float32)[:, None] / (h - 1)) * w
+    xs = np.arange(w, dtype=np.float32)[None, :]
+    mask = (xs < edge) if side < 0.5 else (xs >= edge)
+    want = np.where(mask[:, :, None], np.rint(image.astype(np.float32) * np.float32(0.63)), image)
+    assert np.array_equal(out, want.astype(np.uint8))
+    assert out is not image and not np.shares_memory(out, image)

@@ -160,6 +160,18 @@ def test_recorded_frame_gives_identical_tensor_in_training_and_driving(tiny_tub,
     assert -1.0 <= float(driving.min()) and float(driving.max()) <= 1.0
 
 
+@pytest.mark.parametrize("normalize", ["unit", "symmetric"])
+@pytest.mark.parametrize("color", ["rgb", "yuv", "hsv", "gray"])
+def test_inference_normalisation_is_bit_identical_to_the_batch_one(normalize, color):
+    frame = np.random.default_rng(5).integers(0, 256, (120, 160, 3), dtype=np.uint8)
+    pre = Preprocess(crop=(40, 0, 0, 0), resize=(66, 200) if color == "yuv" else None, color=color,
+                     normalize=normalize)
+    driving = pre(frame)  # numpy arithmetic, one frame
+    batch = pre.normalize_batch(Preprocess.to_chw(pre.frame(frame))[None])[0]  # torch, training
+    assert driving.is_contiguous() and driving.dtype == torch.float32
+    assert torch.equal(driving, batch)
+
+
 def test_preprocess_validates_and_explains():
     pre = Preprocess(crop=(40, 0, 0, 0), image_shape=(120, 160, 3))
     assert pre.output_shape((120, 160, 3)) == (3, 80, 160)

@@ -82,3 +82,28 @@ def test_cli_export(make_model_file, tmp_path, capsys):
     assert out.is_file() and f"wrote {out}" in capsys.readouterr().out
     assert main(["models", "export", "nothing", "--car", str(tmp_path)]) == 2
     assert "not a file" in capsys.readouterr().err
+
+
+def test_an_onnx_pilot_drives_and_is_evaluated_without_torch(make_model_file, tmp_path):
+    """A car (a Pi) driving an ONNX export needs onnxruntime, not torch."""
+    import subprocess
+    import sys
+
+    path = make_model_file("linear")
+    export_model(path, "onnx")
+    code = f"""
+import sys
+sys.modules["torch"] = None  # any import of torch now fails
+import numpy as np
+from parts.pilots import load_pilot
+from vehicle.app.evaluate import evaluate
+from vehicle.config import Config
+pilot = load_pilot({str(path)!r})
+assert pilot.runner.backend == "onnx", pilot.runner.backend
+angle, throttle = pilot.run(np.zeros((120, 160, 3), np.uint8))
+report = evaluate(pilot, [11], 1, cfg=Config.defaults(SIM_TEXTURE_RES=0.02), max_time=1.0)
+print("ok", report["tracks"][0]["frames"])
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "ok 20" in out.stdout

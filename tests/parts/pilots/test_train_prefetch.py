@@ -47,6 +47,7 @@ def test_workers_see_each_epochs_augmentation_draws(tiny_tub):
     from parts.pilots.augment import Augmenter, AugmentSettings
     from parts.pilots.dataset import PilotDataset, build_samples, read_drive_data
     from parts.pilots.distributed import DistInfo
+    from parts.pilots.fit import plain_plan
     from parts.pilots.framecache import FrameCache
     from parts.pilots.preprocess import Preprocess
     from parts.pilots.training import PreparedData, _loaders
@@ -57,7 +58,7 @@ def test_workers_see_each_epochs_augmentation_draws(tiny_tub):
     aug = Augmenter(AugmentSettings(names=("brightness",), brightness_p=1.0))
     ds = PilotDataset(data, build_samples(data, np.arange(8)), cache, Preprocess(), augmenter=aug)
     prep = PreparedData(data, ds, None, Preprocess(), (64, 64, 3), {})
-    loader, _ = _loaders(prep, 8, 1, DistInfo(), torch.device("cpu"), seed=0)
+    loader, _ = _loaders(prep, 8, 1, DistInfo(), plain_plan(torch.device("cpu")), seed=0)
     batches = []
     for epoch in range(2):
         ds.set_epoch(epoch)

@@ -86,3 +86,15 @@ def test_tiny_lanes_demo_trains_both_models_and_scores_commanded_lane_changes(tm
     assert meta["type"] == "lanes" and meta["preprocess"]["lanes"]["color_mask"] == "white"
     assert meta["training"]["behaviors"] == ["Left_Lane", "Right_Lane"]
     assert "flip" in meta["training"]["augmentations"]["names"]  # mirrored with the behaviour
+
+
+def test_torch_threads_one_per_core_unless_the_machine_is_busy(monkeypatch):
+    from vehicle.app import demo
+
+    monkeypatch.setattr("os.cpu_count", lambda: 4)
+    monkeypatch.setattr("os.getloadavg", lambda: (0.5, 0.5, 0.5))
+    assert demo.torch_threads(None)[0] == 4
+    monkeypatch.setattr("os.getloadavg", lambda: (3.0, 1.0, 1.0))  # 3 of 4 cores taken
+    threads, why = demo.torch_threads(None)
+    assert threads == 1 and "load average 3.0 on 4 cores" in why
+    assert demo.torch_threads(2) == (2, "--threads")

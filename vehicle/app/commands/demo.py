@@ -52,7 +52,8 @@ def register(subparsers: Any) -> None:
     p.add_argument("--unseen-theme", default=DEFAULTS["unseen_theme"], metavar="THEME",
                    help="a theme the pilot is not trained on, evaluated as well")
     p.add_argument("--type", dest="model_type", default="linear", help="model type to train")
-    p.add_argument("--threads", type=int, default=None, help="torch threads (default: all cores)")
+    p.add_argument("--threads", type=int, default=None,
+                   help="torch threads (default: one per core, or 1 when the machine is already busy)")
     p.add_argument("--lanes", action="store_true",
                    help="the thesis's lane change on demand: record with lane changes on two-lane tracks, train the "
                         "two-stream lanes model and the single-stream behavior model, evaluate both with commanded "
@@ -65,12 +66,14 @@ def register(subparsers: Any) -> None:
 def _cmd_demo(args: argparse.Namespace) -> int:
     import torch
 
-    if args.threads is not None:
-        if args.threads < 1:
-            raise UserError(f"--threads must be >= 1, got {args.threads}")
-        torch.set_num_threads(args.threads)
-    from vehicle.app.demo import run_demo
+    from vehicle.app.demo import run_demo, torch_threads
     from vehicle.app.demo import say as _say
+
+    if args.threads is not None and args.threads < 1:
+        raise UserError(f"--threads must be >= 1, got {args.threads}")
+    threads, why = torch_threads(args.threads)
+    torch.set_num_threads(threads)
+    _say(f"torch threads: {threads} ({why})")
 
     if args.lanes:
         return _cmd_lanes(args)
@@ -85,7 +88,9 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     total = time.perf_counter() - started
     laps_needed = args.laps * len(args.eval_tracks)
     steps = ", ".join(f"{k} {v:.0f} s" for k, v in result["seconds"].items())
-    _say(f"\ndemo finished in {total:.0f} s ({steps}); torch threads: {torch.get_num_threads()}")
+    cpu = sum(result["cpu_seconds"].values())
+    _say(f"\ndemo finished in {total:.0f} s ({steps}; CPU time {cpu:.0f} s); torch threads: "
+         f"{torch.get_num_threads()}")
     for theme, pair in result["reports"].items():
         overall = pair["pilot"]["overall"]
         # a lap only counts as driven by the pilot when nobody had to put the car back on the road

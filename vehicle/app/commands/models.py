@@ -4,7 +4,8 @@
     vehicle models show NAME [--car DIR]
     vehicle models comment NAME "works on track 3"
     vehicle models rename NAME NEW_NAME
-    vehicle models export NAME|FILE --format onnx|torchscript [--out FILE]
+    vehicle models export NAME|FILE --format onnx|onnx-int8|torchscript [--out FILE]
+                          [--int8 static|dynamic] [--calibration TUB ...]
     vehicle models rm NAME [--delete-files]
     vehicle models leaderboard [--tracks 101,102,103] [--laps 2]
 
@@ -71,11 +72,17 @@ def register(subparsers: Any) -> None:
     p.add_argument("--laps", type=int, help="only evaluations of this many laps per track")
     p.set_defaults(func=_cmd_leaderboard)
 
-    p = sub.add_parser("export", parents=[car], help="export a model to ONNX or TorchScript")
+    p = sub.add_parser("export", parents=[car], help="export a model to ONNX, int8 ONNX or TorchScript")
     p.add_argument("name", help="model name or path of a .pt file")
-    p.add_argument("--format", choices=("onnx", "torchscript"), default="onnx")
+    p.add_argument("--format", choices=("onnx", "onnx-int8", "torchscript"), default="onnx")
     p.add_argument("--out", metavar="FILE", default=None,
-                   help="output file (default: next to the model, .onnx or .ts)")
+                   help="output file (default: next to the model, .onnx, .int8.onnx or .ts)")
+    p.add_argument("--int8", choices=("static", "dynamic"), default="static",
+                   help="onnx-int8: static (activation ranges from calibration frames; default) or dynamic")
+    p.add_argument("--calibration", nargs="+", metavar="TUB",
+                   help="onnx-int8 static: tubs to calibrate on (default: the tubs the model was trained on)")
+    p.add_argument("--calibration-frames", type=int, default=None, metavar="N",
+                   help="onnx-int8 static: frames to calibrate on (default 300)")
     p.set_defaults(func=_cmd_export)
 
     p = sub.add_parser("rm", parents=[car], help="remove a model from the registry")
@@ -228,7 +235,10 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
     source = _model_file(args)
     try:
-        out = export_model(source, args.format, args.out)
+        if args.calibration_frames is not None and args.calibration_frames < 1:
+            raise UserError(f"--calibration-frames must be >= 1, got {args.calibration_frames}")
+        out = export_model(source, args.format, args.out, int8=args.int8, calibration=args.calibration,
+                           calibration_frames=args.calibration_frames)
     except (ValueError, FileNotFoundError, ImportError) as exc:
         raise UserError(f"export of {source} failed: {exc}") from exc
     _out(f"wrote {out}")

@@ -39,6 +39,8 @@ def register(subparsers: Any) -> None:
     ev.add_argument("--laps", type=int, help="laps per track (default SIM_EVAL_LAPS)")
     ev.add_argument("--max-time", type=float, help="simulated seconds per track at most")
     ev.add_argument("--throttle", type=float, help="fixed throttle: use only the pilot's steering")
+    ev.add_argument("--workers", type=int, metavar="N",
+                    help="tracks evaluated in parallel processes (default SIM_EVAL_WORKERS: 0 = one per core)")
     ev.add_argument("--sim", choices=["builtin", "donkey", "udacity"], default="builtin",
                     help="simulator to evaluate in: ours, the Donkey simulator (SIM_HOST:SIM_PORT, or `vehicle sim "
                          "serve`; synchronous steps) or the Udacity simulator (real time, on the track it shows)")
@@ -196,6 +198,9 @@ def cmd_eval(args: argparse.Namespace) -> int:
     laps = args.laps if args.laps is not None else cfg.SIM_EVAL_LAPS
     if laps < 1:
         raise UserError(f"--laps {laps}: give at least 1 lap")
+    workers = args.workers if args.workers is not None else cfg.SIM_EVAL_WORKERS
+    if workers < 0:
+        raise UserError(f"--workers {workers}: give 1 or more processes, or 0 for one per core")
     if args.pilot != "expert" and not Path(args.pilot).exists():
         raise UserError(f"--pilot {args.pilot}: no such model file; pass 'expert' or a trained model "
                         "(e.g. models/mypilot.pt)")
@@ -212,7 +217,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     try:
         report = evaluate(args.pilot, seeds, laps, cfg=cfg, max_time=args.max_time,
                           fixed_throttle=args.throttle, sim=args.sim, scenes=scenes,
-                          lane_changes=args.lane_changes)
+                          lane_changes=args.lane_changes, workers=workers)
     except (ValueError, FileNotFoundError) as exc:
         raise UserError(str(exc)) from exc
     except PartError as exc:  # e.g. a model made for another image size: the loop stopped safely

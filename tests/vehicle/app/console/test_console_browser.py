@@ -325,7 +325,8 @@ def test_training_from_the_wizard_live_two_browsers_reload_cancel(page_factory, 
     a.fill("#model-name", "live_run")
     a.click("#start-training")  # TN6
     _heading(a, "Training result")
-    points = "document.querySelector('#loss-chart')._uplot.data[0].length"
+    # 0 until the page has drawn the chart (after a reload the page renders once its job arrives)
+    points = "(document.querySelector('#loss-chart')?._uplot?.data[0].length ?? 0)"
     a.wait_for_function(f"{points} >= 2", timeout=120000)
     expect(a.locator("#run-status")).to_contain_text("running")  # points arrive while it runs
     expect(a.locator("#stat-sps")).not_to_have_text("–")

@@ -1,0 +1,85 @@
+"""Parallel evaluation: worker processes give the serial report, track for track."""
+
+from __future__ import annotations
+
+import logging
+import os
+import re
+
+import numpy as np
+import pytest
+
+from vehicle.app.cli import main
+from vehicle.app.evaluate import evaluate
+
+
+def _same(a: dict, b: dict) -> None:
+    a, b = dict(a), dict(b)
+    a.pop("wall_time_s"), b.pop("wall_time_s")
+    assert a == b
+
+
+def test_expert_on_four_tracks_in_two_workers_equals_serial(cfg):
+    kwargs = {"laps": 1, "cfg": cfg, "max_time": 12.0}
+    serial = evaluate("expert", [11, 12, 13, 14], **kwargs)
+    parallel = evaluate("expert", [11, 12, 13, 14], workers=2, **kwargs)
+    assert [t["seed"] for t in parallel["tracks"]] == [11, 12, 13, 14]
+    assert parallel["tracks"][0]["frames"] == 240  # 12 s at 20 Hz: the episodes really ran
+    _same(serial, parallel)
+
+
+def test_model_file_pilot_in_workers_equals_serial(cfg, make_model_file, caplog):
+    pytest.importorskip("onnxruntime")
+    from parts.pilots.export import export_model
+
+    path = make_model_file("linear", seed=4)
+    export_model(path, "onnx")  # ONNX Runtime at 1 thread in both runs: the same arithmetic
+    kwargs = {"laps": 1, "cfg": cfg, "max_time": 6.0}
+    serial = evaluate(path, [21, 22, 23], **kwargs)
+    with caplog.at_level(logging.INFO, logger="vehicle.app.evaluate"):
+        parallel = evaluate(path, [21, 22, 23], workers=0, **kwargs)  # 0: one per core
+    if (os.cpu_count() or 1) > 1:
+        assert re.search(r"evaluating 3 tracks in [23] worker processes", caplog.text)
+    assert len(serial["tracks"][0]["trajectory"]) > 10
+    _same(serial, parallel)
+
+
+def test_commanded_lane_changes_in_workers_equal_serial(cfg):
+    lanes = cfg.replace(SIM_LANES=2, TRAIN_BEHAVIORS=True, SIM_EXPERT_SPEED=1.5, SIM_EVAL_LANE_CHANGE_EVERY=(7.0, 8.0))
+    serial = evaluate("expert", [101, 102], laps=1, cfg=lanes, max_time=12.0)
+    parallel = evaluate("expert", [101, 102], laps=1, cfg=lanes, max_time=12.0, workers=2)
+    assert parallel["tracks"][0]["lanes"]["lane_changes"] >= 1  # commanded in the workers
+    _same(serial, parallel)
+
+
+def test_hand_made_tracks_travel_to_the_workers(cfg):
+    from parts.sim.simulator import register_track
+    from parts.sim.track import track_from_points
+
+    theta = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    register_track(track_from_points(np.c_[2.5 * np.cos(theta), 1.8 * np.sin(theta)], seed=9191, width=0.8))
+    serial = evaluate("expert", [9191, 11], laps=1, cfg=cfg, max_time=5.0)
+    parallel = evaluate("expert", [9191, 11], laps=1, cfg=cfg, max_time=5.0, workers=2)
+    _same(serial, parallel)
+
+
+def test_objects_and_callbacks_run_serially(cfg, caplog):
+    class Straight:
+        def run(self, image):
+            return 0.0, 0.3
+
+    with caplog.at_level(logging.INFO, logger="vehicle.app.evaluate"):
+        r = evaluate(Straight(), [11, 12], laps=1, cfg=cfg, max_time=1.0, workers=2)
+    assert len(r["tracks"]) == 2 and "one after another" in caplog.text
+    with pytest.raises(ValueError, match="workers must be an int >= 0"):
+        evaluate("expert", [11], cfg=cfg, workers=-1)
+
+
+def test_cli_workers_option(tmp_path, capsys):
+    (tmp_path / "myconfig.py").write_text("SIM_TEXTURE_RES = 0.02\n")
+    assert main(["sim", "eval", "--pilot", "expert", "--tracks", "11,12", "--laps", "1", "--max-time", "3",
+                 "--workers", "2", "--car", str(tmp_path)]) == 0
+    assert "11" in capsys.readouterr().out
+    assert main(["sim", "eval", "--pilot", "expert", "--tracks", "11", "--workers", "-2",
+                 "--car", str(tmp_path)]) == 2
+    assert "--workers -2" in capsys.readouterr().err
