@@ -192,12 +192,16 @@ class JobQueue:
 
     # -- lifecycle --------------------------------------------------------------------------------
     async def start(self) -> None:
-        """Mark jobs left running by a previous console as interrupted and start the runner."""
+        """Load the jobs, settle those left running by a previous console and start the runner.
+
+        A job left running is marked interrupted, unless its worker still holds the car's worker
+        lock (the previous console was killed and the worker is stopping after its current step):
+        then the queue waits for it, and shows what the worker itself wrote at its end.
+        """
         self.jobs_dir.mkdir(parents=True, exist_ok=True)
+        if not self._worker_busy():
+            self._mark_interrupted()
         with contextlib.closing(self._db()) as conn, conn:
-            conn.execute("UPDATE console_jobs SET status = 'interrupted', finished = ?, "
-                         "message = 'the console stopped while this job ran' WHERE status IN ('running', "
-                         "'cancelling')", (_now(),))
             rows = conn.execute(f"SELECT {self._COLUMNS} FROM console_jobs ORDER BY id DESC LIMIT ?",
                                 (LIST_LIMIT,)).fetchall()
         for row in reversed(rows):
@@ -205,6 +209,46 @@ class JobQueue:
             self._jobs[job.id] = job
         self._runner = asyncio.create_task(self._run_queue(), name="console-jobs")
         self._wake.set()
+
+    def _mark_interrupted(self) -> None:
+        with contextlib.closing(self._db()) as conn, conn:
+            conn.execute("UPDATE console_jobs SET status = 'interrupted', finished = ?, "
+                         "message = 'the console stopped while this job ran' WHERE status IN ('running', "
+                         "'cancelling')", (_now(),))
+
+    def _worker_busy(self) -> bool:
+        """Whether a worker process (of this console or another) holds the car's worker lock."""
+        import fcntl
+
+        from vehicle.app.console.worker import LOCK_NAME
+
+        self.jobs_dir.mkdir(parents=True, exist_ok=True)
+        fd = os.open(self.jobs_dir / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return True
+        finally:
+            os.close(fd)  # closing releases a lock taken here
+        return False
+
+    async def _settle_orphans(self) -> None:
+        """Wait for a worker left by a previous console, then load the end it wrote for its job."""
+        orphans = [j for j in self._jobs.values() if j.status in ("running", "cancelling")]
+        if not orphans:
+            return
+        while await asyncio.to_thread(self._worker_busy):
+            await asyncio.sleep(0.5)
+        self._mark_interrupted()
+        with contextlib.closing(self._db()) as conn, conn:
+            for old in orphans:
+                row = conn.execute(f"SELECT {self._COLUMNS} FROM console_jobs WHERE id = ?", (old.id,)).fetchone()
+                if row is None:
+                    continue
+                job = Job(row)
+                self._jobs[job.id] = job
+                self._publish(job, {"event": "status", "status": job.status, "message": job.message,
+                                    "finished": job.finished}, store=False)
 
     async def close(self) -> None:
         """Stop the runner; a running job is cancelled cleanly (its best model is kept)."""
@@ -336,6 +380,7 @@ class JobQueue:
             asyncio.get_running_loop().call_later(10.0, kill)
 
     async def _run_queue(self) -> None:
+        await self._settle_orphans()
         while not self._closing:
             await self._wake.wait()
             self._wake.clear()
@@ -355,7 +400,7 @@ class JobQueue:
         self.jobs_dir.mkdir(parents=True, exist_ok=True)
         job_file = self.jobs_dir / f"{job.id}.job.json"
         job_file.write_text(json.dumps({"id": job.id, "kind": job.kind, "car": str(self.car_path),
-                                        "myconfig": self.myconfig, "params": job.params}))
+                                        "db": str(self.db_path), "myconfig": self.myconfig, "params": job.params}))
         self._events_file(job.id).unlink(missing_ok=True)
         env = dict(os.environ)
         env.setdefault("PYTHONUNBUFFERED", "1")
