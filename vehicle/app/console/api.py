@@ -273,6 +273,8 @@ class Api:
         else:
             for did in ids:
                 try:
+                    if isinstance(did, bool) or not isinstance(did, int | str):
+                        raise TypeError(did)  # JSON true or 1.7 is not dataset 1
                     entry = self.store.get(int(did))
                 except (DatasetError, TypeError, ValueError):
                     errors["datasets"] = f"dataset {did!r} does not exist (any more); reload the page"

@@ -160,3 +160,12 @@ def test_a_model_in_use_by_a_job_is_neither_deleted_nor_renamed(console, registe
     _wait(port, first["id"], lambda s: s["status"] not in ("running", "cancelling"))
     assert request(port, "/api/models/busy", "DELETE")[0] == 200
     assert request(port, "/api/models/base", "PATCH", {"name": "base2"})[0] == 200
+
+
+def test_dataset_ids_of_a_training_are_whole_numbers(console):
+    ids = [d["id"] for d in json.loads(request(console.port, "/api/datasets")[2])]
+    assert 1 in ids
+    for bad in (True, 1.7, "1.0", None, [1]):  # JSON true or 1.7 is not dataset 1
+        status, _, body = request(console.port, "/api/jobs/train", "POST", {"datasets": [bad], "name": "m"})
+        assert status == 400 and "does not exist" in json.loads(body)["errors"]["datasets"], bad
+    assert console.jobs.list() == []
