@@ -38,6 +38,8 @@ LOG_LINES = 2000
 LISTENER_QUEUE = 2000
 #: jobs listed
 LIST_LIMIT = 100
+#: running-loss points kept per training for the live chart (thinned to half when full)
+BATCH_POINTS = 1000
 #: seconds between two batch events written to the job's file (the page gets every one)
 FILE_PROGRESS_INTERVAL_S = 2.0
 
@@ -77,6 +79,8 @@ class Job:
         self.info: dict[str, Any] = {}
         self.progress: dict[str, Any] | None = None
         self.epochs: list[dict[str, Any]] = []
+        #: [fractional epoch, running loss] of the batch events: the chart moves within an epoch
+        self.batches: list[list[float]] = []
         self.log: deque[dict[str, Any]] = deque(maxlen=LOG_LINES)
         self.eta_s: float | None = None
         self.loaded = False  # events read from the file (or seen live)
@@ -91,7 +95,7 @@ class Job:
     def snapshot(self) -> dict[str, Any]:
         """Everything a run page needs, with the sequence number of the last event applied."""
         return {**self.summary(), "params": self.params, "seq": self.seq, "info": self.info,
-                "epochs": self.epochs, "log": list(self.log)}
+                "epochs": self.epochs, "batches": self.batches, "log": list(self.log)}
 
     def apply(self, event: dict[str, Any]) -> None:
         """Update the state with one worker event."""
@@ -104,6 +108,7 @@ class Job:
             self.progress = {k: v for k, v in event.items()}
             if kind == "batch":
                 self.eta_s = self._eta(event)
+                self._add_batch_point(event)
         elif kind == "epoch":
             self.epochs.append({k: v for k, v in event.items() if k != "event"})
         elif kind in ("log", "stderr"):
@@ -117,6 +122,18 @@ class Job:
             self.finished = event.get("finished", self.finished)
             if self.status in FINAL:
                 self.eta_s = None
+
+    def _add_batch_point(self, b: dict[str, Any]) -> None:
+        try:
+            x = b["epoch"] - 1 + b["batch"] / b["batches"]
+            loss = float(b["loss"])
+        except (KeyError, TypeError, ValueError, ZeroDivisionError):
+            return
+        if self.batches and x <= self.batches[-1][0]:
+            return  # the file holds some of the events seen live: never twice, always in order
+        self.batches.append([x, loss])
+        if len(self.batches) > BATCH_POINTS:
+            self.batches = self.batches[::2]
 
     def _eta(self, b: dict[str, Any]) -> float | None:
         """Seconds left at most (early stopping may end sooner), from the pace so far."""
