@@ -11,8 +11,9 @@ while ``user/speed_limit`` is set; its two inputs (speed key, ``user/speed_limit
 appended to ``inputs``.
 
 Hot switch: :meth:`Pilot.request_model` loads another file in a background thread and swaps it in
-with one reference assignment; the loop never waits for a load, and a file that fails to load
-leaves the current model driving. :class:`ModelSwitch` is the loop part that watches
+with one reference assignment; the loop never waits for a load, and a file that fails to load, or
+does not fit the car (:mod:`parts.pilots.compat`: behaviour order, undistortion), leaves the
+current model driving. :class:`ModelSwitch` is the loop part that watches
 ``pilot/model_request`` and outputs ``pilot/model``.
 """
 
@@ -29,6 +30,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from parts.pilots.backends import Backend, Runner, open_runner
+from parts.pilots.compat import CarInputs, check_model
 
 logger = logging.getLogger(__name__)
 
@@ -78,17 +80,29 @@ class Pilot:
         speed_key: memory key of the measured speed (m/s) fed to ``speed_control``.
         onnx_threads: ONNX Runtime intra-op threads (1: the loop has other parts to run).
         models_dir: folder where relative paths of :meth:`request_model` are looked up too.
+        car: what the car feeds the model (BEHAVIOR_LIST, CAMERA_UNDISTORT); every model, the
+            first and each hot switch, is checked against it (None: not checked).
+
+    Raises:
+        parts.pilots.compat.ModelMismatch: the model does not fit ``car``.
     """
 
     def __init__(self, model: str | Path, *, backend: Backend | str = "auto", speed_control: Any = None,
                  speed_key: str = "sim/speed", onnx_threads: int = 1,
-                 models_dir: str | Path | None = None) -> None:
+                 models_dir: str | Path | None = None, car: CarInputs | None = None) -> None:
         self.backend = backend
+        self.car = car
         self.onnx_threads = onnx_threads
         self.speed_control = speed_control
         self.speed_key = speed_key
         self.models_dir = Path(models_dir) if models_dir is not None else None
-        self._active = _Active(open_runner(model, backend, onnx_threads))
+        runner = open_runner(model, backend, onnx_threads)
+        try:
+            self._check(runner)
+        except Exception:
+            runner.close()
+            raise
+        self._active = _Active(runner)
         self._log = _RateLimitedLog()
         self._load_lock = threading.Lock()
         self._loader: threading.Thread | None = None
@@ -209,6 +223,11 @@ class Pilot:
                              "(e.g. a different number of behaviours: check BEHAVIOR_LIST)")
         return np.ascontiguousarray(extra[None], dtype=np.float32)
 
+    def _check(self, runner: Runner) -> None:
+        """Raise ModelMismatch when ``runner``'s model does not fit the car."""
+        if self.car is not None:
+            check_model(runner.name, runner.meta, runner.extra_inputs, runner.extra_size, self.car)
+
     # -- hot switch -----------------------------------------------------------------------------
     def resolve(self, path: str | Path) -> Path:
         """``path`` as given if it exists, else inside ``models_dir`` (as given, then its file name)."""
@@ -246,6 +265,13 @@ class Pilot:
                                f"pilot was wired with {[IMAGE_KEY, *old.runner.extra_inputs]}; restart "
                                "the car with this model instead")
             logger.error("pilot: cannot switch to %s, keeping %s: %s", path, old.runner.name, self.load_error)
+            runner.close()
+            return
+        try:
+            self._check(runner)
+        except ValueError as exc:
+            self.load_error = f"{path}: {exc}"
+            logger.error("pilot: cannot switch to %s, keeping %s: %s", path, old.runner.name, exc)
             runner.close()
             return
         self._active = _Active(runner)  # the swap: one reference assignment, atomic for the loop
