@@ -159,7 +159,8 @@ MAX_EPOCHS: int = 100
 USE_EARLY_STOP: bool = True
 # Epochs without an improvement of the validation loss before training stops.
 EARLY_STOP_PATIENCE: int = 5
-# Smallest decrease of the validation loss that counts as an improvement.
+# Smallest decrease of the validation loss that resets early stopping's patience (the model kept is
+# the lowest loss, whatever the decrease).
 MIN_DELTA: float = 0.0005
 # Adam learning rate.
 LEARNING_RATE: float = 0.001

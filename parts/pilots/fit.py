@@ -59,6 +59,29 @@ class FitSettings:
 
 
 @dataclass
+class Patience:
+    """Keras' two rules, as DonkeyCar's training uses them: the best model is the one with the lowest
+    loss so far (any drop counts), while early stopping waits for a drop of more than ``min_delta``
+    below the loss it last reset on; ``waited`` counts epochs since that reset."""
+
+    min_delta: float
+    best: float = math.inf  # lowest loss so far: the model kept
+    reference: float = math.inf  # loss of the last drop by more than min_delta
+    waited: int = 0
+
+    def update(self, loss: float) -> bool:
+        """Record one epoch's loss; True when it is the best so far (the model to keep)."""
+        if loss < self.reference - self.min_delta:
+            self.reference, self.waited = loss, 0
+        else:
+            self.waited += 1
+        if loss < self.best:
+            self.best = loss
+            return True
+        return False
+
+
+@dataclass
 class History:
     """Per-epoch figures; ``best_epoch`` is 1-based (0 = none yet)."""
 
@@ -151,8 +174,9 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
 
     Each epoch trains on ``train_loader`` (its first ``steps_per_epoch`` batches when set) then
     measures ``val_loader`` (the training loss stands in when there is no validation data).
-    ``on_best(epoch, history)`` runs on every process whenever the monitored loss improves by more
-    than ``min_delta``; training stops after ``patience`` epochs without improvement.
+    ``on_best(epoch, history)`` runs on every process whenever the monitored loss is the lowest so
+    far; training stops after ``patience`` epochs without a drop of more than ``min_delta``
+    (:class:`Patience`).
 
     ``on_event`` (main process) gets ``{"event": "batch", "epoch", "epochs", "batch", "batches",
     "loss", "samples", "samples_per_s"}`` after every step (on a GPU every ``SYNC_STEPS`` steps:
@@ -182,7 +206,7 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
     n_batches = len(train_loader)
     if settings.steps_per_epoch is not None:
         n_batches = min(n_batches, settings.steps_per_epoch)
-    waited = 0
+    patience = Patience(settings.min_delta)
     for epoch in range(1, settings.epochs + 1):
         _set_epoch(train_loader, epoch)
         model.train()
@@ -271,13 +295,13 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
         history.samples.append(int(count))
         history.data_seconds.append(data_wait)
         monitored = val_loss if math.isfinite(val_loss) else train_loss
-        improved = monitored < history.best_loss - settings.min_delta
+        improved = patience.update(monitored)
         if info.is_main:
             logger.info("epoch %d/%d: loss %.5f, val_loss %.5f, %.0f samples/s, %.0f %% waiting for data%s",
                         epoch, settings.epochs, train_loss, val_loss, history.samples_per_s[-1],
                         100.0 * data_wait / seconds if seconds > 0 else 0.0, " (best)" if improved else "")
         if improved:
-            history.best_loss, history.best_epoch, waited = monitored, epoch, 0
+            history.best_loss, history.best_epoch = monitored, epoch
             if on_best is not None:
                 on_best(epoch, history)
         if emit is not None:
@@ -291,12 +315,10 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
                 logger.info("training cancelled after epoch %d/%d; the best model so far is kept (epoch %d)",
                             epoch, settings.epochs, history.best_epoch)
             break
-        if not improved:
-            waited += 1
-            if settings.patience is not None and waited >= settings.patience:
-                history.stopped_early = True
-                if info.is_main:
-                    logger.info("early stop: no improvement of val_loss by %g for %d epochs",
-                                settings.min_delta, waited)
-                break
+        if settings.patience is not None and patience.waited >= settings.patience:
+            history.stopped_early = True
+            if info.is_main:
+                logger.info("early stop: no improvement of val_loss by more than %g for %d epochs",
+                            settings.min_delta, patience.waited)
+            break
     return history

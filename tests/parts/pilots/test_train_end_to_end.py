@@ -59,7 +59,22 @@ def test_early_stopping_stops_after_patience(tiny_tub, tmp_path, torch_one_threa
     # min_delta larger than any loss: only the first epoch counts as an improvement
     cfg = Config.defaults(**{**FAST, "MAX_EPOCHS": 10, "EARLY_STOP_PATIENCE": 2, "MIN_DELTA": 100.0})
     metrics = train(cfg, [tiny_tub], tmp_path / "m.pt", register=False)
-    assert metrics["epochs"] == 3 and metrics["stopped_early"] and metrics["best_epoch"] == 1
+    assert metrics["epochs"] == 3 and metrics["stopped_early"]
+    # the model kept is the lowest validation loss, even where it fell by less than MIN_DELTA
+    losses = metrics["val_loss"]
+    assert metrics["best_epoch"] == 1 + losses.index(min(losses))
+
+
+def test_the_best_model_is_the_lowest_loss_while_patience_needs_min_delta():
+    from parts.pilots.fit import Patience
+
+    # the demo's validation losses (MIN_DELTA 0.0005): epoch 6 is the best model although it beat
+    # epoch 2 by less than MIN_DELTA; patience ran out after epoch 7 (5 epochs without a real drop)
+    watch = Patience(0.0005)
+    kept = [watch.update(v) for v in (0.00705, 0.00196, 0.00273, 0.00198, 0.00193, 0.00169, 0.00181)]
+    assert kept == [True, True, False, False, True, True, False]
+    assert watch.best == 0.00169 and watch.waited == 5
+    assert watch.update(0.0011) and watch.waited == 0  # a real drop resets the wait
 
 
 def test_transfer_continues_from_an_earlier_model(tiny_tub, tmp_path, torch_one_thread):

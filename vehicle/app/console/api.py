@@ -273,6 +273,8 @@ class Api:
         else:
             for did in ids:
                 try:
+                    if isinstance(did, bool) or not isinstance(did, int | str):
+                        raise TypeError(did)  # JSON true or 1.7 is not dataset 1
                     entry = self.store.get(int(did))
                 except (DatasetError, TypeError, ValueError):
                     errors["datasets"] = f"dataset {did!r} does not exist (any more); reload the page"
@@ -410,12 +412,29 @@ class Api:
 
         return json_response(finite(await self._run(work)))
 
+    def _refuse_if_in_use(self, name: str, what: str) -> None:
+        """ApiError 409 when a queued or running job evaluates the model ``name`` or trains from it:
+        deleting or renaming it under the job would make the job fail and lose its result."""
+        for summary in self.app.jobs.list():
+            if summary["status"] not in ("queued", "running", "cancelling"):
+                continue
+            job = self.app.jobs.get(summary["id"])
+            if job is None:
+                continue
+            if job.kind == "evaluate" and job.params.get("model") == name:
+                use = "evaluates it"
+            elif job.kind == "train" and job.params.get("transfer_name") == name:
+                use = "trains from it"
+            else:
+                continue
+            raise ApiError(409, f"cannot {what} {name}: job {job.id} ({job.status}) {use}; wait for it to "
+                                "finish or cancel it")
+
     async def edit_model(self, request: Any) -> Any:
         body = await read_json(request)
         name = request.match_info["name"]
-        if any(j["status"] in ("queued", "running") and j["kind"] == "evaluate" and
-               (self.app.jobs.get(j["id"]).params.get("model") == name) for j in self.app.jobs.list()):
-            raise ApiError(409, f"{name} is being evaluated; wait for the evaluation to finish")
+        if body.get("name") is not None and str(body["name"]).strip() != name:
+            self._refuse_if_in_use(name, "rename")
 
         def work() -> Any:
             entry = self.registry.get(name)
@@ -440,6 +459,7 @@ class Api:
 
     async def delete_model(self, request: Any) -> Any:
         files = request.query.get("files", "1") not in ("0", "false", "no")
+        self._refuse_if_in_use(request.match_info["name"], "delete")
         deleted = await self._run(self.registry.remove, request.match_info["name"], files)
         return json_response({"ok": True, "deleted": [str(p) for p in deleted]})
 

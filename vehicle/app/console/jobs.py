@@ -38,6 +38,8 @@ LOG_LINES = 2000
 LISTENER_QUEUE = 2000
 #: jobs listed
 LIST_LIMIT = 100
+#: running-loss points kept per training for the live chart (thinned to half when full)
+BATCH_POINTS = 1000
 #: seconds between two batch events written to the job's file (the page gets every one)
 FILE_PROGRESS_INTERVAL_S = 2.0
 
@@ -77,6 +79,8 @@ class Job:
         self.info: dict[str, Any] = {}
         self.progress: dict[str, Any] | None = None
         self.epochs: list[dict[str, Any]] = []
+        #: [fractional epoch, running loss] of the batch events: the chart moves within an epoch
+        self.batches: list[list[float]] = []
         self.log: deque[dict[str, Any]] = deque(maxlen=LOG_LINES)
         self.eta_s: float | None = None
         self.loaded = False  # events read from the file (or seen live)
@@ -91,7 +95,7 @@ class Job:
     def snapshot(self) -> dict[str, Any]:
         """Everything a run page needs, with the sequence number of the last event applied."""
         return {**self.summary(), "params": self.params, "seq": self.seq, "info": self.info,
-                "epochs": self.epochs, "log": list(self.log)}
+                "epochs": self.epochs, "batches": self.batches, "log": list(self.log)}
 
     def apply(self, event: dict[str, Any]) -> None:
         """Update the state with one worker event."""
@@ -104,6 +108,7 @@ class Job:
             self.progress = {k: v for k, v in event.items()}
             if kind == "batch":
                 self.eta_s = self._eta(event)
+                self._add_batch_point(event)
         elif kind == "epoch":
             self.epochs.append({k: v for k, v in event.items() if k != "event"})
         elif kind in ("log", "stderr"):
@@ -117,6 +122,18 @@ class Job:
             self.finished = event.get("finished", self.finished)
             if self.status in FINAL:
                 self.eta_s = None
+
+    def _add_batch_point(self, b: dict[str, Any]) -> None:
+        try:
+            x = b["epoch"] - 1 + b["batch"] / b["batches"]
+            loss = float(b["loss"])
+        except (KeyError, TypeError, ValueError, ZeroDivisionError):
+            return
+        if self.batches and x <= self.batches[-1][0]:
+            return  # the file holds some of the events seen live: never twice, always in order
+        self.batches.append([x, loss])
+        if len(self.batches) > BATCH_POINTS:
+            self.batches = self.batches[::2]
 
     def _eta(self, b: dict[str, Any]) -> float | None:
         """Seconds left at most (early stopping may end sooner), from the pace so far."""
@@ -192,12 +209,16 @@ class JobQueue:
 
     # -- lifecycle --------------------------------------------------------------------------------
     async def start(self) -> None:
-        """Mark jobs left running by a previous console as interrupted and start the runner."""
+        """Load the jobs, settle those left running by a previous console and start the runner.
+
+        A job left running is marked interrupted, unless its worker still holds the car's worker
+        lock (the previous console was killed and the worker is stopping after its current step):
+        then the queue waits for it, and shows what the worker itself wrote at its end.
+        """
         self.jobs_dir.mkdir(parents=True, exist_ok=True)
+        if not self._worker_busy():
+            self._mark_interrupted()
         with contextlib.closing(self._db()) as conn, conn:
-            conn.execute("UPDATE console_jobs SET status = 'interrupted', finished = ?, "
-                         "message = 'the console stopped while this job ran' WHERE status IN ('running', "
-                         "'cancelling')", (_now(),))
             rows = conn.execute(f"SELECT {self._COLUMNS} FROM console_jobs ORDER BY id DESC LIMIT ?",
                                 (LIST_LIMIT,)).fetchall()
         for row in reversed(rows):
@@ -205,6 +226,46 @@ class JobQueue:
             self._jobs[job.id] = job
         self._runner = asyncio.create_task(self._run_queue(), name="console-jobs")
         self._wake.set()
+
+    def _mark_interrupted(self) -> None:
+        with contextlib.closing(self._db()) as conn, conn:
+            conn.execute("UPDATE console_jobs SET status = 'interrupted', finished = ?, "
+                         "message = 'the console stopped while this job ran' WHERE status IN ('running', "
+                         "'cancelling')", (_now(),))
+
+    def _worker_busy(self) -> bool:
+        """Whether a worker process (of this console or another) holds the car's worker lock."""
+        import fcntl
+
+        from vehicle.app.console.worker import LOCK_NAME
+
+        self.jobs_dir.mkdir(parents=True, exist_ok=True)
+        fd = os.open(self.jobs_dir / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return True
+        finally:
+            os.close(fd)  # closing releases a lock taken here
+        return False
+
+    async def _settle_orphans(self) -> None:
+        """Wait for a worker left by a previous console, then load the end it wrote for its job."""
+        orphans = [j for j in self._jobs.values() if j.status in ("running", "cancelling")]
+        if not orphans:
+            return
+        while await asyncio.to_thread(self._worker_busy):
+            await asyncio.sleep(0.5)
+        self._mark_interrupted()
+        with contextlib.closing(self._db()) as conn, conn:
+            for old in orphans:
+                row = conn.execute(f"SELECT {self._COLUMNS} FROM console_jobs WHERE id = ?", (old.id,)).fetchone()
+                if row is None:
+                    continue
+                job = Job(row)
+                self._jobs[job.id] = job
+                self._publish(job, {"event": "status", "status": job.status, "message": job.message,
+                                    "finished": job.finished}, store=False)
 
     async def close(self) -> None:
         """Stop the runner; a running job is cancelled cleanly (its best model is kept)."""
@@ -336,6 +397,7 @@ class JobQueue:
             asyncio.get_running_loop().call_later(10.0, kill)
 
     async def _run_queue(self) -> None:
+        await self._settle_orphans()
         while not self._closing:
             await self._wake.wait()
             self._wake.clear()
@@ -355,7 +417,7 @@ class JobQueue:
         self.jobs_dir.mkdir(parents=True, exist_ok=True)
         job_file = self.jobs_dir / f"{job.id}.job.json"
         job_file.write_text(json.dumps({"id": job.id, "kind": job.kind, "car": str(self.car_path),
-                                        "myconfig": self.myconfig, "params": job.params}))
+                                        "db": str(self.db_path), "myconfig": self.myconfig, "params": job.params}))
         self._events_file(job.id).unlink(missing_ok=True)
         env = dict(os.environ)
         env.setdefault("PYTHONUNBUFFERED", "1")

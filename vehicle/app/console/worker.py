@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import _thread
 import argparse
+import contextlib
 import inspect
 import json
 import logging
@@ -22,6 +23,7 @@ import os
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -29,6 +31,8 @@ from vehicle.app.console.jsonsafe import finite
 
 logger = logging.getLogger(__name__)
 
+#: the lock file, next to the job files, that one job of a car holds while it runs
+LOCK_NAME = "worker.lock"
 #: seconds between two batch/progress events (the page needs a few per second, not thousands)
 PROGRESS_INTERVAL_S = 0.25
 
@@ -40,17 +44,40 @@ class Cancelled(Exception):
 class Events:
     """Writes events as JSON lines to the real standard output (thread-safe)."""
 
-    def __init__(self, out: TextIO) -> None:
+    def __init__(self, out: TextIO, on_gone: Callable[[], None] | None = None) -> None:
         self.out = out
+        self.on_gone = on_gone
+        self.gone = False
         self._lock = threading.Lock()
         self._last_progress = 0.0
 
     def emit(self, event: dict[str, Any]) -> None:
-        """Write one event (NaN and infinities become null)."""
+        """Write one event (NaN and infinities become null). When the console has gone away (its
+        end of the pipe closed, e.g. killed), events are dropped and ``on_gone`` asks the job to stop
+        cleanly: a write error must never end a training between two files."""
         line = json.dumps(finite(event), default=str)
         with self._lock:
-            self.out.write(line + "\n")
-            self.out.flush()
+            if self.gone:
+                return
+            try:
+                self.out.write(line + "\n")
+                self.out.flush()
+            except OSError:  # BrokenPipeError: nobody reads the events any more
+                self._went_away()
+                return
+        if self.gone and self.on_gone is not None:
+            self.on_gone()
+
+    def _went_away(self) -> None:
+        self.gone = True
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        # whatever still prints (libraries, the interpreter at exit) goes nowhere instead of failing
+        for fd in (1, 2):
+            with contextlib.suppress(OSError):
+                os.dup2(devnull, fd)
+        with contextlib.suppress(OSError):
+            os.dup2(devnull, self.out.fileno())
+        os.close(devnull)
 
     def progress(self, event: dict[str, Any], force: bool = False) -> None:
         """Write a progress event at most every PROGRESS_INTERVAL_S (``force``: now)."""
@@ -188,6 +215,79 @@ def run_evaluate(job: dict[str, Any], events: Events, watcher: StopWatcher) -> d
             "per_track": stored.per_track}
 
 
+def _hold_lock(lock_path: Path, events: Events, watcher: StopWatcher) -> int:
+    """Take the car's worker lock (one job at a time per car, even with two consoles or a worker
+    left finishing by a console that was killed); waits, cancellable, while another job holds it.
+    Returns the descriptor, which holds the lock until the process ends."""
+    import fcntl
+
+    fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
+    waiting = False
+    while True:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return fd
+        except BlockingIOError:
+            if not waiting:
+                waiting = True
+                events.emit({"event": "phase", "phase": "waiting"})
+                logger.info("another job of this car is still running (another console, or one stopping): "
+                            "waiting for it to finish")
+            if watcher.stop.is_set():
+                os.close(fd)
+                raise Cancelled() from None
+            time.sleep(0.5)
+
+
+def _execute(job: dict[str, Any], job_file: Path, events: Events, watcher: StopWatcher) -> tuple[int, list[dict]]:
+    """Run the job; returns the exit code and the final events (the result, then the end)."""
+    runner = {"train": run_train, "evaluate": run_evaluate}.get(job["kind"])
+    if runner is None:
+        return 2, [{"event": "end", "status": "failed", "message": f"unknown job kind {job['kind']!r}"}]
+    try:
+        _hold_lock(job_file.parent / LOCK_NAME, events, watcher)
+        result = runner(job, events, watcher)
+    except (Cancelled, KeyboardInterrupt):
+        return 0, [{"event": "end", "status": "cancelled", "message": "cancelled before a result was saved"}]
+    except Exception as exc:  # noqa: BLE001 - every failure becomes a message on the page
+        from vehicle.errors import VehicleError
+
+        if watcher.stop.is_set() and "cancelled" in str(exc):
+            return 0, [{"event": "end", "status": "cancelled", "message": str(exc)}]
+        if not isinstance(exc, ValueError | VehicleError | OSError):
+            logger.exception("the job failed")
+        return 1, [{"event": "end", "status": "failed", "message": f"{type(exc).__name__}: {exc}"
+                    if not isinstance(exc, ValueError | VehicleError) else str(exc)}]
+    cancelled = bool(result.get("metrics", {}).get("cancelled"))
+    return 0, [result, {"event": "end", "status": "cancelled" if cancelled else "done",
+                        "message": "cancelled; the best model so far was kept" if cancelled else "finished"}]
+
+
+def _record_orphan_end(job: dict[str, Any], job_file: Path, final: list[dict[str, Any]]) -> None:
+    """The console went away while this job ran: write its end into the job's row and events file
+    (what the console does otherwise), so a restarted console shows what became of it."""
+    import sqlite3
+    from datetime import UTC, datetime
+
+    db = job.get("db")
+    if not db or "id" not in job:
+        return
+    end = dict(final[-1])
+    result = next((e for e in final if e.get("event") == "result"), None)
+    message = f"the console stopped while this job ran; {end.get('message')}"
+    finished = datetime.now(UTC).isoformat(timespec="seconds")
+    status = {"event": "status", "status": end["status"], "message": message, "finished": finished}
+    with contextlib.suppress(OSError), (job_file.parent / f"{job['id']}.jsonl").open("a", encoding="utf-8") as f:
+        for event in ([result] if result else []) + [status]:
+            f.write(json.dumps(finite(event), default=str) + "\n")
+    with contextlib.suppress(sqlite3.Error), contextlib.closing(sqlite3.connect(db, timeout=10.0)) as conn, conn:
+        conn.execute("UPDATE console_jobs SET status = ?, finished = ?, message = ?, result = COALESCE(?, result) "
+                     "WHERE id = ? AND status IN ('running', 'cancelling', 'interrupted')",
+                     (end["status"], finished, message,
+                      json.dumps(finite({k: v for k, v in result.items() if k != "event"}), default=str)
+                      if result else None, int(job["id"])))
+
+
 def _run(job_file: Path) -> int:
     job = json.loads(job_file.read_text())
     events = Events(os.fdopen(os.dup(1), "w", buffering=1, encoding="utf-8"))
@@ -195,33 +295,17 @@ def _run(job_file: Path) -> int:
     sys.stdout = sys.stderr
     logging.basicConfig(level=logging.INFO, handlers=[EventLogHandler(events)], force=True)
     watcher = StopWatcher(sys.stdin)
+    events.on_gone = watcher.request
     watcher.install_signals()
     events.emit({"event": "started", "pid": os.getpid(), "kind": job["kind"]})
-    runner = {"train": run_train, "evaluate": run_evaluate}.get(job["kind"])
-    if runner is None:
-        events.emit({"event": "end", "status": "failed", "message": f"unknown job kind {job['kind']!r}"})
-        return 2
-    try:
-        result = runner(job, events, watcher)
-    except (Cancelled, KeyboardInterrupt):
-        events.emit({"event": "end", "status": "cancelled", "message": "cancelled before a result was saved"})
-        return 0
-    except Exception as exc:  # noqa: BLE001 - every failure becomes a message on the page
-        from vehicle.errors import VehicleError
-
-        if watcher.stop.is_set() and "cancelled" in str(exc):
-            events.emit({"event": "end", "status": "cancelled", "message": str(exc)})
-            return 0
-        if not isinstance(exc, ValueError | VehicleError | OSError):
-            logger.exception("the job failed")
-        events.emit({"event": "end", "status": "failed", "message": f"{type(exc).__name__}: {exc}"
-                     if not isinstance(exc, ValueError | VehicleError) else str(exc)})
-        return 1
-    events.emit(result)
-    cancelled = bool(result.get("metrics", {}).get("cancelled"))
-    events.emit({"event": "end", "status": "cancelled" if cancelled else "done",
-                 "message": "cancelled; the best model so far was kept" if cancelled else "finished"})
-    return 0
+    code, final = _execute(job, job_file, events, watcher)
+    for event in final:
+        events.emit(event)
+    if events.gone:
+        _record_orphan_end(job, job_file, final)
+        with contextlib.suppress(OSError):
+            job_file.unlink()
+    return code
 
 
 def describe_model_types() -> list[dict[str, Any]]:

@@ -133,3 +133,39 @@ def test_the_console_command_checks_its_car(tmp_path, capsys):
 
     assert main(["console", "--car", str(tmp_path / "nowhere")]) == 2
     assert "no such folder" in capsys.readouterr().err
+
+
+def test_a_model_in_use_by_a_job_is_neither_deleted_nor_renamed(console, registered_model):
+    """Deleting or renaming the model an evaluation drives, or a training starts from, would make the
+    job fail at its end and lose its result: refused until the job is over."""
+    port = console.port
+    registered_model("busy")
+    registered_model("base")
+    ids = [d["id"] for d in json.loads(request(port, "/api/datasets")[2])]
+    hold = {"epochs": "500", "steps_per_epoch": "1", "val_steps": "1", "batch_size": "4", "early_stop": "false"}
+    first = json.loads(request(port, "/api/jobs/train", "POST", {"datasets": ids, "name": "first", "hyper": hold})[2])
+    ev = json.loads(request(port, "/api/jobs/evaluate", "POST", {"model": "busy", "tracks": "101", "laps": 1})[2])
+    tr = json.loads(request(port, "/api/jobs/train", "POST", {"datasets": ids, "name": "child", "transfer": "base",
+                                                              "hyper": {"epochs": "1"}})[2])
+    for name in ("busy", "base"):
+        status, _, body = request(port, f"/api/models/{name}", "DELETE")
+        assert status == 409 and f"job {ev['id'] if name == 'busy' else tr['id']}" in json.loads(body)["error"]
+        status, _, body = request(port, f"/api/models/{name}", "PATCH", {"name": f"{name}2"})
+        assert status == 409
+        assert console.registry.get(name).exists
+    # a comment is harmless: allowed
+    assert request(port, "/api/models/base", "PATCH", {"comment": "the parent"})[0] == 200
+    for job in (ev, tr, first):
+        request(port, f"/api/jobs/{job['id']}/cancel", "POST")
+    _wait(port, first["id"], lambda s: s["status"] not in ("running", "cancelling"))
+    assert request(port, "/api/models/busy", "DELETE")[0] == 200
+    assert request(port, "/api/models/base", "PATCH", {"name": "base2"})[0] == 200
+
+
+def test_dataset_ids_of_a_training_are_whole_numbers(console):
+    ids = [d["id"] for d in json.loads(request(console.port, "/api/datasets")[2])]
+    assert 1 in ids
+    for bad in (True, 1.7, "1.0", None, [1]):  # JSON true or 1.7 is not dataset 1
+        status, _, body = request(console.port, "/api/jobs/train", "POST", {"datasets": [bad], "name": "m"})
+        assert status == 400 and "does not exist" in json.loads(body)["errors"]["datasets"], bad
+    assert console.jobs.list() == []

@@ -325,8 +325,8 @@ def test_training_from_the_wizard_live_two_browsers_reload_cancel(page_factory, 
     a.fill("#model-name", "live_run")
     a.click("#start-training")  # TN6
     _heading(a, "Training result")
-    # 0 until the page has drawn the chart (after a reload the page renders once its job arrives)
-    points = "(document.querySelector('#loss-chart')?._uplot?.data[0].length ?? 0)"
+    # epochs drawn (0 while the page is still loading)
+    points = "((document.querySelector('#loss-chart') || {})._uplot?.data[1] || []).filter(v => v != null).length"
     a.wait_for_function(f"{points} >= 2", timeout=120000)
     expect(a.locator("#run-status")).to_contain_text("running")  # points arrive while it runs
     expect(a.locator("#stat-sps")).not_to_have_text("–")
@@ -408,3 +408,31 @@ def test_leaderboard_order(page, url, registered_model, console):
     page.select_option("#track-set", "tracks=7&laps=1")
     expect(page.locator("#leaderboard tbody tr")).to_have_count(1)
     expect(page.locator("#leaderboard tbody tr").first).to_have_attribute("data-model", "other_tracks")
+
+
+@pytest.mark.slow
+def test_the_loss_chart_moves_within_an_epoch(page, url, console):
+    """The running loss of the batches is drawn as it comes: a long epoch does not leave the chart empty;
+    a reload keeps those points."""
+    import json
+    import urllib.request
+
+    with urllib.request.urlopen(f"{url}api/datasets", timeout=30) as resp:
+        ids = [d["id"] for d in json.loads(resp.read())]
+    body = {"datasets": ids, "name": "slow_epochs",
+            "hyper": {"epochs": "500", "batch_size": "1", "early_stop": "false"}}
+    req = urllib.request.Request(f"{url}api/jobs/train", data=json.dumps(body).encode(), method="POST",
+                                 headers={"Content-Type": "application/json"})
+    with urllib.request.urlopen(req, timeout=30) as resp:
+        job = json.loads(resp.read())
+    _open(page, url, f"runs/{job['id']}")
+    within = ("(() => { const d = (document.querySelector('#loss-chart') || {})._uplot?.data;"
+              " return d ? d[0].filter((x, i) => d[3][i] != null && !Number.isInteger(x)).length : 0; })()")
+    page.wait_for_function(f"{within} >= 3", timeout=120000)
+    seen = page.evaluate(within)
+    page.reload()
+    page.wait_for_function(f"{within} >= {seen}")
+    expect(page.locator("#loss-chart .u-legend")).to_contain_text("running loss")
+    req = urllib.request.Request(f"{url}api/jobs/{job['id']}/cancel", method="POST")
+    urllib.request.urlopen(req, timeout=30).close()
+    expect(page.locator("#run-status")).to_contain_text("cancelled", timeout=60000)

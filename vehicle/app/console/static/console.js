@@ -119,7 +119,7 @@ function field(label, input, name, help) {
 // ---------------------------------------------------------------------------------------------
 // Charts (uPlot, served from the package)
 // ---------------------------------------------------------------------------------------------
-const COLORS = { loss: "#1f6feb", val: "#d9480f", angle: "#1f6feb", throttle: "#2f9e44", bar: "#5b7bd5" };
+const COLORS = { loss: "#1f6feb", val: "#d9480f", running: "rgba(31,111,235,0.35)", angle: "#1f6feb", throttle: "#2f9e44", bar: "#5b7bd5" };
 
 function chartWidth(el) { return Math.max(200, Math.floor(el.getBoundingClientRect().width || el.parentNode.clientWidth || 600)); }
 
@@ -139,19 +139,29 @@ function makeChart(el, opts, data) {
   return u;
 }
 
-function lossChart(el, epochs, height = 260) {
-  const data = lossData(epochs);
+/** The loss chart: per-epoch loss and val_loss; with ``batches`` ([fractional epoch, running loss]
+    of a run) also the running loss, so the curve moves within a long epoch. */
+function lossChart(el, epochs, height = 260, batches = null) {
+  const series = [{ label: "epoch", value: (u, v) => v == null ? "--" : fmt.num(v, 2) },
+    { label: "loss", stroke: COLORS.loss, width: 2, spanGaps: true, points: { show: true, size: 5 } },
+    { label: "val_loss", stroke: COLORS.val, width: 2, spanGaps: true, points: { show: true, size: 5 } }];
+  if (batches) series.push({ label: "running loss", stroke: COLORS.running, width: 1, spanGaps: true, points: { show: false } });
   return makeChart(el, {
     height, scales: { x: { time: false } }, legend: { live: true },
     axes: [{ label: "epoch", incrs: [1, 2, 5, 10, 20, 50, 100, 200, 500] }, { label: "loss", size: 60 }],
-    series: [{ label: "epoch" },
-      { label: "loss", stroke: COLORS.loss, width: 2, points: { show: true, size: 5 } },
-      { label: "val_loss", stroke: COLORS.val, width: 2, points: { show: true, size: 5 } }],
-  }, data);
+    series,
+  }, lossData(epochs, batches));
 }
 
-function lossData(epochs) {
-  return [epochs.map(e => e.epoch), epochs.map(e => e.train_loss), epochs.map(e => e.val_loss)];
+function lossData(epochs, batches = null) {
+  if (!batches) return [epochs.map(e => e.epoch), epochs.map(e => e.train_loss), epochs.map(e => e.val_loss)];
+  // one x axis for both: the epochs' ends (whole numbers) and the batches (fractions), in order
+  const rows = new Map();
+  const row = x => { if (!rows.has(x)) rows.set(x, [x, null, null, null]); return rows.get(x); };
+  for (const e of epochs) { const r = row(e.epoch); r[1] = e.train_loss; r[2] = e.val_loss; }
+  for (const [x, loss] of batches) { const r = row(x); if (r[3] === null) r[3] = loss; }
+  const sorted = [...rows.values()].sort((a, b) => a[0] - b[0]);
+  return [0, 1, 2, 3].map(i => sorted.map(r => r[i]));
 }
 
 function histogramChart(el, counts, small = true) {
@@ -721,7 +731,7 @@ async function pageRun(id) {
       statEls.loss.textContent = p && p.loss != null ? fmt.num(p.loss, 5) : "–";
       epochBar.style.width = `${Math.min(100, 100 * job.epochs.length / (Number(epochs) || 1))}%`;
       batchBar.style.width = p && p.event === "batch" ? `${100 * p.batch / p.batches}%` : done ? "100%" : "0";
-      if (chart) chart.setData(lossData(job.epochs));
+      if (chart) chart.setData(lossData(job.epochs, job.batches));
     } else {
       statEls.track.textContent = p && p.tracks ? `${Math.min(p.index + 1, p.tracks)} / ${p.tracks}` : "–";
       statEls.laps.textContent = p && p.laps_target ? `${p.laps} / ${p.laps_target}` : "–";
@@ -747,7 +757,7 @@ async function pageRun(id) {
     isTrain ? h("div", { class: "card" }, h("h2", {}, "Loss"), chartEl) : null,
     h("div", { class: "card" }, h("h2", {}, "Log"), logEl),
     paramsView);
-  if (isTrain) { chart = lossChart(chartEl, job.epochs); cleanup.push(() => chart._ro.disconnect()); }
+  if (isTrain) { job.batches = job.batches || []; chart = lossChart(chartEl, job.epochs, 260, job.batches); cleanup.push(() => chart._ro.disconnect()); }
   logEl.scrollTop = logEl.scrollHeight;
   render();
 
@@ -760,7 +770,7 @@ async function pageRun(id) {
     seq = ev.seq;
     const stick = logEl.scrollTop + logEl.clientHeight >= logEl.scrollHeight - 20;
     switch (ev.event) {
-      case "batch": case "eval_progress": case "track": job.progress = ev; if (ev.event === "batch" && ev.eta_s !== undefined) job.eta_s = ev.eta_s; break;
+      case "batch": case "eval_progress": case "track": job.progress = ev; if (ev.event === "batch") addBatchPoint(job, ev); break;
       case "epoch": job.epochs.push(ev); break;
       case "log": case "stderr": logEl.append(logLine(ev)); if (stick) logEl.scrollTop = logEl.scrollHeight; break;
       case "phase": job.phase = ev.phase; break;
@@ -771,6 +781,15 @@ async function pageRun(id) {
     if (ev.event === "batch") job.eta_s = etaOf(job, ev);
     render();
   }));
+}
+
+/** The running loss of a batch event as a chart point (as Job._add_batch_point on the server). */
+function addBatchPoint(job, b) {
+  if (!job.batches || b.loss == null || !b.batches) return;
+  const x = b.epoch - 1 + b.batch / b.batches, last = job.batches[job.batches.length - 1];
+  if (last && x <= last[0]) return;
+  job.batches.push([x, b.loss]);
+  if (job.batches.length > 1000) job.batches = job.batches.filter((_, i) => i % 2 === 0);
 }
 
 function etaOf(job, b) {
