@@ -587,6 +587,11 @@ WEB_HOST: str = "127.0.0.1"
 # random one per start when WEB_HOST is a network interface (printed with the URL at start).
 # At least 8 characters; when set it is required even on localhost.
 WEB_TOKEN: str | None = None
+# More host names the page may be opened by, e.g. ["mycar.example.org"] for a DNS name of the car
+# or a reverse proxy. IP addresses, localhost, this machine's name (and NAME.local) and WEB_HOST
+# are always accepted; a request naming any other host is refused, so that a web site made to
+# resolve to the car (DNS rebinding) cannot reach it.
+WEB_ALLOWED_HOSTS: list[str] = []
 # Dead-man time in seconds: when the driving page sends no control message for this long while
 # the throttle is non-zero (or a pilot mode is on), throttle goes to 0 and the mode to user.
 WEB_DEADMAN_S: float = 0.5

@@ -18,7 +18,7 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, Final
 
@@ -62,6 +62,9 @@ class WebController(ThreadedPart):
         max_speed_limit: largest speed limit the page offers, m/s. Default 5.0.
         telemetry_hz: rate of state updates to the page. Default 20.
         jpeg_quality: JPEG quality of the camera view, 1-100. Default 80.
+        allowed_hosts: host names, besides IP addresses, ``localhost``, this machine's name and
+            ``host``, that the page may be opened by (a DNS name of the car). Requests naming
+            another host are refused (DNS rebinding). Default none.
         start_timeout: seconds :meth:`start` waits for the server to listen. Default 10.
         clock: monotonic seconds for the dead-man timer. Default ``time.monotonic``.
     """
@@ -81,7 +84,8 @@ class WebController(ThreadedPart):
     def __init__(self, host: str = "127.0.0.1", port: int = 8887, token: str | None = None, *,
                  deadman_s: float = 0.5, init_mode: str = "user", max_throttle: float = 0.5,
                  models_dir: str | Path | None = None, max_speed_limit: float = 5.0,
-                 telemetry_hz: float = 20.0, jpeg_quality: int = 80, start_timeout: float = 10.0,
+                 telemetry_hz: float = 20.0, jpeg_quality: int = 80,
+                 allowed_hosts: Sequence[str] = (), start_timeout: float = 10.0,
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__()
         self.name = "WebController"
@@ -91,7 +95,8 @@ class WebController(ThreadedPart):
         self.frames = LatestFrame(jpeg_quality)
         self.server = WebServer(self.state, self.frames, host=host, port=port, token=self.token,
                                 models_dir=Path(models_dir) if models_dir is not None else None,
-                                max_speed_limit=max_speed_limit, telemetry_hz=telemetry_hz)
+                                max_speed_limit=max_speed_limit, telemetry_hz=telemetry_hz,
+                                extra_hosts=tuple(allowed_hosts))
         self.start_timeout = start_timeout
         self._ready = threading.Event()
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -103,7 +108,8 @@ class WebController(ThreadedPart):
         return cls(cfg.WEB_HOST, cfg.WEB_CONTROL_PORT, cfg.WEB_TOKEN, deadman_s=cfg.WEB_DEADMAN_S,
                    init_mode=cfg.DEFAULT_MODE, max_throttle=cfg.WEB_MAX_THROTTLE,
                    models_dir=cfg.path("MODELS_PATH"), max_speed_limit=cfg.WEB_MAX_SPEED_LIMIT,
-                   telemetry_hz=cfg.WEB_TELEMETRY_HZ, jpeg_quality=cfg.WEB_JPEG_QUALITY)
+                   telemetry_hz=cfg.WEB_TELEMETRY_HZ, jpeg_quality=cfg.WEB_JPEG_QUALITY,
+                   allowed_hosts=cfg.WEB_ALLOWED_HOSTS)
 
     # -- lifecycle --------------------------------------------------------------------------------
     @property

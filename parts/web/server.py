@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from parts.web import protocol
-from parts.web.pairing import token_ok
+from parts.web.pairing import allowed_hosts, host_allowed, token_ok
 from parts.web.state import ControlState
 
 logger = logging.getLogger(__name__)
@@ -122,12 +122,16 @@ class WebServer:
         max_speed_limit: largest speed limit a browser may set, m/s. Default 5.0.
         telemetry_hz: how often the page gets the state. Default 20.
         static_dir: folder the page is served from. Default the package's ``static``.
+        extra_hosts: host names besides IP addresses, ``localhost``, the machine's name and
+            ``host`` that a request may name (WEB_ALLOWED_HOSTS). Any other Host is refused with
+            403: a page of another site made to resolve to this machine (DNS rebinding) gets
+            nothing.
     """
 
     def __init__(self, state: ControlState, frames: LatestFrame, *, host: str = "127.0.0.1",
                  port: int = 8887, token: str | None = None, models_dir: Path | None = None,
                  max_speed_limit: float = 5.0, telemetry_hz: float = 20.0,
-                 static_dir: Path = STATIC_DIR) -> None:
+                 static_dir: Path = STATIC_DIR, extra_hosts: tuple[str, ...] = ()) -> None:
         if not 0 <= port <= 65535:
             raise ValueError(f"port must be in [0, 65535], got {port}")
         if not telemetry_hz > 0:
@@ -136,6 +140,8 @@ class WebServer:
         self.host, self.port, self.token = host, port, token
         self.models_dir, self.max_speed_limit = models_dir, max_speed_limit
         self.telemetry_hz, self.static_dir = telemetry_hz, static_dir
+        self.allowed_hosts = allowed_hosts(host, extra_hosts)
+        self._refused_hosts: set[str] = set()  # each logged once
         self.loop: asyncio.AbstractEventLoop | None = None
         self.rejected = 0  # messages refused as malformed, out of range or not allowed
         self._stop: asyncio.Event | None = None
@@ -179,7 +185,11 @@ class WebServer:
                                    ping_interval=5, ping_timeout=5)
         self._sio = sio
         self._register(sio)
-        app = web.Application(client_max_size=protocol.MAX_MESSAGE_BYTES)
+        @web.middleware
+        async def check_host(request: Any, handler: Any) -> Any:
+            return await self._check_host(request, handler)
+
+        app = web.Application(client_max_size=protocol.MAX_MESSAGE_BYTES, middlewares=[check_host])
         app.router.add_get("/", self._index)
         app.router.add_get("/static/{path:.*}", self._static)
         sio.attach(app)
@@ -216,6 +226,23 @@ class WebServer:
         event, self._frame_event = self._frame_event, asyncio.Event()
         if event is not None:
             event.set()
+
+    async def _check_host(self, request: Any, handler: Any) -> Any:
+        """aiohttp middleware: answer only requests that name this car in their Host header."""
+        from aiohttp import web
+
+        host = request.headers.get("Host", "")
+        if host_allowed(host, self.allowed_hosts):
+            return await handler(request)
+        shown = host[:80]
+        if len(self._refused_hosts) < 100 and shown not in self._refused_hosts:
+            self._refused_hosts.add(shown)
+            logger.warning("web: refused a request for host name %r from %s: not this car's (a page "
+                           "of another site, DNS rebinding?); add the name to WEB_ALLOWED_HOSTS if "
+                           "it is yours", shown, request.remote)
+        return web.Response(status=403, text=f"host name {shown!r} is not this car's; open the "
+                            "page by the address the car printed at start (or add the name to "
+                            "WEB_ALLOWED_HOSTS in myconfig.py)\n")
 
     async def _index(self, request: Any) -> Any:
         from aiohttp import web

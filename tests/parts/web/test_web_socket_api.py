@@ -170,6 +170,49 @@ def test_pages_of_other_sites_cannot_connect(web, client_cls, arun):
     arun(main())
 
 
+def test_dns_rebinding_host_names_are_refused(web, loop_side, client_cls, arun):
+    """A page on evil.example, whose name an attacker made resolve to 127.0.0.1, sends exactly
+    these headers: same-origin by the Origin check alone. The Host name must be one of the car's."""
+    import aiohttp
+
+    async def main():
+        port = web.port
+        evil = {"Host": f"evil.example:{port}", "Origin": f"http://evil.example:{port}"}
+        c = client_cls()
+        with pytest.raises(socketio.exceptions.ConnectionError):
+            await c.connect(port, headers=evil)
+        async with aiohttp.ClientSession() as http:
+            async with http.get(f"http://127.0.0.1:{port}/", headers={"Host": evil["Host"]}) as r:
+                assert r.status == 403
+                assert "evil.example" in await r.text()
+            for host in (f"127.0.0.1:{port}", f"localhost:{port}", f"[::1]:{port}", "127.0.0.1"):
+                async with http.get(f"http://127.0.0.1:{port}/", headers={"Host": host}) as r:
+                    assert r.status == 200, host
+        for host in (f"localhost:{port}", f"[::1]:{port}"):
+            c = client_cls()
+            hello = await c.connect(port, headers={"Host": host, "Origin": f"http://{host}"})
+            assert hello["role"] == "driver"
+            await c.close()
+        assert loop_side.step()["user/throttle"] == 0.0
+
+    arun(main())
+
+
+def test_allowed_host_names_of_a_network_car():
+    from parts.web.pairing import allowed_hosts, host_allowed
+
+    loopback = allowed_hosts("127.0.0.1")
+    assert host_allowed("localhost:8887", loopback) and host_allowed("127.0.0.1", loopback)
+    assert host_allowed("[::1]:8887", loopback) and not host_allowed("evil.example:8887", loopback)
+    assert not host_allowed("", loopback) and not host_allowed("localhost.evil.example", loopback)
+    named = allowed_hosts("mycar.local", extra=["Car.Example.org"])
+    assert host_allowed("mycar.local:8887", named) and host_allowed("car.example.org", named)
+    # an address literal cannot be rebound to another machine: a phone opens the car by its IP
+    lan = allowed_hosts("0.0.0.0")
+    assert host_allowed("192.168.1.42:8887", lan) and host_allowed("[fe80::1]:8887", lan)
+    assert not host_allowed("rebind.evil.example:8887", lan)
+
+
 def test_network_interface_needs_a_token():
     from parts.web.controller import WebController
 
