@@ -174,7 +174,7 @@ def test_every_number_setting_declares_its_range():
 
 
 def test_manage_py_prints_one_line_and_exits_2(tmp_path, capsys):
-    from vehicle import car
+    from vehicle.app import manage as car
 
     for line in ("DRIVE_LOOP_HZ = -20", "STEERING_LEFT_PWM = 5000", 'WEB_DEADMAN_S = float("nan")',
                  'WEB_TOKEN = "short"'):
