@@ -19,12 +19,14 @@ import abc
 import json
 import logging
 import os
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import torch
+
+if TYPE_CHECKING:
+    from parts.pilots.preprocess import Preprocess
 
 logger = logging.getLogger(__name__)
 
@@ -32,19 +34,14 @@ Backend = Literal["auto", "torch", "onnx", "torchscript"]
 BACKENDS: tuple[str, ...] = ("auto", "torch", "onnx", "torchscript")
 
 
-def preprocessor_from_meta(meta: dict[str, Any]) -> Callable[[np.ndarray], np.ndarray]:
-    """The training preprocessing stored in ``meta["preprocess"]`` as frame -> float32 (C, H, W) array."""
+def preprocessing_from_meta(meta: dict[str, Any]) -> Preprocess:
+    """The training preprocessing stored in ``meta["preprocess"]``."""
     from parts.pilots.preprocess import Preprocess
 
     try:
-        pre = Preprocess.from_dict(meta.get("preprocess") or {})
+        return Preprocess.from_dict(meta.get("preprocess") or {})
     except (TypeError, ValueError) as exc:
         raise ValueError(f"the model's preprocessing settings are invalid: {exc}") from exc
-
-    def preprocess(image: np.ndarray) -> np.ndarray:
-        return pre(image).numpy()  # shares memory with the tensor: no copy
-
-    return preprocess
 
 
 class Runner(abc.ABC):
@@ -67,7 +64,22 @@ class Runner(abc.ABC):
         self.extra_inputs: tuple[str, ...] = tuple(desc.get("extra_inputs", ()))
         self.extra_size = int(desc.get("extra_size", 0))
         self.input_shape = tuple(int(v) for v in desc["input_shape"])
-        self.preprocess: Callable[[np.ndarray], np.ndarray] = preprocessor_from_meta(meta)
+        self.preprocessing = preprocessing_from_meta(meta)
+
+    def preprocess(self, image: np.ndarray) -> np.ndarray:
+        """A camera frame (HxWx3 uint8 RGB) -> the model's float32 input (C, H, W)."""
+        return self.preprocessing(image).numpy()  # shares memory with the tensor: no copy
+
+    def check_frames(self, frame_shape: tuple[int, ...]) -> None:
+        """Raise ValueError unless camera frames of ``frame_shape`` (H, W, C) fit this model: the
+        size it was trained on, and, after its preprocessing, its input shape."""
+        pre = self.preprocessing
+        pre.check_frame_shape(frame_shape)
+        got = pre.output_shape(frame_shape)
+        if got != self.input_shape:
+            raise ValueError(f"{'x'.join(map(str, frame_shape))} frames give model inputs of shape {got} "
+                             f"after the model's preprocessing, but it takes {self.input_shape}; set "
+                             "IMAGE_W/IMAGE_H to the training size or re-train")
 
 
     @property

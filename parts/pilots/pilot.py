@@ -23,6 +23,7 @@ import math
 import threading
 import time
 from collections import deque
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -78,17 +79,31 @@ class Pilot:
         speed_key: memory key of the measured speed (m/s) fed to ``speed_control``.
         onnx_threads: ONNX Runtime intra-op threads (1: the loop has other parts to run).
         models_dir: folder where relative paths of :meth:`request_model` are looked up too.
+        frame_shape: (height, width, 3) of the camera frames the car gives; a model trained on
+            other frames, or whose input shape they do not give, is refused when it loads
+            (ValueError here, ``load_error`` on a switch). None: learnt from the first frame.
+        extra_sizes: values per extra input in this car, e.g. ``{"behavior/one_hot_state_array":
+            len(BEHAVIOR_LIST)}``; a model trained with another size is refused when it loads.
     """
 
     def __init__(self, model: str | Path, *, backend: Backend | str = "auto", speed_control: Any = None,
                  speed_key: str = "sim/speed", onnx_threads: int = 1,
-                 models_dir: str | Path | None = None) -> None:
+                 models_dir: str | Path | None = None, frame_shape: tuple[int, ...] | None = None,
+                 extra_sizes: Mapping[str, int] | None = None) -> None:
         self.backend = backend
         self.onnx_threads = onnx_threads
         self.speed_control = speed_control
         self.speed_key = speed_key
         self.models_dir = Path(models_dir) if models_dir is not None else None
-        self._active = _Active(open_runner(model, backend, onnx_threads))
+        self.frame_shape = tuple(frame_shape) if frame_shape is not None else None
+        self.extra_sizes = dict(extra_sizes or {})
+        runner = open_runner(model, backend, onnx_threads)
+        try:
+            self.check_fits(runner)
+        except ValueError:
+            runner.close()
+            raise
+        self._active = _Active(runner)
         self._log = _RateLimitedLog()
         self._load_lock = threading.Lock()
         self._loader: threading.Thread | None = None
@@ -156,6 +171,8 @@ class Pilot:
                             "wire the part with inputs=pilot.inputs")
         if image is None:  # no frame yet (camera starting): stand still, wheels straight, even
             return 0.0, 0.0  # with speed control (which would accelerate from standstill blind)
+        if self.frame_shape is None and isinstance(image, np.ndarray):
+            self.frame_shape = image.shape  # what a model switched to must take
         angle, throttle = self._predict(active, image, rest[:n_extra])
         if self.speed_control is not None:
             speed, limit = rest[n_extra], rest[n_extra + 1]
@@ -209,6 +226,20 @@ class Pilot:
                              "(e.g. a different number of behaviours: check BEHAVIOR_LIST)")
         return np.ascontiguousarray(extra[None], dtype=np.float32)
 
+    def check_fits(self, runner: Runner) -> None:
+        """Raise ValueError (the message says what to change) unless ``runner``'s model takes this
+        car's frames and extra inputs: checked when a model loads, so that a wrong model never
+        reaches the first frame in a pilot mode."""
+        if self.frame_shape is not None:
+            runner.check_frames(self.frame_shape)
+        known = [k for k in runner.extra_inputs if k in self.extra_sizes]
+        if known and len(known) == len(runner.extra_inputs):
+            given = 2 * runner.command_history + sum(self.extra_sizes[k] for k in known)
+            if given != runner.extra_size:
+                sizes = " and ".join(f"{k} has {self.extra_sizes[k]} values" for k in known)
+                raise ValueError(f"{sizes} in this car, but the model was trained with {runner.extra_size} "
+                                 "(a different number of behaviours? check BEHAVIOR_LIST, or re-train)")
+
     # -- hot switch -----------------------------------------------------------------------------
     def resolve(self, path: str | Path) -> Path:
         """``path`` as given if it exists, else inside ``models_dir`` (as given, then its file name)."""
@@ -237,22 +268,30 @@ class Pilot:
         try:
             runner = open_runner(path, self.backend, self.onnx_threads)
         except Exception as exc:  # any failure keeps the current model driving
-            self.load_error = f"{path}: {exc}"
-            logger.error("pilot: cannot switch to %s, keeping %s: %s", path, self.model_name, exc)
+            self._refuse(path, str(exc))
+            return
+        try:
+            self.check_fits(runner)
+        except ValueError as exc:
+            runner.close()
+            self._refuse(path, str(exc))
             return
         old = self._active
         if self.lock_inputs and runner.extra_inputs != old.runner.extra_inputs:
-            self.load_error = (f"{path}: the model needs inputs {[IMAGE_KEY, *runner.extra_inputs]} but the "
-                               f"pilot was wired with {[IMAGE_KEY, *old.runner.extra_inputs]}; restart "
-                               "the car with this model instead")
-            logger.error("pilot: cannot switch to %s, keeping %s: %s", path, old.runner.name, self.load_error)
             runner.close()
+            self._refuse(path, f"the model needs inputs {[IMAGE_KEY, *runner.extra_inputs]} but the pilot "
+                         f"was wired with {[IMAGE_KEY, *old.runner.extra_inputs]}; restart the car with "
+                         "this model instead")
             return
         self._active = _Active(runner)  # the swap: one reference assignment, atomic for the loop
         self.load_error = None
         logger.info("pilot: switched from %s to %s (%s, %s backend)", old.runner.name, runner.name,
                     runner.model_type, runner.backend)
         old.runner.close()
+
+    def _refuse(self, path: Path, why: str) -> None:
+        self.load_error = f"{path}: {why}"
+        logger.error("pilot: cannot switch to %s, keeping %s: %s", path, self.model_name, why)
 
     def wait_loaded(self, timeout: float | None = None) -> bool:
         """Block until a pending load finished (for tests and scripts; the loop never calls it)."""

@@ -29,7 +29,8 @@ def add_pilot(V: Any, cfg: Config, model_path: str | Path) -> Any:
     from parts.drive.modes import PilotCondition
     from parts.pilots.pilot import ModelSwitch
 
-    pilot = make_pilot(cfg, model_path, measured_speed_key="sim/speed" if V.produces("sim/speed") else "enc/speed")
+    pilot = make_pilot(cfg, model_path, measured_speed_key="sim/speed" if V.produces("sim/speed") else "enc/speed",
+                       frame_shape=camera_frame_shape(V, cfg))
     V.add(PilotCondition())
     V.add(ModelSwitch(pilot))
     pilot.lock_inputs = True  # the vehicle's wiring is fixed from here on
@@ -37,13 +38,16 @@ def add_pilot(V: Any, cfg: Config, model_path: str | Path) -> Any:
     return pilot
 
 
-def make_pilot(cfg: Config, model_path: str | Path, measured_speed_key: str = "enc/speed") -> Any:
+def make_pilot(cfg: Config, model_path: str | Path, measured_speed_key: str = "enc/speed",
+               frame_shape: tuple[int, int, int] | None = None) -> Any:
     """The Pilot part for a model file with the car's settings: back-end (PILOT_BACKEND,
     PILOT_ONNX_THREADS) and speed control (PILOT_SPEED_*), exactly as the car drives with it.
 
     ``measured_speed_key`` is where the car's speed comes from when PILOT_SPEED_KEY is not set: the
     simulator's ``sim/speed``, or ``enc/speed`` from an encoder part. A relative path that does not
     exist here is looked up in the car folder (manage.py may run from another folder).
+    ``frame_shape`` (height, width, 3) of the camera frames: a model trained on others, or whose
+    extra inputs do not fit BEHAVIOR_LIST, is refused here (None: checked at the first frame).
 
     Raises:
         UserError: the model file is missing, unreadable, or the backend setting cannot be met.
@@ -65,6 +69,16 @@ def make_pilot(cfg: Config, model_path: str | Path, measured_speed_key: str = "e
         speed_key = cfg.PILOT_SPEED_KEY or measured_speed_key
     try:
         return load_pilot(path, backend=cfg.PILOT_BACKEND, speed_control=speed_control, speed_key=speed_key,
-                          onnx_threads=cfg.PILOT_ONNX_THREADS, models_dir=cfg.path("MODELS_PATH"))
+                          onnx_threads=cfg.PILOT_ONNX_THREADS, models_dir=cfg.path("MODELS_PATH"),
+                          frame_shape=frame_shape,
+                          extra_sizes={"behavior/one_hot_state_array": len(cfg.BEHAVIOR_LIST)})
     except (ValueError, ImportError, OSError) as exc:
         raise UserError(f"cannot drive with {path}: {exc}") from exc
+
+
+def camera_frame_shape(V: Any, cfg: Config) -> tuple[int, int, int]:
+    """(height, width, 3) of ``cam/image_array``: the simulator's camera size when the simulator
+    is in ``V``, else the camera's IMAGE_H x IMAGE_W."""
+    if V.produces("sim/speed"):
+        return (cfg.SIM_CAMERA_H, cfg.SIM_CAMERA_W, 3)
+    return (cfg.IMAGE_H, cfg.IMAGE_W, 3)
