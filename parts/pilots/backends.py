@@ -54,17 +54,25 @@ class Runner(abc.ABC):
 
     backend = ""
 
-    def __init__(self, path: Path, meta: dict[str, Any]) -> None:
+    def __init__(self, path: Path, meta: dict[str, Any] | str) -> None:
+        from parts.pilots.modelfile import ModelFileError
+
         self.path = path
-        self.meta = meta
-        desc = meta["model"]
-        self.model_type: str = desc["type"]
-        self.frames = int(desc.get("frames", 1))
-        self.command_history = int(desc.get("command_history", 0))
-        self.extra_inputs: tuple[str, ...] = tuple(desc.get("extra_inputs", ()))
-        self.extra_size = int(desc.get("extra_size", 0))
-        self.input_shape = tuple(int(v) for v in desc["input_shape"])
-        self.preprocessing = preprocessing_from_meta(meta)
+        try:
+            self.meta = meta = json.loads(meta) if isinstance(meta, str) else meta
+            desc = meta["model"]
+            self.model_type: str = str(desc["type"])
+            self.frames = int(desc.get("frames", 1))
+            self.command_history = int(desc.get("command_history", 0))
+            self.extra_inputs: tuple[str, ...] = tuple(str(k) for k in desc.get("extra_inputs", ()))
+            self.extra_size = int(desc.get("extra_size", 0))
+            self.input_shape = tuple(int(v) for v in desc["input_shape"])
+            self.preprocessing = preprocessing_from_meta(meta)
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            self.close()
+            raise ModelFileError(f"{path}: the model description stored in the file is invalid or "
+                                 f"incomplete ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}); "
+                                 "export the model again with `vehicle models export`") from exc
 
     def preprocess(self, image: np.ndarray) -> np.ndarray:
         """A camera frame (HxWx3 uint8 RGB) -> the model's float32 input (C, H, W)."""
@@ -128,7 +136,7 @@ class TorchScriptRunner(Runner):
 
         self.module, props = read_torchscript(path)
         self.source_sha256 = props.get(SOURCE_KEY)
-        super().__init__(path, json.loads(props[META_KEY]))
+        super().__init__(path, props[META_KEY])
 
     def predict(self, images: np.ndarray, extra: np.ndarray | None) -> tuple[float, float]:
         with torch.inference_mode():
@@ -176,7 +184,7 @@ class OnnxRunner(Runner):
                              "export one with `vehicle models export MODEL --format onnx`")
         self.source_sha256 = props.get(SOURCE_KEY)
         self.input_names = [i.name for i in self.session.get_inputs()]
-        super().__init__(path, json.loads(props[META_KEY]))
+        super().__init__(path, props[META_KEY])
 
     def predict(self, images: np.ndarray, extra: np.ndarray | None) -> tuple[float, float]:
         feed = {self.input_names[0]: images}
