@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from parts.web import protocol
+from parts.web.limits import HARD_LIMIT_BYTES, REFUSED_EVENT, BoundedLog, make_bounded_packet
 from parts.web.pairing import allowed_hosts, host_allowed, token_ok
 from parts.web.state import ControlState
 
@@ -142,6 +143,9 @@ class WebServer:
         self.telemetry_hz, self.static_dir = telemetry_hz, static_dir
         self.allowed_hosts = allowed_hosts(host, extra_hosts)
         self._refused_hosts: set[str] = set()  # each logged once
+        # what clients can make the server log: rejections, refused connections, library errors
+        self.log = BoundedLog(logger)
+        self._library_log = BoundedLog(logging.getLogger(f"{__name__}.socketio"), demote_info=True)
         self.loop: asyncio.AbstractEventLoop | None = None
         self.rejected = 0  # messages refused as malformed, out of range or not allowed
         self._stop: asyncio.Event | None = None
@@ -180,16 +184,20 @@ class WebServer:
         self.loop = asyncio.get_running_loop()
         self._stop = asyncio.Event()
         self._frame_event = asyncio.Event()
+        # messages up to HARD_LIMIT_BYTES are read and those above MAX_MESSAGE_BYTES refused with an
+        # error reply (BoundedPacket); Engine.IO closes the connection of a larger one
         sio = socketio.AsyncServer(async_mode="aiohttp", transports=["websocket"],
-                                   max_http_buffer_size=protocol.MAX_MESSAGE_BYTES,
+                                   max_http_buffer_size=HARD_LIMIT_BYTES, serializer=make_bounded_packet(),
+                                   logger=self._library_log, engineio_logger=self._library_log,
                                    ping_interval=5, ping_timeout=5)
         self._sio = sio
         self._register(sio)
+
         @web.middleware
         async def check_host(request: Any, handler: Any) -> Any:
             return await self._check_host(request, handler)
 
-        app = web.Application(client_max_size=protocol.MAX_MESSAGE_BYTES, middlewares=[check_host])
+        app = web.Application(client_max_size=HARD_LIMIT_BYTES, middlewares=[check_host])
         app.router.add_get("/", self._index)
         app.router.add_get("/static/{path:.*}", self._static)
         sio.attach(app)
@@ -218,6 +226,8 @@ class WebServer:
             for task in list(self._senders.values()):
                 task.cancel()
             await asyncio.gather(telemetry, *self._senders.values(), return_exceptions=True)
+            for log in (self.log, self._library_log):
+                log.flush(force=True)
             self._senders.clear()
             await self._sio.shutdown()  # disconnects every browser, ends engine.io's tasks
             await runner.cleanup()
@@ -269,7 +279,7 @@ class WebServer:
 
     def _reject(self, sid: str, error: str) -> dict[str, Any]:
         self.rejected += 1
-        logger.info("web: rejected a message from %s: %s", sid, error)
+        self.log.info("web: rejected a message from %s: %s", sid, error)
         return {"ok": False, "error": error}
 
     def _register(self, sio: Any) -> None:
@@ -279,7 +289,7 @@ class WebServer:
         @sio.event
         async def connect(sid: str, environ: dict[str, Any], auth: Any = None) -> None:
             if not token_ok(self.token, auth):
-                logger.warning("web: refused a connection from %s: missing or wrong pairing token",
+                self.log.warning("web: refused a connection from %s: missing or wrong pairing token",
                                environ.get("REMOTE_ADDR", "?"))
                 raise socketio.exceptions.ConnectionRefusedError(
                     "pairing token missing or wrong: open the URL printed when the car started")
@@ -359,16 +369,22 @@ class WebServer:
             self.state.step_behavior(step)
             return {"ok": True}
 
+        @sio.on(REFUSED_EVENT)
+        async def refused(sid: str, data: Any = None) -> dict[str, Any]:
+            return self._reject(sid, protocol.short(data, 200) if not isinstance(data, str) else data[:200])
+
         @sio.on("*")
         async def unknown(event: str, sid: str, data: Any = None) -> dict[str, Any]:
-            return self._reject(sid, f"unknown event {event!r}; the page sends drive, set, estop, "
-                                "take_control, models, behavior")
+            return self._reject(sid, f"unknown event {protocol.short(event)}; the page sends drive, set, "
+                                "estop, take_control, models, behavior")
 
     async def _telemetry(self) -> None:
         period = 1.0 / self.telemetry_hz
         while True:
             if self._senders:
                 await self._sio.emit("state", self.state.snapshot())
+            self.log.flush()
+            self._library_log.flush()
             await asyncio.sleep(period)
 
     async def _send_frames(self, sid: str) -> None:

@@ -169,3 +169,81 @@ def arun() -> Callable[[Any], Any]:
 def client_cls() -> type[Client]:
     """The recording Socket.IO client class: ``c = client_cls(); await c.connect(port)``."""
     return Client
+
+
+class RawSocketIO:
+    """A Socket.IO v5 client over Engine.IO v4 WebSocket written from the protocol, that sends
+    WebSocket messages exactly as given (hostile ones too). On the wire, ``42<id>[event, data]`` is
+    an Engine.IO MESSAGE (``4``) holding a Socket.IO EVENT (``2``) with an acknowledgement id,
+    answered by ``43<id>[reply]`` (MESSAGE, ACK)."""
+
+    def __init__(self) -> None:
+        self.http: Any = None
+        self.ws: Any = None
+        self.events: list[str] = []
+
+    async def connect(self, port: int) -> dict[str, Any]:
+        import json
+
+        import aiohttp
+
+        self.http = aiohttp.ClientSession()
+        self.ws = await self.http.ws_connect(f"http://127.0.0.1:{port}/socket.io/?EIO=4&transport=websocket")
+        opened = await self._text(engineio=True)
+        assert opened.startswith("0"), opened  # Engine.IO OPEN with the session's settings
+        await self.ws.send_str("40")  # MESSAGE: Socket.IO CONNECT to the main namespace
+        while True:
+            text = await self._text()
+            if text.startswith("0"):  # Socket.IO CONNECT answered: {"sid": ...}
+                return json.loads(text[1:])
+            self.events.append(text)
+
+    async def _text(self, timeout: float = 5.0, engineio: bool = False) -> str:
+        """The next Socket.IO packet (``engineio``: the next Engine.IO packet as it came)."""
+        import aiohttp
+
+        while True:
+            msg = await asyncio.wait_for(self.ws.receive(), timeout)
+            if msg.type != aiohttp.WSMsgType.TEXT:
+                raise ConnectionError(f"connection closed ({msg.type.name})")
+            if msg.data == "2":  # Engine.IO PING: answer PONG
+                await self.ws.send_str("3")
+                continue
+            if engineio:
+                return msg.data
+            if msg.data.startswith("4"):  # Engine.IO MESSAGE: a Socket.IO packet follows
+                return msg.data[1:]
+
+    async def send(self, message: str) -> None:
+        """Send one WebSocket message as given (e.g. ``42["drive",{...}]``)."""
+        await self.ws.send_str(message)
+
+    async def call(self, message: str, timeout: float = 5.0) -> Any:
+        """Send an event message with an ack id and return the acknowledgement's first value."""
+        import json
+        import re
+
+        ack_id = re.match(r"42(\d+)", message).group(1)
+        await self.send(message)
+        while True:
+            text = await self._text(timeout)
+            if text.startswith(f"3{ack_id}["):
+                return json.loads(text[len(ack_id) + 1:])[0]
+            if not text.startswith("3"):
+                self.events.append(text)  # events (hello, state, frame) until the acknowledgement
+
+    @property
+    def closed(self) -> bool:
+        return self.ws is None or self.ws.closed
+
+    async def close(self) -> None:
+        if self.ws is not None:
+            await self.ws.close()
+        if self.http is not None:
+            await self.http.close()
+
+
+@pytest.fixture
+def raw_client() -> type[RawSocketIO]:
+    """The raw protocol client class: ``c = raw_client(); await c.connect(port)``."""
+    return RawSocketIO

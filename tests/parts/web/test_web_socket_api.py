@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import logging
 
 import cv2
 import numpy as np
@@ -261,16 +262,76 @@ def test_malformed_messages_never_reach_the_outputs(web, loop_side, client_cls, 
     arun(main())
 
 
-def test_an_oversized_message_drops_the_connection(web, loop_side, client_cls, arun):
+HOSTILE = [  # (packet as sent, what the error reply must mention)
+    ('421["drive",{"angle":1' + "0" * 400 + ',"throttle":0}]', "not valid JSON"),  # 10**400
+    ('421["drive",{"angle":1' + "0" * 90 + ',"throttle":0}]', "angle"),  # 10**90: in JSON's range
+    ('421["drive",{"angle":1' + "0" * 5000 + ',"throttle":0}]', "larger than the limit of 4096"),
+    ('421["drive",{"angle":1e400,"throttle":0}]', "angle"),
+    ('421["drive",{"angle":0,"throttle":0,"pad":"' + "x" * 10_000 + '"}]', "larger than the limit of 4096"),
+    ('421["drive",{"angle":0,', "not valid JSON"),
+    ("421[]", "not an event"),
+    ('421[5,{"angle":0}]', "not an event"),
+    ('421{"drive":{"angle":0}}', "not an event"),
+    ('421["set",{"max_throttle":' + "9" * 4000 + "}]", "not valid JSON"),
+    ('421["set",{"model":"' + "m" * 3000 + '"}]', "model"),
+]
+
+
+@pytest.mark.parametrize("packet, word", HOSTILE, ids=[f"hostile{i}" for i in range(len(HOSTILE))])
+def test_hostile_packets_get_the_documented_error_reply(web, loop_side, raw_client, arun, packet, word):
     async def main():
-        c = client_cls()
-        await c.connect(web.port)
-        await c.call("drive", {"angle": 0.0, "throttle": 0.4})
-        with pytest.raises(socketio.exceptions.TimeoutError):
-            await c.sio.call("drive", {"angle": 1.0, "throttle": 1.0, "pad": "x" * 10_000}, timeout=1)
-        out = await loop_side.until(lambda o: o["user/throttle"] == 0.0)  # dropped driver: stop
-        assert out["user/angle"] == 0.0
-        await c.close()
+        c = raw_client()
+        try:
+            await c.connect(web.port)
+            reply = await c.call(packet)
+            assert reply["ok"] is False and word in reply["error"], reply
+            assert len(reply["error"]) < 400  # the reply never echoes a huge value
+            # the connection stays and the next message drives
+            assert await c.call('422["drive",{"angle":0.1,"throttle":0.4}]') == {"ok": True}
+            out = await loop_side.until(lambda o: o["user/throttle"] > 0)
+            assert out["user/throttle"] == pytest.approx(0.2) and out["user/angle"] == pytest.approx(0.1)
+        finally:
+            await c.close()
+
+    arun(main())
+
+
+def test_a_flood_of_hostile_messages_logs_a_bounded_amount(web, raw_client, arun, caplog):
+    # issue 21: 742 KB of log in 5 s, two full tracebacks per message
+    async def main():
+        c = raw_client()
+        try:
+            await c.connect(web.port)
+            for i in range(40):
+                for packet, _ in HOSTILE:
+                    await c.send(packet.replace("421", f"42{i + 10}", 1))
+            assert await c.call('422["drive",{"angle":0.0,"throttle":0.0}]', timeout=30) == {"ok": True}
+        finally:
+            await c.close()
+
+    with caplog.at_level(logging.DEBUG):
+        arun(main())
+        web.shutdown()  # writes the count of the lines held back
+    assert "Traceback" not in caplog.text
+    assert len(caplog.text) < 20_000, len(caplog.text)
+    assert web.server.rejected == 40 * len(HOSTILE)
+    assert "more rejected messages" in caplog.text  # the flood is summarised, not dropped silently
+
+
+def test_a_message_beyond_the_hard_limit_drops_the_connection_and_stops(web, loop_side, raw_client, arun):
+    async def main():
+        c = raw_client()
+        try:
+            await c.connect(web.port)
+            assert await c.call('421["drive",{"angle":0.3,"throttle":0.8}]') == {"ok": True}
+            await loop_side.until(lambda o: o["user/throttle"] > 0)
+            await c.send('422["drive",{"angle":0,"throttle":0,"pad":"' + "x" * 200_000 + '"}]')
+            with pytest.raises(ConnectionError):
+                await c.call('423["drive",{"angle":0.3,"throttle":0.8}]')
+            out = await loop_side.until(lambda o: o["user/throttle"] == 0.0)  # the dropped driver: stop
+            assert out["user/angle"] == 0.0
+        finally:
+            await c.close()
 
     arun(main())
 
