@@ -82,13 +82,15 @@ class BoundedLog(logging.LoggerAdapter):
 
     Args:
         logger: where the lines go.
+        what: what the lines held back are, for the summary line.
         demote_info: log the wrapped code's INFO lines at DEBUG (python-socketio logs every event).
         clock: monotonic seconds (tests).
     """
 
-    def __init__(self, logger: logging.Logger, *, demote_info: bool = False,
+    def __init__(self, logger: logging.Logger, what: str = "lines", *, demote_info: bool = False,
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(logger, {})
+        self.what = what
         self.demote_info = demote_info
         self._clock = clock
         self._lock = threading.Lock()
@@ -124,7 +126,7 @@ class BoundedLog(logging.LoggerAdapter):
                 held, self.held = self.held, 0
                 self._window_start, self._written = now, 0
                 if held:
-                    text += f" ({held} more rejected messages or lines held back in the last {WINDOW_S:.0f} s)"
+                    text += f" ({held} more {self.what} held back in the last {WINDOW_S:.0f} s)"
             if self._written >= LINES_PER_WINDOW:
                 self.held += 1
                 self.held_total += 1
@@ -139,7 +141,7 @@ class BoundedLog(logging.LoggerAdapter):
                 return
             held, self.held = self.held, 0
             self._window_start, self._written = self._clock(), 1
-        self.logger.warning("%d more rejected messages or lines held back in the last %.0f s", held, WINDOW_S)
+        self.logger.warning("%d more %s held back in the last %.0f s", held, self.what, WINDOW_S)
 
     def process(self, msg: Any, kwargs: MutableMapping[str, Any]) -> tuple[Any, MutableMapping[str, Any]]:
         """No extra context (LoggerAdapter's hook)."""

@@ -24,6 +24,8 @@ from parts.web.state import ControlState
 logger = logging.getLogger(__name__)
 
 STATIC_DIR = Path(__file__).with_name("static")
+#: seconds the connections get to close at shutdown (a client that does not answer is cut off)
+SHUTDOWN_S = 0.5
 #: seconds a browser has to acknowledge a frame before the next one is sent anyway
 FRAME_ACK_TIMEOUT = 2.0
 _CONTENT_TYPES = {".html": "text/html", ".js": "text/javascript", ".css": "text/css",
@@ -144,8 +146,9 @@ class WebServer:
         self.allowed_hosts = allowed_hosts(host, extra_hosts)
         self._refused_hosts: set[str] = set()  # each logged once
         # what clients can make the server log: rejections, refused connections, library errors
-        self.log = BoundedLog(logger)
-        self._library_log = BoundedLog(logging.getLogger(f"{__name__}.socketio"), demote_info=True)
+        self.log = BoundedLog(logger, "rejected messages and refused connections")
+        self._library_log = BoundedLog(logging.getLogger(f"{__name__}.socketio"), "Socket.IO lines",
+                                       demote_info=True)
         self.loop: asyncio.AbstractEventLoop | None = None
         self.rejected = 0  # messages refused as malformed, out of range or not allowed
         self._stop: asyncio.Event | None = None
@@ -201,7 +204,7 @@ class WebServer:
         app.router.add_get("/", self._index)
         app.router.add_get("/static/{path:.*}", self._static)
         sio.attach(app)
-        runner = web.AppRunner(app, access_log=None, handle_signals=False)
+        runner = web.AppRunner(app, access_log=None, handle_signals=False, shutdown_timeout=SHUTDOWN_S)
         await runner.setup()
         site = web.TCPSite(runner, self.host, self.port)
         try:
@@ -229,7 +232,11 @@ class WebServer:
             for log in (self.log, self._library_log):
                 log.flush(force=True)
             self._senders.clear()
-            await self._sio.shutdown()  # disconnects every browser, ends engine.io's tasks
+            # close every connection ourselves (Socket.IO's shutdown() leaves them open, and the
+            # web server would wait for each browser to leave), then end engine.io's tasks
+            with contextlib.suppress(Exception):
+                await asyncio.wait_for(self._sio.eio.disconnect(), SHUTDOWN_S)
+            await self._sio.shutdown()
             await runner.cleanup()
 
     def _wake_senders(self) -> None:

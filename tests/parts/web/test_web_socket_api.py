@@ -451,3 +451,22 @@ def test_change_lane_steps_the_behaviour_once_and_the_page_sees_the_lane(web, lo
         await c.close()
 
     arun(main())
+
+
+def test_shutdown_with_browsers_connected_is_prompt(web_factory, client_cls, raw_client, arun, caplog):
+    # issue 21: every stop with a browser connected waited for the web thread ("did not stop
+    # within 2.0 s"): the server waited for the browsers to leave
+    web = web_factory()
+
+    async def main():
+        page, silent = client_cls(), raw_client()
+        await page.connect(web.port)
+        await silent.connect(web.port)  # connected, reads nothing more
+        await asyncio.get_running_loop().run_in_executor(None, web.shutdown)
+        assert not web.running
+        await page.close()
+        await silent.close()
+
+    with caplog.at_level(logging.WARNING):
+        arun(main())
+    assert "did not stop" not in caplog.text
