@@ -50,7 +50,9 @@ def test_custom_mapping_and_binding_overrides(tmp_path):
 
 
 def test_bad_joystick_settings_are_user_errors():
-    with pytest.raises(UserError, match="JOYSTICK_MAX_THROTTLE"):
+    from vehicle.errors import VehicleError
+
+    with pytest.raises(VehicleError, match="JOYSTICK_MAX_THROTTLE"):  # the config refuses it already
         add_gamepad(Vehicle(), Config.defaults(JOYSTICK_MAX_THROTTLE=2.0))
 
 
