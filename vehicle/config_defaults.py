@@ -423,19 +423,21 @@ PILOT_BACKEND: Literal["auto", "torch", "onnx", "torchscript"] = "auto"
 # ONNX Runtime intra-op threads for the pilot. 1: batch-1 inference gains little from more, and
 # the drive loop's other parts need the other cores.
 PILOT_ONNX_THREADS: Annotated[int, Range(0, 256)] = 1
-# Speed control that replaces the model's throttle while a speed limit is set: "off", "pi" (PI
-# controller with the limit as target speed, as Udacity's drive.py) or "limit" (throttle =
-# 1 - speed / limit, Track Driver AI's driver).
+# Speed control that replaces the pilot's throttle while PILOT_SPEED_LIMIT is set: "off", "pi"
+# (PI controller with PILOT_SPEED_LIMIT as target speed, as Udacity's drive.py) or "limit"
+# (throttle = 1 - speed / limit, Track Driver AI's driver). The web page's speed limit is another
+# thing: a cap on the car's speed in every mode, whatever this says.
 PILOT_SPEED_CONTROL: Literal["off", "pi", "limit"] = "off"
-# Speed limit (target) in m/s while the web page sets none (`user/speed_limit` is None); None =
-# no limit, the model's throttle drives.
+# Target speed of PILOT_SPEED_CONTROL in m/s; None = no speed control, the model's throttle drives.
 PILOT_SPEED_LIMIT: Annotated[float | None, Range(0, 100, lo_open=True, unit="m/s")] = None
-# Memory key of the measured speed in m/s; None = sim/speed when the simulator is in the vehicle,
-# else enc/speed.
+# Memory key of the measured speed in m/s (speed control and the web page's speed limit); None =
+# sim/speed when the simulator is in the vehicle, else enc/speed.
 PILOT_SPEED_KEY: str | None = None
-# Proportional gain of the PI speed controller: throttle per m/s of speed error.
+# Proportional gain of the PI speed controller (and of the web page's speed limit): throttle per
+# m/s of speed error.
 PILOT_SPEED_KP: Annotated[float, Range(0, 100)] = 0.3
-# Integral gain of the PI speed controller: throttle per m/s of error per second.
+# Integral gain of the PI speed controller (and of the speed limit): throttle per m/s of error per
+# second.
 PILOT_SPEED_KI: Annotated[float, Range(0, 100)] = 0.6
 # Highest throttle the speed controller commands (lower it for a first run on a real car).
 PILOT_SPEED_MAX_THROTTLE: Annotated[float, Range(0, 1, lo_open=True)] = 1.0
@@ -605,7 +607,8 @@ WEB_DEADMAN_S: Annotated[float, Range(0.1, 2, unit="s")] = 0.5
 # Initial maximum throttle of the page, [0, 1]: the page's full stick gives this throttle; it can be
 # changed on the page and is also the constant-throttle value.
 WEB_MAX_THROTTLE: Annotated[float, Range(0, 1)] = 0.5
-# Largest speed limit the page's slider offers, m/s (sent as user/speed_limit).
+# Largest speed limit the page's slider offers, m/s (sent as user/speed_limit: the car's speed is
+# capped at it in every mode; it needs a measured speed, the simulator's or an encoder's).
 WEB_MAX_SPEED_LIMIT: Annotated[float, Range(0, 100, lo_open=True, unit="m/s")] = 5.0
 # State updates (gauges, counts, loop health) sent to each page per second.
 WEB_TELEMETRY_HZ: Annotated[float, Range(0, 100, lo_open=True, unit="Hz")] = 20.0

@@ -67,7 +67,7 @@ STANDARD_KEYS: dict[str, KeyInfo] = {
     "user/mode": KeyInfo("str: user | local_angle | local", "who drives: human, pilot steers, pilot drives"),
     "recording": KeyInfo("bool", "whether the tub writer records this loop"),
     "estop": KeyInfo("bool", "emergency stop latched: throttle forced to 0"),
-    "user/speed_limit": KeyInfo("float, m/s, or None", "target speed for the speed controller (web page)"),
+    "user/speed_limit": KeyInfo("float, m/s, or None", "web page's speed limit: caps the speed in every mode"),
     "pilot/model_request": KeyInfo("str path or None", "model file the web picker asks the pilot to load"),
     "controller/active": KeyInfo("str: gamepad | web", "which controller's stick drives (arbitration)"),
     "web/angle": KeyInfo("float in [-1, 1]", "steering from the web page, before arbitration"),

@@ -6,9 +6,10 @@ previous commands (``memory`` models) and the last N frames (sequence models) ar
 part. Frames go through the same preprocessing code as training. Outputs are clamped to [-1, 1];
 a NaN or infinite prediction becomes angle 0, throttle 0 with a rate-limited warning.
 
-Optional speed control (:class:`parts.drive.speed.SpeedControl`) replaces the model's throttle
-while ``user/speed_limit`` is set; its two inputs (speed key, ``user/speed_limit``) are then
-appended to ``inputs``.
+Optional speed control (:class:`parts.drive.speed.SpeedControl`, PILOT_SPEED_CONTROL) replaces
+the model's throttle by one that drives to its target speed (PILOT_SPEED_LIMIT); the speed key is
+then appended to ``inputs``. The web page's speed limit is not a target: it caps the car's final
+throttle in every mode (:class:`parts.drive.speed.SpeedLimit`).
 
 Hot switch: :meth:`Pilot.request_model` loads another file in a background thread and swaps it in
 with one reference assignment; the loop never waits for a load, and a file that fails to load
@@ -34,7 +35,6 @@ from parts.pilots.backends import Backend, Runner, open_runner
 logger = logging.getLogger(__name__)
 
 IMAGE_KEY = "cam/image_array"
-SPEED_LIMIT_KEY = "user/speed_limit"
 
 
 class _RateLimitedLog:
@@ -134,21 +134,16 @@ class Pilot:
     @property
     def inputs(self) -> list[str]:
         """Memory keys ``run`` takes, in order: the image, the model's extra inputs, then (with
-        speed control) the speed and the speed limit."""
+        speed control) the measured speed."""
         keys = [IMAGE_KEY, *self._active.runner.extra_inputs]
         if self.speed_control is not None:
-            keys += [self.speed_key, SPEED_LIMIT_KEY]
+            keys.append(self.speed_key)
         return keys
 
     @property
     def INPUTS(self) -> tuple[str, ...]:  # noqa: N802 - the part declaration read by Vehicle.add
         """The part's inputs (:attr:`inputs`), as the declaration Vehicle.add reads."""
         return tuple(self.inputs)
-
-    @property
-    def OPTIONAL_INPUTS(self) -> tuple[str, ...]:  # noqa: N802 - as INPUTS
-        """The speed limit: a car without the web page has none (PILOT_SPEED_LIMIT applies)."""
-        return (SPEED_LIMIT_KEY,) if self.speed_control is not None else ()
 
     OUTPUTS: ClassVar[tuple[str, ...]] = ("pilot/angle", "pilot/throttle")
 
@@ -165,7 +160,7 @@ class Pilot:
         active = self._active  # one read: a swap during this call does not mix two models
         runner = active.runner
         n_extra = len(runner.extra_inputs)
-        expected = 1 + n_extra + (2 if self.speed_control is not None else 0)
+        expected = 1 + n_extra + (1 if self.speed_control is not None else 0)
         if len(rest) + 1 != expected:
             raise TypeError(f"Pilot.run takes {expected} inputs {self.inputs}, got {len(rest) + 1}; "
                             "wire the part with inputs=pilot.inputs")
@@ -175,8 +170,7 @@ class Pilot:
             self.frame_shape = image.shape  # what a model switched to must take
         angle, throttle = self._predict(active, image, rest[:n_extra])
         if self.speed_control is not None:
-            speed, limit = rest[n_extra], rest[n_extra + 1]
-            throttle = self.speed_control.run(throttle, speed, limit)
+            throttle = self.speed_control.run(throttle, rest[n_extra], None)  # its own target speed
             if throttle is None or not math.isfinite(throttle):
                 throttle = 0.0
             throttle = min(1.0, max(-1.0, float(throttle)))

@@ -19,8 +19,9 @@ def add_pilot(V: Any, cfg: Config, model_path: str | Path) -> Any:
     (``cam/image_array`` first); it outputs ``pilot/angle`` and ``pilot/throttle``. A
     :class:`parts.pilots.pilot.ModelSwitch` (every loop) loads the model named in
     ``pilot/model_request`` in the background and outputs ``pilot/model``. With
-    PILOT_SPEED_CONTROL set, a speed controller replaces the model's throttle while
-    ``user/speed_limit`` (the web page's limit; PILOT_SPEED_LIMIT while it is None) is set.
+    PILOT_SPEED_CONTROL and PILOT_SPEED_LIMIT set, a speed controller replaces the model's throttle
+    by one that drives at PILOT_SPEED_LIMIT. (The web page's speed limit caps the final throttle in
+    every mode: :func:`vehicle.app.assembly.drive.add_drive_mode`.)
     Returns the Pilot.
 
     Raises:
@@ -29,7 +30,7 @@ def add_pilot(V: Any, cfg: Config, model_path: str | Path) -> Any:
     from parts.drive.modes import PilotCondition
     from parts.pilots.pilot import ModelSwitch
 
-    pilot = make_pilot(cfg, model_path, measured_speed_key="sim/speed" if V.produces("sim/speed") else "enc/speed",
+    pilot = make_pilot(cfg, model_path, measured_speed_key=speed_key_of(V, cfg),
                        frame_shape=camera_frame_shape(V, cfg))
     V.add(PilotCondition())
     V.add(ModelSwitch(pilot))
@@ -74,6 +75,12 @@ def make_pilot(cfg: Config, model_path: str | Path, measured_speed_key: str = "e
                           extra_sizes={"behavior/one_hot_state_array": len(cfg.BEHAVIOR_LIST)})
     except (ValueError, ImportError, OSError) as exc:
         raise UserError(f"cannot drive with {path}: {exc}") from exc
+
+
+def speed_key_of(V: Any, cfg: Config) -> str:
+    """PILOT_SPEED_KEY, else sim/speed when the simulator is in ``V``, else enc/speed (a real car
+    needs an encoder part writing it)."""
+    return cfg.PILOT_SPEED_KEY or ("sim/speed" if V.produces("sim/speed") else "enc/speed")
 
 
 def camera_frame_shape(V: Any, cfg: Config) -> tuple[int, int, int]:

@@ -38,7 +38,7 @@ def test_speed_control_wires_the_speed_and_the_limit(make_model_file, frame):
     V.add(lambda: 1.5, outputs=["sim/speed"])  # a simulator at 1.5 m/s
     cfg = Config.defaults(PILOT_BACKEND="torch", PILOT_SPEED_CONTROL="limit", PILOT_SPEED_LIMIT=2.0)
     pilot = add_pilot(V, cfg, make_model_file("linear"))
-    assert pilot.inputs == ["cam/image_array", "sim/speed", "user/speed_limit"]
+    assert pilot.inputs == ["cam/image_array", "sim/speed"]  # its own target: not the page's limit
     V.start(rate_hz=20, max_loop_count=2)
     assert V.mem["pilot/throttle"] == pytest.approx(0.25)  # 1 - 1.5 / 2.0
 
