@@ -85,6 +85,7 @@ STANDARD_KEYS: dict[str, KeyInfo] = {
     "pilot/throttle": KeyInfo("float in [-1, 1]", "throttle from the pilot"),
     "run_pilot": KeyInfo("bool", "True when the pilot must run this loop (mode is not user)"),
     "pilot/model": KeyInfo("str", "file name of the model driving now (after a hot switch: the new one)"),
+    "pilot/load_error": KeyInfo("str or None", "why the last model asked for was not loaded (None after a success)"),
     # -- final commands
     "angle": KeyInfo("float in [-1, 1]", "steering command sent to the drivetrain"),
     "throttle": KeyInfo("float in [-1, 1]", "throttle command sent to the drivetrain"),

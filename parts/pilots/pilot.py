@@ -302,23 +302,30 @@ class Pilot:
 
 
 class ModelSwitch:
-    """Part: watch ``pilot/model_request`` and hot-switch the pilot; outputs ``pilot/model``.
+    """Part: watch ``pilot/model_request`` and hot-switch the pilot; outputs ``pilot/model`` and
+    ``pilot/load_error`` (why the last model asked for was not loaded; None after a success).
 
     Runs every loop (no run_condition), so a model chosen while a human drives is loaded before
-    the pilot takes over. A request that equals the last one is ignored; a request made while a
-    load is running is retried on the next loops.
+    the pilot takes over. A request equal to the last one is ignored until the request goes back
+    to None (the web page hands a pick over once, so picking the same file again reloads it); a
+    request made while a load is running is kept and retried on the next loops.
     """
 
     INPUTS: ClassVar[tuple[str, ...]] = ("pilot/model_request",)
     #: a car without the web page's model picker never asks for a switch
     OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("pilot/model_request",)
-    OUTPUTS: ClassVar[tuple[str, ...]] = ("pilot/model",)
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("pilot/model", "pilot/load_error")
 
     def __init__(self, pilot: Pilot) -> None:
         self.pilot = pilot
         self._last: str | None = None
+        self._pending: str | None = None
 
-    def run(self, request: str | None) -> str:
-        if request and request != self._last and self.pilot.request_model(request):
-            self._last = request
-        return self.pilot.model_name
+    def run(self, request: str | None) -> tuple[str, str | None]:
+        if not request:
+            self._last = None
+        elif request != self._last:
+            self._last = self._pending = request
+        if self._pending and self.pilot.request_model(self._pending):
+            self._pending = None
+        return self.pilot.model_name, self.pilot.load_error

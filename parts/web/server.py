@@ -87,11 +87,17 @@ class LatestFrame:
         return data, version
 
 
+#: model files a pilot loads: the model file, and its ONNX and TorchScript exports
+MODEL_SUFFIXES = (".pt", ".onnx", ".ts")
+
+
 def list_models(models_dir: Path | None) -> list[str]:
-    """Names of the ``*.pt`` model files directly in ``models_dir`` (sorted; [] if absent)."""
+    """Names of the model files (``*.pt``, ``*.onnx``, ``*.ts``) directly in ``models_dir``, hidden
+    ones left out (sorted; [] if absent)."""
     if models_dir is None or not models_dir.is_dir():
         return []
-    return sorted(p.name for p in models_dir.glob("*.pt") if p.is_file())
+    return sorted(p.name for p in models_dir.iterdir()
+                  if p.suffix in MODEL_SUFFIXES and not p.name.startswith(".") and p.is_file())
 
 
 def static_file(root: Path, request_path: str) -> Path | None:
@@ -334,6 +340,9 @@ class WebServer:
                                                    max_speed_limit=self.max_speed_limit)
             except protocol.ProtocolError as exc:
                 return self._reject(sid, str(exc))
+            refused = self.state.refusal(settings)
+            if refused:
+                return self._reject(sid, refused)
             model_path = None
             if "model" in settings and self.models_dir is not None:
                 model_path = str((self.models_dir / settings["model"]).resolve())

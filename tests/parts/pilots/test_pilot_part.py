@@ -140,10 +140,10 @@ def test_hot_switch_loads_in_the_background_and_swaps(make_model_file, frame, tm
     b = make_model_file("linear", name="b", seed=2)
     pilot = Pilot(a, backend="torch", models_dir=a.parent)
     switch = ModelSwitch(pilot)
-    assert switch.run(None) == "a.pt"
-    assert switch.run("b.pt") in ("a.pt", "b.pt")  # relative to models_dir; never waits for the load
+    assert switch.run(None) == ("a.pt", None)
+    assert switch.run("b.pt")[0] in ("a.pt", "b.pt")  # relative to models_dir; never waits for the load
     assert pilot.wait_loaded(timeout=30)
-    assert switch.run("b.pt") == "b.pt"
+    assert switch.run("b.pt") == ("b.pt", None)
     assert pilot.resolve("models/b.pt") == b  # a car-relative path from another working directory
     assert list(pilot.run(frame)) == pytest.approx(bare(b, frame), abs=1e-6)
     # a file that does not load keeps the current model driving
@@ -152,6 +152,14 @@ def test_hot_switch_loads_in_the_background_and_swaps(make_model_file, frame, tm
     assert pilot.wait_loaded(timeout=30)
     assert pilot.model_name == "b.pt" and "broken.pt" in pilot.load_error
     assert list(pilot.run(frame)) == pytest.approx(bare(b, frame), abs=1e-6)
+    name, error = switch.run(str(tmp_path / "broken.pt"))  # the same request: not loaded again
+    assert name == "b.pt" and "broken.pt" in error  # pilot/load_error: the page shows why
+    # the file fixed and asked for again once the picker let go of the request: it loads
+    (tmp_path / "broken.pt").write_bytes(a.read_bytes())
+    switch.run(None)
+    switch.run(str(tmp_path / "broken.pt"))
+    assert pilot.wait_loaded(timeout=30)
+    assert switch.run(None) == ("broken.pt", None)
 
 
 def test_a_switch_to_another_type_changes_the_declared_inputs(make_model_file, frame):

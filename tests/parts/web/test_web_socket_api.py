@@ -77,12 +77,14 @@ def test_model_picker_requests_a_file_of_the_models_folder(web, loop_side, clien
         c = client_cls()
         await c.connect(web.port)
         assert await c.call("set", {"model": "b.pt"}) == {"ok": True}
-        assert loop_side.step()["pilot/model_request"] == str((models_dir / "b.pt").resolve())
+        assert loop_side.step(pilot__model="a.pt")["pilot/model_request"] == str((models_dir / "b.pt").resolve())
         (models_dir / "c.pt").write_bytes(b"new")
         assert (await c.call("models"))["models"] == ["a.pt", "b.pt", "c.pt"]
         for bad in ("../a.pt", "notes.txt", str(models_dir / "a.pt"), "missing.pt", 3):
             res = await c.call("set", {"model": bad})
             assert res["ok"] is False and "models folder" in res["error"]
+        assert loop_side.step()["pilot/model_request"] is None  # a request is handed over once
+        assert await c.call("set", {"model": "b.pt"}) == {"ok": True}  # the same again: again
         assert loop_side.step()["pilot/model_request"] == str((models_dir / "b.pt").resolve())
         await c.close()
 
@@ -470,3 +472,86 @@ def test_shutdown_with_browsers_connected_is_prompt(web_factory, client_cls, raw
     with caplog.at_level(logging.WARNING):
         arun(main())
     assert "did not stop" not in caplog.text
+
+
+# -- issue 21: what the page needs from the server ----------------------------------------------
+def test_every_loadable_model_is_listed(web, client_cls, arun, models_dir):
+    (models_dir / "a.onnx").write_bytes(b"an export of a.pt")
+    (models_dir / "c.ts").write_bytes(b"a TorchScript export")
+    (models_dir / ".hidden.pt").write_bytes(b"")
+
+    async def main():
+        c = client_cls()
+        hello = await c.connect(web.port)
+        assert hello["models"] == ["a.onnx", "a.pt", "b.pt", "c.ts"]
+        assert await c.call("set", {"model": "c.ts"}) == {"ok": True}
+        await c.close()
+
+    arun(main())
+
+
+def test_settings_that_move_or_record_wait_for_the_stop_to_be_released(web, loop_side, client_cls, arun):
+    async def main():
+        c = client_cls()
+        await c.connect(web.port)
+        assert await c.call("set", {"mode": "local", "recording": True}) == {"ok": True}
+        assert await c.call("estop", {"on": True}) == {"ok": True}
+        out = loop_side.step()
+        assert (out["estop"], out["user/mode"], out["recording"]) == (True, "user", False)
+        for setting in ({"mode": "local"}, {"mode": "local_angle"}, {"recording": True},
+                        {"constant_throttle": True}):
+            res = await c.call("set", setting)
+            assert res["ok"] is False and "emergency stop" in res["error"], setting
+        assert await c.call("set", {"max_throttle": 0.3, "mode": "user"}) == {"ok": True}  # harmless
+        out = loop_side.step()
+        assert (out["user/mode"], out["recording"], out["user/throttle"]) == ("user", False, 0.0)
+        assert await c.call("estop", {"on": False}) == {"ok": True}
+        out = loop_side.step()  # released: a stopped car in user mode, not recording
+        assert (out["estop"], out["user/mode"], out["recording"], out["user/throttle"]) == \
+            (False, "user", False, 0.0)
+        assert await c.call("set", {"mode": "local"}) == {"ok": True}  # set again: accepted
+        assert loop_side.step()["user/mode"] == "local"
+        await c.close()
+
+    arun(main())
+
+
+def test_telemetry_says_what_is_live_and_what_the_simulator_measures(web, loop_side, client_cls, arun):
+    async def main():
+        c = client_cls()
+        await c.connect(web.port)
+        loop_side.step(run_pilot=False, pilot__model="pilot.onnx", pilot__angle=0.4,
+                       pilot__load_error="models/bad.pt: not a model file", sim__cte=-0.12,
+                       sim__lap=2, sim__off_track=False, sim__speed=1.5)
+        for off in (True, True, False, True, False):  # two off-track events
+            loop_side.step(sim__off_track=off)
+        for _ in range(100):  # the next state message after these loops
+            if c.states and c.states[-1]["telemetry"]["loops"] >= 6:
+                break
+            await asyncio.sleep(0.05)
+        state = c.states[-1]
+        t = state["telemetry"]
+        assert t["pilot_active"] is False and t["pilot_model"] == "pilot.onnx"
+        assert t["pilot_error"] == "models/bad.pt: not a model file"
+        assert (t["sim_cte"], t["sim_laps"], t["sim_off_track"], t["off_track_events"]) == (-0.12, 2, False, 2)
+        assert 0.0 <= state["age_s"] < 5.0  # seconds since the loop last reported
+        await c.close()
+
+    arun(main())
+
+
+def test_a_model_or_a_speed_limit_the_car_cannot_use_is_refused(web, loop_side, client_cls, arun):
+    async def main():
+        c = client_cls()
+        await c.connect(web.port)
+        loop_side.step()  # a car without a pilot and without a speed measurement
+        res = await c.call("set", {"model": "a.pt"})
+        assert res["ok"] is False and "without a pilot" in res["error"] and "--model" in res["error"]
+        res = await c.call("set", {"speed_limit": 1.0})
+        assert res["ok"] is False and "measures no speed" in res["error"]
+        assert await c.call("set", {"speed_limit": None}) == {"ok": True}
+        loop_side.step(pilot__model="a.pt", sim__speed=0.0)
+        assert await c.call("set", {"model": "b.pt", "speed_limit": 1.0}) == {"ok": True}
+        await c.close()
+
+    arun(main())
