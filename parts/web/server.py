@@ -209,6 +209,7 @@ class WebServer:
         app = web.Application(client_max_size=HARD_LIMIT_BYTES, middlewares=[check_host])
         app.router.add_get("/", self._index)
         app.router.add_get("/static/{path:.*}", self._static)
+        app.router.add_get("/favicon.ico", self._favicon)  # what browsers ask for without a <link>
         sio.attach(app)
         runner = web.AppRunner(app, access_log=None, handle_signals=False, shutdown_timeout=SHUTDOWN_S)
         await runner.setup()
@@ -272,6 +273,12 @@ class WebServer:
 
         return web.FileResponse(self.static_dir / "index.html",
                                 headers={"Cache-Control": "no-cache", "Content-Type": "text/html"})
+
+    async def _favicon(self, request: Any) -> Any:
+        from aiohttp import web
+
+        return web.FileResponse(self.static_dir / "favicon.svg",
+                                headers={"Cache-Control": "max-age=86400", "Content-Type": "image/svg+xml"})
 
     async def _static(self, request: Any) -> Any:
         from aiohttp import web
