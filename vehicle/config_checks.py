@@ -48,12 +48,24 @@ def _is_number(x: Any) -> bool:
     return isinstance(x, int | float) and not isinstance(x, bool)
 
 
+def _numbers(value: Any) -> list[Any]:
+    """The numbers in a value: itself, or those of a list, tuple or dict, however nested."""
+    if _is_number(value):
+        return [value]
+    if isinstance(value, dict):
+        value = list(value.values())
+    if isinstance(value, list | tuple):
+        return [x for item in value for x in _numbers(item)]
+    return []
+
+
 @dataclass(frozen=True)
 class Range:
     """Numbers from ``lo`` to ``hi`` (None: unbounded); ``lo_open``/``hi_open`` exclude the bound.
 
-    A list or tuple value is checked item by item. ``None`` passes (the type says whether it is
-    allowed); ``note`` is added to the description (e.g. what None means).
+    A list, tuple or dict value is checked number by number (nested ones too). ``None`` passes
+    (the type says whether it is allowed); ``note`` is added to the description (e.g. what None
+    means).
     """
 
     lo: float | None = None
@@ -65,14 +77,11 @@ class Range:
 
     def problem(self, value: Any) -> str | None:
         """Why ``value`` is invalid, or None."""
-        items = list(value.values()) if isinstance(value, dict) else \
-            value if isinstance(value, list | tuple) else [value]
+        items = _numbers(value)
         for item in items:
-            if not _is_number(item):
-                continue
             why = self._item_problem(item)
             if why:
-                return why if items is not value else f"holds {number_text(item)}, which {why}"
+                return why if items == [value] else f"holds {number_text(item)}, which {why}"
         return None
 
     def _item_problem(self, x: float) -> str | None:
@@ -280,4 +289,5 @@ def _ordered_pair(name: str) -> Rule:
 
 #: rules across settings, run in order after every setting passed its own range
 RULES: tuple[Rule, ...] = (_pwm_pulses, _channels, _watchdog, _tub_schema, _behaviors, _track,
-                           _ordered_pair("AUG_BLUR_RANGE"))
+                           _ordered_pair("AUG_BLUR_RANGE"), _ordered_pair("SIM_EVAL_LANE_CHANGE_EVERY"),
+                           _ordered_pair("LANE_YELLOW_HUE"))

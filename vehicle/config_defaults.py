@@ -91,12 +91,12 @@ CAMERA_UNDISTORT: bool = False
 CAMERA_CALIBRATION_PATH: str = "camera_calibration.json"
 # Undistorted view: 0 = zoom so that only valid pixels show (no black border), 1 = keep every
 # source pixel (black corners with a wide lens).
-CAMERA_UNDISTORT_ALPHA: float = 0.0
+CAMERA_UNDISTORT_ALPHA: Annotated[float, Range(0, 1)] = 0.0
 # Chessboard used for calibration: inner corners per row and per column (where four squares
 # meet; the thesis's board: 10 x 7, an 11 x 8 squares print). The counts must differ.
-CAMERA_CALIB_BOARD: tuple[int, int] = (10, 7)
+CAMERA_CALIB_BOARD: Annotated[tuple[int, int], Range(2, 100)] = (10, 7)
 # Side of one chessboard square as printed, in millimetres (only the board poses depend on it).
-CAMERA_CALIB_SQUARE_MM: float = 25.0
+CAMERA_CALIB_SQUARE_MM: Annotated[float, Range(0, 1000, lo_open=True, unit="mm")] = 25.0
 # Distortion model fitted: "standard" = k1, k2, p1, p2, k3 (the thesis's code); "rational" adds
 # k4..k6 for very wide lenses (the thesis's equation 6.3).
 CAMERA_CALIB_MODEL: Literal["standard", "rational"] = "standard"
@@ -104,24 +104,26 @@ CAMERA_CALIB_MODEL: Literal["standard", "rational"] = "standard"
 # the region of interest on the road as four (x, y) pixel points of a LANE_POINTS_SIZE frame,
 # bottom left, top left, top right, bottom right. Default: the thesis's points for its 320x180
 # simulator camera; tune them for your camera with `vehicle lanes preview`.
-LANE_SOURCE_POINTS: list[tuple[float, float]] = [(0.0, 180.0), (112.5, 87.5), (200.0, 87.5), (307.5, 180.0)]
+LANE_SOURCE_POINTS: Annotated[list[tuple[float, float]], Length(min=4, max=4), Range(0, unit="pixels")] = [
+    (0.0, 180.0), (112.5, 87.5), (200.0, 87.5), (307.5, 180.0)]
 # Where the source points go in the bird's-eye image, same order and frame size (the thesis's).
-LANE_DESTINATION_POINTS: list[tuple[float, float]] = [(80.0, 180.0), (80.0, 0.25), (230.0, 0.25), (230.0, 180.0)]
+LANE_DESTINATION_POINTS: Annotated[list[tuple[float, float]], Length(min=4, max=4), Range(0, unit="pixels")] = [
+    (80.0, 180.0), (80.0, 0.25), (230.0, 0.25), (230.0, 180.0)]
 # (width, height) of the frame the lane points are given for; they are scaled to the real
 # camera size (same field of view assumed).
-LANE_POINTS_SIZE: tuple[int, int] = (320, 180)
+LANE_POINTS_SIZE: Annotated[tuple[int, int], Range(8, 8192, unit="pixels")] = (320, 180)
 # HLS saturation range of lane pixels after the warp: S in (low, high] (thesis: 65, 255, i.e.
 # S > 65); None leaves the S threshold out (then LANE_COLOR_MASK must be set).
-LANE_S_THRESHOLD: tuple[int, int] | None = (65, 255)
+LANE_S_THRESHOLD: Annotated[tuple[int, int] | None, Range(0, 255)] = (65, 255)
 # Also count white and/or yellow pixels as lane pixels: white tape has almost no saturation, so
 # the S threshold alone misses it. None, "white", "yellow" or "white_yellow".
 LANE_COLOR_MASK: Literal["white", "yellow", "white_yellow"] | None = None
 # HLS lightness (0-255, after LANE_NORMALIZE) from which a pixel is white (LANE_COLOR_MASK).
-LANE_WHITE_MIN_LIGHTNESS: int = 200
+LANE_WHITE_MIN_LIGHTNESS: Annotated[int, Range(0, 255)] = 200
 # OpenCV hue range (0-180) of yellow lane pixels (LANE_COLOR_MASK).
-LANE_YELLOW_HUE: tuple[int, int] = (15, 35)
+LANE_YELLOW_HUE: Annotated[tuple[int, int], Range(0, 180)] = (15, 35)
 # Least HLS saturation (0-255) of a yellow lane pixel (LANE_COLOR_MASK).
-LANE_YELLOW_MIN_SATURATION: int = 80
+LANE_YELLOW_MIN_SATURATION: Annotated[int, Range(0, 255)] = 80
 # Stretch the warped image to the full 0-255 range before thresholding (the thesis does).
 LANE_NORMALIZE: bool = True
 
@@ -167,9 +169,9 @@ MIN_DELTA: Annotated[float, Range(0)] = 0.0005
 LEARNING_RATE: Annotated[float, Range(0, 1, lo_open=True)] = 0.001
 # Training steps (batches) per epoch; None = every training sample once. Fewer steps make epochs
 # shorter on a large data set (each epoch then sees a different random part of it).
-TRAIN_STEPS_PER_EPOCH: int | None = None
+TRAIN_STEPS_PER_EPOCH: Annotated[int | None, Range(1)] = None
 # Validation steps (batches) per epoch; None = every validation sample.
-TRAIN_VAL_STEPS: int | None = None
+TRAIN_VAL_STEPS: Annotated[int | None, Range(1)] = None
 # Adam weight decay (L2 penalty on the weights), 0 = off.
 TRAIN_WEIGHT_DECAY: Annotated[float, Range(0)] = 0.0
 # Where to train: "auto" = the GPU when there is one (cuda), else cpu; or "cpu", "cuda", "cuda:1".
@@ -300,7 +302,8 @@ SIM_CAMERA_FORWARD: Annotated[float, Range(-5, 5, unit="m")] = 0.2
 # Lens distortion of the simulated camera, OpenCV's coefficients (k1, k2, p1, p2[, k3]; k1 < 0 is
 # a wide-angle barrel lens), or None for an ideal pinhole. With it the simulator's frames need
 # calibrating and undistorting like a real camera's (`vehicle camera calibrate --sim`).
-SIM_CAMERA_DISTORTION: list[float] | None = None
+SIM_CAMERA_DISTORTION: Annotated[list[float] | None, Length(min=4, max=8, note="4, 5 or 8 coefficients"),
+                                 Range(-10, 10)] = None
 # Width of the rendered image in pixels; follows IMAGE_W unless set (e.g. 320 like the Udacity
 # simulator).
 SIM_CAMERA_W: Annotated[int, Range(8, 4096, unit="pixels")] = IMAGE_W
@@ -346,12 +349,12 @@ SIM_EXPERT_LOOKAHEAD_TIME: Annotated[float, Range(0, 10, unit="s")] = 0.25
 SIM_EXPERT_LANE: Literal["auto", "center", "left", "right"] = "auto"
 # Two-lane tracks with TRAIN_BEHAVIORS: the expert keeps to the lane of the active behaviour
 # (BEHAVIOR_LIST names with Left/Right) and changes lane along a smooth path of this many metres.
-SIM_EXPERT_LANE_CHANGE_DISTANCE: float = 2.0
+SIM_EXPERT_LANE_CHANGE_DISTANCE: Annotated[float, Range(0, 100, lo_open=True, unit="m")] = 2.0
 # A lane change starts only where the road ahead curves less than this (1/m; 0.4 = radius 2.5 m):
 # the expert delays the manoeuvre in tight corners, as the thesis's drivers did.
-SIM_EXPERT_LANE_CHANGE_MAX_CURVATURE: float = 0.4
+SIM_EXPERT_LANE_CHANGE_MAX_CURVATURE: Annotated[float, Range(0, 100, lo_open=True, unit="1/m")] = 0.4
 # Longest wait (seconds) for a straighter road before a lane change starts anyway.
-SIM_EXPERT_LANE_CHANGE_MAX_DELAY: float = 3.0
+SIM_EXPERT_LANE_CHANGE_MAX_DELAY: Annotated[float, Range(0, 3600, unit="s")] = 3.0
 # Noise injection: amplitude of the steering perturbation added to the executed command while
 # the expert's clean label is recorded, so demonstrations contain recoveries (0 = off). Used when
 # the expert drives (manage.py drive --expert, vehicle sim record), never in evaluation.
@@ -369,11 +372,11 @@ SIM_INTERVENTION_PENALTY: Annotated[float, Range(0, unit="s")] = 6.0
 SIM_EVAL_MAX_TIME: Annotated[float | None, Range(0, lo_open=True, unit="s")] = None
 # Evaluation of a behaviour pilot on two-lane tracks: the lane is changed on command (the behaviour
 # steps), the first time after 4 s, then every (min, max) seconds, drawn per track from SIM_SEED.
-SIM_EVAL_LANE_CHANGE_EVERY: tuple[float, float] = (8.0, 12.0)
+SIM_EVAL_LANE_CHANGE_EVERY: Annotated[tuple[float, float], Range(0, 3600, lo_open=True, unit="s")] = (8.0, 12.0)
 # Seconds a commanded lane change may take to count as done (the car must be in the new lane by then).
-SIM_EVAL_LANE_CHANGE_TIME_LIMIT: float = 6.0
+SIM_EVAL_LANE_CHANGE_TIME_LIMIT: Annotated[float, Range(0, 3600, lo_open=True, unit="s")] = 6.0
 # Seconds the car must then stay in the new lane.
-SIM_EVAL_LANE_CHANGE_HOLD: float = 1.0
+SIM_EVAL_LANE_CHANGE_HOLD: Annotated[float, Range(0, 3600, unit="s")] = 1.0
 
 # == Simulator bridges ==
 
@@ -383,13 +386,13 @@ SIM_EVAL_LANE_CHANGE_HOLD: float = 1.0
 SIM_TYPE: Literal["builtin", "udacity", "donkey"] = "builtin"
 # Seconds without telemetry from the Udacity or Donkey simulator before its camera counts as
 # stale (cam/ok False: the camera watchdog takes the pilot out) and one line says what to check.
-SIM_TIMEOUT_S: float = 1.0
+SIM_TIMEOUT_S: Annotated[float, Range(0.1, 10, unit="s")] = 1.0
 # Address of the Donkey simulator (DonkeyCar's name); it often runs on another machine.
 SIM_HOST: str = "127.0.0.1"
 # TCP port of the Donkey simulator (9091 unless it was started with --port).
-SIM_PORT: int = 9091
+SIM_PORT: Annotated[int, Range(1, 65535)] = 9091
 # Seconds a drive keeps trying to reach the Donkey simulator at start (it may still be starting).
-SIM_CONNECT_TIMEOUT_S: float = 10.0
+SIM_CONNECT_TIMEOUT_S: Annotated[float, Range(0, 3600, lo_open=True, unit="s")] = 10.0
 # Scene the Donkey simulator loads: a gym id (DonkeyCar's setting: donkey-generated-track-v0,
 # donkey-warren-track-v0 ...) or a scene name (generated_track, warren, track_5 on `vehicle sim serve`).
 DONKEY_GYM_ENV_NAME: str = "donkey-generated-track-v0"
@@ -400,12 +403,12 @@ GYM_CONF: dict[str, Any] = {"body_style": "donkey", "body_rgb": (128, 128, 128),
 # |cte| beyond which the Donkey simulator's car is off the track, in the simulator's units
 # (gym-donkeycar's max_cte; `vehicle sim serve` reports metres: use half the road width there).
 # None: only hits count.
-DONKEY_MAX_CTE: float | None = 8.0
+DONKEY_MAX_CTE: Annotated[float | None, Range(0, lo_open=True)] = 8.0
 # Interface the Udacity simulator connects to. The simulator connects to 127.0.0.1 only; use
 # "0.0.0.0" when it runs on another machine (e.g. Windows, with this in WSL2).
 UDACITY_HOST: str = "127.0.0.1"
 # Port the Udacity simulator connects to (4567 is built into the simulator).
-UDACITY_PORT: int = 4567
+UDACITY_PORT: Annotated[int, Range(1, 65535)] = 4567
 # Decimal separator of steer values: "auto" (the one the simulator's telemetry uses: a
 # simulator on a comma-decimal locale parses "0,5"), "." or ",".
 UDACITY_DECIMAL: Literal["auto", ".", ","] = "auto"
@@ -627,7 +630,7 @@ CONTROLLER_PRIORITY: Literal["gamepad", "web", "latest"] = "gamepad"
 # every network interface, which then requires the pairing token (WEB_TOKEN's rules).
 CONSOLE_HOST: str = "127.0.0.1"
 # TCP port of the console: http://localhost:8890/
-CONSOLE_PORT: int = 8890
+CONSOLE_PORT: Annotated[int, Range(0, 65535, note="0 picks a free port")] = 8890
 
 # == Recording ==
 

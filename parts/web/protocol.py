@@ -145,5 +145,5 @@ def parse_behavior(payload: Any) -> int:
     _no_extra(msg, ("step",), "behavior")
     step = msg.get("step")
     if isinstance(step, bool) or step not in (1, -1):
-        raise ProtocolError(f"behavior: step must be 1 (next) or -1 (previous), got {step!r}")
+        raise ProtocolError(f"behavior: step must be 1 (next) or -1 (previous), got {short(step)}")
     return int(step)
