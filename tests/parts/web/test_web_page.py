@@ -1,132 +1,30 @@
 """The driver page on a desktop and on a phone (touch, portrait and landscape), in Debian's headless
-chromium driven by Playwright, against a real Vehicle (issue 21: the page items)."""
+chromium driven by Playwright (tests/fixtures/browser.py), against a real Vehicle (issue 21: the
+page items)."""
 
 from __future__ import annotations
 
-import shutil
-import threading
 import time
-from collections.abc import Callable, Iterator
-from pathlib import Path
+from collections.abc import Callable
 from typing import Any
 
-import numpy as np
 import pytest
 
-from vehicle import Vehicle
-from vehicle.app import assembly
-from vehicle.config import Config
-
-CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
-pytestmark = [
-    pytest.mark.browser,
-    pytest.mark.skipif(not Path(CHROMIUM).exists(), reason="chromium is not installed (Debian: apt-get "
-                                                             "install chromium)"),
-]
-pw_sync = pytest.importorskip("playwright.sync_api")
+pytestmark = pytest.mark.browser  # chromium missing: the browser fixture skips, with the reason
 
 DESKTOP = {"width": 1280, "height": 800}
 PHONE = {"width": 390, "height": 844}
 PHONE_LANDSCAPE = {"width": 844, "height": 390}
 
 
-class FakeCamera:
-    """A camera part: a bright column moving over a dark frame."""
-
-    OUTPUTS = ("cam/image_array",)
-
-    def __init__(self) -> None:
-        self.i = 0
-
-    def run(self) -> np.ndarray:
-        self.i += 1
-        img = np.full((120, 160, 3), 30, np.uint8)
-        img[:, self.i % 160] = 255
-        return img
-
-
-class Car:
-    """A real Vehicle running in a thread at 40 Hz (real time)."""
-
-    def __init__(self, V: Vehicle, web: Any) -> None:
-        self.V, self.web = V, web
-        self.errors: list[BaseException] = []
-        self.thread = threading.Thread(target=self._run, daemon=True)
-
-    def _run(self) -> None:
-        try:
-            self.V.start(rate_hz=40)
-        except BaseException as exc:
-            self.errors.append(exc)
-
-    def start(self) -> Car:
-        self.thread.start()
-        end = time.monotonic() + 10
-        while self.web.port == 0 and time.monotonic() < end:
-            time.sleep(0.01)
-        return self
-
-    def stop(self) -> None:
-        self.V.stop()
-        self.thread.join(10)
-        assert not self.errors, self.errors
-
-    def until(self, cond: Callable[[Any], bool], timeout: float = 5.0, what: str = "") -> None:
-        end = time.monotonic() + timeout
-        while not cond(self.V.mem):
-            if time.monotonic() > end:
-                raise AssertionError(f"vehicle memory condition not met: {what}")
-            time.sleep(0.01)
-
-
 @pytest.fixture
-def make_car(tmp_path: Path) -> Iterator[Callable[..., Car]]:
-    """``make_car(sim=False, model=None, **settings)``: the car as manage.py drive assembles it
-    (simulator or a fake camera, web page, pilot when ``model`` is given, drive mode)."""
-    cars: list[Car] = []
-
-    def make(sim: bool = False, model: Path | None = None, **settings: Any) -> Car:
-        cfg = Config.defaults(CAR_PATH=str(tmp_path), WEB_CONTROL_PORT=0, WEB_MAX_THROTTLE=1.0,
-                              PILOT_BACKEND="torch", **settings)
-        V = Vehicle()
-        if sim:
-            assembly.add_simulator(V, cfg)
-        else:
-            V.add(FakeCamera())
-        web = assembly.add_controller(V, cfg)
-        if model is not None:
-            assembly.add_pilot(V, cfg, model)
-        assembly.add_drive_mode(V, cfg)
-        car = Car(V, web).start()
-        cars.append(car)
-        return car
-
-    yield make
-    for car in cars:
-        car.stop()
-
-
-@pytest.fixture(scope="module")
-def browser() -> Iterator[Any]:
-    with pw_sync.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox"])
-        yield b
-        b.close()
-
-
-@pytest.fixture
-def open_page(browser: Any) -> Iterator[Callable[..., Any]]:
-    """``open_page(url, viewport=DESKTOP, touch=False, role="driver")``: a page in its own browser
-    context, connected with that role."""
-    contexts: list[Any] = []
+def open_page(new_page: Callable[..., Any]) -> Callable[..., Any]:
+    """``open_page(url, viewport=DESKTOP, touch=False, role="driver", init_script=None)``: a page in
+    its own browser context (a phone's with ``touch``), connected with that role."""
 
     def open_(url: str, viewport: dict[str, int] = DESKTOP, touch: bool = False,
               role: str | None = "driver", init_script: str | None = None) -> Any:
-        ctx = browser.new_context(viewport=viewport, has_touch=touch, is_mobile=touch,
-                                  device_scale_factor=2 if touch else 1)
-        contexts.append(ctx)
-        page = ctx.new_page()
-        page.set_default_timeout(10_000)
+        page = new_page(device="phone" if touch else "desktop", viewport=viewport)
         if init_script:
             page.add_init_script(init_script)
         page.goto(url)
@@ -134,9 +32,7 @@ def open_page(browser: Any) -> Iterator[Callable[..., Any]]:
             page.wait_for_function(f"window.webStats && webStats.connected && webStats.role === '{role}'")
         return page
 
-    yield open_
-    for ctx in contexts:
-        ctx.close()
+    return open_
 
 
 def box(page: Any, selector: str) -> dict[str, float]:
