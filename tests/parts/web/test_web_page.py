@@ -166,6 +166,7 @@ def test_simulator_telemetry_and_the_gamepad_are_shown(make_car, open_page):
     car = make_car(sim=True)
     page = open_page(car.web.url, init_script=FAKE_GAMEPAD)
     page.wait_for_function("!document.getElementById('sim').hidden")
+    assert page.is_visible("#sim")
     page.wait_for_function("/^[-+]?\\d+\\.\\d+ m$/.test(document.getElementById('cte').textContent)")
     assert page.inner_text("#laps") == "0" and page.inner_text("#offtrack") == "0"
     page.wait_for_function("document.getElementById('gamepad').textContent.includes('Fake Xbox pad')")
@@ -178,6 +179,7 @@ def test_no_simulator_no_simulator_panel_and_no_gamepad(make_car, open_page):
     page = open_page(car.web.url)
     page.wait_for_function("webStats.state && webStats.state.telemetry.loops > 2")
     assert page.evaluate("document.getElementById('sim').hidden") is True
+    assert not page.is_visible("#sim") and not page.is_visible("#behaviorrow")  # not just flagged
     assert "no gamepad" in page.inner_text("#gamepad")
 
 
