@@ -31,7 +31,7 @@ def add_pilot(V: Any, cfg: Config, model_path: str | Path) -> Any:
     from parts.pilots.pilot import ModelSwitch
 
     pilot = make_pilot(cfg, model_path, measured_speed_key=speed_key_of(V, cfg),
-                       frame_shape=camera_frame_shape(V, cfg))
+                       frame_shape=camera_frame_shape(V))
     V.add(PilotCondition())
     V.add(ModelSwitch(pilot))
     pilot.lock_inputs = True  # the vehicle's wiring is fixed from here on
@@ -83,9 +83,15 @@ def speed_key_of(V: Any, cfg: Config) -> str:
     return cfg.PILOT_SPEED_KEY or ("sim/speed" if V.produces("sim/speed") else "enc/speed")
 
 
-def camera_frame_shape(V: Any, cfg: Config) -> tuple[int, int, int]:
-    """(height, width, 3) of ``cam/image_array``: the simulator's camera size when the simulator
-    is in ``V``, else the camera's IMAGE_H x IMAGE_W."""
-    if V.produces("sim/speed"):
-        return (cfg.SIM_CAMERA_H, cfg.SIM_CAMERA_W, 3)
-    return (cfg.IMAGE_H, cfg.IMAGE_W, 3)
+def camera_frame_shape(V: Any) -> tuple[int, int, int] | None:
+    """(height, width, 3) of the ``cam/image_array`` frames the pilot will get: the size of the part
+    that makes them (a camera part, or the simulator's camera), or None when that part does not say
+    (a simulator bridge: the pilot then learns the size from the first frame)."""
+    for entry in reversed(getattr(V, "parts", ())):
+        if "cam/image_array" in entry.outputs:
+            camera = getattr(entry.part, "camera", entry.part)  # the simulator renders with a Camera
+            width, height = getattr(camera, "width", None), getattr(camera, "height", None)
+            if isinstance(width, int) and isinstance(height, int):
+                return (height, width, 3)
+            return None
+    return None
