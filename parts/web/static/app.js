@@ -148,16 +148,29 @@ function notice(text) {
   $("notice").hidden = !text;
 }
 
-function send(event, data, onError) {
-  sock.emit(event, data, (res) => {
+// send a message; onReply(res) when the car answers (at once with null when not connected)
+function send(event, data, onError, onReply) {
+  const sent = sock.emit(event, data, (res) => {
+    if (onReply) onReply(res);
     if (res && res.ok === false) {
       stats.rejected++; stats.lastError = res.error; console.warn(res.error);
       if (onError) onError(res.error);
     }
   });
+  if (!sent && onReply) onReply(null);
 }
 
-function setSetting(obj, onError) { if (role === "driver") send("set", obj, onError); }
+// settings sent and not yet answered: the car's state messages already on their way still carry
+// the old value, and must not undo what the user just clicked (a checkbox flipping back)
+const pending = new Map();  // setting name -> messages in flight
+function setSetting(obj, onError) {
+  if (role !== "driver") return;
+  const names = Object.keys(obj);
+  for (const k of names) pending.set(k, (pending.get(k) || 0) + 1);
+  send("set", obj, onError, () => {
+    for (const k of names) { const n = (pending.get(k) || 1) - 1; if (n > 0) pending.set(k, n); else pending.delete(k); }
+  });
+}
 
 // -- connection ---------------------------------------------------------------------------------
 function setConn(text, cls) { $("conn").textContent = text; $("conn").className = "badge " + cls; }
@@ -175,6 +188,7 @@ sock.on("connect_error", (msg) => {
 });
 sock.on("disconnect", () => {
   stats.connected = false;
+  pending.clear();  // no reply comes for what was in flight
   if (!refused) setConn("disconnected — retrying", "bad");
   setRole("none");
   updateStale();
@@ -258,8 +272,8 @@ function onState(s) {
   $("estop").textContent = estop ? "STOPPED — release" : "STOP";
   if (document.activeElement !== $("maxthrottle")) $("maxthrottle").value = c.max_throttle;
   $("maxthrottle-v").textContent = fmt(c.max_throttle);
-  $("constant").checked = c.constant_throttle;
-  $("nolimit").checked = c.speed_limit === null;
+  if (!pending.has("constant_throttle")) $("constant").checked = c.constant_throttle;
+  if (!pending.has("speed_limit")) $("nolimit").checked = c.speed_limit === null;
   if (c.speed_limit !== null && document.activeElement !== $("speedlimit")) $("speedlimit").value = c.speed_limit;
   $("speedlimit-v").textContent = c.speed_limit === null ? "none" : fmt(c.speed_limit, 1) + " m/s";
   $("speedlimit-note").textContent = t.speed === null && t.loops > 0

@@ -4,6 +4,7 @@ page items)."""
 
 from __future__ import annotations
 
+import re
 import time
 from collections.abc import Callable
 from typing import Any
@@ -19,14 +20,18 @@ PHONE_LANDSCAPE = {"width": 844, "height": 390}
 
 @pytest.fixture
 def open_page(new_page: Callable[..., Any]) -> Callable[..., Any]:
-    """``open_page(url, viewport=DESKTOP, touch=False, role="driver", init_script=None)``: a page in
-    its own browser context (a phone's with ``touch``), connected with that role."""
+    """``open_page(url, viewport=DESKTOP, touch=False, role="driver", init_script=None,
+    route_socket=None)``: a page in its own browser context (a phone's with ``touch``), connected
+    with that role."""
 
     def open_(url: str, viewport: dict[str, int] = DESKTOP, touch: bool = False,
-              role: str | None = "driver", init_script: str | None = None) -> Any:
+              role: str | None = "driver", init_script: str | None = None,
+              route_socket: Callable[[Any], None] | None = None) -> Any:
         page = new_page(device="phone" if touch else "desktop", viewport=viewport)
         if init_script:
             page.add_init_script(init_script)
+        if route_socket:  # sees (and may hold) every WebSocket message between page and car
+            page.route_web_socket(re.compile(r".*/socket\.io/.*"), route_socket)
         page.goto(url)
         if role:
             page.wait_for_function(f"window.webStats && webStats.connected && webStats.role === '{role}'")
@@ -100,6 +105,63 @@ def test_the_speed_limit_caps_the_simulated_car_and_says_so(make_car, open_page)
     time.sleep(4.0)
     assert car.V.mem["sim/speed"] < 1.15
     page.keyboard.up("ArrowUp")
+
+
+class HeldSettings:
+    """Routes the page's WebSocket: holds its ``set`` messages back from the car while the car's
+    state messages (with the old values) go on reaching the page, until :meth:`release`."""
+
+    def __init__(self) -> None:
+        self.held: list[str] = []
+        self.stale_states = 0  # state messages the page got while a setting was held
+        self._release = False
+
+    def __call__(self, ws: Any) -> None:
+        server = ws.connect_to_server()
+
+        def from_page(message: Any) -> None:
+            if isinstance(message, str) and re.match(r'42\d*\["set"', message) and not self._release:
+                self.held.append(message)
+            else:
+                server.send(message)
+
+        def from_car(message: Any) -> None:
+            if self._release:
+                while self.held:
+                    server.send(self.held.pop(0))
+            elif self.held and isinstance(message, str) and message.startswith('42["state"'):
+                self.stale_states += 1
+            ws.send(message)
+
+        ws.on_message(from_page)
+        server.on_message(from_car)
+
+    def release(self) -> None:
+        self._release = True  # sent with the car's next message (the routing thread sends)
+
+
+def test_a_click_is_not_undone_by_state_messages_sent_before_the_car_had_it(make_car, open_page):
+    # found by the issue 21 tests under load: the 'no limit' box flipped back when a state message
+    # that left the car before the click arrived after it
+    car = make_car(sim=True)
+    route = HeldSettings()
+    page = open_page(car.web.url, route_socket=route)
+    page.wait_for_function("!document.getElementById('nolimit').disabled")
+    page.uncheck("#nolimit")
+    page.check("#constant")
+    while route.stale_states < 5:
+        page.wait_for_timeout(50)
+    assert route.held and page.is_checked("#nolimit") is False and page.is_checked("#constant") is True
+    assert car.V.mem["user/speed_limit"] is None  # the car has not had it yet
+    route.release()
+    command = car.web.server.state.snapshot
+    for _ in range(100):  # Playwright routes messages only while it is called: wait in the page
+        page.wait_for_timeout(50)
+        if command()["command"]["speed_limit"] is not None and command()["command"]["constant_throttle"]:
+            break
+    assert command()["command"]["constant_throttle"] is True and command()["command"]["speed_limit"] > 0
+    page.wait_for_timeout(300)
+    assert page.is_checked("#nolimit") is False and page.is_checked("#constant") is True
 
 
 def test_without_a_speed_measurement_the_limit_is_disabled(make_car, open_page):
