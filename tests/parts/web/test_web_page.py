@@ -45,9 +45,10 @@ def box(page: Any, selector: str) -> dict[str, float]:
 
 
 # -- 5: STOP acts on the touch of any finger ------------------------------------------------------
-def test_stop_latches_with_a_second_finger_while_the_first_holds_the_joystick(make_car, open_page):
+@pytest.mark.parametrize("viewport", [PHONE, PHONE_LANDSCAPE, DESKTOP], ids=["portrait", "landscape", "tablet"])
+def test_stop_latches_with_a_second_finger_while_the_first_holds_the_joystick(make_car, open_page, viewport):
     car = make_car()
-    page = open_page(car.web.url, PHONE, touch=True)
+    page = open_page(car.web.url, viewport, touch=True)
     cdp = page.context.new_cdp_session(page)
     pad, stop = box(page, "#pad"), box(page, "#estop")
     cx, cy = pad["x"] + pad["width"] / 2, pad["y"] + pad["height"] / 2
@@ -266,6 +267,59 @@ def test_settings_wait_for_the_stop_and_release_returns_to_user_mode(make_car, o
     page.wait_for_function("document.querySelector('[data-mode=user]').classList.contains('on')")
 
 
+# -- 14-20 at each size: every control reachable, nothing covered, errors and stale data seen ------
+#: what the page shows a driver of a simulated car with a pilot (hidden rows left out)
+CONTROLS = ("#estop", "#pad", "[data-mode=user]", "[data-mode=local]", "#record", "#maxthrottle",
+            "#constant", "#speedlimit", "#nolimit", "#speedlimit-note", "#model", "#load", "#cte", "#laps",
+            "#offtrack", "#pmodel", "#gamepad", "#role", "#conn")
+
+REACHABLE = """sel => {
+    const e = document.querySelector(sel);
+    e.scrollIntoView({ block: "center", inline: "center" });
+    const r = e.getBoundingClientRect(), x = r.left + r.width / 2, y = r.top + r.height / 2;
+    const top = document.elementFromPoint(x, y);
+    return { inside: r.left >= 0 && r.right <= innerWidth + 1 && r.top >= 0 && r.bottom <= innerHeight + 1
+                     && r.width > 0 && r.height > 0,
+             onTop: !!top && (top === e || e.contains(top) || top.contains(e) || top.htmlFor === e.id) };
+}"""
+
+
+@pytest.mark.parametrize("viewport", [DESKTOP, PHONE, PHONE_LANDSCAPE], ids=["desktop", "portrait", "landscape"])
+def test_every_control_error_and_stale_value_at_each_screen_size(make_car, open_page, make_model_file, viewport):
+    model = make_model_file("linear", name="pilot")
+    (model.parent / "broken.pt").write_bytes(b"not a model")
+    car = make_car(sim=True, model=model, MODELS_PATH=str(model.parent))
+    page = open_page(car.web.url, viewport, touch=viewport is not DESKTOP)
+    page.wait_for_function("!document.getElementById('sim').hidden && webStats.frames >= 2")
+    width = page.evaluate("document.scrollingElement.scrollWidth")
+    assert width <= viewport["width"], "the page scrolls sideways"
+    for selector in CONTROLS:
+        where = page.evaluate(REACHABLE, selector)
+        assert where == {"inside": True, "onTop": True}, (selector, where)
+    # 17: a refused model is said where the picker is, and the picker keeps the running one
+    page.select_option("#model", "broken.pt")
+    page.click("#load")
+    page.wait_for_function("document.getElementById('model-error').textContent.includes('broken.pt')")
+    assert page.evaluate(REACHABLE, "#model-error") == {"inside": True, "onTop": True}
+    page.wait_for_function("document.getElementById('model').value === 'pilot.pt'", timeout=8000)
+    # 19: STOP latched: what moves or records waits; released: user mode, not recording
+    page.click("[data-mode=local]")
+    car.until(lambda m: m["user/mode"] == "local", what="full auto")
+    page.evaluate(REACHABLE, "#estop")
+    page.click("#estop")
+    car.until(lambda m: m["estop"] is True and m["user/mode"] == "user", what="stopped")
+    page.wait_for_function("document.querySelector('[data-mode=local]').disabled")
+    assert page.is_disabled("#record") and page.is_disabled("#constant") and page.is_enabled("#estop")
+    page.click("#estop")
+    car.until(lambda m: m["estop"] is False, what="released")
+    assert (car.V.mem["user/mode"], car.V.mem["recording"]) == ("user", False)
+    # 16: the car stops: what the page shows is greyed, not shown as live
+    car.stop()
+    page.wait_for_function("document.body.classList.contains('stale')", timeout=8000)
+    for selector in (".gauges", ".view"):
+        assert float(page.evaluate(f"getComputedStyle(document.querySelector('{selector}')).opacity")) < 1, selector
+
+
 # -- 20: the smaller ones ----------------------------------------------------------------------
 def test_a_refused_token_is_said_instead_of_connecting_forever(make_car, open_page):
     car = make_car(WEB_TOKEN="pairing-token-42")
@@ -276,9 +330,10 @@ def test_a_refused_token_is_said_instead_of_connecting_forever(make_car, open_pa
 
 def test_the_header_does_not_move_when_take_control_appears(make_car, open_page):
     car = make_car()
-    for viewport in (PHONE, DESKTOP):
-        driver = open_page(car.web.url, viewport)
-        watcher = open_page(car.web.url, viewport, role="viewer")
+    for viewport in (PHONE, PHONE_LANDSCAPE, DESKTOP):
+        touch = viewport is not DESKTOP
+        driver = open_page(car.web.url, viewport, touch=touch)
+        watcher = open_page(car.web.url, viewport, touch=touch, role="viewer")
         assert box(watcher, "main")["y"] == box(driver, "main")["y"]
         assert watcher.is_visible("#take") and not driver.is_visible("#take")
         driver.context.close()
