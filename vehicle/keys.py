@@ -80,6 +80,7 @@ STANDARD_KEYS: dict[str, KeyInfo] = {
     "js/mode": KeyInfo("str", "gamepad drive mode, before arbitration"),
     "js/recording": KeyInfo("bool", "gamepad record toggle, before arbitration"),
     "js/estop": KeyInfo("bool", "emergency stop latched on the gamepad"),
+    "js/status": KeyInfo("str: connected | silent | lost", "the car's gamepad link (shown on the web page)"),
     # -- pilot
     "pilot/angle": KeyInfo("float in [-1, 1]", "steering from the pilot"),
     "pilot/throttle": KeyInfo("float in [-1, 1]", "throttle from the pilot"),

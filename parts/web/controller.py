@@ -73,7 +73,7 @@ class WebController(ThreadedPart):
     INPUTS: Final = ("cam/image_array", "user/mode", "recording", "estop", "tub/num_records",
                      "angle", "throttle", "pilot/angle", "pilot/throttle", "pilot/model",
                      "sim/speed", "enc/speed", "loop/rate_hz", "loop/overruns", "behavior/label",
-                     "run_pilot", "pilot/load_error", "sim/cte", "sim/lap", "sim/off_track")
+                     "run_pilot", "pilot/load_error", "sim/cte", "sim/lap", "sim/off_track", "js/status")
     #: every input is telemetry for the page: it may be absent (None) and is the last loop's value
     #: when a part added after the controller produces it (drive mode, pilot, tub writer ...)
     OPTIONAL_INPUTS: Final = INPUTS
@@ -199,6 +199,7 @@ class WebController(ThreadedPart):
         behavior = values.get("behavior/label")
         run_pilot, load_error = values.get("run_pilot"), values.get("pilot/load_error")
         lap, off_track = values.get("sim/lap"), values.get("sim/off_track")
+        pad = values.get("js/status")
         self.state.report(Telemetry(
             mode=mode if isinstance(mode, str) else None,
             recording=bool(recording) if isinstance(recording, bool | np.bool_) else None,
@@ -215,7 +216,8 @@ class WebController(ThreadedPart):
             pilot_error=load_error[:300] if isinstance(load_error, str) else None,
             sim_cte=_num(values.get("sim/cte")),
             sim_laps=int(lap) if isinstance(lap, int | np.integer) else None,
-            sim_off_track=bool(off_track) if isinstance(off_track, bool | np.bool_) else None))
+            sim_off_track=bool(off_track) if isinstance(off_track, bool | np.bool_) else None,
+            car_gamepad=pad if pad in ("connected", "silent", "lost") else None))
         cmd = self.state.outputs()
         return (cmd.angle, cmd.user_throttle(), cmd.mode, cmd.recording, cmd.estop,
                 cmd.speed_limit, cmd.model_request, cmd.behavior_step)

@@ -69,6 +69,7 @@ class Telemetry:
     sim_cte: float | None = None  # m, signed cross-track error (simulator)
     sim_laps: int | None = None  # laps completed (simulator)
     sim_off_track: bool | None = None  # off the road now (simulator)
+    car_gamepad: str | None = None  # the car's own gamepad: connected | silent | lost (None: none)
     off_track_events: int = 0  # times the car left the road since the controller started
     loops: int = 0  # loops seen by the controller
 

@@ -264,6 +264,12 @@ function onState(s) {
     $("laps").textContent = t.sim_laps === null ? "–" : t.sim_laps;
     $("offtrack").textContent = t.off_track_events;
   }
+  // the car's own gamepad (when it has one): whether it can drive or stop the car
+  $("cargamepad").hidden = t.car_gamepad === null;
+  if (t.car_gamepad !== null) {
+    $("cargamepad").textContent = "car pad " + t.car_gamepad;
+    $("cargamepad").className = "badge " + (t.car_gamepad === "connected" ? "good" : "bad");
+  }
   for (const b of document.querySelectorAll("[data-mode]")) b.classList.toggle("on", b.dataset.mode === c.mode);
   $("record").classList.toggle("on", c.recording);
   $("record").textContent = c.recording ? "■ Recording" : "● Record";

@@ -523,8 +523,9 @@ def test_telemetry_says_what_is_live_and_what_the_simulator_measures(web, loop_s
         loop_side.step(run_pilot=False, pilot__model="pilot.onnx", pilot__angle=0.4,
                        pilot__load_error="models/bad.pt: not a model file", sim__cte=-0.12,
                        sim__lap=2, sim__off_track=False, sim__speed=1.5)
+        assert web.server.state.snapshot()["telemetry"]["car_gamepad"] is None  # a car without a gamepad
         for off in (True, True, False, True, False):  # two off-track events
-            loop_side.step(sim__off_track=off)
+            loop_side.step(sim__off_track=off, js__status="silent")
         for _ in range(100):  # the next state message after these loops
             if c.states and c.states[-1]["telemetry"]["loops"] >= 6:
                 break
@@ -534,6 +535,7 @@ def test_telemetry_says_what_is_live_and_what_the_simulator_measures(web, loop_s
         assert t["pilot_active"] is False and t["pilot_model"] == "pilot.onnx"
         assert t["pilot_error"] == "models/bad.pt: not a model file"
         assert (t["sim_cte"], t["sim_laps"], t["sim_off_track"], t["off_track_events"]) == (-0.12, 2, False, 2)
+        assert t["car_gamepad"] == "silent"  # the car's own gamepad, as js/status says
         assert 0.0 <= state["age_s"] < 5.0  # seconds since the loop last reported
         await c.close()
 
