@@ -371,11 +371,13 @@ SIM_INTERVENTION_PENALTY: Annotated[float, Range(0, unit="s")] = 6.0
 # that stands still cannot hang the evaluation.
 SIM_EVAL_MAX_TIME: Annotated[float | None, Range(0, lo_open=True, unit="s")] = None
 # Evaluation of a behaviour pilot on two-lane tracks: the lane is changed on command (the behaviour
-# steps), the first time after 4 s, then every (min, max) seconds, drawn per track from SIM_SEED.
+# steps), the first time after 4 s, then every (min, max) seconds, drawn per track from SIM_SEED;
+# min at least SIM_EVAL_LANE_CHANGE_TIME_LIMIT + SIM_EVAL_LANE_CHANGE_HOLD (one change judged at a time).
 SIM_EVAL_LANE_CHANGE_EVERY: Annotated[tuple[float, float], Range(0, 3600, lo_open=True, unit="s")] = (8.0, 12.0)
-# Seconds a commanded lane change may take to count as done (the car must be in the new lane by then).
+# Seconds a commanded lane change may take to count as done: by then the car's centre must be within
+# a quarter lane width of the new lane's centre.
 SIM_EVAL_LANE_CHANGE_TIME_LIMIT: Annotated[float, Range(0, 3600, lo_open=True, unit="s")] = 6.0
-# Seconds the car must then stay in the new lane.
+# Seconds the car must then stay that close to the new lane's centre.
 SIM_EVAL_LANE_CHANGE_HOLD: Annotated[float, Range(0, 3600, unit="s")] = 1.0
 
 # == Simulator bridges ==

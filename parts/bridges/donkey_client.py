@@ -8,36 +8,44 @@
 On start the part connects (retrying for ``connect_timeout_s``: the simulator may still be
 starting), follows the simulator's session sequence (``scene_selection_ready`` ->
 ``get_scene_names`` -> ``load_scene`` -> ``car_loaded``), holds the car with the hand brake, then
-sends ``car_config`` (body, colour, name: DonkeyCar's ``GYM_CONF``), ``cam_config`` (the camera
-size) and, when asked for, ``step_mode`` synchronous. Configuration messages go out 0.1 s apart and
-every message in its own ``send``: the simulator reads each TCP chunk as one message.
+sends ``car_config`` (body, colour, name: DonkeyCar's ``GYM_CONF``) and ``cam_config`` (the camera
+size; every field the simulator reads, "0" for "keep the default", as gym-donkeycar sends it).
+Configuration messages go out 0.1 s apart and every message in its own ``send``: the simulator reads
+each TCP chunk as one message.
+
+``synchronous=True`` asks for step mode only where it steps: ``vehicle sim serve`` says so in its
+``protocol_version`` reply. The Donkey simulator's ``step_mode`` synchronous only pauses it (Unity
+``Time.timeScale = 0``: telemetry stops for good), so against it the part says so in one line and
+stays in real time (:attr:`DonkeySim.synchronous` is then False).
 
 Threaded (a drive loop): the simulator pushes telemetry at its own rate (20 Hz); the part keeps the
 latest and never blocks; each loop's ``angle``/``throttle`` goes out as one ``control`` (a one-slot
-mailbox: an unsent command is replaced by a newer one). Non-threaded (:meth:`DonkeySim.run`, used
-by evaluation): each call sends the command and waits for the next telemetry, so in synchronous
-step mode every call is one simulation step, as fast as both sides can go.
+mailbox: an unsent command is replaced by a newer one). When the loop gives no command for
+``command_timeout_s`` (it is stuck) the car gets one braking neutral ``control``, as an actuator
+watchdog would. Non-threaded (:meth:`DonkeySim.run`, used by evaluation): each call sends the
+command and waits for the next telemetry, so in step mode every call is one simulation step, as
+fast as both sides can go.
 
 A rising ``sim/reset`` sends ``reset_car``. A lost connection marks the camera stale (``cam/ok``
 False, so the camera watchdog takes the pilot out), says so once and never blocks the loop; the
 next :meth:`start` connects again. Shutdown sends a neutral, braking ``control`` and
 ``exit_scene``.
 
-Outputs: ``cam/image_array`` (RGB, resized to image_w x image_h if the simulator sends another
-size), ``cam/timestamp``, ``cam/ok``, ``cam/frame_id`` (counts telemetry frames), ``sim/speed`` and
-``enc/speed`` (the simulator's speed), ``sim/cte`` (positive = right of the path: the simulator's
-sign is the opposite), ``sim/hit`` (obstacle name or "none"; a hit is kept until the loop has seen
-it), ``sim/off_track`` (a hit, or |cte| > max_cte as gym-donkeycar decides), ``sim/lap`` (laps
-completed since the part connected; a reset keeps the count), ``sim/lap_time`` (from
-``collision_with_starting_line``, gym-donkeycar's rule), ``sim/progress`` (activeNode /
+Outputs: ``cam/image_array`` (RGB, image_w x image_h; a simulator that sends another size is told
+in one log line and its frames are resized), ``cam/timestamp``, ``cam/ok``, ``cam/frame_id``
+(counts telemetry frames), ``sim/speed`` and ``enc/speed`` (the simulator's speed), ``sim/cte``
+(the simulator's, positive = right of the path as everywhere in this project), ``sim/hit``
+(obstacle name or "none"; a hit is kept until the loop has seen it), ``sim/off_track`` (the end of a
+gym-donkeycar episode, decided in its order: |cte| > 2 max_cte is a spawn glitch and ends nothing,
+|cte| > max_cte, a hit; a ``missed_checkpoint`` or ``DQ`` of a race holds it until the next reset),
+``sim/lap`` (laps completed since the part connected; a reset keeps the count), ``sim/lap_time``
+(from ``collision_with_starting_line``, gym-donkeycar's rule), ``sim/progress`` (activeNode /
 totalNodes), ``sim/pos`` ((pos_x, pos_z), the ground plane), ``sim/time`` and ``sim/extra`` (every
 other telemetry field: gyro, accel, vel, pitch/yaw/roll, lidar ...).
 """
 
 from __future__ import annotations
 
-import base64
-import binascii
 import collections
 import contextlib
 import logging
@@ -52,6 +60,7 @@ import numpy as np
 
 from parts.bridges import donkey_protocol as proto
 from parts.bridges.errors import BridgeError
+from parts.bridges.frames import decode_frame
 from vehicle.part import ThreadedPart
 
 logger = logging.getLogger(__name__)
@@ -117,9 +126,12 @@ class _Laps:
         self._start = self._index = None
 
     def crossing(self, index: Any, stamp: float) -> bool:
-        """A ``collision_with_starting_line``; True when it completed a lap."""
-        if self._start is None or index != self._index:
+        """A ``collision_with_starting_line``; True when it completed a lap. Once the clock runs,
+        a crossing of another line (``starting_line_index``) is ignored, as gym-donkeycar does."""
+        if self._start is None:
             self._start, self._index = stamp, index
+            return False
+        if index != self._index:
             return False
         self.last_time = stamp - self._start
         self.count += 1
@@ -137,9 +149,12 @@ class DonkeySim(ThreadedPart):
         look: body, colour and name of the car.
         max_cte: |cte| (simulator units) beyond which the car is off the track (gym: 8); frames
             beyond twice this are ignored (spawn glitches), as gym-donkeycar does. None: hits only.
-        synchronous: ask for ``step_mode`` synchronous (one step per control; ``time_step`` s).
+        synchronous: step the simulation once per control (``time_step`` s) where the server can
+            (``vehicle sim serve``); real time elsewhere (see the module docstring).
         time_step: simulated seconds per step in synchronous mode.
         timeout_s: no telemetry for this long means a stale camera. Default 1.
+        command_timeout_s: threaded use: no command from the loop for this long makes the part send
+            one braking neutral ``control``. Default 0.5; keep it above two loop periods.
         connect_timeout_s: how long start() keeps trying to connect. Default 10.
         load_timeout_s: how long start() waits for the scene to load. Default 60.
         send_gap_s: least time between two messages in real-time mode (the simulator must read
@@ -162,14 +177,15 @@ class DonkeySim(ThreadedPart):
                  image_w: int = 160, image_h: int = 120, look: CarLook | None = None,
                  max_cte: float | None = 8.0, synchronous: bool = False, time_step: float = 0.05,
                  timeout_s: float = 1.0, connect_timeout_s: float = 10.0, load_timeout_s: float = 60.0,
-                 send_gap_s: float = 0.02, exit_scene: bool = True) -> None:
+                 send_gap_s: float = 0.02, exit_scene: bool = True, command_timeout_s: float = 0.5) -> None:
         super().__init__()
         if not isinstance(port, int) or isinstance(port, bool) or not 0 < port <= 65535:
             raise ValueError(f"DonkeySim: port must be 1..65535, got {port!r}")
         if image_w <= 0 or image_h <= 0:
             raise ValueError(f"DonkeySim: camera size {image_w}x{image_h} must be positive")
         for name, value in (("timeout_s", timeout_s), ("connect_timeout_s", connect_timeout_s),
-                            ("load_timeout_s", load_timeout_s), ("time_step", time_step)):
+                            ("load_timeout_s", load_timeout_s), ("time_step", time_step),
+                            ("command_timeout_s", command_timeout_s)):
             if not value > 0:
                 raise ValueError(f"DonkeySim: {name} must be > 0 seconds, got {value!r}")
         if max_cte is not None and not max_cte > 0:
@@ -182,8 +198,9 @@ class DonkeySim(ThreadedPart):
         self.image_w, self.image_h = int(image_w), int(image_h)
         self.look = look or CarLook()
         self.max_cte = max_cte
-        self.synchronous = synchronous
+        self.step_mode_asked = bool(synchronous)
         self.time_step = float(time_step)
+        self.command_timeout_s = float(command_timeout_s)
         self.timeout_s = float(timeout_s)
         self.connect_timeout_s = float(connect_timeout_s)
         self.load_timeout_s = float(load_timeout_s)
@@ -195,6 +212,7 @@ class DonkeySim(ThreadedPart):
     def _init_session(self) -> None:
         """State of one connection (a new start() after a loss starts from here)."""
         self._ready = threading.Event()
+        self.synchronous = False  # True once the server has said it steps (see _handshake)
         self._sock: socket.socket | None = None
         self._wake_r: socket.socket | None = None
         self._wake_w: socket.socket | None = None
@@ -203,6 +221,12 @@ class DonkeySim(ThreadedPart):
         self._control: bytes | None = None
         self._outbox: collections.deque[bytes] = collections.deque()
         self._last_send = 0.0
+        self._last_was_control = False  # what the previous send was (synchronous spacing)
+        self._last_command: float | None = None  # monotonic time of the loop's latest command
+        self._watchdog_fired = False
+        self._race_over: str | None = None  # "missed_checkpoint" / "DQ" until the next reset
+        self._size_reported = False
+        self._bad_frame_reported: set[str] = set()
         self._neutral = False
         self._reset_input = False
         self._sent_by_commands = False  # SendCommands sends the loop's command at the end of the loop
@@ -262,6 +286,7 @@ class DonkeySim(ThreadedPart):
             return self.NOTHING
         try:
             self._pump(timeout=self._next_send_delay())
+            self._watchdog()
             self._flush()
         except OSError as exc:
             self._connection_lost(exc)
@@ -327,9 +352,12 @@ class DonkeySim(ThreadedPart):
         with self._io:
             if self._neutral or self._lost:
                 return
+            self._last_command = time.monotonic()  # the loop is alive (even when SendCommands sends)
+            self._watchdog_fired = False
             if rising:
                 self._outbox.append(proto.client_message("reset_car"))
                 self._laps.restart()
+                self._race_over = None  # gym-donkeycar clears missed_checkpoint and DQ on reset
             if message is not None:
                 self._control = message
         self._wake()
@@ -348,10 +376,10 @@ class DonkeySim(ThreadedPart):
             return (None, None, False, 0) + (None,) * (len(self.OUTPUTS) - 4)
         with self._io:
             hit, self._hit_unseen = self._hit_unseen, None
+            race_over = self._race_over
         hit = hit or record["hit"]
         cte = record["cte"]
-        off = hit != "none" or (self.max_cte is not None and cte is not None
-                                and self.max_cte < abs(cte) <= 2 * self.max_cte)
+        off = race_over is not None or _episode_over(cte, hit, self.max_cte)
         return (record["image"], record["timestamp"], ok, record["frame"], record["speed"], record["speed"], cte, hit,
                 off, record["lap"], record["lap_time"], record["progress"], record["pos"], record["time"],
                 record["extra"])
@@ -390,16 +418,18 @@ class DonkeySim(ThreadedPart):
             self.scene_names = [str(n) for n in names.get("scene_names") or []]
             if self.scene not in self.scene_names:
                 raise BridgeError(f"the Donkey simulator at {self.host}:{self.port} has no scene {self.scene!r}; "
-                                  f"choose one of {', '.join(self.scene_names) or '(none offered)'} (SIM_SCENE)")
+                                  f"choose one of {', '.join(self.scene_names) or '(none offered)'} "
+                                  "(DONKEY_GYM_ENV_NAME, or --scenes of `vehicle sim eval`)")
             self._send_now(proto.client_message("load_scene", scene_name=self.scene))
             self._wait_for({"car_loaded"}, self.load_timeout_s, what=f"scene {self.scene!r} to load")
         else:
-            logger.info("Donkey simulator already shows a scene: driving in it (SIM_SCENE not applied)")
+            logger.info("Donkey simulator already shows a scene: driving in it (DONKEY_GYM_ENV_NAME not applied)")
         self._send_now(_control(0.0, 0.0, 1.0))  # hand brake while configuring, as gym-donkeycar does
         self._send_now(self.look.message())
-        self._send_now(proto.client_message("cam_config", img_w=self.image_w, img_h=self.image_h, img_enc="JPG"))
-        if self.synchronous:
+        self._send_now(self._cam_config())
+        if self.step_mode_asked and self._server_steps():
             self._send_now(proto.client_message("step_mode", step_mode="synchronous", time_step=self.time_step))
+            self.synchronous = True
             self._drain_realtime_telemetry()
         self._sleep_gap(CONFIG_GAP_S)  # the first control too keeps the configuration's spacing
 
@@ -411,6 +441,27 @@ class DonkeySim(ThreadedPart):
         while time.monotonic() < end and time.monotonic() - quiet_since < quiet_s:
             if any(m.get("msg_type") == "telemetry" for m in self._read(0.05)):
                 quiet_since = time.monotonic()
+
+    def _cam_config(self) -> bytes:
+        """``cam_config`` with every field the simulator parses: it reads them all unconditionally
+        (``TcpCarHandler.ParseCamConfig``: one missing field and nothing is applied) and keeps its
+        default for a "0"; ``rot_y``/``rot_z`` only newer builds read."""
+        return proto.client_message("cam_config", fov="0", fish_eye_x="0", fish_eye_y="0", img_w=self.image_w,
+                                    img_h=self.image_h, img_d="3", img_enc="JPG", offset_x="0", offset_y="0",
+                                    offset_z="0", rot_x="0", rot_y="0", rot_z="0")
+
+    def _server_steps(self) -> bool:
+        """Whether the server steps once per control in ``step_mode`` synchronous: only a server
+        that says so in its ``protocol_version`` reply (``vehicle sim serve``); the Donkey simulator
+        would pause for good. Says in one line why the evaluation runs in real time otherwise."""
+        self._send_now(proto.client_message("get_protocol_version"))
+        reply = self._wait_for({"protocol_version"}, 2.0, required=False)
+        capabilities = reply.get("capabilities") if reply is not None else None
+        if isinstance(capabilities, list) and proto.STEP_MODE_CAPABILITY in capabilities:
+            return True
+        logger.warning("Donkey simulator at %s:%d: its step_mode pauses the simulation instead of stepping it "
+                       "(only `vehicle sim serve` steps per control): driving in real time", self.host, self.port)
+        return False
 
     def _wait_for(self, kinds: set[str], timeout: float, *, what: str = "",
                   required: bool = True) -> dict[str, Any] | None:
@@ -465,30 +516,56 @@ class DonkeySim(ThreadedPart):
 
     def _next_send_delay(self) -> float:
         with self._io:
-            waiting = self._control is not None or bool(self._outbox)
-        if not waiting:
+            waiting = self._next_is_control()
+        if waiting is None:
             return 0.05
-        return max(0.0, min(0.05, self._last_send + self._gap() - time.monotonic()))
+        return max(0.0, min(0.05, self._last_send + self._gap(waiting) - time.monotonic()))
 
-    def _gap(self) -> float:
-        # in synchronous mode the previous control was answered before the loop made this one
-        return 0.0 if self.synchronous and self._ready.is_set() else self.send_gap_s
+    def _next_is_control(self) -> bool | None:
+        """What goes out next (under ``_io``): None nothing, False a configuration or reset message
+        (the outbox comes first), True a control."""
+        if self._outbox:
+            return False
+        return True if self._control is not None else None
+
+    def _gap(self, is_control: bool) -> float:
+        """Least time between the previous send and the next: ``send_gap_s``, except between two
+        controls in synchronous mode (the previous one was answered before the loop made this
+        one). A reset or configuration message always keeps the gap on both sides: the simulator
+        reads each TCP chunk as one message."""
+        if self.synchronous and self._ready.is_set() and is_control and self._last_was_control:
+            return 0.0
+        return self.send_gap_s
 
     def _flush(self) -> None:
         """Send one waiting message if the gap since the last one has passed (outbox first)."""
-        if time.monotonic() - self._last_send < self._gap():
+        with self._io:
+            is_control = self._next_is_control()
+            if is_control is None or time.monotonic() - self._last_send < self._gap(is_control):
+                return
+            if is_control:
+                data, self._control = self._control, None
+            else:
+                data = self._outbox.popleft()
+        assert data is not None
+        self._send(data)
+        self._last_was_control = is_control
+        self.controls_sent += int(is_control)
+
+    def _watchdog(self) -> None:
+        """Threaded use: a loop that gave no command for ``command_timeout_s`` gets the car one
+        braking neutral control (not in step mode: the simulation waits for the loop there)."""
+        if self.synchronous or not self._ready.is_set():
             return
         with self._io:
-            if self._outbox:
-                data = self._outbox.popleft()
-                is_control = False
-            elif self._control is not None:
-                data, self._control = self._control, None
-                is_control = True
-            else:
+            last = self._last_command
+            if (last is None or self._watchdog_fired or self._neutral
+                    or time.monotonic() - last <= self.command_timeout_s):
                 return
-        self._send(data)
-        self.controls_sent += int(is_control)
+            self._watchdog_fired = True
+            self._control = _control(0.0, 0.0, 1.0)
+        logger.warning("Donkey simulator: the drive loop gave no command for %.2f s: braked the car (steering 0, "
+                       "throttle 0)", self.command_timeout_s)
 
     def _send(self, data: bytes) -> None:
         sock = self._sock
@@ -522,19 +599,28 @@ class DonkeySim(ThreadedPart):
             self._on_telemetry(msg)
         elif kind == "collision_with_starting_line":
             stamp = proto.number(msg.get("timeStamp"))
-            if stamp is not None and self._laps.crossing(msg.get("starting_line_index"), stamp):
-                logger.info("Donkey simulator: lap %d in %.2f s", self._laps.count, self._laps.last_time or 0.0)
+            if stamp is None:
+                return
+            with self._io:  # restart() runs on the loop thread
+                lap = self._laps.crossing(msg.get("starting_line_index"), stamp)
+                count, lap_time = self._laps.count, self._laps.last_time
+            if lap:
+                logger.info("Donkey simulator: lap %d in %.2f s", count, lap_time or 0.0)
         elif kind == "need_car_config":
             with self._io:
                 self._outbox.append(self.look.racer_message())
                 self._outbox.append(self.look.message())
-        elif kind in ("race_start", "race_stop", "DQ", "missed_checkpoint", "cross_start"):
+        elif kind in ("DQ", "missed_checkpoint"):
+            with self._io:  # the episode is over until the next reset, as in gym-donkeycar
+                self._race_over = kind
+            logger.info("Donkey simulator: %s %s", kind, {k: v for k, v in msg.items() if k != "msg_type"})
+        elif kind in ("race_start", "race_stop", "cross_start"):
             logger.info("Donkey simulator: %s %s", kind, {k: v for k, v in msg.items() if k != "msg_type"})
         # scene_selection_ready, scene_names, car_loaded, protocol_version, ping, node_position: the
         # handshake reads what it needs; the rest needs no answer
 
     def _on_telemetry(self, msg: dict[str, Any]) -> None:
-        image = _decode(msg.get("image"), self.image_w, self.image_h)
+        image = self._frame(msg.get("image"))
         if image is None:
             return
         self.telemetry_count += 1
@@ -548,14 +634,35 @@ class DonkeySim(ThreadedPart):
         node = proto.number(msg.get("activeNode"))
         pos_x, pos_z = proto.number(msg.get("pos_x")), proto.number(msg.get("pos_z"))
         extra = {k: v for k, v in msg.items() if k not in _OWN_FIELDS}
+        with self._io:
+            laps, lap_time = self._laps.count, self._laps.last_time
         self.publish({
             "image": image, "timestamp": time.time(), "frame": self.telemetry_count,
             "speed": proto.number(msg.get("speed")),
-            "cte": None if cte is None else -cte, "hit": hit, "lap": self._laps.count,
-            "lap_time": self._laps.last_time,
+            "cte": cte, "hit": hit, "lap": laps, "lap_time": lap_time,
             "progress": node / nodes if nodes and node is not None else None,
             "pos": (pos_x, pos_z) if pos_x is not None and pos_z is not None else None,
             "time": proto.number(msg.get("time")), "extra": extra})
+
+    def _frame(self, encoded: Any) -> np.ndarray | None:
+        """The telemetry's camera frame at image_w x image_h; None (said once per reason) when it
+        is no usable image. A frame of another size is resized, and the first one is reported."""
+        from parts.cameras.base import fit_frame
+
+        try:
+            image = decode_frame(encoded)
+        except ValueError as exc:
+            if str(exc) not in self._bad_frame_reported:
+                self._bad_frame_reported.add(str(exc))
+                logger.error("Donkey simulator: telemetry frame skipped: %s", exc)
+            return None
+        height, width = image.shape[:2]
+        if (width, height) != (self.image_w, self.image_h) and not self._size_reported:
+            self._size_reported = True
+            logger.warning("Donkey simulator sends %dx%d frames, not the %dx%d asked with cam_config (IMAGE_W, "
+                           "IMAGE_H): frames are resized, the aspect ratio may change; does this build apply "
+                           "cam_config?", width, height, self.image_w, self.image_h)
+        return fit_frame(image, self.image_w, self.image_h)
 
     def _connection_lost(self, exc: BaseException) -> None:
         if not self._lost:
@@ -577,17 +684,13 @@ def _control(steering: float, throttle: float, brake: float) -> bytes:
                                 throttle=min(1.0, max(-1.0, throttle)), brake=brake)
 
 
-def _decode(encoded: Any, width: int, height: int) -> np.ndarray | None:
-    """A base64 camera frame -> HxWx3 RGB of the asked size; None when it is not an image."""
-    if not isinstance(encoded, str) or not encoded:
-        return None
-    from parts.cameras.base import fit_frame
-    from parts.tub.codec import decode_image
-
-    try:
-        image = decode_image(base64.b64decode(encoded))
-    except (binascii.Error, ValueError):
-        return None
-    if image is None or image.dtype != np.uint8 or image.ndim not in (2, 3):
-        return None
-    return fit_frame(image, width, height)
+def _episode_over(cte: float | None, hit: str, max_cte: float | None) -> bool:
+    """gym-donkeycar's ``determine_episode_over`` for one telemetry, in its order: |cte| beyond
+    twice max_cte is a spawn glitch and ends nothing (not even a hit), then |cte| > max_cte, then a
+    hit. ``max_cte`` None: hits only; a telemetry without ``cte``: hits only."""
+    if max_cte is not None and cte is not None:
+        if abs(cte) > 2 * max_cte:
+            return False
+        if abs(cte) > max_cte:
+            return True
+    return hit != "none"

@@ -41,6 +41,11 @@ SCENE_NAMES: Final = tuple(GYM_SCENES.values())
 CAR_BODIES: Final = ("donkey", "bare", "car01", "f1", "cybertruck")
 #: longest message accepted (a 640x480 PNG camera frame in base64 is ~1.2 MB)
 MAX_MESSAGE_BYTES: Final = 16 * 1024 * 1024
+#: what ``vehicle sim serve`` adds to its ``protocol_version`` reply (``capabilities``): it steps
+#: once per ``control`` in ``step_mode`` synchronous. The Donkey simulator only sets
+#: ``Time.timeScale = 0`` there (``OnStepModeRecv``): nothing steps it, telemetry stops, and no later
+#: message restarts it, so a client asks for step mode only from a server that says it can.
+STEP_MODE_CAPABILITY: Final = "step_mode"
 
 _COMMA_FLOAT = re.compile(r"(:\s*-?\d+),(\d+(?:[eE][-+]?\d+)?)(?=\s*[,}\]])")
 _IN_STRING = re.compile(r'["\\]')
@@ -114,7 +119,8 @@ class JsonStream:
 
     def __init__(self, max_message: int = MAX_MESSAGE_BYTES) -> None:
         self.max_message = max_message
-        self.errors = 0
+        self.errors = 0  # objects that did not parse, and messages over max_message
+        self.overflows = 0  # messages over max_message (also counted in errors)
         self._decoder = codecs.getincrementaldecoder("utf-8")(errors="replace")
         self._buf = ""
         self._pos = 0  # where scanning goes on
@@ -160,6 +166,7 @@ class JsonStream:
         if self._start == 0 and len(buf) > self.max_message:
             logger.warning("Donkey protocol: dropped a message longer than %d bytes", self.max_message)
             self.errors += 1
+            self.overflows += 1
             buf, pos, self._start = "", 0, -1
         self._buf, self._pos = buf, pos
         return out
@@ -167,10 +174,14 @@ class JsonStream:
     def _emit(self, text: str, out: list[dict[str, Any]]) -> None:
         try:
             obj = json.loads(text)
-        except json.JSONDecodeError:
+        except RecursionError:  # nested deeper than the interpreter's stack: junk, not a message
+            self.errors += 1
+            logger.debug("Donkey protocol: skipped a message nested too deeply: %.80s", text)
+            return
+        except ValueError:  # JSONDecodeError; comma floats of a comma-decimal locale are repaired
             try:
                 obj = json.loads(repair_float_commas(text))
-            except json.JSONDecodeError as exc:
+            except (ValueError, RecursionError) as exc:
                 self.errors += 1
                 logger.debug("Donkey protocol: skipped an unreadable message (%s): %.80s", exc, text)
                 return

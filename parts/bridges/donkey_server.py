@@ -9,7 +9,15 @@ Each connection gets its own car and track, in its own thread. The session follo
 ``scene_selection_ready`` on connect, ``get_scene_names`` -> ``scene_names``, ``load_scene`` ->
 ``car_loaded``, then ``telemetry`` at 20 Hz whatever the client does (real-time mode), or one per
 ``control`` (synchronous mode). Every message is JSON + ``"\\n"`` in its own ``send``; client
-messages are read as a stream (split, packed, with or without newline).
+messages are read as a stream (split, packed, with or without newline). ``protocol_version`` says
+``"2"`` like the simulator, plus ``"server": "vehicle-rc"`` and ``"capabilities": ["step_mode"]``
+(fields other clients ignore), so a client knows that step mode steps here.
+
+A client's messages are small: one over 64 KiB, or more than ``max_errors`` unreadable ones, ends
+its session with one log line, as does staying in the menu for ``idle_timeout_s`` without loading a
+scene (a connection that holds one of ``max_clients`` and does nothing). A camera asked with
+``cam_config`` is clamped to 4096 pixels a side and 4 Mpx. A session that fails for any other
+reason logs one line and ends; the others go on.
 
 Scenes: every scene name of the Donkey simulator builds is offered, mapped in order onto the served
 track seeds (so any gym ``donkey-<scene>-v0`` id loads a track), plus ``track_<seed>`` for each
@@ -18,7 +26,8 @@ car to that seed's track.
 
 What the telemetry holds (our units, not the simulator's /8 scaling): ``speed`` m/s, ``pos_*`` and
 ``vel_*`` in metres and m/s on the ground plane x/z (y up), ``cte`` in metres with the simulator's
-sign (negative right of the centre line), ``activeNode``/``totalNodes`` over the centre-line
+sign (positive right of the centre line, as ``CarPath.GetCrossTrackErr`` computes it),
+``activeNode``/``totalNodes`` over the centre-line
 samples, ``hit`` = ``"off_track"`` once when the car leaves the road (so gym episodes end there
 even with their default ``max_cte`` of 8), and ``collision_with_starting_line`` when the car first
 drives off the start line after a (re)load or reset, and after every lap.
@@ -44,6 +53,11 @@ from parts.bridges.errors import BridgeError
 logger = logging.getLogger(__name__)
 
 _TRACK_SCENE = re.compile(r"^track_(-?\d+)$")
+#: longest client message a session reads (client messages are a few hundred bytes)
+MAX_CLIENT_MESSAGE_BYTES: Final = 64 * 1024
+#: simulated seconds a synchronous step may last (a client's ``time_step`` is clamped to them)
+MIN_TIME_STEP: Final = 0.001
+MAX_TIME_STEP: Final = 0.2
 _WORLD_LOCK = threading.Lock()  # parts.sim's world cache is shared by every session
 BRAKE_HOLD_SPEED: Final = 0.05  # m/s below which the hand brake holds the car still
 
@@ -74,11 +88,15 @@ class DonkeyServer:
         off_track_hit: report ``hit = "off_track"`` once when the car leaves the road.
         jpeg_quality: JPEG quality of the camera frames (75 like Unity's default).
         max_clients: connections served at once; more are refused with a log line.
+        idle_timeout_s: a client that loads no scene for this long after connecting (or after
+            ``exit_scene``) is disconnected, so that idle connections do not hold the slots.
+        max_errors: unreadable messages a session accepts before it ends.
     """
 
     def __init__(self, host: str = "127.0.0.1", port: int = proto.DEFAULT_PORT, *, seeds: Sequence[int] = (1,),
                  cfg: Any = None, telemetry_hz: float = float(proto.TELEMETRY_HZ), off_track_hit: bool = True,
-                 jpeg_quality: int = 75, max_clients: int = 16) -> None:
+                 jpeg_quality: int = 75, max_clients: int = 16, idle_timeout_s: float = 30.0,
+                 max_errors: int = 10) -> None:
         seeds = [seeds] if isinstance(seeds, int) else list(seeds)
         if not seeds or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds):
             raise ValueError(f"track seeds must be a non-empty list of ints, got {seeds!r}")
@@ -86,6 +104,10 @@ class DonkeyServer:
             raise ValueError(f"telemetry_hz must be > 0, got {telemetry_hz!r}")
         if not 1 <= jpeg_quality <= 100:
             raise ValueError(f"jpeg_quality must be 1..100, got {jpeg_quality!r}")
+        if not idle_timeout_s > 0:
+            raise ValueError(f"idle_timeout_s must be > 0, got {idle_timeout_s!r}")
+        if max_errors < 0:
+            raise ValueError(f"max_errors must be >= 0, got {max_errors!r}")
         if cfg is None:
             from vehicle.config import Config
 
@@ -97,6 +119,8 @@ class DonkeyServer:
         self.off_track_hit = off_track_hit
         self.jpeg_quality = jpeg_quality
         self.max_clients = max_clients
+        self.idle_timeout_s = float(idle_timeout_s)
+        self.max_errors = max_errors
         self.sessions: list[Session] = []
         self._listener: socket.socket | None = None
         self._stop = threading.Event()
@@ -184,7 +208,7 @@ class Session:
         self.server = server
         self.sock = sock
         self.address = f"{address[0]}:{address[1]}"
-        self.stream = proto.JsonStream()
+        self.stream = proto.JsonStream(max_message=MAX_CLIENT_MESSAGE_BYTES)
         self.sim: Any = None  # the SimCar once a scene is loaded
         self.scene: str | None = None
         self.synchronous = False
@@ -198,6 +222,8 @@ class Session:
         self._restart_pending = True  # send collision_with_starting_line when the car moves off the line
         self._was_off = False
         self._prev: tuple[float, float, float, float] | None = None  # heading, vx, vz, time
+        self._menu_since = time.monotonic()  # when the session last had no scene (idle timeout)
+        self._clamp_reported = False
         self._closing = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"DonkeySession {self.address}", daemon=True)
         self.alive = True
@@ -235,6 +261,10 @@ class Session:
                             break
                         for msg in self.stream.feed(data):
                             self._handle(msg)
+                        self._check_errors()
+                    if self.sim is None and time.monotonic() - self._menu_since > self.server.idle_timeout_s:
+                        raise _SessionEnd(f"loaded no scene for {self.server.idle_timeout_s:.0f} s: disconnected "
+                                          "(a Donkey client sends load_scene after scene_names)")
                     if self.sim is not None and not self.synchronous:
                         now = time.monotonic()
                         if now >= next_tick:
@@ -246,8 +276,11 @@ class Session:
         except OSError as exc:
             if not self._closing.is_set():
                 logger.info("Donkey server: client %s: %s", self.address, exc)
-        except BridgeError as exc:
+        except (BridgeError, _SessionEnd) as exc:
             logger.error("Donkey server: client %s: %s", self.address, exc)
+        except Exception as exc:  # a bug or a message nobody foresaw: this session ends, the server goes on
+            logger.error("Donkey server: client %s: session ended by %s: %s", self.address,
+                         type(exc).__name__, exc, exc_info=logger.isEnabledFor(logging.DEBUG))
         finally:
             self.alive = False
             with contextlib.suppress(OSError):
@@ -255,8 +288,18 @@ class Session:
             logger.info("Donkey server: client %s left after %d steps, %d telemetry messages",
                         self.address, self.steps, self.telemetry_sent)
 
+    def _check_errors(self) -> None:
+        """End the session on a message over the size limit or too many unreadable ones."""
+        if self.stream.overflows:
+            raise _SessionEnd(f"sent a message longer than {MAX_CLIENT_MESSAGE_BYTES // 1024} KiB (Donkey client "
+                              "messages are a few hundred bytes): disconnected")
+        if self.stream.errors > self.server.max_errors:
+            raise _SessionEnd(f"sent {self.stream.errors} unreadable messages: disconnected (is it a Donkey "
+                              "simulator client?)")
+
     def _send(self, msg_type: str, **fields: Any) -> None:
-        """One message, one send (clients that read one message per chunk need it)."""
+        """One message, one send (as the simulator does; on loopback a reader may still get several
+        in one chunk: clients must read a stream)."""
         self.sock.sendall(proto.sim_message(msg_type, **fields))
 
     def _handle(self, msg: dict[str, Any]) -> None:
@@ -281,7 +324,9 @@ class Session:
                 self._load(name, seed)
                 self._send("car_loaded")
         elif kind == "get_protocol_version":
-            self._send("protocol_version", version="2")
+            # the simulator's answer, plus what sets this server apart (fields other clients ignore)
+            self._send("protocol_version", version="2", server="vehicle-rc",
+                       capabilities=[proto.STEP_MODE_CAPABILITY])
         elif kind == "reset_car":
             if self.sim is not None:
                 self.sim.reset("start")
@@ -289,21 +334,20 @@ class Session:
                 self._restart()
         elif kind == "exit_scene":
             self.sim, self.scene = None, None
+            self._menu_since = time.monotonic()
             self._send("scene_selection_ready", loaded="1")
         elif kind == "quit_app":
             self._closing.set()
         elif kind in ("step_mode", "settings"):
             self.synchronous = str(msg.get("step_mode", "")).lower() == "synchronous"
             step = proto.number(msg.get("time_step"))
-            self.time_step = step if step is not None and step > 0 else self.server.period
+            # within what the car model integrates well: 1 ms .. 0.2 s per step
+            self.time_step = min(MAX_TIME_STEP, max(MIN_TIME_STEP, step)) if step is not None and step > 0 \
+                else self.server.period
             if self.sim is not None and self.synchronous:
                 self._report()  # the observation a stepping client waits for before its first control
         elif kind == "cam_config":
-            w, h = proto.number(msg.get("img_w"), 0.0), proto.number(msg.get("img_h"), 0.0)
-            if w and h and w >= 8 and h >= 8:
-                self.camera_size = (int(w), int(h))
-                if self.sim is not None:
-                    self.sim.camera = self._camera()
+            self._cam_config(msg)
         elif kind == "regen_road":
             seed = proto.number(msg.get("rand_seed"))
             if self.sim is not None and seed is not None:
@@ -313,6 +357,26 @@ class Session:
         elif kind == "node_position":
             self._node_position(msg)
         # car_config, cam_config_b, lidar_config, racer_info: accepted; nothing to draw them with
+
+    def _cam_config(self, msg: dict[str, Any]) -> None:
+        """``img_w``/``img_h`` set the camera size ("0" keeps it, as in the simulator), within limits."""
+        from parts.bridges.frames import MAX_PIXELS, MAX_SIDE, clamp_size, within_limits
+
+        w, h = proto.number(msg.get("img_w"), 0.0), proto.number(msg.get("img_h"), 0.0)
+        if not (w and h and w >= 8 and h >= 8):
+            return
+        size = (int(w), int(h))
+        if not within_limits(*size):
+            clamped = clamp_size(*size)
+            if not self._clamp_reported:
+                self._clamp_reported = True
+                logger.warning("Donkey server: client %s asked for a %dx%d camera: clamped to %dx%d (at most %d "
+                               "pixels a side, %d Mpx)", self.address, *size, *clamped, MAX_SIDE,
+                               MAX_PIXELS // (1024 * 1024))
+            size = clamped
+        self.camera_size = size
+        if self.sim is not None:
+            self.sim.camera = self._camera()
 
     def _camera(self) -> Any:
         from parts.sim.camera import Camera
@@ -391,7 +455,7 @@ class Session:
             speed=abs(v), image=base64.b64encode(jpeg).decode("ascii"), hit=hit, time=self.level_time,
             accel_x=accel_x, accel_y=0.0, accel_z=accel_z, gyro_x=0.0, gyro_y=gyro, gyro_z=0.0,
             pitch=0.0, yaw=(90.0 - math.degrees(heading)) % 360.0, roll=0.0,
-            cte=-frame.cte, activeNode=int(frame.s / track.length * track.n) % track.n, totalNodes=track.n,
+            cte=frame.cte, activeNode=int(frame.s / track.length * track.n) % track.n, totalNodes=track.n,
             pos_x=state.x, pos_y=0.0, pos_z=state.y, vel_x=vx, vel_y=0.0, vel_z=vz)
         self.telemetry_sent += 1
 
@@ -416,6 +480,10 @@ class Session:
         half_yaw = math.radians(90.0 - math.degrees(track.heading[i])) / 2
         self._send("node_position", index=i, pos_x=float(x), pos_y=0.0, pos_z=float(y),
                    Qx=0.0, Qy=math.sin(half_yaw), Qz=0.0, Qw=math.cos(half_yaw))
+
+
+class _SessionEnd(Exception):
+    """The session ends for a reason the log line gives (a misbehaving or idle client)."""
 
 
 def _clamped(value: Any, low: float, high: float) -> float:

@@ -9,11 +9,13 @@ connected to namespace /"): the car never moves, and nothing says why.
 
 :func:`legacy_server` returns a python-socketio ``AsyncServer`` whose subclass joins each new
 Engine.IO connection to ``/`` at once (the Socket.IO v2 behaviour), and ignores a later ``40`` for
-``/`` from a client that sends one anyway. It overrides two private methods of python-socketio
-(``_handle_eio_connect``, ``_handle_connect``), so :func:`check_support` verifies their signatures
-before a server is made and the ``web`` extra pins the minor versions this was tested with
-(see ``SUPPORTED`` and pyproject.toml). tests/parts/bridges/test_bridge_engineio3.py proves both
-sides: the stock server stays silent against the faithful fake client, this one answers.
+``/`` from a client that sends one anyway. It overrides private methods of python-socketio
+(``_handle_eio_connect``, ``_handle_connect``; ``_handle_eio_message`` so that a packet that is
+not JSON, or is nested too deeply for the parser, costs one log line, not a traceback each), so
+:func:`check_support` verifies their signatures before a server is made and the ``web`` extra
+pins the minor versions this was tested with (see ``SUPPORTED`` and pyproject.toml).
+tests/parts/bridges/test_bridge_engineio3.py proves both sides: the stock server stays silent
+against the faithful fake client, this one answers.
 
 python-socketio is imported when a server is made, never at import time.
 """
@@ -39,6 +41,14 @@ SUPPORTED: dict[str, tuple[tuple[int, int], tuple[int, int]]] = {
 _PRIVATE_API: dict[str, tuple[str, ...]] = {
     "_handle_eio_connect": ("self", "eio_sid", "environ"),
     "_handle_connect": ("self", "eio_sid", "namespace", "data"),
+    "_handle_eio_message": ("self", "eio_sid", "data"),
+}
+#: what else parts.bridges.udacity calls below python-socketio's documented surface: (module,
+#: class, method) -> parameters. It closes a simulator's websocket through the Engine.IO server
+#: (a Socket.IO v2 client ignores the namespace DISCONNECT).
+_INTERNAL_API: dict[tuple[str, str, str], tuple[str, ...]] = {
+    ("socketio", "AsyncManager", "eio_sid_from_sid"): ("self", "sid", "namespace"),
+    ("engineio", "AsyncServer", "disconnect"): ("self", "sid"),
 }
 INSTALL_HINT = "pip install 'vehicle-rc[web]' (python-socketio>=5.11,<5.19 and python-engineio>=4.9,<4.16)"
 
@@ -58,6 +68,13 @@ def _version(dist: str) -> tuple[int, int] | None:
         return None
 
 
+def _installed(dist: str) -> str:
+    try:
+        return metadata.version(dist)
+    except metadata.PackageNotFoundError:
+        return "(version unknown)"
+
+
 def check_support() -> None:
     """Raise :class:`BridgeError` unless python-socketio has the internals this layer overrides.
 
@@ -65,16 +82,24 @@ def check_support() -> None:
     """
     global _warned_untested
     try:
+        import aiohttp.web  # the server's HTTP side: a missing one fails here, not in start()
+        import engineio
         import socketio
-    except ImportError:
-        raise BridgeError(f"the Udacity simulator bridge needs python-socketio and aiohttp: {INSTALL_HINT}") from None
-    for name, params in _PRIVATE_API.items():
-        method = getattr(socketio.AsyncServer, name, None)
+    except ImportError as exc:
+        raise BridgeError(f"the Udacity simulator bridge needs python-socketio and aiohttp ({exc.name or exc} is "
+                          f"missing): {INSTALL_HINT}") from None
+    if not hasattr(aiohttp.web.BaseRunner, "addresses"):  # how the bridge learns the port it got for port 0
+        raise BridgeError(f"aiohttp {_installed('aiohttp')} has no BaseRunner.addresses: {INSTALL_HINT}")
+    modules = {"socketio": socketio, "engineio": engineio}
+    wanted = {("socketio", "AsyncServer", name): params for name, params in _PRIVATE_API.items()} | _INTERNAL_API
+    for (module, cls, name), params in wanted.items():
+        method = getattr(getattr(modules[module], cls, None), name, None)
         found = tuple(inspect.signature(method).parameters) if callable(method) else None
         if found != params:
+            dist = f"python-{module}"
             raise BridgeError(
-                f"python-socketio {metadata.version('python-socketio')} changed AsyncServer.{name} "
-                f"(parameters {found}, expected {params}), which the Udacity bridge relies on: {INSTALL_HINT}")
+                f"{dist} {_installed(dist)} changed {cls}.{name} (parameters {found}, expected {params}), "
+                f"which the Udacity bridge relies on: {INSTALL_HINT}")
     untested = []
     for dist, (low, high) in SUPPORTED.items():
         version = _version(dist)
@@ -111,6 +136,16 @@ def legacy_server_class() -> type:
                 if sid is not None and self.manager.is_connected(sid, "/"):
                     return None  # joined implicitly already; a v3+ client's own '40' changes nothing
             return await super()._handle_connect(eio_sid, namespace, data)
+
+        async def _handle_eio_message(self, eio_sid: str, data: Any) -> Any:
+            try:
+                return await super()._handle_eio_message(eio_sid, data)
+            except (ValueError, RecursionError) as exc:  # json.loads of the packet: the peer's junk
+                level = logging.DEBUG if getattr(self, "_junk_reported", False) else logging.WARNING
+                self._junk_reported = True
+                logger.log(level, "Socket.IO: skipped an unreadable packet (%s): %.60r", type(exc).__name__,
+                           data if isinstance(data, str) else type(data).__name__)
+                return None
 
     _server_class = LegacyAutoConnectServer
     return _server_class

@@ -1,23 +1,35 @@
 """A faithful fake of the Donkey simulator (tawnkramer/sdsandbox) on its TCP JSON protocol.
 
-Written from the protocol facts in docs/simulators.md, not from our client or server:
+Written from the protocol reference (shared/reference/protocols.md §3, §3.6 and §4.1) and the
+simulator source it describes (``TcpCarHandler.cs``, ``JsonTcpClient.cs``, ``CarPath.cs``,
+``Lines.cs``, ``CameraSensor.cs``), never from our client or server:
 
 - a TCP server (port 9091 by default; 0 picks a free one), several clients, one car each;
 - every message it sends is JSON + ``"\\n"`` with JSON numbers; client messages come without a
-  newline, every value a string parsed with the invariant culture (a number that is not a string
-  still parses: C# reads the field's text);
+  newline, every value a string parsed with the invariant culture. A value that is not a JSON
+  string fails as in the simulator: its JSONObject sets ``.str`` only for strings, so
+  ``float.Parse(null)`` throws and the message does nothing (a ``control`` is caught and logged,
+  a ``cam_config`` or ``step_mode`` aborts); so does a missing field (``ParseCamConfig`` reads fov,
+  offsets, rot_x, fish-eye, img_w/h/d and img_enc unconditionally; rot_y/rot_z only if present);
 - menu: ``scene_selection_ready`` on connect, ``get_scene_names`` -> ``scene_names``,
   ``load_scene`` -> ``car_loaded``, ``get_protocol_version`` -> ``"2"``, race variant
   ``need_car_config`` (answered by ``racer_info`` + ``car_config``);
 - after ``car_loaded`` it pushes ``telemetry`` at 20 Hz whatever the client does, with
   ``time`` increasing: steering, throttle, speed, a JPEG camera frame (160x120, or ``cam_config``'s
-  ``img_w``/``img_h``), ``hit`` (reported once, then ``"none"``), position, velocity, IMU, signed
-  ``cte`` and ``activeNode``/``totalNodes``;
+  ``img_w``/``img_h``; ``img_d`` 1 makes it grey), ``hit`` (reported once, then ``"none"``),
+  position, velocity, IMU, ``cte`` and ``activeNode``/``totalNodes``. ``cte`` has
+  ``CarPath.GetCrossTrackErr``'s sign: the segment direction is ``a - b`` (``Line3d.m_dir``, against
+  the driving direction), the error vector points from the path to the car, and the sign is
+  negative when ``cross(m_dir, err).y > 0``; in Unity's left-handed frame (y up) that makes it
+  **positive right of the path**;
 - ``control`` steers a small car model (steering clamped to [-1, 1] x 16 deg, throttle [-1, 1],
   brake [0, 1]); the reported steering is the applied, normalised one;
-- ``reset_car`` puts the car back before the start line, controls zeroed; ``exit_scene`` goes back
-  to the menu; ``quit_app`` closes; ``car_config``, ``cam_config``, ``cam_config_b``,
-  ``lidar_config``, ``racer_info``, ``step_mode`` are accepted and kept;
+- ``reset_car`` puts the car back before the start line, controls zeroed, at the next physics
+  step (``FixedUpdate``); ``exit_scene`` goes back to the menu; ``quit_app`` closes; ``car_config``,
+  ``cam_config_b``, ``lidar_config``, ``racer_info`` are accepted and kept;
+- ``step_mode`` (older builds: ``settings``) ``synchronous`` sets Unity's ``Time.timeScale`` to 0:
+  the whole simulator stops (no physics step, no telemetry, for every car) and nothing restarts it
+  (a later ``asynchronous`` only clears a flag), exactly as ``OnStepModeRecv`` does;
 - ``collision_with_starting_line`` each time the car crosses the start line (the car spawns just
   before it), ``hit`` on a scripted crash (:meth:`FakeDonkeySim.crash`) or at a wall beyond
   ``wall_cte``.
@@ -46,6 +58,8 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 logger = logging.getLogger(__name__)
 
 SCENES = ("generated_road", "warehouse", "sparkfun_avc", "generated_track", "mountain_track",
@@ -69,14 +83,18 @@ class FakeCar:
     brake: float = 0.0
     time: float = 0.0  # Time.timeSinceLevelLoad
     laps_crossed: int = 0
+    reset_pending: bool = False  # reset_car waits for the next physics step
     pending_hit: str = "none"
     at_wall: bool = False
     img_w: int = 160
     img_h: int = 120
+    img_d: int = 3
+    img_enc: str = "JPG"
     scene: str | None = None
     step_mode: str = "asynchronous"
     received: list[dict[str, Any]] = field(default_factory=list)
     parse_failures: int = 0
+    rejected: list[str] = field(default_factory=list)  # msg_types whose handler threw (bad or missing field)
     telemetry_sent: int = 0
     closed: bool = False
 
@@ -118,7 +136,7 @@ class FakeCar:
             "speed": abs(self.speed), "image": image, "hit": self.pending_hit, "time": self.time,
             "accel_x": 0.0, "accel_y": 0.0, "accel_z": 0.0, "gyro_x": 0.0, "gyro_y": 0.0, "gyro_z": 0.0,
             "pitch": 0.0, "yaw": yaw % 360.0, "roll": 0.0,
-            "cte": -self.right,  # negative right of the path (CarPath.GetCrossTrackErr)
+            "cte": self.right,  # CarPath.GetCrossTrackErr: positive right of the path (module docstring)
             "activeNode": int((self.s % length) / length * TOTAL_NODES), "totalNodes": TOTAL_NODES,
             "pos_x": radius * math.cos(angle), "pos_y": 0.0, "pos_z": radius * math.sin(angle),
             "vel_x": -self.speed * math.sin(angle), "vel_y": 0.0, "vel_z": self.speed * math.cos(angle),
@@ -161,6 +179,7 @@ class FakeDonkeySim:
         self.drop_every, self.merge_every, self.split_every = drop_every, merge_every, split_every
         self.wall_cte = wall_cte
         self.cars: list[FakeCar] = []
+        self.time_scale_zero = False  # a step_mode synchronous stopped the whole simulator
         self._server: socket.socket | None = None
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
@@ -323,11 +342,16 @@ class _Connection:
         elif kind == "get_protocol_version":
             self.send({"msg_type": "protocol_version", "version": "2"})
         elif kind == "control":
-            car.steering = _clamp(_invariant(msg.get("steering")), -1.0, 1.0)
-            car.throttle = _clamp(_invariant(msg.get("throttle")), -1.0, 1.0)
-            car.brake = _clamp(_invariant(msg.get("brake")), 0.0, 1.0)
+            try:  # OnControlsRecv catches the exception and logs it: the control does nothing
+                steering, throttle, brake = (_invariant(msg, k) for k in ("steering", "throttle", "brake"))
+            except ValueError:
+                car.rejected.append(kind)
+                return
+            car.steering = _clamp(steering, -1.0, 1.0)
+            car.throttle = _clamp(throttle, -1.0, 1.0)
+            car.brake = _clamp(brake, 0.0, 1.0)
         elif kind == "reset_car":
-            car.reset()
+            car.reset_pending = True  # bResetCar: applied in the next FixedUpdate
         elif kind == "exit_scene":
             self.loaded.clear()
             car.scene = None
@@ -335,11 +359,40 @@ class _Connection:
         elif kind == "quit_app":
             self.alive = False
         elif kind == "cam_config":
-            car.img_w = int(_invariant(msg.get("img_w")) or car.img_w)
-            car.img_h = int(_invariant(msg.get("img_h")) or car.img_h)
-        elif kind == "step_mode":
-            car.step_mode = str(msg.get("step_mode"))
-        # car_config, cam_config_b, lidar_config, racer_info, settings: accepted, kept in received
+            self._cam_config(msg)
+        elif kind in ("step_mode", "settings"):
+            try:
+                mode = _field(msg, "step_mode")
+                _invariant(msg, "time_step")
+            except ValueError:
+                car.rejected.append(kind)
+                return
+            car.step_mode = mode
+            if mode == "synchronous":
+                self.sim.time_scale_zero = True  # Time.timeScale = 0: nothing steps any more
+        # car_config, cam_config_b, lidar_config, racer_info: accepted, kept in received
+
+    def _cam_config(self, msg: dict[str, Any]) -> None:
+        """``ParseCamConfig`` + ``CameraSensor.SetConfig``: every field parsed first (one missing
+        or non-string field throws and nothing is applied), then 0 keeps the current value."""
+        car = self.car
+        try:
+            for key in ("fov", "offset_x", "offset_y", "offset_z", "rot_x", "fish_eye_x", "fish_eye_y"):
+                _invariant(msg, key)
+            for key in ("rot_y", "rot_z"):
+                if key in msg:
+                    _invariant(msg, key)
+            width, height, depth = (_int_parse(msg, k) for k in ("img_w", "img_h", "img_d"))
+            encoding = _field(msg, "img_enc")
+        except ValueError:
+            car.rejected.append("cam_config")
+            return
+        if depth != 0:
+            car.img_d = depth
+        if width != 0 and height != 0:
+            car.img_w, car.img_h = width, height
+        if len(encoding) == 3:
+            car.img_enc = encoding
 
     def _push_telemetry(self) -> None:
         next_at = time.monotonic()
@@ -354,9 +407,12 @@ class _Connection:
                 time.sleep(delay)
             else:
                 next_at = time.monotonic()
-            if not self.loaded.is_set():
-                continue
+            if not self.loaded.is_set() or self.sim.time_scale_zero:
+                continue  # in the menu, or Time.timeScale = 0: no FixedUpdate, no telemetry
             car = self.car
+            if car.reset_pending:
+                car.reset_pending = False
+                car.reset()
             for stamp in car.step(self.sim.dt, self.sim.wall_cte):
                 car.laps_crossed += 1
                 self.send({"msg_type": "collision_with_starting_line", "starting_line_index": 0,
@@ -395,11 +451,29 @@ class _Connection:
                 self.alive = False
 
 
-def _invariant(value: Any) -> float:
-    """``float.Parse(field, CultureInfo.InvariantCulture)``; 0 for a missing field."""
-    if value is None:
-        return 0.0
-    return float(str(value))
+def _field(msg: dict[str, Any], key: str) -> str:
+    """``json.GetField(key).str``: the text of a JSON string; ValueError where C# would throw (a
+    missing field, or a number, whose ``.str`` is null)."""
+    value = msg.get(key)
+    if not isinstance(value, str):
+        raise ValueError(f"{key}: {value!r} is not a JSON string")
+    return value
+
+
+def _invariant(msg: dict[str, Any], key: str) -> float:
+    """``float.Parse(json.GetField(key).str, CultureInfo.InvariantCulture)``."""
+    text = _field(msg, key).strip()
+    if not re.fullmatch(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?", text):
+        raise ValueError(f"{key}: {text!r} is not an invariant-culture number")
+    return float(text)
+
+
+def _int_parse(msg: dict[str, Any], key: str) -> int:
+    """``int.Parse(json.GetField(key).str)``: digits with an optional sign, nothing else."""
+    text = _field(msg, key).strip()
+    if not re.fullmatch(r"[-+]?\d+", text):
+        raise ValueError(f"{key}: {text!r} is not an integer")
+    return int(text)
 
 
 def _clamp(value: float, low: float, high: float) -> float:
@@ -422,5 +496,7 @@ def _jpeg(car: FakeCar) -> str:
     from parts.tub.codec import encode_image
 
     picture = road_view(car.img_w, car.img_h, car.right / ROAD_HALF_WIDTH, car.heading)
+    if car.img_d == 1:  # CameraSensor: grey, still three channels
+        picture = np.repeat(picture.mean(axis=2, keepdims=True).astype(np.uint8), 3, axis=2)
     data, _ = encode_image(picture, "image_array", 75)
     return base64.b64encode(data).decode("ascii")

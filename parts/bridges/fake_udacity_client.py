@@ -122,11 +122,13 @@ class FakeUdacityClient:
         ping_interval_s: the client's own PING period (25 s in the simulator).
         reconnect_delay_s: pause before reconnecting (5 ms in the simulator).
         keep_images: how many sent JPEGs to keep in :attr:`sent_images` (for checking a pilot).
+        frame_time_s: real seconds between a ``steer``/``manual`` and the telemetry it triggers
+            (Unity renders the next frame first); 0 answers at once.
     """
 
     def __init__(self, port: int = 4567, host: str = "127.0.0.1", *, comma_decimals: bool = False,
                  extra: dict[str, Any] | None = None, dt: float = 0.05, ping_interval_s: float = 25.0,
-                 reconnect_delay_s: float = 0.005, keep_images: int = 200) -> None:
+                 reconnect_delay_s: float = 0.005, keep_images: int = 200, frame_time_s: float = 0.0) -> None:
         self.host, self.port = host, port
         self.target = f"/socket.io/?{URL_QUERY}"
         self.comma = comma_decimals
@@ -134,6 +136,8 @@ class FakeUdacityClient:
         self.dt = dt
         self.ping_interval_s = ping_interval_s
         self.reconnect_delay_s = reconnect_delay_s
+        self.frame_time_s = frame_time_s
+        self._due: deque[float] = deque()  # when the telemetries being rendered go out
         self.car = CarModel()
         self._lock = threading.Lock()
         self._stop = threading.Event()
@@ -211,11 +215,20 @@ class FakeUdacityClient:
                 ws.close()
             self._stop.wait(self.reconnect_delay_s)
 
+    @property
+    def in_flight(self) -> int:
+        """Telemetries sent and not answered yet (0: the simulator waits for nothing, or renders)."""
+        return len(self._in_flight)
+
     def _session(self, ws: WebSocketClient) -> None:
         next_ping = time.monotonic() + self.ping_interval_s
+        self._due.clear()
         while not self._stop.is_set():
             try:
-                frame = ws.receive(timeout=0.05)
+                while self._due and self._due[0] <= time.monotonic():
+                    self._due.popleft()
+                    self._send_telemetry(ws)
+                frame = ws.receive(timeout=0.005 if self._due else 0.05)
                 if time.monotonic() >= next_ping:
                     ws.send("2")  # the client's own heartbeat; a missing PONG never closes it
                     self.pings_sent += 1
@@ -249,7 +262,7 @@ class FakeUdacityClient:
             elif name == "manual":
                 self.manuals += 1
                 self._answered()
-                self._send_telemetry(ws)
+                self._next_telemetry(ws)
         # '3' PONG, '6' NOOP, '40', '40{..}', '41', ACKs, namespaced events: ignored
 
     def _on_steer(self, ws: WebSocketClient, data: Any) -> None:
@@ -268,7 +281,14 @@ class FakeUdacityClient:
         self.steers.append((steering, throttle))
         self._answered()
         self.car.apply(steering, throttle, self.dt)
-        self._send_telemetry(ws)
+        self._next_telemetry(ws)
+
+    def _next_telemetry(self, ws: WebSocketClient) -> None:
+        """The telemetry an answer triggers: now, or after ``frame_time_s``."""
+        if self.frame_time_s > 0:
+            self._due.append(time.monotonic() + self.frame_time_s)
+        else:
+            self._send_telemetry(ws)
 
     def _answered(self) -> None:
         """An answer came: the oldest telemetry in flight is answered (the server answers in order)."""

@@ -17,6 +17,12 @@ Engine.IO v3 dialect) and keeps the lockstep with the drive loop:
   it answers;
 - a telemetry the loop does not answer within ``command_timeout_s`` (the loop is stuck) is
   answered with a neutral steer (0, 0), as an actuator watchdog would;
+- :meth:`UdacitySim.neutral` (every way the drive stops) answers waiting telemetries with (0, 0)
+  and, when none waits (the loop had just answered the last one), sends the simulator an
+  unsolicited neutral steer, as drive.py does on connect: the simulator applies the last steer it
+  got until another comes, so the last one must be neutral; later telemetries get (0, 0) too;
+- one simulator at a time: a new connection replaces the previous one (its frames would interleave
+  with the new one's), with one warning;
 - ``telemetry`` with ``null`` (the user holds W/S in autonomous mode) is answered with ``manual``
   at once and reported as ``sim/manual`` True (an intervention for evaluation);
 - no telemetry for ``timeout_s`` makes ``cam/ok`` False (the camera watchdog then takes the pilot
@@ -36,8 +42,6 @@ then ``sim/<key>`` for each name in ``extra_keys`` (in snake case: ``lapNumber``
 from __future__ import annotations
 
 import asyncio
-import base64
-import binascii
 import contextlib
 import logging
 import math
@@ -62,6 +66,8 @@ STOCK_KEYS: Final = ("steering_angle", "throttle", "speed", "image")
 #: fork keys with a standard memory key of their own
 FORK_KEYS: Final = {"cte": "sim/cte", "lapNumber": "sim/lap"}
 DECIMALS: Final = ("auto", ".", ",")
+#: (width, height) of the frames the Udacity simulator sends
+FRAME_SIZE: Final = (320, 160)
 _COMMA_NUMBER = re.compile(r"^\s*[-+]?\d+,\d+\s*$")
 
 
@@ -184,8 +190,10 @@ class UdacitySim(ThreadedPart):
         self._delivered = 0  # seq of the frame handed to the loop at its previous run
         self._last_message: float | None = None  # monotonic time of the latest telemetry (null too)
         self._manual = False
-        self._connections = 0
+        self._sids: dict[str, str | None] = {}  # connected Socket.IO sid -> its Engine.IO sid
         self._connected_at: float | None = None
+        self._replaced_reported_at: float | None = None
+        self._tasks: set[asyncio.Task[Any]] = set()  # closings of replaced connections (kept alive)
         self._comma = decimal == ","
         self._neutral = False
         # statistics and reporting (loop thread unless noted)
@@ -253,7 +261,10 @@ class UdacitySim(ThreadedPart):
         return self.NOTHING
 
     def shutdown(self) -> None:
-        """Stop the server and join its thread."""
+        """Leave the simulated car at steer (0, 0) (:meth:`neutral`, unless done already), then stop
+        the server and join its thread."""
+        if not self._neutral:
+            self.neutral()
         loop, stop = self._loop, self._stop_server
         if loop is not None and stop is not None and not loop.is_closed():
             with contextlib.suppress(RuntimeError):  # closed between the check and the call
@@ -262,14 +273,18 @@ class UdacitySim(ThreadedPart):
         logger.info("Udacity bridge: %d telemetry messages (%d manual), %d steers sent (%d neutral)",
                     self.telemetry_count, self.null_count, self.steers_sent, self.neutral_replies)
 
-    def neutral(self) -> None:
-        """Answer every waiting telemetry, and all that follow, with steer (0, 0)."""
+    def neutral(self, wait_s: float = 1.0) -> None:
+        """Leave the simulated car at steer (0, 0): answer every waiting telemetry, and all that
+        follow, with it; when none waits, send it unsolicited to the connected simulator (which
+        otherwise keeps applying the last steer). Waits up to ``wait_s`` for the steers to leave."""
         with self._state:
             self._neutral = True
-            pending = [sid for sid, _, _ in self._pending]
+            targets = [sid for sid, _, _ in self._pending]
             self._pending.clear()
-        if pending:
-            self._send_threadsafe([(sid, 0.0, 0.0) for sid in pending], neutral=True)
+            if not targets:
+                targets = list(self._sids)
+        if targets:
+            self._send_threadsafe([(sid, 0.0, 0.0) for sid in targets], neutral=True, wait_s=wait_s)
 
     # -- the loop's side --------------------------------------------------------------------------
     def run_threaded(self, angle: Any = None, throttle: Any = None) -> tuple[Any, ...]:
@@ -280,7 +295,7 @@ class UdacitySim(ThreadedPart):
         with self._state:
             tel = self._telemetry
             self._delivered = tel.seq if tel is not None else 0
-            last, manual, connections = self._last_message, self._manual, self._connections
+            last, manual, connections = self._last_message, self._manual, len(self._sids)
             connected_at = self._connected_at
         now = time.monotonic()
         ok = tel is not None and last is not None and now - last <= self.timeout_s
@@ -371,10 +386,9 @@ class UdacitySim(ThreadedPart):
             await runner.cleanup()
             raise
         if self.port == 0:
-            server = getattr(site, "_server", None)
-            sockets = getattr(server, "sockets", None) or []
-            if sockets:
-                self.port = sockets[0].getsockname()[1]
+            addresses = getattr(runner, "addresses", None) or []  # aiohttp's public list of bound addresses
+            if addresses:
+                self.port = int(addresses[0][1])
         return runner
 
     async def _serve_until_stopped(self) -> None:
@@ -388,8 +402,10 @@ class UdacitySim(ThreadedPart):
             watchdog.cancel()
             try:
                 await self._site.stop()  # first stop listening: the simulator reconnects within 5 ms
-                if self._sio.eio.sockets:  # close the simulator's websocket, or cleanup waits for it
-                    await asyncio.wait_for(self._sio.eio.disconnect(), 2.0)
+                with self._state:
+                    sids = list(self._sids)
+                for sid in sids:  # close the simulator's websocket, or cleanup waits for it
+                    await asyncio.wait_for(self._close_connection(sid), 2.0)
                 await self._sio.shutdown()
             except (TimeoutError, OSError) as exc:
                 logger.debug("Udacity bridge: closing the connection: %r", exc)
@@ -411,15 +427,39 @@ class UdacitySim(ThreadedPart):
                                "simulator with a neutral steer", self.command_timeout_s)
                 await self._emit_steers([(sid, 0.0, 0.0) for sid in late], neutral=True)
 
-    async def _on_connect(self, sid: str, environ: dict[str, Any], auth: Any = None) -> None:
+    async def _close_connection(self, sid: str) -> None:
+        """Close a simulator's websocket (a Socket.IO v2 client ignores a namespace DISCONNECT)."""
         with self._state:
-            self._connections += 1
+            eio_sid = self._sids.get(sid)
+        eio = getattr(self._sio, "eio", None)
+        if eio is not None and eio_sid is not None:
+            await eio.disconnect(eio_sid)
+        else:  # no Engine.IO handle: leave the namespace at least (its events are then dropped)
+            await self._sio.disconnect(sid)
+
+    async def _on_connect(self, sid: str, environ: dict[str, Any], auth: Any = None) -> None:
+        manager = getattr(self._sio, "manager", None)
+        eio_sid = manager.eio_sid_from_sid(sid, "/") if hasattr(manager, "eio_sid_from_sid") else None
+        with self._state:
+            older = list(self._sids)
+            self._sids[sid] = eio_sid
             self._connected_at = time.monotonic()
         logger.info("Udacity simulator connected from %s", environ.get("REMOTE_ADDR", "?"))
+        if older:
+            now = time.monotonic()
+            if self._replaced_reported_at is None or now - self._replaced_reported_at > 10.0:
+                self._replaced_reported_at = now
+                logger.warning("Udacity bridge: a second simulator connected from %s: closed the previous "
+                               "connection (one simulator at a time; is another one running?)",
+                               environ.get("REMOTE_ADDR", "?"))
+            for old in older:  # later, not inside this handler: the new connection is still opening
+                task = asyncio.ensure_future(self._close_connection(old))
+                self._tasks.add(task)
+                task.add_done_callback(self._tasks.discard)
 
     async def _on_disconnect(self, sid: str, reason: Any = None) -> None:
         with self._state:
-            self._connections = max(0, self._connections - 1)
+            self._sids.pop(sid, None)
             self._pending = deque(p for p in self._pending if p[0] != sid)
         logger.info("Udacity simulator disconnected%s", f" ({reason})" if reason else "")
 
@@ -456,19 +496,13 @@ class UdacitySim(ThreadedPart):
 
     def _parse(self, sid: str, data: Any) -> Telemetry:
         """Telemetry from the event's data; ValueError says what is wrong with it."""
-        from parts.tub.codec import decode_image
+        from parts.bridges.frames import decode_frame
 
         if not isinstance(data, dict):
             raise ValueError(f"expected an object, got {type(data).__name__}")
-        encoded = data.get("image")
-        if not isinstance(encoded, str) or not encoded:
+        if not isinstance(data.get("image"), str) or not data["image"]:
             raise ValueError("no 'image' field")
-        try:
-            image = decode_image(base64.b64decode(encoded, validate=False))
-        except (binascii.Error, ValueError) as exc:
-            raise ValueError(f"'image' is not base64: {exc}") from None
-        if image is None or image.ndim != 3:
-            raise ValueError("'image' is not a JPEG/PNG colour image")
+        image = decode_frame(data["image"], formats=("JPEG",))  # the simulator's EncodeToJPG
         if self.decimal == "auto" and not self._comma and any(
                 isinstance(data.get(k), str) and _COMMA_NUMBER.match(data[k]) for k in STOCK_KEYS[:3]):
             self._comma = True
@@ -482,13 +516,20 @@ class UdacitySim(ThreadedPart):
         return Telemetry(0, sid, image, time.time(), parse_number(data.get("steering_angle")),
                          parse_number(data.get("throttle")), None if speed is None else speed * MS_PER_MPH, extra)
 
-    def _send_threadsafe(self, replies: list[tuple[str, Any, Any]], neutral: bool = False) -> None:
-        """Hand steers to the server thread (never blocks the caller)."""
+    def _send_threadsafe(self, replies: list[tuple[str, Any, Any]], neutral: bool = False,
+                         wait_s: float = 0.0) -> None:
+        """Hand steers to the server thread; wait up to ``wait_s`` for them to leave (0: never
+        block the caller)."""
         loop = self._loop
         if loop is None or loop.is_closed():
             return
-        with contextlib.suppress(RuntimeError):  # the loop closed meanwhile: nobody to answer
-            asyncio.run_coroutine_threadsafe(self._emit_steers(replies, neutral), loop)
+        try:
+            future = asyncio.run_coroutine_threadsafe(self._emit_steers(replies, neutral), loop)
+        except RuntimeError:  # the loop closed meanwhile: nobody to answer
+            return
+        if wait_s > 0:
+            with contextlib.suppress(Exception):  # timed out, or the connection closed meanwhile
+                future.result(wait_s)
 
     async def _emit_steers(self, replies: list[tuple[str, Any, Any]], neutral: bool = False) -> None:
         decimal = "," if self._comma else "."

@@ -161,11 +161,13 @@ def build_samples(data: DriveData, positions: np.ndarray, n_keys: int = 1, depth
 
 BEHAVIOR_STATE_KEY = "behavior/state"
 BEHAVIOR_LABEL_KEY = "behavior/label"
+BEHAVIOR_ONE_HOT_KEY = "behavior/one_hot_state_array"
 
 
 def behavior_names(data: DriveData) -> list[str] | None:
     """The behaviour names by index, read from the records' ``behavior/state`` and
-    ``behavior/label``; None when the records do not name them or disagree."""
+    ``behavior/label``; None when the records do not name them all or use indices for different
+    names (tubs recorded with different BEHAVIOR_LIST orders: see :func:`behavior_labels`)."""
     names: dict[int, str] = {}
     for rec in data.records:
         state, label = rec.data.get(BEHAVIOR_STATE_KEY), rec.data.get(BEHAVIOR_LABEL_KEY)
@@ -177,6 +179,70 @@ def behavior_names(data: DriveData) -> list[str] | None:
         # some behaviour never occurs: its name is unknown, and so is the mirror of the others
         return None
     return [names[i] for i in range(len(names))]
+
+
+def _tub_orders(data: DriveData) -> dict[str, list[str]]:
+    """Each tub's behaviour names by index, as its records show them ("?" for an index never seen)."""
+    seen: dict[str, dict[int, str]] = {}
+    for rec in data.records:
+        state, label = rec.data.get(BEHAVIOR_STATE_KEY), rec.data.get(BEHAVIOR_LABEL_KEY)
+        if state is not None and isinstance(label, str):
+            seen.setdefault(str(rec.tub), {}).setdefault(int(state), label)
+    return {tub: [m.get(i, "?") for i in range(max(m) + 1)] for tub, m in seen.items()}
+
+
+def behavior_labels(data: DriveData, preferred: Sequence[str] | None = None
+                    ) -> tuple[list[str] | None, np.ndarray | None]:
+    """The behaviour names in the model's order and, per record, its behaviour's index in them.
+
+    Every record names its behaviour (``behavior/label``), so tubs recorded with different
+    BEHAVIOR_LIST orders still agree on what each record means: each record is placed by its
+    name. The order is ``preferred`` (the car's BEHAVIOR_LIST) when it names every behaviour in the
+    records, else the records' own order when all tubs share it.
+
+    Returns:
+        (names, index): ``index[i]`` is record ``i``'s position in ``names``; (None, None) when
+        the records name no behaviour (tubs recorded before labels were kept: their one-hot
+        arrays are used as recorded) or the tubs share one order that leaves a behaviour unnamed.
+
+    Raises:
+        ValueError: some tubs name their behaviours and others do not, or the tubs use different
+            orders and ``preferred`` does not name every behaviour in them (one line, naming the
+            tubs and their orders).
+    """
+    labels: list[str | None] = []
+    unnamed: set[str] = set()
+    for rec in data.records:
+        state, label = rec.data.get(BEHAVIOR_STATE_KEY), rec.data.get(BEHAVIOR_LABEL_KEY)
+        ok = state is not None and isinstance(label, str)
+        labels.append(label if ok else None)
+        if not ok:
+            unnamed.add(str(rec.tub))
+    orders = _tub_orders(data)
+    if not orders:
+        return None, None
+    if unnamed:
+        raise ValueError(f"the records of {', '.join(sorted(unnamed))} do not name their behaviour "
+                         f"(behavior/label) but those of {', '.join(sorted(orders))} do, so which one-hot index "
+                         "means which behaviour is unknown: train them separately or leave out the older tubs")
+    names = sorted({label for label in labels if label is not None})
+    if preferred is not None and set(names) <= set(preferred):
+        order = list(preferred)
+    else:
+        order = behavior_names(data)  # one order shared by every record, every index named
+        if order is None:
+            groups: dict[tuple[str, ...], list[str]] = {}
+            for tub, tub_order in orders.items():
+                groups.setdefault(tuple(tub_order), []).append(Path(tub).name)
+            if len(groups) == 1:
+                return None, None  # one order, some behaviour never recorded: the one-hot as recorded
+            shown = "; ".join(f"{', '.join(sorted(tubs))}: {list(o)}" for o, tubs in groups.items())
+            raise ValueError(f"the tubs were recorded with different behaviour orders ({shown}) and BEHAVIOR_LIST "
+                             f"{list(preferred) if preferred is not None else None} does not name every behaviour "
+                             f"{names}: set BEHAVIOR_LIST to the order the car drives with, and each record's "
+                             "behaviour is placed by its name")
+    position = {name: i for i, name in enumerate(order)}
+    return order, np.asarray([position[label] for label in labels], np.int64)
 
 
 def behavior_mirror(names: Sequence[str]) -> np.ndarray | None:
@@ -202,13 +268,15 @@ class PilotDataset(Dataset):
     (angle, throttle). With an ``augmenter`` (training only) every sample gets a fresh random draw,
     reproducible from (seed, epoch, index). ``extra_mirror`` permutes the extra values of a flipped
     frame (the left-lane behaviour of a mirrored frame is the right lane, see
-    :func:`behavior_mirror`).
+    :func:`behavior_mirror`). ``extra_values`` (records x ``extra_size``) replaces what the records
+    hold under ``extra_key`` (the behaviour one-hot placed by name, :func:`behavior_labels`).
     """
 
     def __init__(self, data: DriveData, samples: Samples, cache: FrameCache, preprocess: Preprocess, *,
                  key_offsets: Sequence[float] = (0.0,), frames: int = 1, command_history: int = 0,
                  extra_key: str | None = None, extra_size: int = 0, augmenter: Augmenter | None = None,
-                 seed: int = 0, extra_mirror: np.ndarray | None = None) -> None:
+                 seed: int = 0, extra_mirror: np.ndarray | None = None,
+                 extra_values: np.ndarray | None = None) -> None:
         if samples.chain.shape[1] < max(frames, command_history + 1):
             raise ValueError("samples were built with too short a history for this model")
         self.data = data
@@ -223,6 +291,9 @@ class PilotDataset(Dataset):
         self.augmenter = augmenter
         self.seed = seed
         self.extra_mirror = extra_mirror
+        self.extra_values = extra_values
+        if extra_values is not None and extra_values.shape != (len(data), extra_size):
+            raise ValueError(f"extra_values must be (records, {extra_size}), got {extra_values.shape}")
         self.epoch = 0
 
     def set_epoch(self, epoch: int) -> None:
@@ -240,8 +311,11 @@ class PilotDataset(Dataset):
                 pairs[:, 0] *= -1
             return pairs.reshape(-1).astype(np.float32)
         if self.extra_key is not None:
-            raw = self.data.records[chain[0]].data.get(self.extra_key)
-            values = np.asarray(raw if raw is not None else [], np.float32).reshape(-1)
+            if self.extra_values is not None:
+                values = self.extra_values[chain[0]]
+            else:
+                raw = self.data.records[chain[0]].data.get(self.extra_key)
+                values = np.asarray(raw if raw is not None else [], np.float32).reshape(-1)
             if values.size != self.extra_size:
                 rec = self.data.records[chain[0]]
                 raise ValueError(f"record {rec.index} of {rec.tub}: {self.extra_key} has {values.size} "

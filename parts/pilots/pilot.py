@@ -12,8 +12,9 @@ then appended to ``inputs``. The web page's speed limit is not a target: it caps
 throttle in every mode (:class:`parts.drive.speed.SpeedLimit`).
 
 Hot switch: :meth:`Pilot.request_model` loads another file in a background thread and swaps it in
-with one reference assignment; the loop never waits for a load, and a file that fails to load
-leaves the current model driving. :class:`ModelSwitch` is the loop part that watches
+with one reference assignment; the loop never waits for a load, and a file that fails to load, or
+does not fit the car (:mod:`parts.pilots.compat`: behaviour order, undistortion), leaves the
+current model driving. :class:`ModelSwitch` is the loop part that watches
 ``pilot/model_request`` and outputs ``pilot/model``.
 """
 
@@ -31,6 +32,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from parts.pilots.backends import Backend, Runner, open_runner
+from parts.pilots.compat import CarInputs, check_model
 
 logger = logging.getLogger(__name__)
 
@@ -84,13 +86,19 @@ class Pilot:
             (ValueError here, ``load_error`` on a switch). None: learnt from the first frame.
         extra_sizes: values per extra input in this car, e.g. ``{"behavior/one_hot_state_array":
             len(BEHAVIOR_LIST)}``; a model trained with another size is refused when it loads.
+        car: what the car feeds the model (BEHAVIOR_LIST, CAMERA_UNDISTORT); every model, the
+            first and each hot switch, is checked against it (None: not checked).
+
+    Raises:
+        parts.pilots.compat.ModelMismatch: the model does not fit ``car``.
     """
 
     def __init__(self, model: str | Path, *, backend: Backend | str = "auto", speed_control: Any = None,
                  speed_key: str = "sim/speed", onnx_threads: int = 1,
                  models_dir: str | Path | None = None, frame_shape: tuple[int, ...] | None = None,
-                 extra_sizes: Mapping[str, int] | None = None) -> None:
+                 extra_sizes: Mapping[str, int] | None = None, car: CarInputs | None = None) -> None:
         self.backend = backend
+        self.car = car
         self.onnx_threads = onnx_threads
         self.speed_control = speed_control
         self.speed_key = speed_key
@@ -100,7 +108,7 @@ class Pilot:
         runner = open_runner(model, backend, onnx_threads)
         try:
             self.check_fits(runner)
-        except ValueError:
+        except Exception:
             runner.close()
             raise
         self._active = _Active(runner)
@@ -233,6 +241,8 @@ class Pilot:
                 sizes = " and ".join(f"{k} has {self.extra_sizes[k]} values" for k in known)
                 raise ValueError(f"{sizes} in this car, but the model was trained with {runner.extra_size} "
                                  "(a different number of behaviours? check BEHAVIOR_LIST, or re-train)")
+        if self.car is not None:  # behaviour order, undistortion (ModelMismatch, a ValueError)
+            check_model(runner.name, runner.meta, runner.extra_inputs, runner.extra_size, self.car)
 
     # -- hot switch -----------------------------------------------------------------------------
     def resolve(self, path: str | Path) -> Path:

@@ -24,12 +24,13 @@ from torch.utils.data import DataLoader, DistributedSampler
 
 from parts.pilots.augment import Augmenter, AugmentSettings
 from parts.pilots.balance import balance_by_steering
+from parts.pilots.compat import camera_meta
 from parts.pilots.dataset import (
     IMAGE_KEY,
     DriveData,
     PilotDataset,
+    behavior_labels,
     behavior_mirror,
-    behavior_names,
     build_samples,
     read_drive_data,
 )
@@ -73,7 +74,8 @@ def model_options(cfg: Any, type_name: str, data: DriveData) -> dict[str, Any]:
         if value is None:
             raise ValueError(f"the records have no {key!r}: record with behaviours (BEHAVIOR_LIST) to train "
                              "a behavior model")
-        opts["num_behaviors"] = len(value)
+        names, _ = behavior_labels(data, cfg.BEHAVIOR_LIST)
+        opts["num_behaviors"] = len(names) if names is not None else len(value)
     return opts
 
 
@@ -90,8 +92,14 @@ class PreparedData:
 
 
 def prepare_data(cfg: Any, data: DriveData, model: PilotModel, preprocess: Preprocess,
-                 augmentations: Sequence[str] | None = None, progress: bool = False) -> PreparedData:
-    """Split, balance, expand side cameras, cache frames and wrap everything as datasets."""
+                 augmentations: Sequence[str] | None = None, progress: bool = False,
+                 behavior_order: Sequence[str] | None = None) -> PreparedData:
+    """Split, balance, expand side cameras, cache frames and wrap everything as datasets.
+
+    A behaviour model's one-hot input follows ``behavior_order`` (default BEHAVIOR_LIST; a
+    transferred model's own order), each record placed by its behaviour's name
+    (:func:`parts.pilots.dataset.behavior_labels`).
+    """
     train_pos, val_pos = split_train_val(data.segments, cfg.TRAIN_TEST_SPLIT, cfg.TRAIN_SPLIT_BY,
                                          cfg.TRAIN_SPLIT_BLOCK, cfg.TRAIN_SEED)
     n_split = len(train_pos)
@@ -114,14 +122,15 @@ def prepare_data(cfg: Any, data: DriveData, model: PilotModel, preprocess: Prepr
         raise ValueError(f"no training samples left from {len(data)} records (sequence models need "
                          f"{depth} consecutive records before each sample); record more data")
     names = cfg.AUGMENTATIONS if augmentations is None else list(augmentations)
-    mirror, behaviors = _behavior_flip(data, model, names)
+    order = cfg.BEHAVIOR_LIST if behavior_order is None else behavior_order
+    mirror, behaviors, extra_values = _behavior_inputs(data, model, names, order)
     if mirror is None and behaviors is not None and "flip" in names:
         names = [n for n in names if n != "flip"]
     aug_settings = AugmentSettings.from_config(cfg, names)
     augmenter = Augmenter(aug_settings) if aug_settings.names else None
     common = {"frames": model.frames, "command_history": model.command_history,
               "extra_key": model.extra_inputs[0] if model.extra_inputs else None,
-              "extra_size": model.extra_size, "extra_mirror": mirror}
+              "extra_size": model.extra_size, "extra_mirror": mirror, "extra_values": extra_values}
     train_ds = PilotDataset(data, train_s, cache, preprocess, key_offsets=offsets, augmenter=augmenter,
                             seed=cfg.TRAIN_SEED, **common)
     val_ds = PilotDataset(data, val_s, cache, preprocess, **common) if len(val_s) else None
@@ -133,23 +142,37 @@ def prepare_data(cfg: Any, data: DriveData, model: PilotModel, preprocess: Prepr
                         info)
 
 
-def _behavior_flip(data: DriveData, model: PilotModel,
-                   augmentations: Sequence[str]) -> tuple[np.ndarray | None, list[str] | None]:
-    """For a behaviour model: (permutation of the one-hot for flipped frames, behaviour names).
+def _behavior_inputs(data: DriveData, model: PilotModel, augmentations: Sequence[str], order: Sequence[str]
+                     ) -> tuple[np.ndarray | None, list[str] | None, np.ndarray | None]:
+    """For a behaviour model: (permutation of the one-hot for flipped frames, behaviour names, the
+    one-hot of every record in the order of the names).
 
-    A flipped frame of the left lane shows the right lane, so its behaviour is swapped; when the
-    records do not name the behaviours or a name has no mirror, flipping would teach wrong labels
-    and is left out (with a warning). (None, None) for models without a behaviour input.
+    The one-hot is rebuilt from each record's behaviour name, so tubs recorded with different
+    BEHAVIOR_LIST orders train one meaning per input (see :func:`behavior_labels`). A flipped
+    frame of the left lane shows the right lane, so its behaviour is swapped; when the records do
+    not name the behaviours or a name has no mirror, flipping would teach wrong labels and is left
+    out (with a warning). (None, None, None) for models without a behaviour input.
+
+    Raises:
+        ValueError: the behaviours cannot be placed (see :func:`behavior_labels`), or the model
+            takes another number of behaviours than the records name.
     """
     if "behavior/one_hot_state_array" not in model.extra_inputs:
-        return None, None
-    names = behavior_names(data)
+        return None, None, None
+    names, index = behavior_labels(data, order)
+    values = None
+    if names is not None and index is not None:
+        if len(names) != model.extra_size:
+            raise ValueError(f"the model takes {model.extra_size} behaviours but the records are placed on "
+                             f"{len(names)} ({names}): train a new model, or set BEHAVIOR_LIST to the model's")
+        values = np.zeros((len(index), len(names)), np.float32)
+        values[np.arange(len(index)), index] = 1.0
     mirror = behavior_mirror(names) if names is not None else None
     if mirror is None and "flip" in augmentations:
         why = (f"behaviours {names} have no left/right mirror" if names is not None
                else "the records do not name every behaviour (behavior/state, behavior/label)")
         logger.warning("flip augmentation left out: %s, so a flipped frame has no correct behaviour", why)
-    return mirror, names if names is not None else []
+    return mirror, names if names is not None else [], values
 
 
 def _loaders(prep: PreparedData, batch_size: int, workers: int, dist_info: DistInfo, device: torch.device,
@@ -242,8 +265,11 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
             model = create_model(type_name, preprocess.output_shape(image_shape),
                                  **model_options(cfg, type_name, data))
         phase("preparing")
+        # a transferred behaviour model keeps the order of its one-hot inputs
+        order = (old_meta.get("training") or {}).get("behaviors") if old_meta is not None else None
         prep = prepare_data(cfg, data, model, preprocess, augmentations,
-                            progress=dist_info.is_main and (progress if progress is not None else _tty()))
+                            progress=dist_info.is_main and (progress if progress is not None else _tty()),
+                            behavior_order=order or None)
         model.to(dev)
         n_params = sum(p.numel() for p in model.parameters())
         if dist_info.is_main:
@@ -267,7 +293,9 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
                     "steps_per_epoch": cfg.TRAIN_STEPS_PER_EPOCH, "val_steps": cfg.TRAIN_VAL_STEPS,
                     "device": str(dev), "world_size": dist_info.world_size, "parameters": n_params,
                     **{k: v for k, v in prep.info.items() if k not in ("records",)}}
+        # the frames it learns from: undistorted (CAMERA_UNDISTORT) or not; the car must match
         base_meta = {"type": type_name, "preprocess": preprocess.to_dict(), "training": training,
+                     "camera": camera_meta(cfg),
                      "datasets": data.tubs, "transfer": str(transfer) if transfer else None,
                      "comment": comment, "created": datetime.now(UTC).isoformat(timespec="seconds")}
 

@@ -165,9 +165,11 @@ class Camera:
             return out
         return image
 
-    def project_ground(self, points: np.ndarray) -> np.ndarray:
+    def project_ground(self, points: np.ndarray, intrinsics: np.ndarray | None = None) -> np.ndarray:
         """Image pixels (N, 2) of ground points (N, 2) given in the car frame (x ahead, y left),
-        metres, through the lens. Points behind the camera give NaN."""
+        metres, through the lens; with ``intrinsics``, in the undistorted image of this camera
+        matrix instead (an ideal pinhole, what :class:`parts.vision.undistort.Undistort` makes).
+        Points behind the camera give NaN."""
         pts = np.asarray(points, float).reshape(-1, 2)
         cam = np.array([self.forward_m, 0.0, self.height_m])
         world = np.column_stack([pts, np.zeros(len(pts))]) - cam
@@ -175,9 +177,11 @@ class Camera:
         out = np.full((len(pts), 2), np.nan)
         ahead = in_cam[:, 2] > 1e-6
         if ahead.any():
-            proj, _ = cv2.projectPoints(in_cam[ahead].reshape(-1, 1, 3), np.zeros(3), np.zeros(3),
-                                        self.intrinsics, self.distortion if self.distortion is not None
-                                        else np.zeros(5))
+            if intrinsics is not None:
+                k, dist = np.asarray(intrinsics, float), np.zeros(5)
+            else:
+                k, dist = self.intrinsics, self.distortion if self.distortion is not None else np.zeros(5)
+            proj, _ = cv2.projectPoints(in_cam[ahead].reshape(-1, 1, 3), np.zeros(3), np.zeros(3), k, dist)
             out[ahead] = proj.reshape(-1, 2)
         return out
 
@@ -235,8 +239,8 @@ class ImageJitter:
         return image
 
 
-def lane_region_points(camera: Camera, near: float | None = None, far: float = 1.2,
-                       half_width: float = 0.5) -> dict[str, list[list[float]] | list[int]]:
+def lane_region_points(camera: Camera, near: float | None = None, far: float = 1.2, half_width: float = 0.5,
+                       intrinsics: np.ndarray | None = None) -> dict[str, list[list[float]] | list[int]]:
     """Lane-extraction points for this camera (``LANE_SOURCE_POINTS``, ``LANE_DESTINATION_POINTS``,
     ``LANE_POINTS_SIZE``) that make a rectangle of ground a true bird's-eye view.
 
@@ -244,17 +248,29 @@ def lane_region_points(camera: Camera, near: float | None = None, far: float = 1
     metres to the sides (``near`` default: the nearest ground the image shows, plus 2 cm). Its
     corners map to the thesis's destination rectangle, scaled to the camera size, so the
     bird's-eye image has the thesis's layout. Point order: bottom left, top left, top right,
-    bottom right.
+    bottom right. ``intrinsics``: the points are for the undistorted frames of a car with
+    CAMERA_UNDISTORT, whose camera matrix this is (``Undistort.output_camera_matrix``); without
+    it they are for the frames as the lens bends them.
     """
     if near is None:
         # ground seen by the bottom-centre pixel, a little further so the bottom edge stays in view
-        bottom = camera.car_from_pixel @ np.array([camera.canvas_intrinsics[0, 2], camera.canvas_size[1] - 1, 1.0])
+        pixel = np.array([[camera.width / 2.0 - 0.5, camera.height - 1.0]])
+        if intrinsics is not None:  # undistorted frame -> ray -> pinhole canvas pixel
+            ray = np.linalg.inv(np.asarray(intrinsics, float)) @ np.array([*pixel[0], 1.0])
+            canvas = camera.canvas_intrinsics @ ray
+        elif camera.distortion is not None:
+            undone = cv2.undistortPoints(pixel.reshape(-1, 1, 2), camera.intrinsics, camera.distortion,
+                                         P=camera.canvas_intrinsics)
+            canvas = np.array([*undone.reshape(2), 1.0])
+        else:
+            canvas = np.array([*pixel[0], 1.0])
+        bottom = camera.car_from_pixel @ canvas
         near = float(bottom[0] / bottom[2]) + 0.02
     if not 0 < near < far or half_width <= 0:
-        raise ValueError(f"lane region needs 0 < near < far metres and half_width > 0, got {near}, {far}, "
-                         f"{half_width}")
+        raise ValueError(f"lane region needs 0 < near < far metres and half_width > 0, got near {near:.3g} m, "
+                         f"far {far:.3g} m, half_width {half_width:.3g} m")
     pts = camera.project_ground(np.array([[near, half_width], [far, half_width], [far, -half_width],
-                                          [near, -half_width]]))
+                                          [near, -half_width]]), intrinsics)
     if not np.isfinite(pts).all():
         raise ValueError("the lane region is not in front of the camera: lower near/far")
     # the thesis's destination rectangle (x 80..230, y 0.25..180 of 320x180), scaled

@@ -137,11 +137,6 @@ class Expert:
                    change_max_curvature=cfg.SIM_EXPERT_LANE_CHANGE_MAX_CURVATURE,
                    change_max_delay=cfg.SIM_EXPERT_LANE_CHANGE_MAX_DELAY)
 
-    @property
-    def changing(self) -> bool:
-        """Whether a lane change is under way or waiting for a straighter road."""
-        return self._waiting_since is not None or self._odo < self._start + self.change_distance
-
     def _prepare(self, track: Track) -> None:
         params = self.sim.car.params
         speed = min(self.speed, params.max_speed)
@@ -184,6 +179,7 @@ class Expert:
         except (IndexError, TypeError, ValueError):
             return
         if lane == self._target_lane:
+            self._waiting_since = None  # a change asked for and taken back before it began: no wait left over
             return
         if self._target_lane is None:  # first state seen (start of a run): go to that lane now
             self._target_lane = lane

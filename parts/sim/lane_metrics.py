@@ -6,10 +6,13 @@ lateral position, the commanded lane's centre, off-track flags. The parts :class
 put it into an evaluation loop. Definitions (docs/simulator.md repeats them):
 
 - **in the commanded lane**: the car's centre is less than half a lane width from the commanded
-  lane's centre and the car is on the road;
+  lane's centre and the car is on the road (``in_lane_fraction``);
+- **centred** in a lane: the car's centre is less than a quarter lane width from the lane's centre
+  (for 0.4 m lanes, 10 cm) and the car is on the road: a car that just crossed the centre line is
+  in the new lane but has not changed into it yet;
 - a commanded change **succeeds** when, within ``time_limit`` seconds of the command, the car
-  enters the commanded lane and stays in it for ``hold`` seconds without leaving the road; its
-  **time to change** is from the command to that entry;
+  becomes centred in the commanded lane and stays centred for ``hold`` seconds without leaving
+  the road; its **time to change** is from the command to the start of that stay;
 - the **change window** of a command runs from the command to the end of that stay (success) or
   for ``time_limit`` seconds (failure); **lane keeping** |error| (distance of the car's centre to
   the commanded lane's centre) and **wrong-lane time** (the car's centre on the other side of the
@@ -74,6 +77,7 @@ def lane_metrics(t: Sequence[float], lateral: Sequence[float], commanded: Sequen
         raise ValueError(f"need lane_width > 0, time_limit > 0, hold >= 0 (got {lane_width}, {time_limit}, {hold})")
     err = lat - cmd
     in_lane = (np.abs(err) < lane_width / 2) & ~off
+    centred = lane_width / 4  # how close to the new lane's centre a change must come, and stay
     dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
     window = np.zeros(t.shape, bool)
     results: list[dict[str, Any]] = []
@@ -82,7 +86,7 @@ def lane_metrics(t: Sequence[float], lateral: Sequence[float], commanded: Sequen
                                "success": None, "time_to_change_s": None,
                                "pos": [_r(c.pos[0], 3), _r(c.pos[1], 3)] if c.pos is not None else None}
         results.append(res)
-        lane_ok = (np.abs(lat - c.offset) < lane_width / 2) & ~off
+        lane_ok = (np.abs(lat - c.offset) < centred) & ~off
         start = int(np.searchsorted(t, c.time - 1e-9))
         deadline = c.time + time_limit + 1e-9
         entered: int | None = None

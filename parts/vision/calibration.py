@@ -22,6 +22,7 @@ lens, straight lines bowing outwards) has k1 < 0 in this model.
 
 from __future__ import annotations
 
+import errno
 import json
 import logging
 import math
@@ -46,6 +47,15 @@ RECOMMENDED_VIEWS = 10
 #: fewest views calibrateCamera is given
 MIN_VIEWS = 3
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".gif")
+#: phone photo formats OpenCV cannot read: listed (as unreadable, with a hint), never silently skipped
+UNREADABLE_SUFFIXES = (".heic", ".heif")
+#: a view whose corners moved less than this (mean, fraction of the image diagonal) from a kept
+#: view's is a near-duplicate of it (a burst of photos, the same pose twice): it adds no information
+#: and would weigh that pose twice
+DUPLICATE_MOVE = 0.02
+#: a fit this uncertain (one standard deviation) is reported: fx relative, k1 absolute
+UNCERTAIN_FX = 0.01
+UNCERTAIN_K1 = 0.01
 #: the file format version written by :meth:`CameraCalibration.save`
 FORMAT_VERSION = 1
 
@@ -155,6 +165,8 @@ class CameraCalibration:
         model: "standard" or "rational".
         created: ISO time of the calibration.
         dropped_views: views left out as outliers (wrongly detected corners).
+        std_devs: one standard deviation of the fitted intrinsics ("fx", "fy", "cx", "cy", "k1",
+            ...), from ``cv2.calibrateCameraExtended``; empty when unknown.
     """
 
     image_size: tuple[int, int]
@@ -167,6 +179,21 @@ class CameraCalibration:
     model: str = "standard"
     created: str = ""
     dropped_views: list[str] = field(default_factory=list)
+    std_devs: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def uncertain(self) -> str | None:
+        """A sentence saying which fitted values are uncertain (UNCERTAIN_FX, UNCERTAIN_K1), or None."""
+        fx, sd_fx, sd_k1 = self.camera_matrix[0, 0], self.std_devs.get("fx"), self.std_devs.get("k1")
+        shaky = []
+        if sd_fx is not None and sd_fx > UNCERTAIN_FX * fx:
+            shaky.append(f"fx {fx:.1f} ± {sd_fx:.1f} px")
+        if sd_k1 is not None and sd_k1 > UNCERTAIN_K1:
+            shaky.append(f"k1 {float(self.dist_coeffs[0]):+.3f} ± {sd_k1:.3f}")
+        if not shaky:
+            return None
+        return (f"the fit is uncertain ({', '.join(shaky)}, one standard deviation): add views with the board tilted "
+                "at different angles and near the image's corners")
 
     @property
     def fov_deg(self) -> tuple[float, float]:
@@ -195,8 +222,12 @@ class CameraCalibration:
         k[1, 1] *= sy
         k[0, 2] = (k[0, 2] + 0.5) * sx - 0.5
         k[1, 2] = (k[1, 2] + 0.5) * sy - 0.5
+        std = dict(self.std_devs)
+        for name, scale in (("fx", sx), ("fy", sy), ("cx", sx), ("cy", sy)):
+            if name in std:
+                std[name] *= scale
         return CameraCalibration((width, height), k, self.dist_coeffs.copy(), self.rms * sx, list(self.view_errors),
-                                 list(self.views), self.board, self.model, self.created, list(self.dropped_views))
+                                 list(self.views), self.board, self.model, self.created, list(self.dropped_views), std)
 
     # -- storage
     def to_dict(self) -> dict[str, Any]:
@@ -209,7 +240,8 @@ class CameraCalibration:
                 "dropped_views": list(self.dropped_views),
                 "board": {"columns": self.board.columns, "rows": self.board.rows,
                           "square_mm": self.board.square_mm},
-                "fov_deg": [round(v, 2) for v in self.fov_deg], "created": self.created}
+                "fov_deg": [round(v, 2) for v in self.fov_deg], "created": self.created,
+                "std_devs": {k: float(f"{v:.4g}") for k, v in self.std_devs.items()}}
 
     def save(self, path: str | Path) -> Path:
         """Write the calibration as JSON (the folder is created); returns the path."""
@@ -232,7 +264,8 @@ class CameraCalibration:
             board = Chessboard(int(b.get("columns", 10)), int(b.get("rows", 7)), float(b.get("square_mm", 25.0)))
             out = cls(size, k, dist, float(d.get("rms_px", math.nan)),  # type: ignore[arg-type]
                       [float(e) for e in d.get("view_errors_px", [])], [str(v) for v in d.get("views", [])],
-                      board, model, str(d.get("created", "")), [str(v) for v in d.get("dropped_views", [])])
+                      board, model, str(d.get("created", "")), [str(v) for v in d.get("dropped_views", [])],
+                      {str(k): float(v) for k, v in (d.get("std_devs") or {}).items()})
         except (KeyError, TypeError, ValueError) as exc:
             raise CalibrationError(f"{source}: not a camera calibration ({type(exc).__name__}: {exc}); "
                                    "make one with `vehicle camera calibrate`") from None
@@ -307,6 +340,8 @@ def calibrate(views: Sequence[View], board: Chessboard, image_size: tuple[int, i
         dropped.append(views[worst].name)
         del views[worst]
     cal.dropped_views = dropped
+    if cal.uncertain:
+        logger.warning("%s", cal.uncertain)
     return cal
 
 
@@ -322,24 +357,27 @@ def _fit(views: Sequence[View], board: Chessboard, image_size: tuple[int, int], 
     image_points = [v.corners.astype(np.float32) for v in views]
     n_coeffs, flags = MODELS[model]
     criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-9)
-    rms, k, dist, rvecs, tvecs = cv2.calibrateCamera(object_points, image_points, tuple(int(v) for v in image_size),
-                                                     None, None, flags=flags, criteria=criteria)
+    rms, k, dist, rvecs, tvecs, std, _, _ = cv2.calibrateCameraExtended(
+        object_points, image_points, tuple(int(v) for v in image_size), None, None, flags=flags, criteria=criteria)
+    names = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")[:4 + n_coeffs]
+    std_devs = {n: float(v) for n, v in zip(names, np.asarray(std).reshape(-1), strict=False) if np.isfinite(v)}
     errors = []
     for pts, rvec, tvec in zip(image_points, rvecs, tvecs, strict=True):
         proj, _ = cv2.projectPoints(obj, rvec, tvec, k, dist)
         errors.append(float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - pts.reshape(-1, 2)) ** 2, axis=1)))))
     return CameraCalibration((int(image_size[0]), int(image_size[1])), k, np.asarray(dist).reshape(-1)[:n_coeffs],
                              float(rms), errors, [v.name for v in views], board, model,
-                             datetime.now(UTC).isoformat(timespec="seconds"))
+                             datetime.now(UTC).isoformat(timespec="seconds"), std_devs=std_devs)
 
 
 def image_files(folder: str | Path) -> list[Path]:
-    """Image files of ``folder`` in name order (annotated ``corners_*`` copies left out)."""
+    """Image files of ``folder`` in name order (annotated ``corners_*`` copies left out); phone
+    photos OpenCV cannot read (HEIC) are included, so that they are reported, not skipped."""
     folder = Path(folder)
     if not folder.is_dir():
         raise CalibrationError(f"no such folder {folder}: give the folder of chessboard photos")
     return sorted(p for p in folder.iterdir()
-                  if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith("corners_"))
+                  if p.suffix.lower() in IMAGE_SUFFIXES + UNREADABLE_SUFFIXES and not p.name.startswith("corners_"))
 
 
 def read_rgb(path: Path) -> np.ndarray:
@@ -351,74 +389,151 @@ def read_rgb(path: Path) -> np.ndarray:
 
 
 def write_rgb(path: Path, image: np.ndarray) -> None:
-    """Write an RGB image (PNG or JPEG by suffix)."""
+    """Write an RGB image (PNG or JPEG by suffix); OSError naming the path when it cannot."""
+    if path.suffix.lower() not in IMAGE_SUFFIXES:
+        raise OSError(errno.EINVAL, f"not an image file name: use .png or .jpg (one of {', '.join(IMAGE_SUFFIXES)})",
+                      str(path))
     path.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(path), cv2.cvtColor(image, cv2.COLOR_RGB2BGR)):
-        raise OSError(f"cannot write {path}")
+    try:
+        written = cv2.imwrite(str(path), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+    except cv2.error as exc:  # OpenCV raises for some formats instead of returning False
+        raise OSError(errno.EIO, f"the image could not be written ({str(exc).strip().splitlines()[-1]})",
+                      str(path)) from None
+    if not written:
+        raise OSError(errno.EIO, "the image could not be written", str(path))
+
+
+def is_novel(corners: np.ndarray, kept: Sequence[np.ndarray], min_move: float, diagonal: float) -> bool:
+    """Whether ``corners`` moved, on average, at least ``min_move`` x ``diagonal`` pixels from each of
+    the ``kept`` views' corners (all (N, 2) or (N, 1, 2)): a new position or angle of the board."""
+    pts = corners.reshape(-1, 2)
+    return all(np.linalg.norm(pts - k.reshape(-1, 2), axis=1).mean() >= min_move * diagonal for k in kept)
 
 
 @dataclass
-class FolderResult:
-    """What :func:`calibrate_folder` found: the calibration and the images without a board."""
+class ViewSet:
+    """What :func:`collect_views` found in a set of images.
 
-    calibration: CameraCalibration
-    rejected: list[str]
+    Attributes:
+        views: the views used (board found, not a near-duplicate), in order.
+        rejected: names of images without the whole board.
+        duplicates: names of near-duplicates of an earlier view (left out).
+        unreadable: names of files that are not images OpenCV reads (left out).
+        size: (width, height) of the images, None without any.
+    """
+
+    views: list[View]
+    rejected: list[str] = field(default_factory=list)
+    duplicates: list[str] = field(default_factory=list)
+    unreadable: list[str] = field(default_factory=list)
+    size: tuple[int, int] | None = None
 
 
-def collect_views(images: Iterable[tuple[str, np.ndarray]], board: Chessboard,
-                  annotate_to: Path | None = None) -> tuple[list[View], list[str], tuple[int, int] | None]:
-    """Corners of every named image; returns (views, names without a board, image size).
+def collect_views(images: Iterable[tuple[str, np.ndarray | None]], board: Chessboard,
+                  annotate_to: Path | None = None, min_move: float = DUPLICATE_MOVE) -> ViewSet:
+    """Corners of every named image (None: a file that could not be read). A view whose corners lie
+    within ``min_move`` of the image diagonal of an earlier view's is a near-duplicate and left out
+    (the live collector's test, :func:`is_novel`).
 
     Raises:
         CalibrationError: images of different sizes.
+        OSError: an annotated copy cannot be written to ``annotate_to``.
     """
-    views: list[View] = []
-    rejected: list[str] = []
-    size: tuple[int, int] | None = None
+    found = ViewSet([])
     for name, image in images:
+        if image is None:
+            found.unreadable.append(name)
+            continue
         this = (int(image.shape[1]), int(image.shape[0]))
-        if size is None:
-            size = this
-        elif this != size:
+        if found.size is None:
+            found.size = this
+        elif this != found.size:
+            size = found.size
             raise CalibrationError(f"{name} is {this[0]}x{this[1]} but the first image is {size[0]}x{size[1]}: "
                                    "calibrate with images of one size (the size the car's camera delivers)")
         corners = find_corners(image, board)
         if corners is None:
-            rejected.append(name)
+            found.rejected.append(name)
             continue
-        views.append(View(name, corners))
+        if not is_novel(corners, [v.corners for v in found.views], min_move, math.hypot(*this)):
+            found.duplicates.append(name)
+            continue
+        found.views.append(View(name, corners))
         if annotate_to is not None:
             write_rgb(annotate_to / f"corners_{Path(name).stem}.png", draw_corners(image, board, corners))
-    return views, rejected, size
+    if found.duplicates:
+        logger.warning("left out as near-duplicates of an earlier view (the board moved less than %.0f %% of the "
+                       "image diagonal): %s", 100 * min_move, ", ".join(found.duplicates))
+    return found
+
+
+@dataclass
+class FolderResult:
+    """What :func:`calibrate_files` found: the calibration and the images left out, by reason."""
+
+    calibration: CameraCalibration
+    rejected: list[str]
+    duplicates: list[str] = field(default_factory=list)
+    unreadable: list[str] = field(default_factory=list)
+
+
+def _read_or_none(files: Sequence[Path]) -> Iterable[tuple[str, np.ndarray | None]]:
+    for path in files:
+        try:
+            yield path.name, read_rgb(path)
+        except CalibrationError:
+            logger.warning("%s: not an image OpenCV can read, left out", path)
+            yield path.name, None
+
+
+def calibrate_files(files: Sequence[Path], board: Chessboard, *, model: str = "standard",
+                    annotate_to: str | Path | None = None, source: str = "the images") -> FolderResult:
+    """Calibrate from chessboard photos ``files`` (the thesis's workflow).
+
+    Args:
+        files: images of the printed board from different angles, all of one size. Files that are
+            not images OpenCV reads (HEIC phone photos, a broken file) are listed and left out.
+        board: the board's inner corner counts and square size.
+        model: "standard" or "rational".
+        annotate_to: folder for ``corners_NAME.png`` copies with the detected corners drawn.
+        source: what the files are, for messages (e.g. the folder).
+
+    Raises:
+        CalibrationError: no images, images of several sizes, too few views with a board.
+        OSError: an annotated copy cannot be written.
+    """
+    if not files:
+        raise CalibrationError(f"no images ({', '.join(IMAGE_SUFFIXES)}) in {source}")
+    t0 = time.perf_counter()
+    found = collect_views(_read_or_none(files), board, Path(annotate_to) if annotate_to is not None else None)
+    views = found.views
+    logger.info("chessboard found in %d of %d images of %s (%.1f s)", len(views) + len(found.duplicates), len(files),
+                source, time.perf_counter() - t0)
+    if len(views) < MIN_VIEWS:
+        why = (f"the {board.columns}x{board.rows} inner-corner board was found in only "
+               f"{len(views) + len(found.duplicates)} of {len(files)} images of {source}")
+        if found.duplicates:
+            why += f" ({len(found.duplicates)} of them near-duplicates)"
+        if found.unreadable:
+            why += f"; unreadable: {', '.join(found.unreadable)}{unreadable_hint(found.unreadable)}"
+        raise CalibrationError(f"{why}: check the corner counts (CAMERA_CALIB_BOARD; inner corners, where four squares "
+                               "meet, not squares) and that the whole board is in view and sharp")
+    assert found.size is not None
+    return FolderResult(calibrate(views, board, found.size, model), found.rejected, found.duplicates,
+                        found.unreadable)
 
 
 def calibrate_folder(folder: str | Path, board: Chessboard, *, model: str = "standard",
                      annotate_to: str | Path | None = None) -> FolderResult:
-    """Calibrate from the chessboard photos in ``folder`` (the thesis's workflow).
+    """Calibrate from the chessboard photos in ``folder`` (see :func:`calibrate_files`)."""
+    return calibrate_files(image_files(folder), board, model=model, annotate_to=annotate_to, source=str(folder))
 
-    Args:
-        folder: images of the printed board from different angles, all of one size.
-        board: the board's inner corner counts and square size.
-        model: "standard" or "rational".
-        annotate_to: folder for ``corners_NAME.png`` copies with the detected corners drawn.
 
-    Raises:
-        CalibrationError: no images, images of several sizes, too few views with a board.
-    """
-    files = image_files(folder)
-    if not files:
-        raise CalibrationError(f"no images ({', '.join(IMAGE_SUFFIXES)}) in {folder}")
-    t0 = time.perf_counter()
-    views, rejected, size = collect_views(((p.name, read_rgb(p)) for p in files), board,
-                                          Path(annotate_to) if annotate_to is not None else None)
-    logger.info("chessboard found in %d of %d images of %s (%.1f s)", len(views), len(files), folder,
-                time.perf_counter() - t0)
-    if len(views) < MIN_VIEWS:
-        raise CalibrationError(f"the {board.columns}x{board.rows} inner-corner board was found in only {len(views)} of "
-                               f"{len(files)} images of {folder}: check the corner counts (CAMERA_CALIB_BOARD) and "
-                               "that the whole board is in view and sharp")
-    assert size is not None
-    return FolderResult(calibrate(views, board, size, model), rejected)
+def unreadable_hint(names: Sequence[str]) -> str:
+    """A hint for files OpenCV cannot read: HEIC/HEIF phone photos need converting."""
+    if any(Path(n).suffix.lower() in UNREADABLE_SUFFIXES for n in names):
+        return " (HEIC/HEIF phone photos: export them as JPEG, or set the phone's camera to 'most compatible')"
+    return ""
 
 
 class ChessboardCollector:
@@ -456,6 +571,8 @@ class ChessboardCollector:
         self.min_interval = float(min_interval)
         self.clock = clock
         self.kept: list[np.ndarray] = []
+        #: the view files this collector wrote (what to calibrate from: not older runs' views)
+        self.written: list[Path] = []
         self._last = -math.inf
         self._index = len(list(self.folder.glob("view_*.png")))  # continue numbering in a used folder
 
@@ -463,10 +580,6 @@ class ChessboardCollector:
     def done(self) -> bool:
         """Whether ``target`` views were collected."""
         return len(self.kept) >= self.target
-
-    def _novel(self, corners: np.ndarray, diag: float) -> bool:
-        pts = corners.reshape(-1, 2)
-        return all(np.linalg.norm(pts - k, axis=1).mean() >= self.min_move * diag for k in self.kept)
 
     def run(self, image: np.ndarray | None) -> tuple[np.ndarray | None, int, bool]:
         """One frame: (frame with corners drawn, views kept so far, whether the board is in view)."""
@@ -478,9 +591,11 @@ class ChessboardCollector:
             return shown, len(self.kept), False
         now = self.clock()
         diag = math.hypot(image.shape[0], image.shape[1])
-        if not self.done and now - self._last >= self.min_interval and self._novel(corners, diag):
+        novel = is_novel(corners, self.kept, self.min_move, diag)
+        if not self.done and now - self._last >= self.min_interval and novel:
             self._index += 1
             write_rgb(self.folder / f"view_{self._index:03d}.png", image)
+            self.written.append(self.folder / f"view_{self._index:03d}.png")
             write_rgb(self.folder / f"corners_{self._index:03d}.png", shown)
             self.kept.append(corners.reshape(-1, 2).copy())
             self._last = now

@@ -179,6 +179,7 @@ class LaneExtractor:
     def __init__(self, settings: LaneSettings | None = None) -> None:
         self.settings = settings or LaneSettings()
         self._matrices: dict[tuple[int, int, int, int], np.ndarray] = {}
+        self._sizes_told: set[tuple[int, int]] = set()
 
     def matrix(self, in_size: tuple[int, int], out_size: tuple[int, int]) -> np.ndarray:
         """3x3 matrix taking frame pixels (``in_size`` = (w, h)) to bird's-eye pixels (``out_size``)."""
@@ -186,9 +187,20 @@ class LaneExtractor:
         m = self._matrices.get(key)
         if m is None:
             s = self.settings
+            self._check_aspect(in_size)
             m = cv2.getPerspectiveTransform(s.scaled(s.source, *in_size), s.scaled(s.destination, *out_size))
             self._matrices[key] = m
         return m
+
+    def _check_aspect(self, in_size: tuple[int, int]) -> None:
+        """Warn once per frame size whose aspect ratio is not the points' (they are stretched to it)."""
+        (pw, ph), (w, h) = self.settings.points_size, in_size
+        if in_size in self._sizes_told or abs(w / h - pw / ph) <= 0.01 * pw / ph:
+            return
+        self._sizes_told.add(in_size)
+        logger.warning("lane extraction: the points are given for %dx%d frames (LANE_POINTS_SIZE), these are %dx%d, "
+                       "another aspect ratio: the region of interest is stretched to fit; set the LANE_* points "
+                       "for this camera (vehicle lanes preview, vehicle lanes points --sim)", pw, ph, w, h)
 
     def warp(self, image: np.ndarray, out_size: tuple[int, int] | None = None) -> np.ndarray:
         """The bird's-eye view of ``image`` (RGB uint8), ``out_size`` or the frame's size."""

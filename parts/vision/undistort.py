@@ -44,6 +44,8 @@ class Undistort:
         self.calibration = calibration
         self.alpha = float(alpha)
         self._maps: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
+        self._new_k: dict[tuple[int, int], np.ndarray] = {}
+        #: camera matrix of the undistorted frames of the last size mapped (see :meth:`output_camera_matrix`)
         self.new_camera_matrix: np.ndarray | None = None
 
     @classmethod
@@ -60,11 +62,18 @@ class Undistort:
                 new_k = new_camera_matrix(cal.camera_matrix, cal.dist_coeffs, width, height, self.alpha)
             except LensError as exc:
                 raise CalibrationError(f"the camera calibration cannot be used: {exc}; calibrate again") from None
-            self.new_camera_matrix = new_k
+            self.new_camera_matrix = self._new_k[key] = new_k
             self._maps[key] = cv2.initUndistortRectifyMap(cal.camera_matrix, cal.dist_coeffs, None, new_k,
                                                           (width, height), cv2.CV_16SC2)
             logger.info("undistort: maps for %dx%d frames (alpha %.2f)", width, height, self.alpha)
         return self._maps[key]
+
+    def output_camera_matrix(self, width: int, height: int) -> np.ndarray:
+        """The camera matrix of the undistorted ``width`` x ``height`` frames: they are the images of
+        an ideal pinhole with this matrix and no distortion (what lane-extraction points of a
+        undistorting car are computed with)."""
+        self.maps(width, height)
+        return self._new_k[(width, height)].copy()
 
     def undistort(self, image: np.ndarray) -> np.ndarray:
         """A new undistorted copy of ``image`` (HxWx3 or HxW uint8)."""

@@ -9,14 +9,17 @@ One episode per track seed, each a real :class:`vehicle.Vehicle` on a
 
 so what is evaluated is what drives: the pilot's outputs go through the same DriveMode (a NaN or
 None command becomes centre and zero throttle, AI_THROTTLE_MULT scales the throttle) before the
-simulated car applies them. Leaving the road counts as an intervention: the car is re-centred on the
-road next to where it left (what a person would do) and the episode goes on. Metrics:
+simulated car applies them, and the pilot sees the frames the car drives with (undistorted after
+the simulator with CAMERA_UNDISTORT, as ``add_simulator`` does). Leaving the road counts as an
+intervention: the car is re-centred on the road next to where it left (what a person would do) and
+the episode goes on. Metrics:
 :mod:`parts.sim.metrics` (DAVE-2 autonomy, time-weighted |CTE| over autonomous frames, ...).
 
-The same loop drives the other simulators (``sim="donkey"`` / ``"udacity"``): the Donkey simulator
-(or ``vehicle sim serve``) in synchronous steps of 1 / DRIVE_LOOP_HZ, one episode per scene, an
-off-track event answered with ``reset_car`` (back to the start line: the simulator cannot
-re-centre); the Udacity simulator in real time on the track it shows, where the user's manual
+The same loop drives the other simulators (``sim="donkey"`` / ``"udacity"``): ``vehicle sim serve``
+in synchronous steps of 1 / DRIVE_LOOP_HZ (it says it can step), the Donkey simulator in real time
+(its step mode only pauses it), one episode per scene, an off-track event answered with
+``reset_car`` (back to the start line: the simulator cannot re-centre); the Udacity simulator in
+real time on the track it shows, where the user's manual
 overrides (W/S held) are the interventions and only frames that arrived are scored. What a
 simulator does not report (stock Udacity: CTE, laps, progress, position) is named in the report as
 unavailable, never counted as zero.
@@ -45,6 +48,7 @@ from parts.sim.lane_metrics import CommandedLane, LaneMetrics, overall_lane_metr
 from parts.sim.metrics import EpisodeMetrics, overall
 from parts.sim.simulator import SimCar
 from vehicle import Vehicle
+from vehicle.app.assembly.camera import add_undistort
 from vehicle.app.assembly.drive import add_behavior, add_drive_mode
 from vehicle.app.assembly.sim import add_expert
 from vehicle.clock import SimulatedClock
@@ -191,9 +195,12 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
         raise ValueError(f"the expert drives the built-in simulator only: pass a model file to evaluate on the "
                          f"{sim} simulator")
     lanes_on = sim == "builtin" and _lane_changes(driver, cfg, extra_inputs, lane_changes)
+    if lanes_on:
+        _check_change_schedule(cfg)
     started = time.perf_counter()
     results = []
     pooled: list[np.ndarray] = []  # |cte| of autonomous frames, for the overall percentile
+    modes: dict[str, Any] = {}  # what the bridge episodes found out (Donkey: stepped or real time)
     try:
         for episode in episodes:
             lane_part = None
@@ -207,7 +214,7 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
                                       lanes=lane_part)
             else:
                 metrics = run_bridge_episode(driver, sim, episode, laps, cfg, max_time=max_time, penalty_s=penalty,
-                                             fixed_throttle=fixed_throttle, extra_inputs=extra_inputs)
+                                             fixed_throttle=fixed_throttle, extra_inputs=extra_inputs, info=modes)
             res = metrics.result()
             if lane_part is not None:
                 res["lanes"] = lane_part.result()
@@ -226,7 +233,7 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
                          "image": [cfg.SIM_CAMERA_W, cfg.SIM_CAMERA_H], "off_track_cte_m": cfg.SIM_OFF_TRACK_CTE,
                          "track_size_m": cfg.SIM_TRACK_SIZE})
     elif sim == "donkey":
-        settings.update({"host": cfg.SIM_HOST, "port": cfg.SIM_PORT, "synchronous": True,
+        settings.update({"host": cfg.SIM_HOST, "port": cfg.SIM_PORT, "synchronous": modes.get("synchronous", False),
                          "max_cte": cfg.DONKEY_MAX_CTE, "image": [cfg.IMAGE_W, cfg.IMAGE_H]})
     else:
         settings.update({"port": cfg.UDACITY_PORT, "realtime": True, "interventions": "manual overrides"})
@@ -271,6 +278,19 @@ def _lane_changes(driver: Any, cfg: Any, extra_inputs: dict[str, Any] | None, as
     return True
 
 
+def _check_change_schedule(cfg: Any) -> None:
+    """Raise ValueError when commanded lane changes may come closer together than one change is
+    given to succeed (time limit, then hold): one would be judged while the next is under way."""
+    every = tuple(cfg.SIM_EVAL_LANE_CHANGE_EVERY)
+    needed = cfg.SIM_EVAL_LANE_CHANGE_TIME_LIMIT + cfg.SIM_EVAL_LANE_CHANGE_HOLD
+    if len(every) != 2 or not 0 < every[0] <= every[1]:
+        raise ValueError(f"SIM_EVAL_LANE_CHANGE_EVERY = {every!r}: give (min, max) seconds with 0 < min <= max")
+    if every[0] < needed:
+        raise ValueError(f"SIM_EVAL_LANE_CHANGE_EVERY = {every!r} may command a change {every[0]:g} s after the last, "
+                         f"before that one is judged (SIM_EVAL_LANE_CHANGE_TIME_LIMIT + SIM_EVAL_LANE_CHANGE_HOLD = "
+                         f"{needed:g} s): raise its minimum to at least {needed:g}")
+
+
 def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float, penalty_s: float,
                 fixed_throttle: float | None = None, extra_inputs: dict[str, Any] | None = None,
                 on_step: Callable[[SimCar], None] | None = None, lanes: LaneMetrics | None = None) -> EpisodeMetrics:
@@ -286,6 +306,8 @@ def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float,
     V = Vehicle(clock=SimulatedClock())
     V.mem.update(extra_inputs or {})  # seeded: keys the simulator does not make
     V.add(sim)
+    # as add_simulator: the pilot sees what the car drives with
+    add_undistort(V, cfg, (cfg.SIM_CAMERA_W, cfg.SIM_CAMERA_H), "SIM_CAMERA_W x SIM_CAMERA_H")
     if lanes is not None:
         cfg = cfg.replace(TRAIN_BEHAVIORS=True)
         times = periodic_change_times(max_time, tuple(cfg.SIM_EVAL_LANE_CHANGE_EVERY),
@@ -346,17 +368,31 @@ class StopIfNoSimulator:
 
 def run_bridge_episode(driver: Any, sim_type: str, scene: str, laps: int, cfg: Any, *, max_time: float,
                        penalty_s: float, fixed_throttle: float | None = None,
-                       extra_inputs: dict[str, Any] | None = None) -> EpisodeMetrics:
-    """One episode on the Donkey simulator (synchronous steps, scene ``scene``) or the Udacity
-    simulator (real time): the same loop as :func:`run_episode` around the bridge part."""
-    from vehicle.app.assembly.sim import add_simulator, add_simulator_commands, make_bridge
+                       extra_inputs: dict[str, Any] | None = None,
+                       info: dict[str, Any] | None = None) -> EpisodeMetrics:
+    """One episode on the Donkey simulator (scene ``scene``) or the Udacity simulator (real time):
+    the same loop as :func:`run_episode` around the bridge part.
+
+    Donkey: in synchronous steps of 1 / DRIVE_LOOP_HZ where the server steps (``vehicle sim
+    serve``), else in real time with the threaded part; ``info["synchronous"]`` says which.
+    """
+    from vehicle.app.assembly.sim import add_simulator, add_simulator_commands, bridge_frame_size, make_bridge
 
     dt = 1.0 / cfg.DRIVE_LOOP_HZ
+    stepped = False
     if sim_type == "donkey":
-        V = Vehicle(clock=SimulatedClock())  # each loop is one synchronous simulator step
         bridge = make_bridge(cfg.replace(DONKEY_GYM_ENV_NAME=scene), "donkey", synchronous=True, time_step=dt)
         bridge.start()  # connect now: an unreachable simulator is an error, not a failed loop
-        V.add(bridge, feedback=("angle", "throttle", "sim/reset"))  # run(): send, then wait for the step
+        stepped = bridge.synchronous
+        if info is not None:
+            info["synchronous"] = stepped
+        if stepped:
+            V = Vehicle(clock=SimulatedClock())  # each loop is one synchronous simulator step
+            V.add(bridge, feedback=("angle", "throttle", "sim/reset"))  # run(): send, then wait for the step
+        else:
+            V = Vehicle()  # the Donkey simulator runs in real time: the loop paces itself
+            V.add(bridge, threaded=True, feedback=("angle", "throttle", "sim/reset"))
+        add_undistort(V, cfg, *bridge_frame_size(cfg, "donkey"))  # as add_simulator
     else:
         V = Vehicle()  # the Udacity simulator runs in real time
         add_simulator(V, cfg, sim_type="udacity")
@@ -366,8 +402,11 @@ def run_bridge_episode(driver: Any, sim_type: str, scene: str, laps: int, cfg: A
     metrics = EpisodeMetrics(dt, laps, max_time, penalty_s, stop=V.stop, seed=scene)  # type: ignore[arg-type]
     waiter = None
     if sim_type == "donkey":
-        V.add(metrics)
+        # in real time, score only loops with a live frame (the part says so with cam/ok)
+        V.add(metrics, run_condition=None if stepped else "cam/ok")
         V.add(ResetOnOffTrack())
+        if not stepped:
+            add_simulator_commands(V)
     else:
         # score only frames that arrived; the user's manual overrides are the interventions
         V.add(metrics, inputs=list(rename(EpisodeMetrics.INPUTS, {"sim/off_track": "sim/manual"})),

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from fixtures.carpath import unity_cross_track_err
 
 from parts.bridges import donkey_protocol as proto
 from parts.bridges.donkey_client import CarLook, DonkeySim
@@ -72,7 +73,7 @@ def test_telemetry_becomes_memory_values() -> None:
         car = sim.cars[0]
     assert out["cam/image_array"].shape == (120, 160, 3) and out["cam/image_array"].dtype == np.uint8
     assert out["sim/speed"] > 0 and out["enc/speed"] == out["sim/speed"]
-    # steering right drifts the car right: our sim/cte is positive right (the simulator's is negative)
+    # steering right drifts the car right: sim/cte is positive right, as the simulator's is
     assert out["sim/cte"] > 0 and car.right > 0
     assert out["sim/hit"] == "none" and out["sim/off_track"] is False
     assert 0 <= out["sim/progress"] < 1 and out["sim/time"] > 0
@@ -142,8 +143,9 @@ def test_laps_follow_gym_donkeycar_and_reset_restarts_them() -> None:
         # hold the circle: steer left just enough for radius 20 (wheelbase 1.5, 16 deg full lock)
         steer = -np.degrees(np.arctan(1.5 / 20)) / 16
         assert sim.wait_for(lambda f: f.cars[0].laps_crossed >= 3 or not outputs(part, steer, 1.0, False), 30)
-        out = drive(part, 0.1, angle=steer, throttle=1.0)
-        assert out["sim/lap"] == sim.cars[0].laps_crossed - 1  # the first crossing starts the clock
+        # the first crossing starts the clock (the client may be a telemetry behind the fake: wait)
+        assert sim.wait_for(lambda f: outputs(part, steer, 1.0, False)["sim/lap"] == f.cars[0].laps_crossed - 1, 5)
+        out = outputs(part, steer, 1.0, False)
         assert out["sim/lap_time"] > 0
         laps = out["sim/lap"]
         out = drive(part, 0.3, angle=0.0, throttle=0.0, reset=True)
@@ -300,3 +302,73 @@ def test_send_commands_sends_the_loop_command_once() -> None:
     assert all(m["throttle"] == "0.3" for m in driven)
     with pytest.raises(TypeError, match="command"):
         SendCommands(object())
+
+
+# -- review fixes ---------------------------------------------------------------------------------
+def test_fake_cte_is_what_carpath_computes() -> None:
+    """The fake's cte has the sign and size of protocols.md §4.1's CarPath formula, computed here
+    from the fake's path nodes (a circle, driven counter-clockwise seen from above) and its pos_x/z."""
+    from parts.bridges.fake_donkey_sim import TOTAL_NODES, TRACK_RADIUS, FakeCar
+
+    def node(i: int) -> tuple[float, float]:
+        angle = 2 * np.pi * i / TOTAL_NODES
+        return TRACK_RADIUS * np.cos(angle), TRACK_RADIUS * np.sin(angle)
+
+    for s, right in ((3.0, 1.5), (40.0, -2.0), (90.0, 0.7)):
+        tel = FakeCar(s=s, right=right).telemetry("", None)
+        i = tel["activeNode"]
+        expected = unity_cross_track_err(node(i), node(i + 1), (tel["pos_x"], tel["pos_z"]))
+        assert tel["cte"] == pytest.approx(expected, abs=0.05)
+        assert np.sign(tel["cte"]) == np.sign(right)
+
+
+def test_cte_keeps_the_simulators_sign() -> None:
+    """The simulator's cte is positive right of the path, as ours: passed through unchanged."""
+    with FakeDonkeySim(port=0, wall_cte=100) as sim, client(sim, max_cte=None) as part:
+        for right in (1.5, -0.75):
+            sim.cars[0].right = right
+            time.sleep(0.25)
+            assert outputs(part, 0.0, 0.0, False)["sim/cte"] == pytest.approx(right, abs=0.05)
+
+
+def test_step_mode_is_not_asked_of_the_donkey_simulator(caplog: pytest.LogCaptureFixture) -> None:
+    """Its step_mode synchronous freezes it for good (Time.timeScale = 0): real time instead."""
+    with caplog.at_level("WARNING", logger="parts.bridges.donkey_client"), FakeDonkeySim(port=0) as sim, \
+            client(sim, synchronous=True) as part:
+        assert part.synchronous is False
+        before = part.telemetry_count
+        out = drive(part, 0.6, throttle=0.5)
+        assert part.telemetry_count >= before + 5 and out["cam/ok"] is True
+        assert not sim.time_scale_zero and not sim.messages(0, "step_mode")
+        assert sim.messages(0, "get_protocol_version")
+    assert any("pauses the simulation" in r.getMessage() for r in caplog.records)
+
+
+def test_fake_step_mode_freezes_like_the_simulator() -> None:
+    """What the fake reproduces (and why the client never asks the Donkey simulator for it)."""
+    with FakeDonkeySim(port=0) as sim, client(sim, timeout_s=0.3) as part:
+        drive(part, 0.3)
+        part._outbox.append(proto.client_message("step_mode", step_mode="synchronous", time_step="0.05"))
+        part._wake()
+        assert sim.wait_for(lambda f: f.time_scale_zero, 5)
+        time.sleep(0.2)
+        frozen = sim.cars[0].telemetry_sent
+        drive(part, 0.5, throttle=1.0)
+        assert sim.cars[0].telemetry_sent == frozen and outputs(part, 0.0, 0.0, False)["cam/ok"] is False
+
+
+def test_cam_config_carries_every_field_the_simulator_parses() -> None:
+    with FakeDonkeySim(port=0) as sim, client(sim, image_w=128, image_h=96) as part:
+        drive(part, 0.3)
+        car = sim.cars[0]
+        assert car.rejected == [] and (car.img_w, car.img_h) == (128, 96)
+        assert part.run_threaded(0.0, 0.0, False)[0].shape == (96, 128, 3)
+
+
+def test_a_stuck_loop_gets_the_car_braked() -> None:
+    with FakeDonkeySim(port=0) as sim, client(sim, command_timeout_s=0.2) as part:
+        drive(part, 0.5, throttle=0.8)
+        assert sim.cars[0].throttle == pytest.approx(0.8)
+        time.sleep(0.6)  # the loop stops calling the part
+        car = sim.cars[0]
+        assert (car.steering, car.throttle, car.brake) == (0.0, 0.0, 1.0)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import io
 import json
 import math
 import re
@@ -15,6 +16,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from fixtures.carpath import unity_cross_track_err
+from PIL import Image
 
 from parts.bridges import donkey_protocol as proto
 from parts.bridges.donkey_client import DonkeySim
@@ -322,3 +325,172 @@ def test_client_sees_a_missing_scene(server: DonkeyServer) -> None:
 def test_port_in_use_is_one_clear_error(server: DonkeyServer) -> None:
     with pytest.raises(BridgeError, match=rf"cannot listen on 127.0.0.1:{server.port} .*--port"):
         DonkeyServer(port=server.port).start()
+
+
+# -- review fixes: what a client may send, and the CTE the real simulator computes -----------------
+class RawClient:
+    """A bare TCP client of the protocol, for messages no well-behaved client sends."""
+
+    def __init__(self, port: int) -> None:
+        self.sock = socket.create_connection(("127.0.0.1", port), timeout=5)
+        self.stream = proto.JsonStream()
+
+    def expect(self, kind: str, timeout: float = 5.0) -> dict[str, Any]:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            data = self.sock.recv(1 << 16)
+            if not data:
+                raise AssertionError(f"the server closed the connection before {kind}")
+            for msg in self.stream.feed(data):
+                if msg["msg_type"] == kind:
+                    return msg
+        raise AssertionError(f"no {kind}")
+
+    def load(self, scene: str = "track_5", synchronous: bool = True) -> None:
+        """Menu -> scene loaded (-> step mode, 0.05 s per step)."""
+        self.expect("scene_selection_ready")
+        self.send("load_scene", scene_name=scene)
+        self.expect("car_loaded")
+        if synchronous:
+            self.send("step_mode", step_mode="synchronous", time_step="0.05")
+
+    def send(self, msg_type: str, **fields: Any) -> None:
+        self.sendraw(proto.client_message(msg_type, **fields))
+
+    def sendraw(self, data: bytes) -> None:
+        self.sock.sendall(data)
+        time.sleep(0.05)  # one message per chunk, as the simulator needs
+
+    def drain(self, quiet_s: float = 0.3) -> None:
+        """Read (and drop) what arrives until nothing has for ``quiet_s``."""
+        self.sock.settimeout(quiet_s)
+        try:
+            while self.sock.recv(1 << 16):
+                pass
+        except TimeoutError:
+            pass
+        finally:
+            self.sock.settimeout(5)
+        self.stream = proto.JsonStream()
+
+    def closed_within(self, timeout: float) -> bool:
+        """Whether the server closes the connection within ``timeout`` s (what it sends is read)."""
+        end = time.monotonic() + timeout
+        self.sock.settimeout(0.1)
+        while time.monotonic() < end:
+            try:
+                if not self.sock.recv(1 << 16):
+                    return True
+            except TimeoutError:
+                continue
+            except OSError:
+                return True
+        return False
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+def test_unity_cross_track_err_is_positive_right_of_the_path() -> None:
+    # driving along +z (Unity: x right, z forward, y up): a car at x > 0 is right of the path
+    assert unity_cross_track_err((0.0, 0.0), (0.0, 1.0), (0.5, 0.3)) == pytest.approx(0.5)
+    assert unity_cross_track_err((0.0, 0.0), (0.0, 1.0), (-0.25, 0.3)) == pytest.approx(-0.25)
+
+
+def test_telemetry_cte_is_the_simulators_cross_track_error(server: DonkeyServer) -> None:
+    """Our cte has the sign and size CarPath computes from the path nodes and the car's position."""
+    c = RawClient(server.port)
+    try:
+        c.load()
+        for steering in (0.6, -0.6):  # off the centre line to the right, then to the left
+            for _ in range(12):
+                c.send("control", steering=str(steering), throttle="0.5", brake="0")
+                tel = c.expect("telemetry")
+            node = tel["activeNode"]
+            c.send("node_position", index=str(node))
+            a = c.expect("node_position")
+            c.send("node_position", index=str((node + 1) % tel["totalNodes"]))
+            b = c.expect("node_position")
+            expected = unity_cross_track_err((a["pos_x"], a["pos_z"]), (b["pos_x"], b["pos_z"]),
+                                             (tel["pos_x"], tel["pos_z"]))
+            assert abs(tel["cte"]) > 0.02
+            assert tel["cte"] == pytest.approx(expected, abs=0.02)
+            assert (tel["cte"] > 0) == (steering > 0)  # Donkey steering > 0 turns right
+    finally:
+        c.close()
+
+
+def test_cam_config_is_clamped_to_the_frame_limits(server: DonkeyServer) -> None:
+    from parts.bridges.frames import MAX_PIXELS, MAX_SIDE
+
+    c = RawClient(server.port)
+    try:
+        c.load()
+        for w, h in (("inf", "120"), ("-640", "480"), ("nan", "1e12"), ("abc", "120")):  # kept: 160x120
+            c.send("cam_config", img_w=w, img_h=h)
+        c.drain()
+        c.send("control", steering="0", throttle="0", brake="0")
+        frame = Image.open(io.BytesIO(base64.b64decode(c.expect("telemetry")["image"])))
+        assert frame.size == (160, 120)
+        c.send("cam_config", img_w="5000", img_h="1000")  # 5 Mpx, 5000 px wide: over the limits
+        c.drain()
+        c.send("control", steering="0", throttle="0", brake="0")
+        frame = Image.open(io.BytesIO(base64.b64decode(c.expect("telemetry", timeout=20)["image"])))
+        w, h = frame.size
+        assert w == MAX_SIDE and w * h <= MAX_PIXELS  # the side is the binding limit here
+        assert w / h == pytest.approx(5.0, rel=0.01)
+    finally:
+        c.close()
+
+
+def test_deeply_nested_json_ends_nothing_but_itself(server: DonkeyServer) -> None:
+    c = RawClient(server.port)
+    try:
+        c.expect("scene_selection_ready")
+        depth = 20000  # far beyond the interpreter's recursion limit, within the 64 KiB message limit
+        c.sendraw(b'{"msg_type":"control","steering":' + b"[" * depth + b"]" * depth + b"}")
+        c.send("get_protocol_version")
+        assert c.expect("protocol_version")["version"] == "2"
+    finally:
+        c.close()
+
+
+def test_stream_skips_nested_junk_and_reads_on() -> None:
+    stream = proto.JsonStream()
+    nested = b'{"a":' + b"[" * 100000 + b"]" * 100000 + b"}"
+    assert stream.feed(nested + b'\n{"msg_type":"ok"}') == [{"msg_type": "ok"}]
+    assert stream.errors == 1
+
+
+def test_idle_and_oversized_clients_are_disconnected_and_free_their_slot() -> None:
+    with DonkeyServer(port=0, seeds=[5], max_clients=1, idle_timeout_s=0.5) as srv:
+        idle = RawClient(srv.port)
+        idle.expect("scene_selection_ready")
+        assert idle.closed_within(5.0)  # it never asked for a scene
+        idle.close()
+        big = RawClient(srv.port)  # the slot is free again
+        big.expect("scene_selection_ready")
+        big.sendraw(b'{"msg_type":"car_config","car_name":"' + b"x" * (100 * 1024) + b'"}')
+        assert big.closed_within(5.0)
+        big.close()
+        ok = RawClient(srv.port)
+        ok.expect("scene_selection_ready")
+        ok.send("load_scene", scene_name="track_5")
+        ok.expect("car_loaded")
+        ok.expect("telemetry")
+        ok.close()
+
+
+def test_step_time_is_clamped_to_what_the_car_model_integrates(server: DonkeyServer) -> None:
+    c = RawClient(server.port)
+    try:
+        c.load(synchronous=False)
+        for asked, applied in (("1e6", 0.2), ("1e-9", 0.001), ("0.05", 0.05)):
+            c.send("step_mode", step_mode="synchronous", time_step=asked)
+            c.drain()
+            c.send("control", steering="0", throttle="0.3", brake="0")
+            first = c.expect("telemetry")["time"]
+            c.send("control", steering="0", throttle="0.3", brake="0")
+            assert c.expect("telemetry")["time"] - first == pytest.approx(applied, abs=1e-9)
+    finally:
+        c.close()

@@ -127,6 +127,27 @@ def test_legacy_server_ignores_a_second_connect_for_slash() -> None:
     assert seen["connects"] == 1 and seen["telemetry"] == 1
 
 
+def test_unreadable_packets_cost_one_log_line_and_nothing_else(caplog: pytest.LogCaptureFixture) -> None:
+    """Junk and JSON nested beyond the parser's recursion limit: no traceback, the link goes on."""
+    server = engineio3.legacy_server(async_mode="aiohttp")
+    with caplog.at_level("WARNING"), drive_py_server(server) as seen:
+        ws = WebSocketClient("127.0.0.1", seen["port"], "/socket.io/?EIO=4&transport=websocket")
+        try:
+            assert ws.receive(5).startswith("0{")
+            assert ws.receive(5).startswith("40{")
+            depth = 100000
+            ws.send('42["telemetry",' + "[" * depth + "]" * depth + "]")
+            ws.send('42["telemetry",{"speed":')
+            ws.send('42["telemetry",{"speed":"1"}]')
+            assert ws.receive(5) == '42["steer",{"steering_angle":"0.1","throttle":"0.2"}]'
+        finally:
+            ws.close()
+    assert seen["telemetry"] == 1
+    assert not [r for r in caplog.records if r.exc_info]
+    junk = [r for r in caplog.records if "unreadable packet" in r.getMessage()]
+    assert len(junk) == 1 and "RecursionError" in junk[0].getMessage()
+
+
 def test_check_support_names_what_to_install_when_internals_change(monkeypatch: pytest.MonkeyPatch) -> None:
     import socketio
 

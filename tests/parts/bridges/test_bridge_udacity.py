@@ -270,3 +270,62 @@ def test_send_commands_answers_in_the_loop_that_saw_the_frame() -> None:
         time.sleep(0.2)
     assert sim.steers[:2] == [(0.25, 0.5), (0.25, 0.5)]
     assert send.name == "UdacitySim.commands"
+
+
+# -- review fixes: the simulator keeps applying the last steer it got, so the last must be neutral --
+class _Pilot:
+    INPUTS = ("cam/image_array",)
+    OUTPUTS = ("angle", "throttle")
+
+    def run(self, image: Any) -> tuple[float | None, float | None]:
+        return (0.3, 0.6) if image is not None else (None, None)
+
+
+class _CtrlC:
+    """Raises KeyboardInterrupt (what Ctrl-C does in the loop thread) once ``ready()`` is true."""
+
+    def __init__(self, ready: Callable[[], bool]) -> None:
+        self.ready = ready
+
+    def run(self) -> None:
+        if self.ready():
+            raise KeyboardInterrupt
+
+
+def test_ctrl_c_leaves_the_simulated_car_at_steer_zero() -> None:
+    """Every telemetry was answered at once (SendCommands): nothing waits when the loop stops, yet
+    the simulator's last steer must be (0, 0), or its car drives on with the pilot's throttle."""
+    from parts.bridges.commands import SendCommands
+    from vehicle import Vehicle
+
+    part = UdacitySim(port=0, command_timeout_s=30)
+    V = Vehicle()
+    V.add(part, threaded=True, feedback=("angle", "throttle"))
+    V.add(_Pilot())
+    V.add(SendCommands(part))
+    part.start()
+    # Unity takes 0.2 s to render the next frame: Ctrl-C comes while the simulator renders, every
+    # telemetry answered (with the pilot's command), none waiting for the loop
+    with FakeUdacityClient(part.port, frame_time_s=0.2) as sim:
+        V.add(_CtrlC(lambda: len(sim.steers) >= 6 and sim.in_flight == 0), outputs=[])
+        with pytest.raises(KeyboardInterrupt):
+            V.start(rate_hz=50, max_loop_count=2000)
+        assert sim.wait_for(lambda c: c.steers[-1:] == [(0.0, 0.0)], 5)
+        assert (0.3, 0.6) in sim.steers and sim.car.throttle == 0.0
+    assert not part.running
+    assert part.neutral_replies >= 1
+
+
+def test_shutdown_alone_also_leaves_the_car_at_steer_zero() -> None:
+    from parts.bridges.commands import SendCommands
+
+    with udacity(command_timeout_s=30) as part, FakeUdacityClient(part.port) as sim:
+        send = SendCommands(part)
+        assert sim.wait_for(lambda c: c.telemetry_sent >= 2, 15)
+        for _ in range(20):
+            part.run_threaded(None, None)
+            send.run(-0.5, 1.0)
+            time.sleep(0.01)
+        assert sim.wait_for(lambda c: c.steers[-1:] == [(-0.5, 1.0)], 5)
+        part.shutdown()  # no neutral() first: a caller outside a Vehicle
+        assert sim.wait_for(lambda c: c.steers[-1:] == [(0.0, 0.0)], 5)

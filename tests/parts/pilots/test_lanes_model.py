@@ -153,3 +153,39 @@ def test_flipped_frames_swap_left_and_right_lane_behaviours(tmp_path):
                       "behavior/one_hot_state_array", extra_size=2, augmenter=flip_all, extra_mirror=mirror)
     _, extra, target = ds[0]
     assert extra.tolist() == [0.0, 1.0] and target[0].item() == pytest.approx(-0.4)  # left lane, mirrored
+
+
+def test_a_training_sample_is_what_the_pilot_computes_from_the_same_frame(tmp_path):
+    """Training and driving share one path: the dataset's uint8 sample of a lanes model, normalised
+    as the trainer does, equals the pilot runner's preprocessing of the recorded frame."""
+    from parts.pilots.backends import open_runner
+    from parts.pilots.modelfile import save_model
+    from parts.tub import Tub
+
+    cfg = Config.defaults(LANE_COLOR_MASK="white")
+    rng = np.random.default_rng(3)
+    tub = Tub(tmp_path / "tub", inputs=["cam/image_array", "user/angle", "user/throttle",
+                                         "behavior/one_hot_state_array"],
+              types=["image_array", "float", "float", "list"])
+    for i in range(3):
+        frame = rng.integers(0, 256, (120, 160, 3), dtype=np.uint8)
+        frame[60:, 70:76] = 255  # a white lane line
+        tub.write_record({"cam/image_array": frame, "user/angle": 0.1 * i, "user/throttle": 0.3,
+                          "behavior/one_hot_state_array": [1.0, 0.0]})
+    tub.close()
+    data = read_drive_data([tmp_path / "tub"])
+    pre = preprocess_from_config(cfg, "lanes", (120, 160, 3))
+    assert pre.lanes is not None
+    model = create_model("lanes", pre.output_shape((120, 160, 3)), num_behaviors=2)
+    path = save_model(tmp_path / "lanes.pt", model, {"preprocess": pre.to_dict()})
+    runner = open_runner(path, "torch")
+    ds = PilotDataset(data, build_samples(data, range(len(data))), FrameCache(data.records, ["cam/image_array"]), pre,
+                      extra_key="behavior/one_hot_state_array", extra_size=2)
+    for i in range(len(ds)):
+        x, _, _ = ds[i]
+        assert x.dtype == torch.uint8 and x.shape == (4, 120, 160)  # RGB + the lane image
+        trained = pre.normalize_batch(x[None])[0].numpy()
+        driven = runner.preprocess(data.records[i].image("cam/image_array"))
+        assert driven.shape == trained.shape
+        np.testing.assert_allclose(trained, driven, atol=1e-6)
+        assert trained[3].max() > 0.5  # the lane channel shows the line

@@ -136,3 +136,39 @@ def test_lane_region_points_make_a_true_birds_eye_view():
         assert warped[0, 0] == pytest.approx(77.5 - y / 0.5 * 37.5, abs=0.05)
     with pytest.raises(ValueError, match="near < far"):
         lane_region_points(cam, near=2.0, far=1.0)
+
+
+def test_lane_region_points_of_an_undistorting_car_make_a_true_birds_eye_view_of_its_frames():
+    """With a wide-angle lens and CAMERA_UNDISTORT the pilot sees undistorted frames: the points
+    must be computed in those (camera matrix ``intrinsics``), not in the frames as the lens bends them."""
+    import cv2
+
+    from parts.sim.camera import lane_region_points
+    from parts.vision.calibration import CameraCalibration
+    from parts.vision.undistort import Undistort
+
+    dist = np.array([-0.25, 0.07, 0.001, -0.0015, 0.0])
+    cam = Camera(320, 240, distortion=dist)
+    new_k = Undistort(CameraCalibration((320, 240), cam.intrinsics, dist, 0.1)).output_camera_matrix(320, 240)
+    along = np.linspace(0.45, 1.15, 6)
+
+    def spread(points):
+        """Largest horizontal spread of the two ground lines (0.2 m either side) in the warp of the
+        undistorted frame: 0 for a true bird's-eye view."""
+        m = cv2.getPerspectiveTransform(np.float32(points["LANE_SOURCE_POINTS"]),
+                                        np.float32(points["LANE_DESTINATION_POINTS"]))
+        worst = 0.0
+        for y in (0.2, -0.2):
+            bent = cam.project_ground(np.column_stack([along, np.full(6, y)]))  # as the lens shows them
+            seen = cv2.undistortPoints(bent.reshape(-1, 1, 2), cam.intrinsics, dist, P=new_k)  # undistorted
+            warped = cv2.perspectiveTransform(seen.astype(np.float32), m).reshape(-1, 2)
+            worst = max(worst, float(np.ptp(warped[:, 0])))
+        return worst
+
+    right = lane_region_points(cam, near=0.4, far=1.2, half_width=0.5, intrinsics=new_k)
+    assert spread(right) < 0.05
+    assert spread(lane_region_points(cam, near=0.4, far=1.2, half_width=0.5)) > 1.0  # the lens's points: bent
+    # the default near edge is the nearest ground the undistorted frame shows (inside it)
+    auto = lane_region_points(cam, intrinsics=new_k)
+    bottom_y = max(p[1] for p in auto["LANE_SOURCE_POINTS"])
+    assert 200 < bottom_y < 239

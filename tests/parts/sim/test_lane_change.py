@@ -110,8 +110,9 @@ def test_lane_metrics_on_a_scripted_drive():
     commands = [LaneCommand(10.0, -0.2, "Right_Lane"), LaneCommand(20.0, 0.2, "Left_Lane")]
     m = lane_metrics(t, lat, cmd, off, 0.4, commands, time_limit=6.0, hold=1.0)
     first, second = m["commands"]
-    # in the lane once the centre is past the centre line (strictly): the first step after t = 11 s
-    assert first["success"] and first["time_to_change_s"] == pytest.approx(1.1, abs=1e-6)
+    # changed once the car's centre is within a quarter lane (0.1 m) of the right lane's centre:
+    # from t = 11.5 s on
+    assert first["success"] and first["time_to_change_s"] == pytest.approx(1.55, abs=0.06)
     assert second["success"] is False
     assert m["lane_changes"] == 2 and m["lane_change_success_rate"] == 0.5
     # after the failed change's window (20..26 s) the car is in the wrong lane until the end
@@ -127,3 +128,45 @@ def test_lane_metrics_on_a_scripted_drive():
     assert m2["commands"][0]["success"] is False and m2["off_track_events"] == 1
     both = overall_lane_metrics([m, m2])
     assert both["lane_changes"] == 3 and both["lane_changes_ok"] == 1
+
+
+def test_a_change_succeeds_only_near_the_target_lane_centre():
+    """Past the centre line is not enough: the car must come within lane_width / 4 of the new lane's
+    centre (and hold it there); wrong-lane time still counts only the other side of the centre line."""
+    dt = 0.1
+    t = np.arange(0, 20, dt) + dt
+    cmd = np.where(t < 5, 0.2, -0.2)
+    lane_width = 0.4
+    # the car drifts just past the centre line and stays 0.15 m from the right lane's centre
+    lat = np.where(t < 5, 0.2, np.maximum(-0.05, 0.2 - (t - 5) * 0.5))
+    off = np.zeros(t.size, bool)
+    m = lane_metrics(t, lat, cmd, off, lane_width, [LaneCommand(5.0, -0.2, "Right_Lane")], time_limit=6.0, hold=1.0)
+    assert m["commands"][0]["success"] is False and m["lane_change_success_rate"] == 0.0
+    assert m["wrong_lane_s"] == 0.0  # right of the centre line: not the wrong lane
+    # within a quarter lane (0.09 m from the centre): a success
+    lat2 = np.where(t < 5, 0.2, np.maximum(-0.11, 0.2 - (t - 5) * 0.5))
+    m2 = lane_metrics(t, lat2, cmd, off, lane_width, [LaneCommand(5.0, -0.2, "Right_Lane")], time_limit=6.0, hold=1.0)
+    assert m2["commands"][0]["success"] is True
+    # holding means staying near the centre: drifting back out before `hold` seconds restarts the hold
+    lat3 = lat2.copy()
+    lat3[(t > 5.8) & (t < 6.3)] = -0.05
+    m3 = lane_metrics(t, lat3, cmd, off, lane_width, [LaneCommand(5.0, -0.2, "Right_Lane")], time_limit=6.0, hold=1.0)
+    assert m3["commands"][0]["time_to_change_s"] > m2["commands"][0]["time_to_change_s"] + 0.4
+
+
+def test_a_change_taken_back_while_waiting_does_not_shorten_the_next_wait(lanes_cfg):
+    """Every road counts as tight here (curvature limit ~0), so a change waits the whole
+    SIM_EXPERT_LANE_CHANGE_MAX_DELAY (3 s). Asked at 2 s and taken back at 2.5 s, the next request
+    (at 6 s) waits its own 3 s, not what is left of the first one's."""
+    cfg = lanes_cfg.replace(SIM_EXPERT_LANE_CHANGE_MAX_CURVATURE=1e-9)
+    sim = SimCar.from_config(cfg, seeds=[2])
+    expert = Expert.from_config(cfg, sim)
+    started = None
+    while sim.time < 12.0:
+        t = sim.time
+        state = 0 if 2.0 <= t < 2.5 or t >= 6.0 else 1
+        sim.step(*expert.command(state))
+        if t >= 6.0 and started is None and expert.changes_started:
+            started = t
+    assert expert.changes_started == 1
+    assert started == pytest.approx(6.0 + cfg.SIM_EXPERT_LANE_CHANGE_MAX_DELAY, abs=2 * sim.dt)

@@ -82,10 +82,10 @@ def test_simulated_lens_is_recovered_by_calibration(tmp_path):
 
 def test_an_ideal_pinhole_calibrates_to_no_distortion():
     camera = Camera(320, 240)
-    views, rejected, size = collect_views(_views(camera, 12, seed=4), BOARD)
+    found = collect_views(_views(camera, 12, seed=4), BOARD)
     from parts.vision.calibration import calibrate
 
-    cal = calibrate(views, BOARD, size)
+    cal = calibrate(found.views, BOARD, found.size)
     assert np.abs(cal.dist_coeffs[:4]).max() < 0.01
     assert _max_displacement_error(cal, camera) < 0.5
 
@@ -127,8 +127,10 @@ def test_too_few_views_and_bad_boards_say_what_to_do(tmp_path):
     cv2.imwrite(str(tmp_path / "grey.png"), np.full((120, 160, 3), 128, np.uint8))
     with pytest.raises(CalibrationError, match="found in only 0 of 1"):
         calibrate_folder(tmp_path, BOARD)
+    empty = tmp_path / "empty"
+    empty.mkdir()
     with pytest.raises(CalibrationError, match="no images"):
-        calibrate_folder(tmp_path / "corners_only", BOARD) if (tmp_path / "corners_only").mkdir() is None else None
+        calibrate_folder(empty, BOARD)
     cv2.imwrite(str(tmp_path / "other.png"), np.full((60, 80, 3), 128, np.uint8))
     with pytest.raises(CalibrationError, match="one size"):
         calibrate_folder(tmp_path, BOARD)
@@ -160,7 +162,8 @@ def test_a_view_with_wrongly_detected_corners_is_left_out():
     from parts.vision.calibration import View, calibrate
 
     camera = Camera(320, 240, distortion=TRUE_DIST)
-    views, _, size = collect_views(_views(camera, 12, seed=4), BOARD)
+    found = collect_views(_views(camera, 12, seed=4), BOARD)
+    views, size = found.views, found.size
     good = calibrate(views, BOARD, size)  # the detector itself misplaces a grid now and then
     views = [v for v in views if v.name not in good.dropped_views]
     assert calibrate(views, BOARD, size).dropped_views == [] and good.rms < 0.3
@@ -172,3 +175,54 @@ def test_a_view_with_wrongly_detected_corners_is_left_out():
     assert cal.dropped_views == ["view_bad.png"] and "view_bad.png" not in cal.views
     assert cal.rms < 0.3 and cal.dist_coeffs[0] == pytest.approx(TRUE_DIST[0], abs=0.01)
     assert CameraCalibration.from_dict(cal.to_dict()).dropped_views == ["view_bad.png"]
+
+
+def test_near_duplicate_photos_are_left_out_and_named(tmp_path, caplog):
+    """A burst of photos of one pose counts once: the live collector's novelty test, on a folder."""
+    import logging
+
+    camera = Camera(320, 240, distortion=TRUE_DIST)
+    views = _views(camera, 12, seed=4)
+    for name, image in views:
+        cv2.imwrite(str(tmp_path / name), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+    # the same pose again, and again with one pixel of camera shake
+    cv2.imwrite(str(tmp_path / "view_00_again.png"), cv2.cvtColor(views[0][1], cv2.COLOR_RGB2BGR))
+    shaken = np.roll(views[1][1], 1, axis=1)
+    cv2.imwrite(str(tmp_path / "view_01_shaken.png"), cv2.cvtColor(shaken, cv2.COLOR_RGB2BGR))
+    with caplog.at_level(logging.WARNING):
+        result = calibrate_folder(tmp_path, BOARD)
+    assert sorted(result.duplicates) == ["view_00_again.png", "view_01_shaken.png"]
+    assert not set(result.duplicates) & set(result.calibration.views)
+    assert "near-duplicates" in caplog.text and "view_00_again.png" in caplog.text
+
+
+def test_an_unreadable_file_is_listed_and_the_rest_calibrates(tmp_path):
+    camera = Camera(320, 240, distortion=TRUE_DIST)
+    for name, image in _views(camera, 10, seed=4):
+        cv2.imwrite(str(tmp_path / name), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+    (tmp_path / "broken.jpg").write_bytes(b"\xff\xd8 not really a jpeg")
+    (tmp_path / "IMG_0001.HEIC").write_bytes(b"\x00\x00\x00\x18ftypheic")
+    result = calibrate_folder(tmp_path, BOARD)
+    assert result.unreadable == ["IMG_0001.HEIC", "broken.jpg"]
+    assert len(result.calibration.views) >= 8
+    from parts.vision.calibration import unreadable_hint
+
+    assert "export them as JPEG" in unreadable_hint(result.unreadable) and unreadable_hint(["broken.jpg"]) == ""
+
+
+def test_an_uncertain_fit_is_reported(caplog):
+    """Four views at nearly the same angle pin neither the focal length nor the distortion down."""
+    import logging
+
+    from parts.vision.calibration import calibrate
+
+    camera = Camera(320, 240, distortion=TRUE_DIST)
+    poses = random_board_poses(camera, BOARD.columns, BOARD.rows, 4, seed=1, max_tilt_deg=5)
+    found = collect_views([(f"v{i}", render_board_view(camera, 10, 7, r, t)) for i, (r, t) in enumerate(poses)], BOARD)
+    with caplog.at_level(logging.WARNING):
+        shaky = calibrate(found.views, BOARD, found.size)
+    assert shaky.uncertain is not None and "fit is uncertain" in caplog.text
+    assert shaky.std_devs["fx"] > 0.01 * shaky.camera_matrix[0, 0]
+    good = calibrate(collect_views(_views(camera, 15), BOARD).views, BOARD, (320, 240))
+    assert good.uncertain is None and good.std_devs["k1"] < 0.005
+    assert CameraCalibration.from_dict(good.to_dict()).std_devs["fx"] == pytest.approx(good.std_devs["fx"], rel=1e-3)

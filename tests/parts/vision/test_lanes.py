@@ -96,3 +96,20 @@ def test_part_and_preview_strip():
     assert part.run(None) is None
     strip = preview_strip([frame, _road(320, 180)], LaneExtractor(), scale=2)
     assert strip.shape == (2 * 120 * 2, 3 * 160 * 2, 3)
+
+
+def test_points_for_another_aspect_ratio_than_the_frames_are_warned_about_once(caplog):
+    """The thesis's points are for 16:9 frames; on a 4:3 camera they would be stretched silently."""
+    import logging
+
+    extractor = LaneExtractor(LaneSettings())  # LANE_POINTS_SIZE 320x180
+    frame = np.zeros((120, 160, 3), np.uint8)
+    with caplog.at_level(logging.WARNING):
+        extractor.extract(frame)
+        extractor.extract(frame)
+        extractor.extract(np.zeros((90, 160, 3), np.uint8))  # 16:9: the points' own aspect ratio
+        extractor.extract(frame, out_size=(80, 45))  # another output size of the same frames: no new warning
+    warnings = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+    assert len(warnings) == 1
+    assert "320x180" in warnings[0] and "160x120" in warnings[0] and "LANE_POINTS_SIZE" in warnings[0]
+    assert "vehicle lanes preview" in warnings[0]

@@ -45,13 +45,26 @@ def test_undistorted_board_rows_are_straight_again(tmp_path):
     assert part.run(None) is None
 
 
-def test_frames_of_another_size_use_scaled_maps_and_other_aspects_fail(tmp_path):
-    camera = Camera(320, 240, distortion=DIST)
-    cal = CameraCalibration((320, 240), camera.intrinsics.copy(), np.array(DIST), 0.1)
-    part = Undistort(cal, alpha=1.0)
-    small = part.run(np.zeros((120, 160, 3), np.uint8))
-    assert small.shape == (120, 160, 3)
-    assert set(part._maps) == {(160, 120)}
+def test_frames_of_another_size_are_undistorted_with_the_scaled_calibration_and_other_aspects_fail():
+    """A 320x240 calibration undistorts 640x480 frames of the same lens: the board's rows come out
+    straight (as at the calibration's own size)."""
+    cal = CameraCalibration((320, 240), Camera(320, 240, distortion=DIST).intrinsics.copy(), np.array(DIST), 0.1)
+    part = Undistort(cal, alpha=0.0)
+    camera = Camera(640, 480, distortion=DIST)  # the same lens, frames twice the size
+    board = Chessboard(10, 7)
+    bent, straight = [], []
+    for r, t in random_board_poses(camera, 10, 7, 4, seed=3, max_tilt_deg=20):
+        image = render_board_view(camera, 10, 7, r, t)
+        out = part.run(image)
+        assert out.shape == (480, 640, 3)
+        before, after = find_corners(image, board), find_corners(out, board)
+        assert before is not None
+        if after is not None:
+            bent.append(_straightness(before, 7, 10))
+            straight.append(_straightness(after, 7, 10))
+    assert set(part._maps) == {(640, 480)}
+    assert len(straight) >= 2
+    assert max(straight) < 0.35 < min(bent)
     with pytest.raises(CalibrationError, match="aspect ratio"):
         part.run(np.zeros((90, 160, 3), np.uint8))
     with pytest.raises(CalibrationError, match="alpha"):

@@ -174,7 +174,7 @@ def test_tracks_are_scored_independently(cfg):
 
 
 def test_lane_changes_are_commanded_and_scored(cfg, tmp_path):
-    lanes = cfg.replace(SIM_LANES=2, TRAIN_BEHAVIORS=True, SIM_EXPERT_SPEED=1.5, SIM_EVAL_LANE_CHANGE_EVERY=(6.0, 8.0))
+    lanes = cfg.replace(SIM_LANES=2, TRAIN_BEHAVIORS=True, SIM_EXPERT_SPEED=1.5, SIM_EVAL_LANE_CHANGE_EVERY=(7.0, 8.0))
     r = evaluate("expert", [101], laps=1, cfg=lanes)
     t = r["tracks"][0]["lanes"]
     assert t["lane_changes"] >= 2 and t["lane_change_success_rate"] == 1.0 and t["wrong_lane_s"] == 0.0
@@ -213,3 +213,43 @@ def test_lane_changes_are_commanded_and_scored(cfg, tmp_path):
         evaluate("expert", [101], laps=1, cfg=cfg, max_time=5.0, lane_changes=True)
     with pytest.raises(ValueError, match="does not read"):
         evaluate(StandStill(), [101], laps=1, cfg=lanes, max_time=5.0, lane_changes=True)
+    # commands closer together than a change is given (time limit + hold) would judge one change
+    # while the next is under way: refused, naming the settings
+    with pytest.raises(ValueError) as err:
+        evaluate("expert", [101], laps=1, cfg=lanes.replace(SIM_EVAL_LANE_CHANGE_EVERY=(5.0, 8.0)), max_time=5.0)
+    assert "SIM_EVAL_LANE_CHANGE_EVERY" in str(err.value) and "SIM_EVAL_LANE_CHANGE_TIME_LIMIT" in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+def test_the_pilot_is_scored_on_the_frames_the_car_drives_with(cfg, tmp_path):
+    """With a lens (SIM_CAMERA_DISTORTION) and CAMERA_UNDISTORT, the evaluated pilot sees the
+    undistorted frame, exactly what add_simulator gives manage.py drive and the recordings."""
+    from parts.sim.camera import camera_from_config
+    from parts.vision.calibration import CameraCalibration
+    from vehicle import Vehicle
+    from vehicle.app.assembly.sim import add_simulator
+    from vehicle.clock import SimulatedClock
+
+    lens = [-0.25, 0.07, 0.001, -0.0015, 0.0]
+    car = cfg.replace(CAR_PATH=str(tmp_path), SIM_CAMERA_DISTORTION=lens, CAMERA_UNDISTORT=True)
+    camera = camera_from_config(car)
+    CameraCalibration((camera.width, camera.height), camera.intrinsics, np.array(lens), 0.1).save(
+        tmp_path / "camera_calibration.json")
+
+    class FirstFrame:
+        def __init__(self):
+            self.frames = []
+
+        def run(self, image):
+            self.frames.append(image.copy())
+            return 0.0, 0.0
+
+    pilot = FirstFrame()
+    evaluate(pilot, [11], laps=1, cfg=car, max_time=0.2)
+    V = Vehicle(clock=SimulatedClock())
+    sim = add_simulator(V, car, seeds=[11])
+    V.add(lambda: (0.0, 0.0), outputs=["angle", "throttle"])
+    V.start(rate_hz=car.DRIVE_LOOP_HZ, max_loop_count=1)
+    driven = V.mem["cam/image_array"]
+    assert not np.array_equal(driven, sim.render())  # undistorted: not the raw frame
+    assert np.array_equal(pilot.frames[0], driven)

@@ -32,6 +32,13 @@ def add_pilot(V: Any, cfg: Config, model_path: str | Path) -> Any:
 
     pilot = make_pilot(cfg, model_path, measured_speed_key=speed_key_of(V, cfg),
                        frame_shape=camera_frame_shape(V))
+    behavior = "behavior/one_hot_state_array"
+    if behavior in pilot.inputs and not cfg.TRAIN_BEHAVIORS and not V.produces(behavior) and behavior not in V.mem:
+        trained = (pilot.meta.get("training") or {}).get("behaviors")
+        pilot.shutdown()
+        raise UserError(f"{pilot.model_name} reads the behaviour ({behavior}; trained with "
+                        f"{trained or 'unnamed behaviours'}), which this car does not make: set TRAIN_BEHAVIORS = True "
+                        "in myconfig.py")
     V.add(PilotCondition())
     V.add(ModelSwitch(pilot))
     pilot.lock_inputs = True  # the vehicle's wiring is fixed from here on
@@ -44,6 +51,10 @@ def make_pilot(cfg: Config, model_path: str | Path, measured_speed_key: str = "e
     """The Pilot part for a model file with the car's settings: back-end (PILOT_BACKEND,
     PILOT_ONNX_THREADS) and speed control (PILOT_SPEED_*), exactly as the car drives with it.
 
+    The model must fit the car (:mod:`parts.pilots.compat`): a behaviour model's stored behaviour
+    order must be BEHAVIOR_LIST's, and a model trained on undistorted frames needs
+    CAMERA_UNDISTORT (and the other way round); the same holds for every hot switch.
+
     ``measured_speed_key`` is where the car's speed comes from when PILOT_SPEED_KEY is not set: the
     simulator's ``sim/speed``, or ``enc/speed`` from an encoder part. A relative path that does not
     exist here is looked up in the car folder (manage.py may run from another folder).
@@ -51,9 +62,11 @@ def make_pilot(cfg: Config, model_path: str | Path, measured_speed_key: str = "e
     extra inputs do not fit BEHAVIOR_LIST, is refused here (None: checked at the first frame).
 
     Raises:
-        UserError: the model file is missing, unreadable, or the backend setting cannot be met.
+        UserError: the model file is missing, unreadable, does not fit the car, or the backend
+            setting cannot be met.
     """
     from parts.pilots import load_pilot
+    from parts.pilots.compat import CarInputs
 
     path = Path(model_path)
     if not path.is_absolute() and not path.exists():
@@ -72,7 +85,8 @@ def make_pilot(cfg: Config, model_path: str | Path, measured_speed_key: str = "e
         return load_pilot(path, backend=cfg.PILOT_BACKEND, speed_control=speed_control, speed_key=speed_key,
                           onnx_threads=cfg.PILOT_ONNX_THREADS, models_dir=cfg.path("MODELS_PATH"),
                           frame_shape=frame_shape,
-                          extra_sizes={"behavior/one_hot_state_array": len(cfg.BEHAVIOR_LIST)})
+                          extra_sizes={"behavior/one_hot_state_array": len(cfg.BEHAVIOR_LIST)},
+                          car=CarInputs.from_config(cfg))
     except (ValueError, ImportError, OSError) as exc:
         raise UserError(f"cannot drive with {path}: {exc}") from exc
 

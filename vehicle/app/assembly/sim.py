@@ -68,15 +68,26 @@ def add_simulator(V: Any, cfg: Any, seeds: Sequence[int] | None = None, sim_type
 
         sim = SimCar.from_config(cfg, seeds=seeds)
         V.add(sim)
-        add_undistort(V, cfg)  # a simulated lens (SIM_CAMERA_DISTORTION) is undistorted like a real one
+        # a simulated lens (SIM_CAMERA_DISTORTION) is undistorted like a real one
+        add_undistort(V, cfg, (cfg.SIM_CAMERA_W, cfg.SIM_CAMERA_H), "SIM_CAMERA_W x SIM_CAMERA_H")
         return sim
     if seeds:
         logger.warning("--tracks applies to the built-in simulator only; the %s simulator chooses its own "
                        "track%s", kind, " (DONKEY_GYM_ENV_NAME)" if kind == "donkey" else "")
     sim = make_bridge(cfg, kind)
     V.add(sim, threaded=True)
-    add_undistort(V, cfg)
+    add_undistort(V, cfg, *bridge_frame_size(cfg, kind))
     return sim
+
+
+def bridge_frame_size(cfg: Any, sim_type: str) -> tuple[tuple[int, int], str]:
+    """(width, height) of the frames an external simulator delivers, and what sets it: the Donkey
+    simulator renders IMAGE_W x IMAGE_H, the Udacity simulator always 320 x 160."""
+    if sim_type == "udacity":
+        from parts.bridges.udacity import FRAME_SIZE
+
+        return FRAME_SIZE, "fixed by the Udacity simulator, 320 x 160"
+    return (cfg.IMAGE_W, cfg.IMAGE_H), "IMAGE_W x IMAGE_H"
 
 
 def add_simulator_commands(V: Any) -> Any:
@@ -136,7 +147,9 @@ def _donkey(cfg: Any, **options: Any) -> Any:
         look = CarLook(**{k: tuple(v) if k == "body_rgb" else v for k, v in conf.items()})
         return DonkeySim(cfg.SIM_HOST, cfg.SIM_PORT, scene=cfg.DONKEY_GYM_ENV_NAME, image_w=cfg.IMAGE_W,
                          image_h=cfg.IMAGE_H, look=look, max_cte=cfg.DONKEY_MAX_CTE, timeout_s=cfg.SIM_TIMEOUT_S,
-                         connect_timeout_s=cfg.SIM_CONNECT_TIMEOUT_S, **options)
+                         connect_timeout_s=cfg.SIM_CONNECT_TIMEOUT_S,
+                         # a stuck loop brakes the car after 3 loop periods (>= 0.5 s), like the Udacity bridge
+                         command_timeout_s=max(0.5, 3.0 / cfg.DRIVE_LOOP_HZ), **options)
     except (TypeError, ValueError) as exc:
         raise UserError(f"{exc} (check SIM_PORT, GYM_CONF, DONKEY_MAX_CTE, SIM_TIMEOUT_S and SIM_CONNECT_TIMEOUT_S "
                         "in myconfig.py)") from exc

@@ -32,7 +32,8 @@ def register(subparsers: Any) -> None:
                          formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     source = pre.add_mutually_exclusive_group(required=True)
     source.add_argument("--tub", help="tub (or folder of tubs) to take frames from")
-    source.add_argument("--images", metavar="DIR", help="folder of images to take frames from")
+    source.add_argument("--images", metavar="DIR", help="folder of images to take frames from, as the car's camera "
+                                                        "delivers them (undistorted here with CAMERA_UNDISTORT)")
     source.add_argument("--sim", action="store_true", help="render frames in the simulator (SIM_* settings)")
     pre.add_argument("--tracks", type=_seeds, help="--sim: track seeds (default SIM_TRACK_SEEDS)")
     pre.add_argument("--frames", type=int, default=6, help="frames in the strip, spread over the source")
@@ -65,6 +66,26 @@ def _spread(n_total: int, n: int) -> list[int]:
 
 
 def _frames(args: argparse.Namespace, cfg: Any) -> list[np.ndarray]:
+    """The frames to preview, as the pilot sees them: a tub's as recorded (the car undistorted
+    them already when it does), images and simulator frames undistorted with CAMERA_UNDISTORT."""
+    raw = _source_frames(args, cfg)
+    if args.tub:
+        return raw
+    from vehicle.app.assembly.camera import make_undistort
+
+    size = (raw[0].shape[1], raw[0].shape[0])
+    settings = "SIM_CAMERA_W x SIM_CAMERA_H" if args.sim else f"the images' size, {size[0]}x{size[1]}"
+    undistort = make_undistort(cfg, size, settings)
+    if undistort is None:
+        return raw
+    _say(f"undistorting the frames as the car does (CAMERA_UNDISTORT, {cfg.path('CAMERA_CALIBRATION_PATH')})")
+    try:
+        return [undistort.undistort(f) for f in raw]
+    except ValueError as exc:  # an image of another aspect ratio than the first
+        raise UserError(f"--images {args.images}: {exc}") from exc
+
+
+def _source_frames(args: argparse.Namespace, cfg: Any) -> list[np.ndarray]:
     if args.tub:
         from parts.tub.reader import load_records
 
@@ -77,6 +98,8 @@ def _frames(args: argparse.Namespace, cfg: Any) -> list[np.ndarray]:
     if args.images:
         from parts.vision.calibration import CalibrationError, image_files, read_rgb
 
+        if not Path(args.images).is_dir():
+            raise UserError(f"--images {args.images}: no such folder; give a folder of frames (.png, .jpg)")
         try:
             files = image_files(args.images)
             if not files:
@@ -116,7 +139,7 @@ def cmd_preview(args: argparse.Namespace) -> int:
     try:
         write_rgb(out, strip)
     except OSError as exc:
-        raise UserError(f"--png {out}: {exc}") from exc
+        raise UserError(f"--png {out}: {exc.strerror or exc}") from exc
     shares = [float((extractor.extract(f) > 0).mean()) for f in frames]
     s = extractor.settings
     _say(f"wrote {out}: {len(frames)} frames of {frames[0].shape[1]}x{frames[0].shape[0]} "
@@ -133,15 +156,32 @@ def cmd_preview(args: argparse.Namespace) -> int:
 def cmd_points(args: argparse.Namespace) -> int:
     """Print the myconfig.py lines for the simulated camera."""
     from parts.sim.camera import camera_from_config, lane_region_points
+    from vehicle.app.assembly.camera import make_undistort
 
     cfg = load_for_command(args)
     try:
-        points = lane_region_points(camera_from_config(cfg), near=args.near, far=args.far,
-                                    half_width=args.half_width)
+        camera = camera_from_config(cfg)
+    except ValueError as exc:
+        raise UserError(f"{exc} (check the SIM_CAMERA_* settings)") from exc
+    # the points are for the frames the pilot sees: undistorted with CAMERA_UNDISTORT
+    undistort = make_undistort(cfg, (camera.width, camera.height), "SIM_CAMERA_W x SIM_CAMERA_H")
+    note = ""
+    intrinsics = None
+    if undistort is not None:
+        intrinsics = undistort.output_camera_matrix(camera.width, camera.height)
+        note = f"; for the frames undistorted with {cfg.path('CAMERA_CALIBRATION_PATH')} (CAMERA_UNDISTORT)"
+    elif camera.distortion is not None:
+        # a bent image has no true bird's-eye view: the lens's pinhole is the nearest
+        intrinsics = camera.intrinsics
+        note = ("; SIM_CAMERA_DISTORTION bends straight lines and CAMERA_UNDISTORT is off, so the view is only "
+                "near bird's-eye (calibrate and set CAMERA_UNDISTORT = True for a true one)")
+    try:
+        points = lane_region_points(camera, near=args.near, far=args.far, half_width=args.half_width,
+                                    intrinsics=intrinsics)
     except ValueError as exc:
         raise UserError(str(exc)) from exc
     _say(f"# lane extraction for the simulated {cfg.SIM_CAMERA_W}x{cfg.SIM_CAMERA_H} camera "
-         f"(ground {args.far} m ahead, ±{args.half_width} m): paste into myconfig.py")
+         f"(ground {args.far} m ahead, ±{args.half_width} m{note}): paste into myconfig.py")
     for name, value in points.items():
         text = [tuple(p) for p in value] if name != "LANE_POINTS_SIZE" else tuple(value)
         _say(f"{name} = {text!r}")

@@ -6,7 +6,7 @@ import pytest
 
 from parts.drive.modes import DriveMode
 from vehicle import Vehicle
-from vehicle.app.assembly.pilot import add_pilot
+from vehicle.app.assembly.pilot import add_pilot, make_pilot
 from vehicle.clock import SimulatedClock
 from vehicle.config import Config
 from vehicle.errors import UserError
@@ -118,3 +118,75 @@ def test_a_switch_to_a_model_of_another_frame_size_keeps_the_running_pilot(make_
     assert "frame is 120x160x3 but the model was trained on 90x120x3 frames" in pilot.load_error
     V.start(rate_hz=20, max_loop_count=3)  # the car goes on driving with the running pilot
     assert V.mem["pilot/model"] == "a.pt" and V.mem["pilot/angle"] is not None
+
+
+def _behaviour_model(make_model_file, name, behaviors, camera=None):
+    """A behaviour model file whose metadata says the behaviour order it was trained with (and how
+    its frames were undistorted, ``camera``)."""
+    from parts.pilots.modelfile import load_model, save_model
+
+    path = make_model_file("behavior", name=name)
+    model, meta = load_model(path)
+    meta = {k: v for k, v in meta.items() if k != "model"}
+    meta["training"] = {"behaviors": list(behaviors)}
+    if camera is not None:
+        meta["camera"] = camera
+    return save_model(path, model, meta)
+
+
+def test_a_reordered_behavior_list_is_refused(make_model_file, frame):
+    path = _behaviour_model(make_model_file, "lanes_lr", ["Left_Lane", "Right_Lane"])
+    cfg = Config.defaults(PILOT_BACKEND="torch", TRAIN_BEHAVIORS=True, BEHAVIOR_LIST=["Right_Lane", "Left_Lane"])
+    with pytest.raises(UserError) as err:
+        make_pilot(cfg, path)
+    message = str(err.value)
+    assert "\n" not in message
+    assert "trained with ['Left_Lane', 'Right_Lane'], BEHAVIOR_LIST is ['Right_Lane', 'Left_Lane']" in message
+    assert "TRAIN_BEHAVIORS" not in message
+    with pytest.raises(UserError, match="set TRAIN_BEHAVIORS = True"):
+        make_pilot(cfg.replace(TRAIN_BEHAVIORS=False), path)
+    # the same order drives; a car without the behaviour part is told to add it
+    assert make_pilot(cfg.replace(BEHAVIOR_LIST=["Left_Lane", "Right_Lane"]), path).model_name == "lanes_lr.pt"
+    V = vehicle_with_frames(frame, "local")
+    with pytest.raises(UserError, match="set TRAIN_BEHAVIORS = True"):
+        add_pilot(V, cfg.replace(BEHAVIOR_LIST=["Left_Lane", "Right_Lane"], TRAIN_BEHAVIORS=False), path)
+
+
+def test_a_refused_hot_switch_keeps_the_running_pilot(make_model_file, frame):
+    a = _behaviour_model(make_model_file, "a", ["Left_Lane", "Right_Lane"])
+    b = _behaviour_model(make_model_file, "b", ["Right_Lane", "Left_Lane"])
+    cfg = Config.defaults(PILOT_BACKEND="torch", TRAIN_BEHAVIORS=True, CAR_PATH=str(a.parent.parent))
+    pilot = make_pilot(cfg, a)
+    before = pilot.run(frame, [1.0, 0.0])
+    assert pilot.request_model(b)
+    assert pilot.wait_loaded(timeout=30)
+    assert pilot.model_name == "a.pt" and "BEHAVIOR_LIST is ['Left_Lane', 'Right_Lane']" in pilot.load_error
+    assert pilot.run(frame, [1.0, 0.0]) == before
+
+
+def test_undistortion_must_match_the_frames_the_model_was_trained_on(make_model_file, tmp_path, caplog):
+    import logging
+
+    import numpy as np
+
+    from parts.sim.camera import Camera
+    from parts.vision.calibration import CameraCalibration
+
+    car = tmp_path / "car"
+    CameraCalibration((320, 240), Camera(320, 240).intrinsics, np.zeros(5), 0.1).save(car / "camera_calibration.json")
+    cfg = Config.defaults(PILOT_BACKEND="torch", CAR_PATH=str(car), TRAIN_BEHAVIORS=True)
+    undistorted = _behaviour_model(make_model_file, "u", ["Left_Lane", "Right_Lane"],
+                                   camera={"undistort": True, "calibration_size": [320, 240]})
+    with pytest.raises(UserError, match="trained on undistorted frames.*CAMERA_UNDISTORT = True"):
+        make_pilot(cfg, undistorted)
+    assert make_pilot(cfg.replace(CAMERA_UNDISTORT=True), undistorted).model_name == "u.pt"
+    raw = _behaviour_model(make_model_file, "r", ["Left_Lane", "Right_Lane"],
+                           camera={"undistort": False, "calibration_size": None})
+    with pytest.raises(UserError, match="CAMERA_UNDISTORT = False"):
+        make_pilot(cfg.replace(CAMERA_UNDISTORT=True), raw)
+    # a calibration made at another size: a warning (the undistorted view may differ a little)
+    other = _behaviour_model(make_model_file, "o", ["Left_Lane", "Right_Lane"],
+                             camera={"undistort": True, "calibration_size": [640, 480]})
+    with caplog.at_level(logging.WARNING):
+        make_pilot(cfg.replace(CAMERA_UNDISTORT=True), other)
+    assert "640x480" in caplog.text and "320x240" in caplog.text
