@@ -228,12 +228,14 @@ def frame_rates(args: argparse.Namespace, browser, viewers: int) -> tuple[float,
 
 
 def screenshots(args: argparse.Namespace, browser, folder: Path) -> None:
+    """The docs' pictures of the page: desktop 1280x800 (driving, recording), phone upright 390x844
+    (watching) and phone sideways 844x390 (driving)."""
     V, web, probe = build_car(args, sim=True)
     thread = start(V, 20)
     folder.mkdir(parents=True, exist_ok=True)
     try:
         wait(lambda: web.port != 0)
-        page = open_page(browser, web.url, viewport={"width": 1280, "height": 860})
+        page = open_page(browser, web.url, viewport={"width": 1280, "height": 800})
         page.wait_for_function("window.webStats && webStats.frames > 10")
         page.evaluate("document.querySelector('[data-mode=user]').click()")  # no focus ring in the picture
         page.keyboard.press("r")
@@ -246,14 +248,20 @@ def screenshots(args: argparse.Namespace, browser, folder: Path) -> None:
         page.keyboard.up("ArrowUp")
         page.keyboard.press("r")
         phone = open_page(browser, web.url, device="phone")
-        phone.wait_for_function("window.webStats && webStats.frames > 30")
+        phone.wait_for_function("window.webStats && webStats.frames > 30 && webStats.role === 'viewer'")
         phone.screenshot(path=folder / "web-phone.png")
+        for context in browser.contexts:  # the driver leaves: the sideways phone drives
+            context.close()
+        sideways = open_page(browser, web.url, device="phone", viewport={"width": 844, "height": 390})
+        sideways.wait_for_function("window.webStats && webStats.frames > 30 && webStats.role === 'driver'")
+        time.sleep(2.0)  # the loop rate shown settles after the other pages closed
+        sideways.screenshot(path=folder / "web-phone-landscape.png")
         for context in browser.contexts:  # the pages go before the car stops, as in the tests
             context.close()
     finally:
         V.stop()
         thread.join(10)
-    print(f"screenshots written to {folder}/web-desktop.png, web-phone.png")
+    print(f"screenshots written to {folder}/web-desktop.png, web-phone.png, web-phone-landscape.png")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -18,8 +18,10 @@ from dataclasses import dataclass
 from enum import Enum
 from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
+from vehicle import config_checks
+from vehicle.config_checks import RULES, Checked, Constraint, Length, Range
 from vehicle.errors import VehicleError
 from vehicle.keys import Mode
 
@@ -32,7 +34,8 @@ RENAMED: dict[str, str] = {"WEB_INIT_MODE": "DEFAULT_MODE"}
 
 
 class ConfigError(VehicleError, ValueError):
-    """A setting is unknown, of the wrong type, or the override file cannot be read."""
+    """A setting is unknown, of the wrong type or out of range, or the override file cannot be
+    read. The message is one line: file, line, setting, what is valid."""
 
 
 @dataclass(frozen=True)
@@ -77,7 +80,9 @@ def _is_section(line: str) -> bool:
     return s.startswith("# ==") and s.endswith("==")
 
 
-_TYPE_NAMESPACE = {"Literal": typing.Literal, "Callable": Callable, "Any": Any, "Mode": Mode}
+_TYPE_NAMESPACE = {"Literal": typing.Literal, "Callable": Callable, "Any": Any, "Mode": Mode,
+                   "Annotated": Annotated,
+                   **{k: v for k, v in vars(config_checks).items() if not k.startswith("_")}}
 
 
 @cache
@@ -93,6 +98,8 @@ def _matches(value: Any, tp: Any) -> bool:
         return value is None
     origin = typing.get_origin(tp)
     args = typing.get_args(tp)
+    if origin is Annotated:
+        return _matches(value, args[0])
     if origin in (typing.Union, types.UnionType):
         return any(_matches(value, a) for a in args)
     if origin is typing.Literal:
@@ -121,13 +128,30 @@ def _matches(value: Any, tp: Any) -> bool:
 
 
 def describe_type(annotation: str) -> str:
-    """The annotation as users read it: the drive-mode type spelt as its values."""
+    """The annotation as users read it: without its range, the drive-mode type spelt as its values."""
     modes = " | ".join(f'"{m.value}"' for m in Mode)
-    return annotation.replace("list[Mode]", f"list[{modes}]").replace("Mode", modes)
+    return type_text(annotation).replace("list[Mode]", f"list[{modes}]").replace("Mode", modes)
+
+
+@cache
+def constraints(name: str) -> tuple[Constraint, ...]:
+    """The ranges a setting declares in its annotation (``Annotated[int, Range(1, 1000)]``)."""
+    tp = _type_of(settings()[name].annotation)
+    if typing.get_origin(tp) is not Annotated:
+        return ()
+    return tuple(m for m in tp.__metadata__ if isinstance(m, Range | Length | Checked))
+
+
+def check_range(name: str, value: Any, where: str = "") -> None:
+    """Raise ConfigError when ``value`` is outside the range ``name`` declares."""
+    for c in constraints(name):
+        why = c.problem(value)
+        if why:
+            raise ConfigError(f"{where}{c.show(name, value)} {why}; valid: {c.describe()}.")
 
 
 def check_value(name: str, value: Any, where: str = "") -> None:
-    """Raise ConfigError unless ``name`` is a known setting and ``value`` fits its type."""
+    """Raise ConfigError unless ``name`` is a known setting and ``value`` fits its type and range."""
     known = settings()
     if name not in known:
         close = [RENAMED[name]] if name in RENAMED else difflib.get_close_matches(name, known, n=1)
@@ -138,23 +162,76 @@ def check_value(name: str, value: Any, where: str = "") -> None:
     if not _matches(value, _type_of(setting.annotation)):
         raise ConfigError(f"{where}{name} = {value!r} has type {type(value).__name__}, "
                           f"expected {describe_type(setting.annotation)}.")
+    check_range(name, value, where)
+
+
+def type_text(annotation: str) -> str:
+    """An annotation without its range: ``Annotated[int, Range(1, 10)]`` -> ``int``."""
+    tree = ast.parse(annotation, mode="eval").body
+    if isinstance(tree, ast.Subscript) and isinstance(tree.value, ast.Name) and tree.value.id == "Annotated":
+        inner = tree.slice.elts[0] if isinstance(tree.slice, ast.Tuple) else tree.slice
+        return ast.unparse(inner)
+    return annotation
+
+
+def check_config(values: Mapping[str, Any], overridden: frozenset[str],
+                 where: Callable[..., str] = lambda *names: "") -> None:
+    """Check the values the overrides did not set (derived ones may leave their range when the
+    settings they follow change) and the rules across settings (:data:`RULES`).
+
+    ``where(*names)`` gives the message prefix (file and line) of the first of ``names`` the
+    user set.
+    """
+    for name in settings():
+        if name not in overridden:
+            check_range(name, values[name], where(name))
+    for rule in RULES:
+        for problem in rule(values):
+            raise ConfigError(f"{where(problem.setting, *problem.related)}{problem.message}.")
 
 
 class Config(Mapping[str, Any]):
     """The settings of one car, read as attributes (``cfg.DRIVE_LOOP_HZ``) like DonkeyCar's."""
 
     def __init__(self, values: dict[str, Any], overridden: frozenset[str] = frozenset(),
-                 source: Path | None = None) -> None:
+                 source: Path | None = None, lines: Mapping[str, int] | None = None) -> None:
         object.__setattr__(self, "_values", values)
         object.__setattr__(self, "overridden", overridden)
         object.__setattr__(self, "source", source)
+        object.__setattr__(self, "lines", dict(lines or {}))  # override -> its line in source
 
     @classmethod
     def defaults(cls, **overrides: Any) -> Config:
         """The package defaults with ``overrides`` applied and validated (for code and tests)."""
         for name, value in overrides.items():
             check_value(name, value)
-        return cls(_evaluate(overrides), frozenset(overrides))
+        return cls.build(overrides)
+
+    @classmethod
+    def build(cls, overrides: dict[str, Any], source: Path | None = None,
+              lines: Mapping[str, int] | None = None) -> Config:
+        """Evaluate the defaults with ``overrides`` (each already checked on its own) and check
+        the result as a whole; errors point at ``source``'s ``lines``."""
+        values = _evaluate(overrides)
+        cfg = cls(values, frozenset(overrides), source, lines)
+        check_config(values, cfg.overridden, cfg.where)
+        return cfg
+
+    def where(self, *names: str) -> str:
+        """``"FILE, line N: "`` of the first of ``names`` the user set in the override file (for a
+        derived setting: of a setting it follows), or "" when none was."""
+        seen: set[str] = set()
+        todo = list(names)
+        while todo:
+            name = todo.pop(0)
+            if name in seen:
+                continue
+            seen.add(name)
+            if name in self.lines and self.source is not None:
+                return f"{self.source}, line {self.lines[name]}: "
+            if name not in self.overridden and name in settings():
+                todo += [n.id for n in ast.walk(settings()[name].expression) if isinstance(n, ast.Name)]
+        return ""
 
     def __getattr__(self, name: str) -> Any:
         try:
@@ -186,7 +263,8 @@ class Config(Mapping[str, Any]):
         for name, value in overrides.items():
             check_value(name, value)
         merged = {n: self._values[n] for n in self.overridden} | overrides
-        return Config(_evaluate(merged), self.overridden | frozenset(overrides), self.source)
+        lines = {n: line for n, line in self.lines.items() if n not in overrides}
+        return Config.build(merged, self.source, lines)
 
 
 def _evaluate(overrides: dict[str, Any]) -> dict[str, Any]:
@@ -203,6 +281,11 @@ def _evaluate(overrides: dict[str, Any]) -> dict[str, Any]:
 
 def read_overrides(path: Path) -> dict[str, Any]:
     """Run a myconfig.py file and return its UPPERCASE names, each validated with its line number."""
+    return read_overrides_with_lines(path)[0]
+
+
+def read_overrides_with_lines(path: Path) -> tuple[dict[str, Any], dict[str, int]]:
+    """:func:`read_overrides` plus the line of each name's first assignment."""
     try:
         source = path.read_text()
     except OSError as exc:
@@ -228,7 +311,7 @@ def read_overrides(path: Path) -> dict[str, Any]:
     for name, value in overrides.items():
         where = f"{path}, line {lines[name]}: " if name in lines else f"{path}: "
         check_value(name, value, where)
-    return overrides
+    return overrides, {k: v for k, v in lines.items() if k in overrides}
 
 
 def load_config(myconfig: str | os.PathLike[str] | None = None,
@@ -241,7 +324,9 @@ def load_config(myconfig: str | os.PathLike[str] | None = None,
         car_path: the car folder; default the folder of ``myconfig``, else the current directory.
 
     Raises:
-        ConfigError: the file is missing or invalid, a name is unknown or a value has the wrong type.
+        ConfigError: the file is missing or invalid, a name is unknown, a value has the wrong type
+            or is out of range, or settings contradict each other (one line: file, line, setting,
+            what is valid).
     """
     if car_path is None:
         car_path = Path(myconfig).resolve().parent if myconfig else Path.cwd()
@@ -252,7 +337,8 @@ def load_config(myconfig: str | os.PathLike[str] | None = None,
             raise ConfigError(f"{path}: no such config file. Pass an existing file to --myconfig.")
         logger.warning("%s not found: using the default settings", path)
         overrides: dict[str, Any] = {}
+        lines: dict[str, int] = {}
     else:
-        overrides = read_overrides(path)
+        overrides, lines = read_overrides_with_lines(path)
     overrides.setdefault("CAR_PATH", str(car))
-    return Config(_evaluate(overrides), frozenset(overrides), path)
+    return Config.build(overrides, path, lines)

@@ -7,7 +7,7 @@ import ast
 import sys
 from pathlib import Path
 
-from vehicle.config import describe_type, settings
+from vehicle.config import constraints, describe_type, settings
 
 DOC_PATH = Path(__file__).resolve().parent.parent / "docs" / "config.md"
 
@@ -20,15 +20,20 @@ def render() -> str:
            "",
            "A value shown as an expression (for example `DRIVE_LOOP_HZ`) is derived: it follows the "
            "settings it names, after your overrides, unless you set it yourself. Loading rejects an "
-           "unknown name (suggesting the closest one) and a value of the wrong type.", ""]
+           "unknown name (suggesting the closest one), a value of the wrong type, a value outside "
+           "the range in the Valid column, and settings that contradict each other (a PWM pulse "
+           "outside 500-2500 µs at PWM_FREQ, two parts on one channel, a watchdog shorter than two "
+           "loops); the error names the file, the line, the setting and what is valid.", ""]
     section = None
     for s in settings().values():
         if s.section != section:
             section = s.section
-            out += ["", f"## {section}", "", "| Setting | Type | Default | Meaning |", "|---|---|---|---|"]
+            out += ["", f"## {section}", "", "| Setting | Type | Default | Valid | Meaning |",
+                    "|---|---|---|---|---|"]
         default = ast.unparse(s.expression).replace("|", "\\|")
         kind = describe_type(s.annotation).replace("|", "&#124;")
-        out.append(f"| `{s.name}` | `{kind}` | `{default}` | {s.doc} |")
+        valid = "; ".join(c.describe() for c in constraints(s.name)).replace("|", "\\|")
+        out.append(f"| `{s.name}` | `{kind}` | `{default}` | {valid} | {s.doc} |")
     return "\n".join(out).replace("\n\n\n", "\n\n") + "\n"
 
 

@@ -67,7 +67,7 @@ STANDARD_KEYS: dict[str, KeyInfo] = {
     "user/mode": KeyInfo("str: user | local_angle | local", "who drives: human, pilot steers, pilot drives"),
     "recording": KeyInfo("bool", "whether the tub writer records this loop"),
     "estop": KeyInfo("bool", "emergency stop latched: throttle forced to 0"),
-    "user/speed_limit": KeyInfo("float, m/s, or None", "target speed for the speed controller (web page)"),
+    "user/speed_limit": KeyInfo("float, m/s, or None", "web page's speed limit: caps the speed in every mode"),
     "pilot/model_request": KeyInfo("str path or None", "model file the web picker asks the pilot to load"),
     "controller/active": KeyInfo("str: gamepad | web", "which controller's stick drives (arbitration)"),
     "web/angle": KeyInfo("float in [-1, 1]", "steering from the web page, before arbitration"),
@@ -80,11 +80,13 @@ STANDARD_KEYS: dict[str, KeyInfo] = {
     "js/mode": KeyInfo("str", "gamepad drive mode, before arbitration"),
     "js/recording": KeyInfo("bool", "gamepad record toggle, before arbitration"),
     "js/estop": KeyInfo("bool", "emergency stop latched on the gamepad"),
+    "js/status": KeyInfo("str: connected | silent | lost", "the car's gamepad link (shown on the web page)"),
     # -- pilot
     "pilot/angle": KeyInfo("float in [-1, 1]", "steering from the pilot"),
     "pilot/throttle": KeyInfo("float in [-1, 1]", "throttle from the pilot"),
     "run_pilot": KeyInfo("bool", "True when the pilot must run this loop (mode is not user)"),
     "pilot/model": KeyInfo("str", "file name of the model driving now (after a hot switch: the new one)"),
+    "pilot/load_error": KeyInfo("str or None", "why the last model asked for was not loaded (None after a success)"),
     # -- final commands
     "angle": KeyInfo("float in [-1, 1]", "steering command sent to the drivetrain"),
     "throttle": KeyInfo("float in [-1, 1]", "throttle command sent to the drivetrain"),

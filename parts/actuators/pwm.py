@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 from parts.actuators.esc import ReverseStateMachine, SlewLimiter
 from parts.actuators.watchdog import CommandWatchdog
+from vehicle.config_checks import PULSE_MAX_US, PULSE_MIN_US, pulse_tick_range
 
 if TYPE_CHECKING:
     from parts.actuators.pca9685 import PCA9685
@@ -188,6 +189,7 @@ class PWMSteeringThrottle:
             raise ValueError(f"ESC_ARM_TIME_S must be 0-10 seconds, got {arm_s}")
         if not 0 <= _check_number("PWM_SHUTDOWN_HOLD_S", hold_s) <= 5:
             raise ValueError(f"PWM_SHUTDOWN_HOLD_S must be 0-5 seconds, got {hold_s}")
+        _check_pulse_widths(driver, steering, throttle)
         self.name = "PWMSteeringThrottle"
         self.driver = driver
         self.channels = (steering_channel, throttle_channel)
@@ -219,6 +221,9 @@ class PWMSteeringThrottle:
             self._opened_at = self.clock()
         if self.watchdog is not None:
             self.watchdog.start()
+        else:
+            logger.warning("drivetrain: the command watchdog is off (ACTUATOR_WATCHDOG_S = None): if the "
+                           "loop stalls, the last throttle stays on; set it to 0.5 in myconfig.py")
         logger.info("drivetrain ready: steering ch %d (L %d / centre %d / R %d), throttle ch %d "
                     "(rev %d / stop %d / fwd %d) at %.2f Hz; arming the ESC for %.1f s",
                     self.channels[0], self.steering.left, self.steering.neutral, self.steering.right,
@@ -300,6 +305,20 @@ class PWMSteeringThrottle:
         if force or self._written.get(channel) != ticks:
             self.driver.set_ticks(channel, ticks)
             self._written[channel] = ticks
+
+
+def _check_pulse_widths(driver: PCA9685, steering: SteeringCalibration, throttle: ThrottleCalibration) -> None:
+    """Refuse calibrations whose pulses are outside what servos and ESCs take at the driver's
+    frequency (the config loader refuses them too; this guards code that builds the part)."""
+    tick_us = driver.tick_us
+    lo, hi = pulse_tick_range(tick_us)
+    for name, ticks in (("STEERING_LEFT_PWM", steering.left), ("STEERING_RIGHT_PWM", steering.right),
+                        ("THROTTLE_FORWARD_PWM", throttle.forward), ("THROTTLE_STOPPED_PWM", throttle.stopped),
+                        ("THROTTLE_REVERSE_PWM", throttle.reverse)):
+        if not lo <= ticks <= hi:
+            raise ValueError(f"{name} = {ticks} is a {ticks * tick_us:.0f} µs pulse at {driver.frequency:.2f} Hz; "
+                             f"valid: {lo} to {hi} ticks ({PULSE_MIN_US:.0f} to {PULSE_MAX_US:.0f} µs, what "
+                             "servos and ESCs take; find yours with `vehicle calibrate`)")
 
 
 def _valid(x: object) -> bool:

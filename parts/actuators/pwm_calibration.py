@@ -14,6 +14,8 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
+from vehicle.config_checks import PULSE_MAX_US, PULSE_MIN_US
+
 if TYPE_CHECKING:
     from parts.actuators.pca9685 import PCA9685
 
@@ -28,8 +30,8 @@ ROLES: dict[str, str] = {
     "reverse": "THROTTLE_REVERSE_PWM",
 }
 ALIASES = {"fwd": "forward", "stop": "stopped", "rev": "reverse"}
-#: the pulse widths a servo or ESC can safely be sent, in µs (RC standard is 1000-2000)
-MIN_US, MAX_US = 500.0, 2500.0
+#: the pulse widths a servo or ESC can safely be sent, in µs (the config checks the same range)
+MIN_US, MAX_US = PULSE_MIN_US, PULSE_MAX_US
 DEFAULT_STEP = 10
 
 HELP = """\

@@ -121,6 +121,14 @@ class Gamepad(ThreadedPart):
             self.logic.on_disconnect()
         self.reader.close()
 
+    def status(self) -> str:
+        """``"connected"``, ``"silent"`` (connected, no events for JOYSTICK_SILENCE_TIMEOUT_S while
+        the throttle was held: the car stopped) or ``"lost"`` (missing or unplugged)."""
+        with self._lock:
+            if not self.logic.connected:
+                return "lost"
+            return "silent" if self.logic.silent else "connected"
+
     # -- loop side ------------------------------------------------------------------------------
     def run_threaded(self, *inputs: Any) -> GamepadOutput:
         """This loop's outputs (see OUTPUTS); never blocks on the device."""
@@ -148,3 +156,17 @@ class Gamepad(ThreadedPart):
     def open(self) -> None:
         """First connection attempt (a missing pad is retried later, not an error)."""
         self._try_open()
+
+
+class GamepadStatus:
+    """Publishes a :class:`Gamepad`'s link as ``js/status`` (``connected``, ``silent``, ``lost``)
+    for the web page: whether the car's gamepad can drive it."""
+
+    INPUTS: ClassVar[tuple[str, ...]] = ()
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("js/status",)
+
+    def __init__(self, pad: Gamepad) -> None:
+        self.pad = pad
+
+    def run(self) -> str:
+        return self.pad.status()

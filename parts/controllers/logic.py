@@ -85,6 +85,10 @@ class GamepadLogic:
         self.layout = layout
         self.settings = settings or GamepadSettings()
         self.clock = clock
+        if self.settings.silence_timeout_s is None:
+            logger.warning("gamepad: the silence timeout is off (JOYSTICK_SILENCE_TIMEOUT_S = None): a "
+                           "Bluetooth link that drops while the throttle is held keeps the car driving; "
+                           "set it to 2.0 in myconfig.py")
         self.max_throttle = self.settings.max_throttle
         self.mode = self.settings.initial_mode
         self.recording = False

@@ -17,7 +17,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from typing import Literal
+from typing import ClassVar, Literal
 
 logger = logging.getLogger(__name__)
 
@@ -157,3 +157,70 @@ class SpeedControl:
         if now - self._last_warning >= self.warn_interval_s:
             self._last_warning = now
             logger.warning("SpeedControl: %s", message)
+
+
+class SpeedLimit:
+    """Part: cap the car's final throttle so that its measured speed stays at or below the speed
+    limit, in every drive mode. A limit, never a target: the throttle is the smaller of the one
+    asked for and the one a PI controller allows, so a car slower than the limit drives exactly as
+    commanded. Braking (a throttle against the motion) is never cut.
+
+    ``run(throttle, speed, speed_limit) -> throttle`` with ``speed_limit`` in m/s (None = no
+    limit). While limited, the controller starts from the throttle asked for (no jump); a missing
+    or non-finite speed with a limit set gives throttle 0 (the limit cannot be held blind).
+
+    Args:
+        speed_key: memory key of the measured speed (``sim/speed``, ``enc/speed``).
+        dt: seconds between two runs (1 / DRIVE_LOOP_HZ).
+        kp, ki: PI gains, throttle per m/s and per m/s per second.
+    """
+
+    #: the speed key is the constructor's ``speed_key`` (an instance's INPUTS say which)
+    INPUTS: tuple[str, ...] = ("throttle", "sim/speed", "user/speed_limit")
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("throttle",)
+    OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("user/speed_limit",)
+    warn_interval_s = 5.0
+
+    def __init__(self, speed_key: str = "sim/speed", *, dt: float = 0.05, kp: float = 0.3,
+                 ki: float = 0.6) -> None:
+        if not _finite(dt) or dt <= 0:
+            raise ValueError(f"SpeedLimit: dt must be a positive number of seconds, got {dt!r}")
+        self.INPUTS = ("throttle", speed_key, "user/speed_limit")
+        self.dt = float(dt)
+        self.pi = PIController(kp, ki, 0.0, 1.0)
+        self.limiting = False  # whether the limit cut the throttle in the last run
+        self._last_warning = -math.inf
+
+    def run(self, throttle: float | None, speed: float | None, speed_limit: float | None) -> float | None:
+        """The throttle to drive with (see the class docstring)."""
+        self.limiting = False
+        if throttle is None or speed_limit is None or not _finite(throttle) or throttle == 0:
+            self.pi.reset()
+            return throttle
+        if not _finite(speed):
+            self._warn(f"no valid speed measurement ({speed!r}): throttle 0 while a speed limit is set")
+            self.pi.reset()
+            return 0.0
+        direction = 1.0 if throttle > 0 else -1.0
+        along = float(speed) * direction  # speed in the direction the throttle pushes
+        if along < 0:  # a throttle against the motion brakes: never cut it
+            self.pi.reset()
+            return throttle
+        asked = abs(float(throttle))
+        limit = max(0.0, float(speed_limit))
+        self.pi.set_desired(limit)
+        allowed = self.pi.update(along, self.dt)
+        if asked <= allowed:
+            # not limiting: keep the controller where it would give the throttle asked for, so
+            # that it takes over from there (no jump) when the car reaches the limit
+            if self.pi.ki > 0:
+                self.pi.integral = (asked - self.pi.kp * (limit - along)) / self.pi.ki
+            return throttle
+        self.limiting = True
+        return direction * allowed
+
+    def _warn(self, message: str) -> None:
+        now = time.monotonic()
+        if now - self._last_warning >= self.warn_interval_s:
+            self._last_warning = now
+            logger.warning("SpeedLimit: %s", message)

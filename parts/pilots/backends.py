@@ -22,7 +22,6 @@ import abc
 import json
 import logging
 import os
-from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -31,21 +30,22 @@ import numpy as np
 if TYPE_CHECKING:
     import torch
 
+    from parts.pilots.preprocess import Preprocess
+
 logger = logging.getLogger(__name__)
 
 Backend = Literal["auto", "torch", "onnx", "onnx-int8", "torchscript"]
 BACKENDS: tuple[str, ...] = ("auto", "torch", "onnx", "onnx-int8", "torchscript")
 
 
-def preprocessor_from_meta(meta: dict[str, Any]) -> Callable[[np.ndarray], np.ndarray]:
-    """The training preprocessing stored in ``meta["preprocess"]`` as frame -> float32 (C, H, W) array."""
+def preprocessing_from_meta(meta: dict[str, Any]) -> Preprocess:
+    """The training preprocessing stored in ``meta["preprocess"]``."""
     from parts.pilots.preprocess import Preprocess
 
     try:
-        pre = Preprocess.from_dict(meta.get("preprocess") or {})
+        return Preprocess.from_dict(meta.get("preprocess") or {})
     except (TypeError, ValueError) as exc:
         raise ValueError(f"the model's preprocessing settings are invalid: {exc}") from exc
-    return pre.array  # numpy only: an ONNX pilot runs without torch
 
 
 class Runner(abc.ABC):
@@ -58,17 +58,40 @@ class Runner(abc.ABC):
 
     backend = ""
 
-    def __init__(self, path: Path, meta: dict[str, Any]) -> None:
+    def __init__(self, path: Path, meta: dict[str, Any] | str) -> None:
+        from parts.pilots.errors import ModelFileError
+
         self.path = path
-        self.meta = meta
-        desc = meta["model"]
-        self.model_type: str = desc["type"]
-        self.frames = int(desc.get("frames", 1))
-        self.command_history = int(desc.get("command_history", 0))
-        self.extra_inputs: tuple[str, ...] = tuple(desc.get("extra_inputs", ()))
-        self.extra_size = int(desc.get("extra_size", 0))
-        self.input_shape = tuple(int(v) for v in desc["input_shape"])
-        self.preprocess: Callable[[np.ndarray], np.ndarray] = preprocessor_from_meta(meta)
+        try:
+            self.meta = meta = json.loads(meta) if isinstance(meta, str) else meta
+            desc = meta["model"]
+            self.model_type: str = str(desc["type"])
+            self.frames = int(desc.get("frames", 1))
+            self.command_history = int(desc.get("command_history", 0))
+            self.extra_inputs: tuple[str, ...] = tuple(str(k) for k in desc.get("extra_inputs", ()))
+            self.extra_size = int(desc.get("extra_size", 0))
+            self.input_shape = tuple(int(v) for v in desc["input_shape"])
+            self.preprocessing = preprocessing_from_meta(meta)
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            self.close()
+            raise ModelFileError(f"{path}: the model description stored in the file is invalid or "
+                                 f"incomplete ({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}); "
+                                 "export the model again with `vehicle models export`") from exc
+
+    def preprocess(self, image: np.ndarray) -> np.ndarray:
+        """A camera frame (HxWx3 uint8 RGB) -> the model's float32 input (C, H, W)."""
+        return self.preprocessing.array(image)  # numpy only: an ONNX pilot runs without torch
+
+    def check_frames(self, frame_shape: tuple[int, ...]) -> None:
+        """Raise ValueError unless camera frames of ``frame_shape`` (H, W, C) fit this model: the
+        size it was trained on, and, after its preprocessing, its input shape."""
+        pre = self.preprocessing
+        pre.check_frame_shape(frame_shape)
+        got = pre.output_shape(frame_shape)
+        if got != self.input_shape:
+            raise ValueError(f"{'x'.join(map(str, frame_shape))} frames give model inputs of shape {got} "
+                             f"after the model's preprocessing, but it takes {self.input_shape}; set "
+                             "IMAGE_W/IMAGE_H to the training size or re-train")
 
 
     @property
@@ -119,7 +142,7 @@ class TorchScriptRunner(Runner):
 
         self.module, props = read_torchscript(path)
         self.source_sha256 = props.get(SOURCE_KEY)
-        super().__init__(path, json.loads(props[META_KEY]))
+        super().__init__(path, props[META_KEY])
 
     def predict(self, images: np.ndarray, extra: np.ndarray | None) -> tuple[float, float]:
         import torch
@@ -174,7 +197,7 @@ class OnnxRunner(Runner):
         if self.quantization is not None:
             self.backend = "onnx-int8"
         self.input_names = [i.name for i in self.session.get_inputs()]
-        super().__init__(path, json.loads(props[META_KEY]))
+        super().__init__(path, props[META_KEY])
 
     def predict(self, images: np.ndarray, extra: np.ndarray | None) -> tuple[float, float]:
         feed = {self.input_names[0]: images}
@@ -251,7 +274,7 @@ def open_runner(path: str | os.PathLike[str], backend: Backend | str = "auto",
                              f"it with `vehicle models export {path} --format {backend}`")
         return forced
     if not path.is_file():
-        from parts.pilots.modelfile import ModelFileError
+        from parts.pilots.errors import ModelFileError
 
         raise ModelFileError(f"{path}: no such model file. Train one with `manage.py train` "
                              "or check the path.")

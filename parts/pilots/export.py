@@ -164,12 +164,23 @@ def _export_torchscript(wrapper: nn.Module, inputs: tuple[torch.Tensor, ...], ou
 
 def read_torchscript(path: str | os.PathLike[str]) -> tuple[Any, dict[str, str]]:
     """Load a TorchScript export; returns ``(scripted module, {META_KEY: ..., SOURCE_KEY: ...})``."""
+    from parts.pilots.errors import ModelFileError
+
     extra = {f"{k}.txt": "" for k in (META_KEY, SOURCE_KEY)}
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        module = torch.jit.load(str(path), map_location="cpu", _extra_files=extra)
-    props = {k[:-4]: (v.decode() if isinstance(v, bytes) else v) for k, v in extra.items()}
+    if not Path(path).is_file():
+        raise ModelFileError(f"{path}: no such TorchScript file; export one with "
+                             "`vehicle models export MODEL --format torchscript`")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            module = torch.jit.load(str(path), map_location="cpu", _extra_files=extra)
+        props = {k[:-4]: (v.decode() if isinstance(v, bytes) else v) for k, v in extra.items()}
+    except Exception as exc:  # torch raises RuntimeError (and others) for damaged or foreign files
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ModelFileError(f"{path}: not a readable TorchScript file (corrupt, truncated or another "
+                             f"format: {first[:160]}); export the model again with `vehicle models export "
+                             "MODEL --format torchscript`") from exc
     if not props.get(META_KEY):
-        raise ValueError(f"{path}: not a TorchScript export of a pilot model (no {META_KEY}); "
-                         "export one with `vehicle models export MODEL --format torchscript`")
+        raise ModelFileError(f"{path}: not a TorchScript export of a pilot model (no {META_KEY}); "
+                             "export one with `vehicle models export MODEL --format torchscript`")
     return module.eval(), props

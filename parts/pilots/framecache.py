@@ -115,8 +115,12 @@ class FrameCache:
         if bar is not None:
             bar.close()
         self._rows, self._frames = rows, frames
-        logger.info("cached %d decoded frames (%.0f MB)", slots.size, frames.nbytes / 1e6)
-        return np.unique(np.asarray(bad, np.int64))
+        skipped = np.unique(np.asarray(bad, np.int64))
+        held = int(slots.size) - len(bad)  # one entry per frame that could not be read
+        logger.info("cached %d decoded frames (%.0f MB)%s", held, held * per_frame / 1e6,
+                    f"; {skipped.size} record{'s' if skipped.size != 1 else ''} skipped (unreadable frames: "
+                    "`vehicle tub check` lists them)" if skipped.size else "")
+        return skipped
 
     def get(self, pos: int, key: int = 0) -> np.ndarray:
         """The uint8 HxWx3 frame (read-only view when cached: never modify it in place)."""

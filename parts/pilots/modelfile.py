@@ -24,15 +24,11 @@ from typing import Any
 import torch
 from torch import nn
 
+from parts.pilots.errors import ModelFileError
 from parts.pilots.models import PilotModel, create_model
-from vehicle.errors import VehicleError
 
 FORMAT = "vehicle-pilot"
 FORMAT_VERSION = 1
-
-
-class ModelFileError(VehicleError, ValueError):
-    """A model file is missing, corrupt, unsafe (pickled objects) or does not fit this version."""
 
 
 def _plain(value: Any, where: str) -> Any:

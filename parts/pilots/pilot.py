@@ -6,9 +6,10 @@ previous commands (``memory`` models) and the last N frames (sequence models) ar
 part. Frames go through the same preprocessing code as training. Outputs are clamped to [-1, 1];
 a NaN or infinite prediction becomes angle 0, throttle 0 with a rate-limited warning.
 
-Optional speed control (:class:`parts.drive.speed.SpeedControl`) replaces the model's throttle
-while ``user/speed_limit`` is set; its two inputs (speed key, ``user/speed_limit``) are then
-appended to ``inputs``.
+Optional speed control (:class:`parts.drive.speed.SpeedControl`, PILOT_SPEED_CONTROL) replaces
+the model's throttle by one that drives to its target speed (PILOT_SPEED_LIMIT); the speed key is
+then appended to ``inputs``. The web page's speed limit is not a target: it caps the car's final
+throttle in every mode (:class:`parts.drive.speed.SpeedLimit`).
 
 Hot switch: :meth:`Pilot.request_model` loads another file in a background thread and swaps it in
 with one reference assignment; the loop never waits for a load, and a file that fails to load, or
@@ -24,6 +25,7 @@ import math
 import threading
 import time
 from collections import deque
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -35,7 +37,6 @@ from parts.pilots.compat import CarInputs, check_model
 logger = logging.getLogger(__name__)
 
 IMAGE_KEY = "cam/image_array"
-SPEED_LIMIT_KEY = "user/speed_limit"
 
 
 class _RateLimitedLog:
@@ -80,6 +81,11 @@ class Pilot:
         speed_key: memory key of the measured speed (m/s) fed to ``speed_control``.
         onnx_threads: ONNX Runtime intra-op threads (1: the loop has other parts to run).
         models_dir: folder where relative paths of :meth:`request_model` are looked up too.
+        frame_shape: (height, width, 3) of the camera frames the car gives; a model trained on
+            other frames, or whose input shape they do not give, is refused when it loads
+            (ValueError here, ``load_error`` on a switch). None: learnt from the first frame.
+        extra_sizes: values per extra input in this car, e.g. ``{"behavior/one_hot_state_array":
+            len(BEHAVIOR_LIST)}``; a model trained with another size is refused when it loads.
         car: what the car feeds the model (BEHAVIOR_LIST, CAMERA_UNDISTORT); every model, the
             first and each hot switch, is checked against it (None: not checked).
 
@@ -89,16 +95,19 @@ class Pilot:
 
     def __init__(self, model: str | Path, *, backend: Backend | str = "auto", speed_control: Any = None,
                  speed_key: str = "sim/speed", onnx_threads: int = 1,
-                 models_dir: str | Path | None = None, car: CarInputs | None = None) -> None:
+                 models_dir: str | Path | None = None, frame_shape: tuple[int, ...] | None = None,
+                 extra_sizes: Mapping[str, int] | None = None, car: CarInputs | None = None) -> None:
         self.backend = backend
         self.car = car
         self.onnx_threads = onnx_threads
         self.speed_control = speed_control
         self.speed_key = speed_key
         self.models_dir = Path(models_dir) if models_dir is not None else None
+        self.frame_shape = tuple(frame_shape) if frame_shape is not None else None
+        self.extra_sizes = dict(extra_sizes or {})
         runner = open_runner(model, backend, onnx_threads)
         try:
-            self._check(runner)
+            self.check_fits(runner)
         except Exception:
             runner.close()
             raise
@@ -133,21 +142,16 @@ class Pilot:
     @property
     def inputs(self) -> list[str]:
         """Memory keys ``run`` takes, in order: the image, the model's extra inputs, then (with
-        speed control) the speed and the speed limit."""
+        speed control) the measured speed."""
         keys = [IMAGE_KEY, *self._active.runner.extra_inputs]
         if self.speed_control is not None:
-            keys += [self.speed_key, SPEED_LIMIT_KEY]
+            keys.append(self.speed_key)
         return keys
 
     @property
     def INPUTS(self) -> tuple[str, ...]:  # noqa: N802 - the part declaration read by Vehicle.add
         """The part's inputs (:attr:`inputs`), as the declaration Vehicle.add reads."""
         return tuple(self.inputs)
-
-    @property
-    def OPTIONAL_INPUTS(self) -> tuple[str, ...]:  # noqa: N802 - as INPUTS
-        """The speed limit: a car without the web page has none (PILOT_SPEED_LIMIT applies)."""
-        return (SPEED_LIMIT_KEY,) if self.speed_control is not None else ()
 
     OUTPUTS: ClassVar[tuple[str, ...]] = ("pilot/angle", "pilot/throttle")
 
@@ -164,16 +168,17 @@ class Pilot:
         active = self._active  # one read: a swap during this call does not mix two models
         runner = active.runner
         n_extra = len(runner.extra_inputs)
-        expected = 1 + n_extra + (2 if self.speed_control is not None else 0)
+        expected = 1 + n_extra + (1 if self.speed_control is not None else 0)
         if len(rest) + 1 != expected:
             raise TypeError(f"Pilot.run takes {expected} inputs {self.inputs}, got {len(rest) + 1}; "
                             "wire the part with inputs=pilot.inputs")
         if image is None:  # no frame yet (camera starting): stand still, wheels straight, even
             return 0.0, 0.0  # with speed control (which would accelerate from standstill blind)
+        if self.frame_shape is None and isinstance(image, np.ndarray):
+            self.frame_shape = image.shape  # what a model switched to must take
         angle, throttle = self._predict(active, image, rest[:n_extra])
         if self.speed_control is not None:
-            speed, limit = rest[n_extra], rest[n_extra + 1]
-            throttle = self.speed_control.run(throttle, speed, limit)
+            throttle = self.speed_control.run(throttle, rest[n_extra], None)  # its own target speed
             if throttle is None or not math.isfinite(throttle):
                 throttle = 0.0
             throttle = min(1.0, max(-1.0, float(throttle)))
@@ -223,9 +228,20 @@ class Pilot:
                              "(e.g. a different number of behaviours: check BEHAVIOR_LIST)")
         return np.ascontiguousarray(extra[None], dtype=np.float32)
 
-    def _check(self, runner: Runner) -> None:
-        """Raise ModelMismatch when ``runner``'s model does not fit the car."""
-        if self.car is not None:
+    def check_fits(self, runner: Runner) -> None:
+        """Raise ValueError (the message says what to change) unless ``runner``'s model takes this
+        car's frames and extra inputs: checked when a model loads, so that a wrong model never
+        reaches the first frame in a pilot mode."""
+        if self.frame_shape is not None:
+            runner.check_frames(self.frame_shape)
+        known = [k for k in runner.extra_inputs if k in self.extra_sizes]
+        if known and len(known) == len(runner.extra_inputs):
+            given = 2 * runner.command_history + sum(self.extra_sizes[k] for k in known)
+            if given != runner.extra_size:
+                sizes = " and ".join(f"{k} has {self.extra_sizes[k]} values" for k in known)
+                raise ValueError(f"{sizes} in this car, but the model was trained with {runner.extra_size} "
+                                 "(a different number of behaviours? check BEHAVIOR_LIST, or re-train)")
+        if self.car is not None:  # behaviour order, undistortion (ModelMismatch, a ValueError)
             check_model(runner.name, runner.meta, runner.extra_inputs, runner.extra_size, self.car)
 
     # -- hot switch -----------------------------------------------------------------------------
@@ -256,29 +272,30 @@ class Pilot:
         try:
             runner = open_runner(path, self.backend, self.onnx_threads)
         except Exception as exc:  # any failure keeps the current model driving
-            self.load_error = f"{path}: {exc}"
-            logger.error("pilot: cannot switch to %s, keeping %s: %s", path, self.model_name, exc)
+            self._refuse(path, str(exc))
+            return
+        try:
+            self.check_fits(runner)
+        except ValueError as exc:
+            runner.close()
+            self._refuse(path, str(exc))
             return
         old = self._active
         if self.lock_inputs and runner.extra_inputs != old.runner.extra_inputs:
-            self.load_error = (f"{path}: the model needs inputs {[IMAGE_KEY, *runner.extra_inputs]} but the "
-                               f"pilot was wired with {[IMAGE_KEY, *old.runner.extra_inputs]}; restart "
-                               "the car with this model instead")
-            logger.error("pilot: cannot switch to %s, keeping %s: %s", path, old.runner.name, self.load_error)
             runner.close()
-            return
-        try:
-            self._check(runner)
-        except ValueError as exc:
-            self.load_error = f"{path}: {exc}"
-            logger.error("pilot: cannot switch to %s, keeping %s: %s", path, old.runner.name, exc)
-            runner.close()
+            self._refuse(path, f"the model needs inputs {[IMAGE_KEY, *runner.extra_inputs]} but the pilot "
+                         f"was wired with {[IMAGE_KEY, *old.runner.extra_inputs]}; restart the car with "
+                         "this model instead")
             return
         self._active = _Active(runner)  # the swap: one reference assignment, atomic for the loop
         self.load_error = None
         logger.info("pilot: switched from %s to %s (%s, %s backend)", old.runner.name, runner.name,
                     runner.model_type, runner.backend)
         old.runner.close()
+
+    def _refuse(self, path: Path, why: str) -> None:
+        self.load_error = f"{path}: {why}"
+        logger.error("pilot: cannot switch to %s, keeping %s: %s", path, self.model_name, why)
 
     def wait_loaded(self, timeout: float | None = None) -> bool:
         """Block until a pending load finished (for tests and scripts; the loop never calls it)."""
@@ -295,23 +312,30 @@ class Pilot:
 
 
 class ModelSwitch:
-    """Part: watch ``pilot/model_request`` and hot-switch the pilot; outputs ``pilot/model``.
+    """Part: watch ``pilot/model_request`` and hot-switch the pilot; outputs ``pilot/model`` and
+    ``pilot/load_error`` (why the last model asked for was not loaded; None after a success).
 
     Runs every loop (no run_condition), so a model chosen while a human drives is loaded before
-    the pilot takes over. A request that equals the last one is ignored; a request made while a
-    load is running is retried on the next loops.
+    the pilot takes over. A request equal to the last one is ignored until the request goes back
+    to None (the web page hands a pick over once, so picking the same file again reloads it); a
+    request made while a load is running is kept and retried on the next loops.
     """
 
     INPUTS: ClassVar[tuple[str, ...]] = ("pilot/model_request",)
     #: a car without the web page's model picker never asks for a switch
     OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("pilot/model_request",)
-    OUTPUTS: ClassVar[tuple[str, ...]] = ("pilot/model",)
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("pilot/model", "pilot/load_error")
 
     def __init__(self, pilot: Pilot) -> None:
         self.pilot = pilot
         self._last: str | None = None
+        self._pending: str | None = None
 
-    def run(self, request: str | None) -> str:
-        if request and request != self._last and self.pilot.request_model(request):
-            self._last = request
-        return self.pilot.model_name
+    def run(self, request: str | None) -> tuple[str, str | None]:
+        if not request:
+            self._last = None
+        elif request != self._last:
+            self._last = self._pending = request
+        if self._pending and self.pilot.request_model(self._pending):
+            self._pending = None
+        return self.pilot.model_name, self.pilot.load_error

@@ -101,6 +101,14 @@ class Preprocess:
             ch, cw = self.resize
         return ((1 if self.color == "gray" else 3) + (1 if self.lanes is not None else 0), ch, cw)
 
+    def check_frame_shape(self, shape: tuple[int, ...]) -> None:
+        """Raise ValueError when the model was trained on frames of another shape than ``shape``."""
+        if self.image_shape is not None and tuple(shape) != self.image_shape:
+            got = "x".join(map(str, shape))
+            want = "x".join(map(str, self.image_shape))
+            raise ValueError(f"frame is {got} but the model was trained on {want} frames; set "
+                             "IMAGE_W/IMAGE_H to the training size or re-train")
+
     # -- stage 1: per frame, uint8
     def frame(self, image: np.ndarray) -> np.ndarray:
         """Crop, resize and convert one uint8 HxWx3 RGB frame; returns uint8 H'xW'xC."""
@@ -109,11 +117,7 @@ class Preprocess:
             kind = getattr(image, "dtype", type(image).__name__)
             raise ValueError(f"expected a uint8 HxWx3 RGB frame, got {kind} of shape "
                              f"{getattr(image, 'shape', '?')}")
-        if self.image_shape is not None and image.shape != self.image_shape:
-            got = "x".join(map(str, image.shape))
-            want = "x".join(map(str, self.image_shape))
-            raise ValueError(f"frame is {got} but the model was trained on {want} frames; set "
-                             "IMAGE_W/IMAGE_H to the training size or re-train")
+        self.check_frame_shape(image.shape)
         top, bottom, left, right = self.crop
         h, w = image.shape[:2]
         if top + bottom >= h or left + right >= w:

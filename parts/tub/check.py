@@ -9,8 +9,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from parts.tub.codec import decode_image, looks_whole_jpeg
-from parts.tub.format import IMAGE_TYPES
+from parts.tub.catalog import read_catalog_manifest, scan_catalog, write_catalog_manifest
+from parts.tub.codec import image_problem
+from parts.tub.format import IMAGE_TYPES, catalog_manifest_name
 from parts.tub.tub import Tub
 
 logger = logging.getLogger(__name__)
@@ -23,6 +24,7 @@ class CheckReport:
     path: Path
     records: int = 0
     recovered: list[str] = field(default_factory=list)     # manifest/catalog problems (fixed on repair)
+    catalog_manifests: list[str] = field(default_factory=list)  # .catalog_manifest problems (rewritten)
     torn_bytes: int = 0                                     # bytes of torn last lines (cut on repair)
     unparsable: list[tuple[str, int]] = field(default_factory=list)  # (catalog, position)
     bad_records: dict[int, str] = field(default_factory=dict)
@@ -32,12 +34,13 @@ class CheckReport:
 
     @property
     def ok(self) -> bool:
-        return not (self.recovered or self.torn_bytes or self.unparsable or self.bad_records
-                    or self.duplicate_indexes)
+        return not (self.recovered or self.catalog_manifests or self.torn_bytes or self.unparsable
+                    or self.bad_records or self.duplicate_indexes)
 
     def lines(self) -> list[str]:
         out = [f"{self.path}: {self.records} records checked"]
         out += [f"  manifest: {p}" for p in self.recovered]
+        out += [f"  {p}" for p in self.catalog_manifests]
         if self.torn_bytes:
             out.append(f"  torn last line(s): {self.torn_bytes} bytes")
         out += [f"  {cat}: line {pos + 1}: unparsable" for cat, pos in self.unparsable]
@@ -49,7 +52,8 @@ class CheckReport:
         if self.ok:
             out.append("  OK")
         elif self.repaired:
-            out.append("  repaired: manifest rewritten, torn lines cut, bad records marked deleted")
+            out.append("  repaired: manifest and catalog manifests rewritten, torn lines cut, bad records "
+                       "marked deleted")
         else:
             out.append("  run with --repair to fix (bad records are soft-deleted, restorable)")
         return out
@@ -57,14 +61,18 @@ class CheckReport:
 
 def check_tub(path: str | os.PathLike[str], repair: bool = False, decode: bool = True,
               progress: bool = False) -> CheckReport:
-    """Check one tub: manifest vs catalogs, torn and unparsable lines, duplicate indexes, and every
-    image of every live record (exists, non-empty, whole JPEG, decodes when ``decode``).
+    """Check one tub: manifest vs catalogs, each catalog's ``.catalog_manifest`` (DonkeyCar needs
+    it, with the catalog's line lengths), torn and unparsable lines, duplicate indexes, and every
+    image of every live record: exists, non-empty, a whole JPEG/PNG, and, with ``decode``, decodes
+    without errors (a JPEG damaged in its middle decodes only with libjpeg's warnings).
 
-    With ``repair`` the tub is opened for writing (which rewrites the manifest and cuts torn
-    lines) and bad records are soft-deleted.
+    With ``repair`` the tub is opened for writing (which rewrites the manifest, cuts torn lines and
+    drops empty trailing catalogs), bad records are soft-deleted and the catalog manifests are
+    rewritten from the catalogs.
     """
     ro = Tub(path, read_only=True)
     report = CheckReport(ro.path, recovered=list(ro.problems))
+    report.catalog_manifests = _catalog_manifest_problems(ro)
     report.torn_bytes = sum(_torn(p) for p in ro.catalog_paths)
     if repair:
         for catalog in ro.catalog_paths[:-1]:  # the last one is cut by the writable open
@@ -105,8 +113,38 @@ def check_tub(path: str | os.PathLike[str], repair: bool = False, decode: bool =
         if to_delete:
             tub.delete_records(sorted(to_delete))
         tub.close()
+        _rewrite_catalog_manifests(Tub(path, read_only=True))
         report.repaired = True
     return report
+
+
+def _catalog_manifests(tub: Tub) -> list[tuple[Path, int, list[int], dict[str, Any] | None]]:
+    """(catalog, its start index, its line lengths, its .catalog_manifest or None) per catalog."""
+    return [(p, i * tub.max_len, scan_catalog(p).line_lengths, read_catalog_manifest(p))
+            for i, p in enumerate(tub.catalog_paths) if p.exists()]
+
+
+def _catalog_manifest_problems(tub: Tub) -> list[str]:
+    out = []
+    for catalog, start, lengths, meta in _catalog_manifests(tub):
+        name = catalog_manifest_name(catalog.name)
+        if meta is None:
+            gone = not catalog.with_name(name).exists()
+            out.append(f"{name} is {'missing' if gone else 'unreadable'} (DonkeyCar cannot open the tub)")
+        elif meta.get("line_lengths") != lengths:
+            out.append(f"{name}: line lengths do not match {catalog.name}")
+        elif meta.get("start_index") != start:
+            out.append(f"{name}: start_index {meta.get('start_index')!r}, {catalog.name} starts at {start}")
+    return out
+
+
+def _rewrite_catalog_manifests(tub: Tub) -> None:
+    for catalog, start, lengths, meta in _catalog_manifests(tub):
+        if meta is None or meta.get("line_lengths") != lengths or meta.get("start_index") != start:
+            created = (meta or {}).get("created_at")
+            if not isinstance(created, int | float):
+                created = catalog.stat().st_mtime
+            write_catalog_manifest(catalog, start, lengths, created, durable=True)
 
 
 def _torn(catalog: Path) -> int:
@@ -127,12 +165,9 @@ def _image_problem(images: Path, rec: dict, keys: list[str], decode: bool) -> st
             data = path.read_bytes()
         except OSError:
             return f"{path.name}: missing"
-        if not data:
-            return f"{path.name}: empty (0 bytes)"
-        if name.endswith(".jpg") and not looks_whole_jpeg(data):
-            return f"{path.name}: truncated JPEG"
-        if decode and decode_image(data) is None:
-            return f"{path.name}: does not decode"
+        why = image_problem(data, name, decode)
+        if why:
+            return f"{path.name}: {why}"
     return None
 
 

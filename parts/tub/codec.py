@@ -120,3 +120,42 @@ def decode_image(data: bytes | np.ndarray, out: np.ndarray | None = None) -> np.
 def looks_whole_jpeg(data: bytes) -> bool:
     """Cheap check: JPEG start marker and end-of-image marker present (catches torn/0-byte files)."""
     return len(data) > 4 and data[:2] == b"\xff\xd8" and data.rstrip(b"\x00")[-2:] == b"\xff\xd9"
+
+
+_PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def image_problem(data: bytes, name: str, decode: bool = True) -> str | None:
+    """Why the bytes of image file ``name`` are not a whole, clean image; None when they are.
+
+    Without ``decode`` only the markers are looked at (empty, not a JPEG/PNG, truncated). With it
+    the image is decoded, and a JPEG that decodes only with libjpeg's warnings ("Corrupt JPEG
+    data: ...", what a file damaged in its middle gives: the image is partly grey or garbled) is
+    reported with the warning. The warnings come from simplejpeg; without it, OpenCV decodes and
+    only a JPEG that does not decode at all is found.
+    """
+    if not data:
+        return "empty (0 bytes)"
+    if name.endswith(".png"):
+        if not data.startswith(_PNG_MAGIC):
+            return "not a PNG (no PNG signature)"
+        return "does not decode" if decode and decode_image(data) is None else None
+    if data[:2] != b"\xff\xd8":
+        return "not a JPEG (no JPEG start marker)"
+    if not looks_whole_jpeg(data):
+        return "truncated JPEG (no end marker)"
+    if not decode:
+        return None
+    sj = simplejpeg()
+    if sj is not None:
+        try:
+            sj.decode_jpeg(data, "RGB", strict=True)
+            return None
+        except ValueError as exc:
+            warning = " ".join(str(exc).split())[:120]
+        try:
+            sj.decode_jpeg(data, "RGB", strict=False)
+        except ValueError:  # fatal for libjpeg-turbo's RGB path: OpenCV decides (CMYK JPEGs)
+            return None if decode_image(data) is not None else f"does not decode ({warning})"
+        return f"decodes with errors ({warning})"
+    return "does not decode" if decode_image(data) is None else None

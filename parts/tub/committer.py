@@ -21,6 +21,13 @@ twice ``fsync_ms``, before manifest.json is replaced, before a catalog is closed
 close. A power cut then loses at most the window whose lines await the next commit, the window
 being committed and the one being written.
 
+A new catalog file (DonkeyCar: every max_len records) appears with its first lines: the job
+that asks for it closes the current catalog, and the next job's lines create the new file
+atomically (written to a temporary file, synced, renamed), then its ``.catalog_manifest``; the
+manifest.json that lists it is written only then. A kill at any instant therefore never leaves an
+empty catalog behind, which DonkeyCar cannot open (``cannot mmap an empty file``), nor a listed
+catalog without its file.
+
 A job that fails is kept: records submitted later are merged into it (one sync, one append) and
 it is tried again at the next submission (inline) or after ``RETRY_S`` (background), so nothing
 is dropped and nothing is written twice. When a sync that lines were waiting for fails, those
@@ -76,7 +83,9 @@ class Committer:
                  background: bool, fsync_ms: float = 500.0) -> None:
         self.tub_path = tub_path
         self.images = images
-        self.catalog = catalog
+        self.catalog: CatalogFile | None = catalog  # None between a rollover and its first lines
+        self._next: tuple[Path, int] | None = None  # the catalog to create with the next lines
+        self._held_manifest: str | None = None      # manifest.json text that lists it
         self.durable = durable
         # Catalog lines made durable by the next commit's syncfs (see the module docstring): the
         # lines appended since the last sync that covered them, and the catalog's size before.
@@ -157,7 +166,8 @@ class Committer:
         try:
             if self._error is None and self._dead is None:
                 self.wait()
-                self.catalog.save_manifest(durable=self.durable)
+                if self.catalog is not None:
+                    self.catalog.save_manifest(durable=self.durable)
         finally:
             with self._cond:
                 self._closing = True
@@ -169,7 +179,8 @@ class Committer:
                 self._sync_lines()  # lines of earlier commits, when the last one failed
             except OSError as exc:
                 logger.error("%s: cannot fsync the catalog at close: %s", self.tub_path, exc)
-            self.catalog.close()
+            if self.catalog is not None:
+                self.catalog.close()
             lost = self._pending_lines()
             if lost:
                 logger.error("%s: closed with %d records not committed (%s)", self.tub_path, lost,
@@ -251,7 +262,11 @@ class Committer:
 
     def _commit(self, job: _Job) -> None:
         """One job, step by step; a step that succeeded is not repeated when the job is retried."""
+        if job.lines and self.catalog is None:
+            self._start_catalog(job)
         if job.lines:
+            catalog = self.catalog
+            assert catalog is not None  # noqa: S101 - started above
             # With images to sync, that syncfs also writes the lines appended before it, and this
             # job's lines wait for the next one; else the catalog is fsynced as usual.
             ride = self._ride_along and len(self.images) > 0
@@ -260,8 +275,8 @@ class Committer:
                     self.images.sync()  # the images before their catalog lines
                 if ride:
                     self._unsynced = []
-                    self._durable_size = self.catalog.size
-                self.catalog.append(job.lines, durable=self.durable and not ride)
+                    self._durable_size = catalog.size
+                catalog.append(job.lines, durable=self.durable and not ride)
             except Exception:
                 self._take_back_unsynced(job)  # their sync failed, or may have
                 raise
@@ -279,29 +294,45 @@ class Committer:
                 raise
             job.durable = False
         if job.next_catalog is not None:
-            path, start = job.next_catalog
-            new = CatalogFile.open_append(path, start, durable=self.durable)
-            try:
+            if self.catalog is not None:
                 self.catalog.save_manifest(durable=self.durable)
-            except BaseException:
-                new.close()
-                raise
-            self.catalog.close()
-            self.catalog = new
+                self.catalog.close()
+                self.catalog = None
+            self._next = job.next_catalog  # created with its first lines (see the module docstring)
             job.next_catalog = None
         if job.manifest is not None:
-            atomic_write(self.tub_path / "manifest.json", job.manifest, durable=self.durable)
+            if self.catalog is None:  # it lists a catalog that has no file yet: wait for it
+                self._held_manifest = job.manifest
+            else:
+                atomic_write(self.tub_path / "manifest.json", job.manifest, durable=self.durable)
             job.manifest = None
+
+    def _start_catalog(self, job: _Job) -> None:
+        """Create the next catalog holding ``job``'s lines (after their images), then its
+        ``.catalog_manifest``, then the manifest.json held back for it."""
+        assert self._next is not None  # noqa: S101 - a rollover job ran before
+        path, start = self._next
+        if self.durable:
+            self.images.sync()  # the images before their catalog lines
+        atomic_write(path, "".join(job.lines), durable=self.durable)  # a retry rewrites it whole
+        self.catalog = CatalogFile.open_append(path, start, durable=self.durable)
+        self._next = None
+        self._unsynced, self._durable_size = [], self.catalog.size
+        job.lines = []
+        if self._held_manifest is not None:
+            if job.manifest is None:
+                job.manifest = self._held_manifest
+            self._held_manifest = None
 
     def _sync_lines(self) -> None:
         """fsync the catalog lines that were appended without one."""
-        if self._unsynced:
+        if self._unsynced and self.catalog is not None:
             os.fsync(self.catalog.fd)
             self._unsynced = []
 
     def _take_back_unsynced(self, job: _Job) -> None:
         """Cut the lines that waited for a failed sync from the catalog; ``job`` appends them again."""
-        if self._unsynced:
+        if self._unsynced and self.catalog is not None:
             self.catalog.cut_back(self._durable_size, len(self._unsynced))
             job.lines[:0] = self._unsynced
             self._unsynced = []

@@ -106,6 +106,7 @@ class ParsedManifest:
     has_schema: bool
     has_catalog_line: bool
     problems: list[str]
+    has_sessions_line: bool = True  # line 4 (created_at, sessions) was read
 
 
 def _load_line(lines: list[str], i: int, kind: type) -> Any:
@@ -123,7 +124,7 @@ def parse_manifest(path: Path) -> ParsedManifest:
     try:
         text = path.read_bytes().decode("utf-8", errors="replace")
     except FileNotFoundError:
-        return ParsedManifest(Manifest(), False, False, ["manifest.json is missing"])
+        return ParsedManifest(Manifest(), False, False, ["manifest.json is missing"], False)
     raw = text.split("\n")
     # A last line without newline may be a torn write; json.loads still accepts it if whole.
     lines = [ln for ln in raw if ln.strip()]
@@ -158,4 +159,4 @@ def parse_manifest(path: Path) -> ParsedManifest:
             pass
     if not has_catalog_line and lines:
         problems.append("catalog list (line 5) unreadable")
-    return ParsedManifest(m, has_schema, has_catalog_line, problems)
+    return ParsedManifest(m, has_schema, has_catalog_line, problems, mm is not None)

@@ -8,7 +8,11 @@ Rules (docs/data-format.md "Recovery"):
 - ``current_index`` = highest ``_index`` in the catalogs + 1 (a stale manifest would give duplicate
   indexes); deleted indexes beyond it are dropped;
 - the next session number is above every session in the manifest *and* in the last catalog (the
-  session of a crashed run may never have reached the manifest);
+  session of a crashed run may never have reached the manifest: it is added);
+- line 4 lost: ``created_at`` and the sessions are rebuilt from the records (``_timestamp_ms``,
+  ``_session_id``);
+- empty catalogs at the end (a kill right after a catalog was started; DonkeyCar cannot open an
+  empty catalog) are dropped, and so are listed catalogs whose file is gone;
 - the torn tail of a catalog is cut when the tub is opened for writing (``CatalogFile``).
 """
 
@@ -18,7 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from parts.tub.catalog import parse_line, read_catalog_manifest, record_index, scan_catalog
-from parts.tub.format import CATALOG_RE, IMAGES, MANIFEST, SESSION, session_number
+from parts.tub.format import CATALOG_RE, IMAGES, MANIFEST, SESSION, TIMESTAMP, session_number
 from parts.tub.manifest import Manifest, parse_manifest
 
 _INFER_SAMPLE = 200  # records looked at to infer a lost schema
@@ -34,6 +38,7 @@ class TubState:
     problems: list[str] = field(default_factory=list)
     session_floor: int | None = None  # highest session number seen in the catalogs
     torn: dict[str, int] = field(default_factory=dict)  # catalog name -> torn bytes at its end
+    dropped: list[str] = field(default_factory=list)  # empty trailing catalogs (files to remove)
 
     @property
     def needs_manifest_write(self) -> bool:
@@ -105,6 +110,12 @@ def inspect_tub(tub: Path, default_max_len: int = 1000) -> TubState:
     else:
         m.paths = list(on_disk)
         m.max_len = _infer_max_len(tub, on_disk, default_max_len)
+    while len(m.paths) > 1 and not scan_catalog(tub / m.paths[-1]).lines:
+        name = m.paths.pop()
+        state.dropped.append(name)
+        gone = "is missing" if not (tub / name).exists() else "is empty"
+        state.problems.append(f"{name} {gone} (a kill right after it was started; DonkeyCar cannot open "
+                              "such a tub): dropped")
 
     # Find the last record: walk back from the last catalog to the first one that holds records.
     # Only the last parsable line is needed: indexes and session numbers grow along a tub.
@@ -140,10 +151,42 @@ def inspect_tub(tub: Path, default_max_len: int = 1000) -> TubState:
             m.inputs, m.types = infer_types(tub, sample)
             state.has_schema = True
             state.problems.append(f"inputs/types rebuilt from the catalogs: {m.inputs} {m.types}")
+    if not parsed.has_sessions_line:
+        _rebuild_line_four(tub, m)
+        state.problems.append("created_at and sessions (line 4) rebuilt from the records")
     last_known = m.last_session_number()
     if state.session_floor is not None and (last_known is None or state.session_floor > last_known):
-        state.problems.append("the last session never reached the manifest (crashed run)")
+        state.problems.append("the last session never reached the manifest (crashed run): added")
+        full_id = last_record.get(SESSION) if last_record else None
+        if isinstance(full_id, str):
+            m.add_session(state.session_floor, full_id)
     return state
+
+
+def _rebuild_line_four(tub: Path, m: Manifest) -> None:
+    """``created_at`` (the first record's time) and the sessions, in order, from the records."""
+    first_ms: float | None = None
+    sessions: list[str] = []
+    for name in m.paths:
+        for line in scan_catalog(tub / name).lines:
+            rec, _ = parse_line(line)
+            if rec is None:
+                continue
+            ts = rec.get(TIMESTAMP)
+            if isinstance(ts, int | float) and not isinstance(ts, bool) and (first_ms is None or ts < first_ms):
+                first_ms = ts
+            sid = rec.get(SESSION)
+            if isinstance(sid, str) and (not sessions or sessions[-1] != sid) and sid not in sessions:
+                sessions.append(sid)
+    meta = dict(m.manifest_metadata)
+    if first_ms is not None:
+        meta["created_at"] = first_ms / 1000.0
+    meta.pop("sessions", None)
+    m.manifest_metadata = meta
+    for sid in sessions:
+        number = session_number(sid)
+        if number is not None:
+            m.add_session(number, sid)
 
 
 def _start_of(tub: Path, m: Manifest, pos: int) -> int:

@@ -81,6 +81,7 @@ class TubInfo:
     disk_bytes: int
     metadata: dict[str, Any]
     problems: list[str] = field(default_factory=list)
+    torn: dict[str, int] = field(default_factory=dict)  # catalog -> bytes of its torn last line
 
     def lines(self) -> list[str]:
         def when(ms: int | None) -> str:
@@ -99,6 +100,8 @@ class TubInfo:
                + (f" ({self.disk_bytes / max(1, self.current_index):.0f} bytes/record)"
                   if self.current_index else ""),
                f"metadata:  {self.metadata}"]
+        out += [f"torn last line: {n} bytes at the end of {name} (a write cut short; the record is not "
+                "counted; `vehicle tub repair` cuts it)" for name, n in self.torn.items()]
         if self.problems:
             out.append("recovered: " + "; ".join(self.problems))
         return out
@@ -118,7 +121,8 @@ def tub_info(path: str | os.PathLike[str]) -> TubInfo:
     return TubInfo(tub.path, len(tub), len(tub.manifest.deleted_indexes), tub.current_index,
                    list(zip(tub.inputs, tub.types, strict=True)), dict(sessions),
                    None if first is None else int(first), None if last is None else int(last),
-                   len(tub.manifest.paths), disk_size(tub.path), dict(tub.metadata), list(tub.problems))
+                   len(tub.manifest.paths), disk_size(tub.path), dict(tub.metadata), list(tub.problems),
+                   dict(tub.torn))
 
 
 def format_header(fields: list[str]) -> str:

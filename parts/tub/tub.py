@@ -32,6 +32,7 @@ from parts.tub.format import (
     INDEX,
     SESSION,
     TIMESTAMP,
+    catalog_manifest_name,
     catalog_name,
     check_schema,
     dumps_record,
@@ -130,6 +131,8 @@ class Tub:
             raise TubError(f"{self.path} is a file, not a tub folder")
         state = inspect_tub(self.path, max_catalog_len)
         self.problems = list(state.problems)
+        self.torn = dict(state.torn)  # catalog name -> bytes of its torn last line (cut when writable)
+        self._dropped = list(state.dropped)  # empty trailing catalogs, removed when writable
         if read_only and not state.is_tub:
             raise TubError(f"{self.path} is not a tub: it has no manifest.json and no catalog_*.catalog")
         m = state.manifest
@@ -216,6 +219,9 @@ class Tub:
         catalog = CatalogFile.open_append(self.path / m.paths[-1], start, durable=self.fsync)
         if not clean:
             m.save(self.path, durable=self.fsync)
+        for name in self._dropped:  # no longer listed: now their files can go
+            for dropped in (self.path / name, self.path / catalog_manifest_name(name)):
+                dropped.unlink(missing_ok=True)
         self._committer = Committer(self.path, self._images, catalog, durable=self.fsync,
                                     background=commit_thread, fsync_ms=self.fsync_ms)
 

@@ -18,7 +18,7 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, Final
 
@@ -62,6 +62,9 @@ class WebController(ThreadedPart):
         max_speed_limit: largest speed limit the page offers, m/s. Default 5.0.
         telemetry_hz: rate of state updates to the page. Default 20.
         jpeg_quality: JPEG quality of the camera view, 1-100. Default 80.
+        allowed_hosts: host names, besides IP addresses, ``localhost``, this machine's name and
+            ``host``, that the page may be opened by (a DNS name of the car). Requests naming
+            another host are refused (DNS rebinding). Default none.
         start_timeout: seconds :meth:`start` waits for the server to listen. Default 10.
         clock: monotonic seconds for the dead-man timer. Default ``time.monotonic``.
     """
@@ -69,7 +72,8 @@ class WebController(ThreadedPart):
     #: memory keys the part reads (telemetry for the page), in this order
     INPUTS: Final = ("cam/image_array", "user/mode", "recording", "estop", "tub/num_records",
                      "angle", "throttle", "pilot/angle", "pilot/throttle", "pilot/model",
-                     "sim/speed", "enc/speed", "loop/rate_hz", "loop/overruns", "behavior/label")
+                     "sim/speed", "enc/speed", "loop/rate_hz", "loop/overruns", "behavior/label",
+                     "run_pilot", "pilot/load_error", "sim/cte", "sim/lap", "sim/off_track", "js/status")
     #: every input is telemetry for the page: it may be absent (None) and is the last loop's value
     #: when a part added after the controller produces it (drive mode, pilot, tub writer ...)
     OPTIONAL_INPUTS: Final = INPUTS
@@ -81,7 +85,8 @@ class WebController(ThreadedPart):
     def __init__(self, host: str = "127.0.0.1", port: int = 8887, token: str | None = None, *,
                  deadman_s: float = 0.5, init_mode: str = "user", max_throttle: float = 0.5,
                  models_dir: str | Path | None = None, max_speed_limit: float = 5.0,
-                 telemetry_hz: float = 20.0, jpeg_quality: int = 80, start_timeout: float = 10.0,
+                 telemetry_hz: float = 20.0, jpeg_quality: int = 80,
+                 allowed_hosts: Sequence[str] = (), start_timeout: float = 10.0,
                  clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__()
         self.name = "WebController"
@@ -91,7 +96,8 @@ class WebController(ThreadedPart):
         self.frames = LatestFrame(jpeg_quality)
         self.server = WebServer(self.state, self.frames, host=host, port=port, token=self.token,
                                 models_dir=Path(models_dir) if models_dir is not None else None,
-                                max_speed_limit=max_speed_limit, telemetry_hz=telemetry_hz)
+                                max_speed_limit=max_speed_limit, telemetry_hz=telemetry_hz,
+                                extra_hosts=tuple(allowed_hosts))
         self.start_timeout = start_timeout
         self._ready = threading.Event()
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -103,7 +109,8 @@ class WebController(ThreadedPart):
         return cls(cfg.WEB_HOST, cfg.WEB_CONTROL_PORT, cfg.WEB_TOKEN, deadman_s=cfg.WEB_DEADMAN_S,
                    init_mode=cfg.DEFAULT_MODE, max_throttle=cfg.WEB_MAX_THROTTLE,
                    models_dir=cfg.path("MODELS_PATH"), max_speed_limit=cfg.WEB_MAX_SPEED_LIMIT,
-                   telemetry_hz=cfg.WEB_TELEMETRY_HZ, jpeg_quality=cfg.WEB_JPEG_QUALITY)
+                   telemetry_hz=cfg.WEB_TELEMETRY_HZ, jpeg_quality=cfg.WEB_JPEG_QUALITY,
+                   allowed_hosts=cfg.WEB_ALLOWED_HOSTS)
 
     # -- lifecycle --------------------------------------------------------------------------------
     @property
@@ -190,6 +197,9 @@ class WebController(ThreadedPart):
         estop = values.get("estop")
         model = values.get("pilot/model")
         behavior = values.get("behavior/label")
+        run_pilot, load_error = values.get("run_pilot"), values.get("pilot/load_error")
+        lap, off_track = values.get("sim/lap"), values.get("sim/off_track")
+        pad = values.get("js/status")
         self.state.report(Telemetry(
             mode=mode if isinstance(mode, str) else None,
             recording=bool(recording) if isinstance(recording, bool | np.bool_) else None,
@@ -201,7 +211,13 @@ class WebController(ThreadedPart):
             pilot_model=Path(model).name if isinstance(model, str) else None,
             speed=speed, loop_rate_hz=_num(values.get("loop/rate_hz")),
             loop_overruns=int(overruns) if isinstance(overruns, int | np.integer) else None,
-            behavior=behavior if isinstance(behavior, str) else None))
+            behavior=behavior if isinstance(behavior, str) else None,
+            pilot_active=bool(run_pilot) if isinstance(run_pilot, bool | np.bool_) else None,
+            pilot_error=load_error[:300] if isinstance(load_error, str) else None,
+            sim_cte=_num(values.get("sim/cte")),
+            sim_laps=int(lap) if isinstance(lap, int | np.integer) else None,
+            sim_off_track=bool(off_track) if isinstance(off_track, bool | np.bool_) else None,
+            car_gamepad=pad if pad in ("connected", "silent", "lost") else None))
         cmd = self.state.outputs()
         return (cmd.angle, cmd.user_throttle(), cmd.mode, cmd.recording, cmd.estop,
                 cmd.speed_limit, cmd.model_request, cmd.behavior_step)

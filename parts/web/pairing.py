@@ -1,9 +1,16 @@
-"""Pairing: when the page is reachable from the network, every browser needs the car's token.
+"""Who may talk to the car: the pairing token and the host names the page may be opened by.
 
 The token travels in the page URL (``http://car:8887/?token=...``); the page passes it in the
 Socket.IO handshake and the server refuses any connection without it. The URL is logged at start
 and, when the optional ``qrcode`` package is installed, drawn as a QR code in the terminal so a
 phone can scan it.
+
+Host names: on loopback no token is needed, so a page of another site must never reach the
+server. A site whose name an attacker makes resolve to 127.0.0.1 (DNS rebinding) is same-origin
+with itself, so the Origin check alone lets it in; the ``Host`` header it sends still names the
+attacker's domain. The server therefore answers only requests whose Host is an IP address (which
+cannot be rebound), ``localhost``, this machine's name, the configured host or a name the user
+allowed (:func:`allowed_hosts`, :func:`host_allowed`).
 """
 
 from __future__ import annotations
@@ -13,6 +20,7 @@ import ipaddress
 import logging
 import secrets
 import socket
+from collections.abc import Iterable
 
 logger = logging.getLogger(__name__)
 
@@ -29,6 +37,48 @@ def is_loopback(host: str) -> bool:
         except OSError:
             return False
         return bool(infos) and all(ipaddress.ip_address(i[4][0]).is_loopback for i in infos)
+
+
+#: names that always mean this machine
+LOOPBACK_NAMES = frozenset({"localhost", "ip6-localhost", "ip6-loopback"})
+
+
+def allowed_hosts(host: str, extra: Iterable[str] = ()) -> frozenset[str]:
+    """Host names (lower case) a request may carry besides IP addresses: ``localhost``, the bound
+    ``host`` when it is a name, this machine's name (and ``NAME.local``, its mDNS name) when the
+    server listens on the network, and ``extra`` (WEB_ALLOWED_HOSTS)."""
+    names = set(LOOPBACK_NAMES)
+    bound = host.strip("[]").lower().rstrip(".")
+    if bound and bound not in ("0.0.0.0", "::") and not _is_ip(bound):
+        names.add(bound)
+    if not is_loopback(host):
+        machine = socket.gethostname().lower().rstrip(".")
+        if machine:
+            names.update({machine, f"{machine.split('.')[0]}.local"})
+    names.update(n.strip().lower().rstrip(".") for n in extra if n.strip())
+    return frozenset(names)
+
+
+def host_allowed(host_header: str | None, allowed: frozenset[str]) -> bool:
+    """Whether a request's ``Host`` header (``name[:port]``, ``[v6]:port``) names this car: an IP
+    address, or a name in ``allowed``."""
+    if not host_header:
+        return False
+    text = host_header.strip().lower()
+    if text.startswith("["):  # [v6 literal]:port
+        end = text.find("]")
+        return end > 0 and _is_ip(text[1:end])
+    name = text.rsplit(":", 1)[0] if text.count(":") == 1 else text
+    name = name.rstrip(".")
+    return _is_ip(name) or name in allowed
+
+
+def _is_ip(text: str) -> bool:
+    try:
+        ipaddress.ip_address(text)
+    except ValueError:
+        return False
+    return True
 
 
 def resolve_token(host: str, token: str | None) -> str | None:

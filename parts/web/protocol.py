@@ -38,6 +38,12 @@ class ProtocolError(ValueError):
     """A message from a browser is malformed or out of range; the text says what and why."""
 
 
+def short(value: Any, limit: int = 40) -> str:
+    """``repr(value)`` cut to ``limit`` characters: an error reply never echoes a huge value."""
+    text = repr(value) if not isinstance(value, int) or abs(value) < 10**30 else f"<{value.bit_length()}-bit int>"
+    return text if len(text) <= limit else text[:limit] + "..."
+
+
 def _require_object(payload: Any, event: str) -> dict[str, Any]:
     if not isinstance(payload, dict):
         raise ProtocolError(f"{event}: expected a JSON object, got {type(payload).__name__}")
@@ -51,7 +57,10 @@ def _number(payload: dict[str, Any], key: str, event: str, low: float, high: flo
     # bool is an int in Python; a browser sending true for a throttle is a bug, not 1.0
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise ProtocolError(f"{event}: {key} must be a number, got {type(value).__name__}")
-    value = float(value)
+    try:
+        value = float(value)
+    except OverflowError:  # an int too large for a float (10**400)
+        raise ProtocolError(f"{event}: {key}={short(value)} is outside [{low:g}, {high:g}]") from None
     if not math.isfinite(value) or not low <= value <= high:
         raise ProtocolError(f"{event}: {key}={value!r} is outside [{low:g}, {high:g}]")
     return value
@@ -60,14 +69,14 @@ def _number(payload: dict[str, Any], key: str, event: str, low: float, high: flo
 def _bool(payload: dict[str, Any], key: str, event: str) -> bool:
     value = payload[key]
     if not isinstance(value, bool):
-        raise ProtocolError(f"{event}: {key} must be true or false, got {value!r}")
+        raise ProtocolError(f"{event}: {key} must be true or false, got {short(value)}")
     return value
 
 
 def _no_extra(payload: dict[str, Any], allowed: tuple[str, ...], event: str) -> None:
     extra = sorted(set(payload) - set(allowed))
     if extra:
-        raise ProtocolError(f"{event}: unknown field(s) {', '.join(map(repr, extra))}; "
+        raise ProtocolError(f"{event}: unknown field(s) {', '.join(map(short, extra[:3]))}; "
                             f"allowed: {', '.join(allowed)}")
 
 
@@ -97,7 +106,7 @@ def parse_settings(payload: Any, *, models: list[str], max_speed_limit: float) -
     out: dict[str, Any] = {}
     if "mode" in msg:
         if msg["mode"] not in MODES:
-            raise ProtocolError(f"set: mode={msg['mode']!r} is not one of {', '.join(MODES)}")
+            raise ProtocolError(f"set: mode={short(msg['mode'])} is not one of {', '.join(MODES)}")
         out["mode"] = msg["mode"]
     for key in ("recording", "constant_throttle"):
         if key in msg:
@@ -115,7 +124,7 @@ def parse_settings(payload: Any, *, models: list[str], max_speed_limit: float) -
     if "model" in msg:
         name = msg["model"]
         if not isinstance(name, str) or name not in models:
-            raise ProtocolError(f"set: model={name!r} is not a file of the models folder; "
+            raise ProtocolError(f"set: model={short(name)} is not a file of the models folder; "
                                 f"choose one of: {', '.join(models) or '(none found)'}")
         out["model"] = name
     return out
@@ -136,5 +145,5 @@ def parse_behavior(payload: Any) -> int:
     _no_extra(msg, ("step",), "behavior")
     step = msg.get("step")
     if isinstance(step, bool) or step not in (1, -1):
-        raise ProtocolError(f"behavior: step must be 1 (next) or -1 (previous), got {step!r}")
+        raise ProtocolError(f"behavior: step must be 1 (next) or -1 (previous), got {short(step)}")
     return int(step)

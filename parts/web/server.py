@@ -17,12 +17,15 @@ from typing import Any
 import numpy as np
 
 from parts.web import protocol
-from parts.web.pairing import token_ok
+from parts.web.limits import HARD_LIMIT_BYTES, REFUSED_EVENT, BoundedLog, make_bounded_packet
+from parts.web.pairing import allowed_hosts, host_allowed, token_ok
 from parts.web.state import ControlState
 
 logger = logging.getLogger(__name__)
 
 STATIC_DIR = Path(__file__).with_name("static")
+#: seconds the connections get to close at shutdown (a client that does not answer is cut off)
+SHUTDOWN_S = 0.5
 #: seconds a browser has to acknowledge a frame before the next one is sent anyway
 FRAME_ACK_TIMEOUT = 2.0
 _CONTENT_TYPES = {".html": "text/html", ".js": "text/javascript", ".css": "text/css",
@@ -84,11 +87,17 @@ class LatestFrame:
         return data, version
 
 
+#: model files a pilot loads: the model file, and its ONNX and TorchScript exports
+MODEL_SUFFIXES = (".pt", ".onnx", ".ts")
+
+
 def list_models(models_dir: Path | None) -> list[str]:
-    """Names of the ``*.pt`` model files directly in ``models_dir`` (sorted; [] if absent)."""
+    """Names of the model files (``*.pt``, ``*.onnx``, ``*.ts``) directly in ``models_dir``, hidden
+    ones left out (sorted; [] if absent)."""
     if models_dir is None or not models_dir.is_dir():
         return []
-    return sorted(p.name for p in models_dir.glob("*.pt") if p.is_file())
+    return sorted(p.name for p in models_dir.iterdir()
+                  if p.suffix in MODEL_SUFFIXES and not p.name.startswith(".") and p.is_file())
 
 
 def static_file(root: Path, request_path: str) -> Path | None:
@@ -122,12 +131,16 @@ class WebServer:
         max_speed_limit: largest speed limit a browser may set, m/s. Default 5.0.
         telemetry_hz: how often the page gets the state. Default 20.
         static_dir: folder the page is served from. Default the package's ``static``.
+        extra_hosts: host names besides IP addresses, ``localhost``, the machine's name and
+            ``host`` that a request may name (WEB_ALLOWED_HOSTS). Any other Host is refused with
+            403: a page of another site made to resolve to this machine (DNS rebinding) gets
+            nothing.
     """
 
     def __init__(self, state: ControlState, frames: LatestFrame, *, host: str = "127.0.0.1",
                  port: int = 8887, token: str | None = None, models_dir: Path | None = None,
                  max_speed_limit: float = 5.0, telemetry_hz: float = 20.0,
-                 static_dir: Path = STATIC_DIR) -> None:
+                 static_dir: Path = STATIC_DIR, extra_hosts: tuple[str, ...] = ()) -> None:
         if not 0 <= port <= 65535:
             raise ValueError(f"port must be in [0, 65535], got {port}")
         if not telemetry_hz > 0:
@@ -136,6 +149,12 @@ class WebServer:
         self.host, self.port, self.token = host, port, token
         self.models_dir, self.max_speed_limit = models_dir, max_speed_limit
         self.telemetry_hz, self.static_dir = telemetry_hz, static_dir
+        self.allowed_hosts = allowed_hosts(host, extra_hosts)
+        self._refused_hosts: set[str] = set()  # each logged once
+        # what clients can make the server log: rejections, refused connections, library errors
+        self.log = BoundedLog(logger, "rejected messages and refused connections")
+        self._library_log = BoundedLog(logging.getLogger(f"{__name__}.socketio"), "Socket.IO lines",
+                                       demote_info=True)
         self.loop: asyncio.AbstractEventLoop | None = None
         self.rejected = 0  # messages refused as malformed, out of range or not allowed
         self._stop: asyncio.Event | None = None
@@ -174,16 +193,25 @@ class WebServer:
         self.loop = asyncio.get_running_loop()
         self._stop = asyncio.Event()
         self._frame_event = asyncio.Event()
+        # messages up to HARD_LIMIT_BYTES are read and those above MAX_MESSAGE_BYTES refused with an
+        # error reply (BoundedPacket); Engine.IO closes the connection of a larger one
         sio = socketio.AsyncServer(async_mode="aiohttp", transports=["websocket"],
-                                   max_http_buffer_size=protocol.MAX_MESSAGE_BYTES,
+                                   max_http_buffer_size=HARD_LIMIT_BYTES, serializer=make_bounded_packet(),
+                                   logger=self._library_log, engineio_logger=self._library_log,
                                    ping_interval=5, ping_timeout=5)
         self._sio = sio
         self._register(sio)
-        app = web.Application(client_max_size=protocol.MAX_MESSAGE_BYTES)
+
+        @web.middleware
+        async def check_host(request: Any, handler: Any) -> Any:
+            return await self._check_host(request, handler)
+
+        app = web.Application(client_max_size=HARD_LIMIT_BYTES, middlewares=[check_host])
         app.router.add_get("/", self._index)
         app.router.add_get("/static/{path:.*}", self._static)
+        app.router.add_get("/favicon.ico", self._favicon)  # what browsers ask for without a <link>
         sio.attach(app)
-        runner = web.AppRunner(app, access_log=None, handle_signals=False)
+        runner = web.AppRunner(app, access_log=None, handle_signals=False, shutdown_timeout=SHUTDOWN_S)
         await runner.setup()
         site = web.TCPSite(runner, self.host, self.port)
         try:
@@ -208,8 +236,14 @@ class WebServer:
             for task in list(self._senders.values()):
                 task.cancel()
             await asyncio.gather(telemetry, *self._senders.values(), return_exceptions=True)
+            for log in (self.log, self._library_log):
+                log.flush(force=True)
             self._senders.clear()
-            await self._sio.shutdown()  # disconnects every browser, ends engine.io's tasks
+            # close every connection ourselves (Socket.IO's shutdown() leaves them open, and the
+            # web server would wait for each browser to leave), then end engine.io's tasks
+            with contextlib.suppress(Exception):
+                await asyncio.wait_for(self._sio.eio.disconnect(), SHUTDOWN_S)
+            await self._sio.shutdown()
             await runner.cleanup()
 
     def _wake_senders(self) -> None:
@@ -217,11 +251,34 @@ class WebServer:
         if event is not None:
             event.set()
 
+    async def _check_host(self, request: Any, handler: Any) -> Any:
+        """aiohttp middleware: answer only requests that name this car in their Host header."""
+        from aiohttp import web
+
+        host = request.headers.get("Host", "")
+        if host_allowed(host, self.allowed_hosts):
+            return await handler(request)
+        shown = host[:80]
+        if len(self._refused_hosts) < 100 and shown not in self._refused_hosts:
+            self._refused_hosts.add(shown)
+            logger.warning("web: refused a request for host name %r from %s: not this car's (a page "
+                           "of another site, DNS rebinding?); add the name to WEB_ALLOWED_HOSTS if "
+                           "it is yours", shown, request.remote)
+        return web.Response(status=403, text=f"host name {shown!r} is not this car's; open the "
+                            "page by the address the car printed at start (or add the name to "
+                            "WEB_ALLOWED_HOSTS in myconfig.py)\n")
+
     async def _index(self, request: Any) -> Any:
         from aiohttp import web
 
         return web.FileResponse(self.static_dir / "index.html",
                                 headers={"Cache-Control": "no-cache", "Content-Type": "text/html"})
+
+    async def _favicon(self, request: Any) -> Any:
+        from aiohttp import web
+
+        return web.FileResponse(self.static_dir / "favicon.svg",
+                                headers={"Cache-Control": "max-age=86400", "Content-Type": "image/svg+xml"})
 
     async def _static(self, request: Any) -> Any:
         from aiohttp import web
@@ -242,7 +299,7 @@ class WebServer:
 
     def _reject(self, sid: str, error: str) -> dict[str, Any]:
         self.rejected += 1
-        logger.info("web: rejected a message from %s: %s", sid, error)
+        self.log.info("web: rejected a message from %s: %s", sid, error)
         return {"ok": False, "error": error}
 
     def _register(self, sio: Any) -> None:
@@ -252,7 +309,7 @@ class WebServer:
         @sio.event
         async def connect(sid: str, environ: dict[str, Any], auth: Any = None) -> None:
             if not token_ok(self.token, auth):
-                logger.warning("web: refused a connection from %s: missing or wrong pairing token",
+                self.log.warning("web: refused a connection from %s: missing or wrong pairing token",
                                environ.get("REMOTE_ADDR", "?"))
                 raise socketio.exceptions.ConnectionRefusedError(
                     "pairing token missing or wrong: open the URL printed when the car started")
@@ -290,6 +347,9 @@ class WebServer:
                                                    max_speed_limit=self.max_speed_limit)
             except protocol.ProtocolError as exc:
                 return self._reject(sid, str(exc))
+            refused = self.state.refusal(settings)
+            if refused:
+                return self._reject(sid, refused)
             model_path = None
             if "model" in settings and self.models_dir is not None:
                 model_path = str((self.models_dir / settings["model"]).resolve())
@@ -332,16 +392,22 @@ class WebServer:
             self.state.step_behavior(step)
             return {"ok": True}
 
+        @sio.on(REFUSED_EVENT)
+        async def refused(sid: str, data: Any = None) -> dict[str, Any]:
+            return self._reject(sid, protocol.short(data, 200) if not isinstance(data, str) else data[:200])
+
         @sio.on("*")
         async def unknown(event: str, sid: str, data: Any = None) -> dict[str, Any]:
-            return self._reject(sid, f"unknown event {event!r}; the page sends drive, set, estop, "
-                                "take_control, models, behavior")
+            return self._reject(sid, f"unknown event {protocol.short(event)}; the page sends drive, set, "
+                                "estop, take_control, models, behavior")
 
     async def _telemetry(self) -> None:
         period = 1.0 / self.telemetry_hz
         while True:
             if self._senders:
                 await self._sio.emit("state", self.state.snapshot())
+            self.log.flush()
+            self._library_log.flush()
             await asyncio.sleep(period)
 
     async def _send_frames(self, sid: str) -> None:

@@ -35,7 +35,7 @@ class Commands:
     max_throttle: float = 0.5  # scale applied to the browser's throttle, [0, 1]
     constant_throttle: bool = False  # throttle = max_throttle while the page drives
     speed_limit: float | None = None  # m/s, for the speed controller; None = no limit
-    model_request: str | None = None  # path of the model file asked for
+    model_request: str | None = None  # path of the model file asked for (handed to the loop once)
     behavior_step: int = 0  # behaviour steps asked since the loop last read them (+ next, - previous)
 
     def user_throttle(self) -> float:
@@ -64,6 +64,13 @@ class Telemetry:
     loop_rate_hz: float | None = None
     loop_overruns: int | None = None
     behavior: str | None = None  # label of the active behaviour (e.g. Left_Lane), None = no behaviours
+    pilot_active: bool | None = None  # the pilot ran this loop (run_pilot): its outputs are live
+    pilot_error: str | None = None  # why the last model asked for was not loaded
+    sim_cte: float | None = None  # m, signed cross-track error (simulator)
+    sim_laps: int | None = None  # laps completed (simulator)
+    sim_off_track: bool | None = None  # off the road now (simulator)
+    car_gamepad: str | None = None  # the car's own gamepad: connected | silent | lost (None: none)
+    off_track_events: int = 0  # times the car left the road since the controller started
     loops: int = 0  # loops seen by the controller
 
 
@@ -101,6 +108,7 @@ class ControlState:
         self._tel = Telemetry()
         self._roles = Roles()
         self._last_control: float | None = None  # clock() of the driver's latest message
+        self._reported_at: float | None = None  # clock() of the loop's latest report
         self._armed = False  # the driving browser holds a command the dead-man must guard
         self._dirty: set[str] = set()  # fields the browser changed since the loop read them
         self.deadman_trips = 0
@@ -163,6 +171,26 @@ class ControlState:
             self._last_control = self._clock()
             self._armed = True
 
+    def refusal(self, settings: dict[str, Any]) -> str | None:
+        """Why validated ``settings`` cannot be applied now, or None: while the emergency stop is
+        latched nothing that moves the car or records may be chosen; a model needs a pilot in the
+        car and a speed limit a measured speed (known once the loop has reported)."""
+        with self._lock:
+            cmd, tel = self._cmd, self._tel
+            if cmd.estop:
+                moving = [k for k in ("mode", "recording", "constant_throttle")
+                          if k in settings and settings[k] not in ("user", False)]
+                if moving:
+                    return (f"set: the emergency stop is latched: release it (STOP) before setting "
+                            f"{', '.join(moving)}")
+            if tel.loops and "model" in settings and tel.pilot_model is None:
+                return ("set: this car drives without a pilot, so it cannot load a model: start it "
+                        "with `manage.py drive --model models/NAME.pt`")
+            if tel.loops and settings.get("speed_limit") is not None and tel.speed is None:
+                return ("set: this car measures no speed (no simulator, no encoder writing enc/speed), "
+                        "so a speed limit cannot be held")
+            return None
+
     def apply(self, settings: dict[str, Any], model_path: str | None = None) -> None:
         """Apply validated settings (see ``protocol.parse_settings``); ``model_path`` is the
         resolved file for a ``model`` setting."""
@@ -184,11 +212,14 @@ class ControlState:
             self._cmd.behavior_step += step
 
     def set_estop(self, on: bool) -> None:
-        """Latch (True) or release (False) the emergency stop. Latching also stops the car."""
+        """Latch (True) or release (False) the emergency stop. Latching stops the car (throttle 0,
+        user mode, recording off); releasing leaves it so: a pilot mode or recording has to be
+        chosen again."""
         with self._lock:
+            was = self._cmd.estop
             self._cmd.estop = on
-            if on:
-                self._stop_locked("emergency stop")
+            if on or was:
+                self._stop_locked("emergency stop" if on else "emergency stop released")
                 self._cmd.recording = False
                 self._dirty.add("recording")
 
@@ -197,22 +228,30 @@ class ControlState:
         with self._lock:
             cmd = asdict(self._cmd)
             cmd["user_throttle"] = self._cmd.user_throttle()
+            age = None if self._reported_at is None else max(0.0, self._clock() - self._reported_at)
             return {"command": cmd, "telemetry": asdict(self._tel),
                     "driver": self._roles.driver, "viewers": len(self._roles.viewers),
-                    "deadman_trips": self.deadman_trips}
+                    "deadman_trips": self.deadman_trips, "age_s": age}
 
     # -- loop thread ------------------------------------------------------------------------------
     def report(self, telemetry: Telemetry) -> None:
         """Store the latest loop's telemetry and adopt mode/recording changed by other parts."""
         with self._lock:
             telemetry.loops = self._tel.loops + 1
+            if telemetry.sim_off_track and not self._tel.sim_off_track:
+                telemetry.off_track_events = self._tel.off_track_events + 1
+            else:
+                telemetry.off_track_events = self._tel.off_track_events
             self._tel = telemetry
+            self._reported_at = self._clock()
             # another controller (gamepad) or part may have changed these: follow it unless the
             # browser changed them since the loop last read them
             if telemetry.mode in MODES and "mode" not in self._dirty:
                 self._cmd.mode = telemetry.mode
             if isinstance(telemetry.recording, bool) and "recording" not in self._dirty:
                 self._cmd.recording = telemetry.recording
+            if self._cmd.estop:  # while stopped, another controller cannot start a pilot or recording
+                self._cmd.mode, self._cmd.recording = "user", False
 
     def outputs(self) -> Commands:
         """The commands for this loop, after the dead-man rule. Called by the loop thread."""
@@ -229,14 +268,13 @@ class ControlState:
             self._dirty.clear()
             out = Commands(**asdict(cmd))
             cmd.behavior_step = 0  # a step is applied once
+            cmd.model_request = None  # handed over once: asking for the same file again reloads it
             return out
 
     def _stop_locked(self, why: str) -> None:
         logger.debug("web controller stop: %s", why)
         self._cmd.angle = self._cmd.throttle = 0.0
         self._cmd.constant_throttle = False
-        if self._cmd.mode != "user":
-            self._cmd.mode = "user"
-            self._dirty.add("mode")
-        self._dirty.add("constant_throttle")
+        self._cmd.mode = "user"
+        self._dirty.update(("mode", "constant_throttle"))
         self._armed = False

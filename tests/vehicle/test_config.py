@@ -99,3 +99,89 @@ def test_every_setting_is_documented():
 def test_donkeycar_name_gets_its_new_name():
     with pytest.raises(ConfigError, match="unknown setting WEB_INIT_MODE. Did you mean DEFAULT_MODE?"):
         Config.defaults(WEB_INIT_MODE="local")
+
+
+# -- ranges and rules across settings (issue 21: items 2, 3, 10) ------------------------------------
+#: (myconfig line, how the error starts, what it must say is valid)
+OUT_OF_RANGE = [
+    ("DRIVE_LOOP_HZ = -20", "DRIVE_LOOP_HZ = -20", "1 to 1000 Hz"),
+    ("STEERING_LEFT_PWM = 5000", "STEERING_LEFT_PWM = 5000", "123 to 612 ticks"),
+    ("THROTTLE_FORWARD_PWM = 4000", "THROTTLE_FORWARD_PWM = 4000", "500 to 2500 µs"),
+    ('WEB_DEADMAN_S = float("nan")', "WEB_DEADMAN_S = nan", "0.1 to 2 s"),
+    ("WEB_DEADMAN_S = 1e9", "WEB_DEADMAN_S = 1000000000.0", "0.1 to 2 s"),
+    ("ACTUATOR_WATCHDOG_S = 1e9", "ACTUATOR_WATCHDOG_S = 1000000000.0", "None switches it off"),
+    ("ACTUATOR_WATCHDOG_S = 0", "ACTUATOR_WATCHDOG_S = 0", "None switches it off"),
+    ('WEB_TOKEN = "short"', "WEB_TOKEN (5 characters)", "at least 8 characters"),
+    ("WEB_MAX_THROTTLE = 2.0", "WEB_MAX_THROTTLE = 2.0", "0 to 1"),
+    ("AI_THROTTLE_MULT = -1.0", "AI_THROTTLE_MULT = -1.0", "0 to 2"),
+    ("THROTTLE_STOPPED_PWM = 600", "THROTTLE_STOPPED_PWM = 600", "between THROTTLE_REVERSE_PWM"),
+    ("STEERING_RIGHT_PWM = 460", "STEERING_LEFT_PWM and STEERING_RIGHT_PWM are both 460", "differ"),
+    ("JOYSTICK_SILENCE_TIMEOUT_S = 3600.0", "JOYSTICK_SILENCE_TIMEOUT_S = 3600.0", "None switches it off"),
+    ("THROTTLE_CHANNEL = 1", "STEERING_CHANNEL and THROTTLE_CHANNEL are both 1", "two different channels"),
+    ("TUB_TYPES = ['image_array', 'float']", "TUB_TYPES = ['image_array', 'float']", "one type per TUB_INPUTS"),
+    ("BEHAVIOR_INITIAL = 5", "BEHAVIOR_INITIAL = 5", "0 to 1"),
+]
+
+
+@pytest.mark.parametrize("line, start, valid", OUT_OF_RANGE, ids=[c[0] for c in OUT_OF_RANGE])
+def test_out_of_range_values_are_one_line_errors_with_file_line_and_valid_range(tmp_path, line, start, valid):
+    write(tmp_path, f"# my car\n{line}\n")
+    with pytest.raises(ConfigError) as info:
+        load_config(car_path=tmp_path)
+    msg = str(info.value)
+    assert msg.startswith(f"{tmp_path.resolve() / 'myconfig.py'}, line 2: {start}"), msg
+    assert valid in msg and "\n" not in msg
+    for internal in ("deadman_s", "max_throttle", "ai_throttle_mult", "watchdog_s", "forward="):
+        assert internal not in msg
+
+
+def test_a_setting_that_breaks_another_is_located_at_its_own_line(tmp_path):
+    # at 400 Hz a tick is 0.61 µs: the default steering pulse of 460 ticks would be 281 µs
+    write(tmp_path, "DRIVE_LOOP_HZ = 20\nPWM_FREQ = 400\n")
+    with pytest.raises(ConfigError) as info:
+        load_config(car_path=tmp_path)
+    msg = str(info.value)
+    assert msg.startswith(f"{tmp_path.resolve() / 'myconfig.py'}, line 2: ")
+    assert "STEERING_LEFT_PWM = 460" in msg and "PWM_FREQ = 400" in msg and "µs" in msg
+
+
+def test_the_watchdog_must_outlast_two_loops(tmp_path):
+    write(tmp_path, "DRIVE_LOOP_HZ = 5\nACTUATOR_WATCHDOG_S = 0.2\n")
+    with pytest.raises(ConfigError, match=r"line 2: ACTUATOR_WATCHDOG_S = 0.2 .*two loops at DRIVE_LOOP_HZ = 5"):
+        load_config(car_path=tmp_path)
+
+
+def test_valid_edges_load_and_code_overrides_are_checked_too(tmp_path):
+    write(tmp_path, "THROTTLE_FORWARD_PWM = 612\nTHROTTLE_REVERSE_PWM = 123\nWEB_DEADMAN_S = 2.0\n"
+                    "ACTUATOR_WATCHDOG_S = None\nWEB_TOKEN = '12345678'\n")
+    cfg = load_config(car_path=tmp_path)
+    assert (cfg.THROTTLE_FORWARD_PWM, cfg.ACTUATOR_WATCHDOG_S) == (612, None)
+    with pytest.raises(ConfigError, match=r"^DRIVE_LOOP_HZ = 0 is out of range; valid: 1 to 1000 Hz"):
+        Config.defaults(DRIVE_LOOP_HZ=0)
+    with pytest.raises(ConfigError, match="WEB_MAX_THROTTLE = 1.5"):
+        cfg.replace(WEB_MAX_THROTTLE=1.5)
+    with pytest.raises(ConfigError, match="WEB_JPEG_QUALITY = 0"):
+        cfg.WEB_JPEG_QUALITY = 0
+
+
+def test_every_number_setting_declares_its_range():
+    from vehicle.config import settings
+
+    unchecked = [s.name for s in settings().values()
+                 if any(t in s.annotation for t in ("int", "float")) and "Annotated" not in s.annotation
+                 and "Literal" not in s.annotation]
+    assert unchecked == []
+
+
+def test_manage_py_prints_one_line_and_exits_2(tmp_path, capsys):
+    from vehicle.app import manage as car
+
+    for line in ("DRIVE_LOOP_HZ = -20", "STEERING_LEFT_PWM = 5000", 'WEB_DEADMAN_S = float("nan")',
+                 'WEB_TOKEN = "short"'):
+        write(tmp_path, line + "\n")
+        parser = car.command_parser("test car")
+        car.add_command(parser, "drive", lambda cfg, args: 0, "drive")
+        assert car.main(parser, tmp_path, ["drive"]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("error: ") and err.count("\n") == 1 and "Traceback" not in err, err
+        assert "line 1" in err

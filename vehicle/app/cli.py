@@ -8,7 +8,7 @@ import logging
 import sys
 from collections.abc import Sequence
 
-from vehicle.errors import VehicleError
+from vehicle.errors import PartError, VehicleError, VehicleStopped
 
 logger = logging.getLogger(__name__)
 
@@ -57,8 +57,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     except VehicleError as exc:
         print(f"error: {exc}", file=sys.stderr)  # noqa: T201 - the CLI's own output
         return 2
-    except KeyboardInterrupt:
+    except (VehicleStopped, KeyboardInterrupt, PartError) as exc:
+        return stop_code(exc)
+
+
+def stop_code(exc: VehicleStopped | KeyboardInterrupt | PartError) -> int:
+    """Log how a vehicle stopped (it has put the actuators to neutral and shut its parts down)
+    and return the exit code: 130 for Ctrl-C, 128+N for signal N, 1 for a failed part."""
+    if isinstance(exc, VehicleStopped):
+        logger.warning("vehicle stopped by %s: throttle set to neutral", exc.signal_name)
+        return 128 + exc.signum
+    if isinstance(exc, KeyboardInterrupt):
+        logger.info("vehicle stopped by Ctrl-C: throttle set to neutral")
         return 130
+    logger.error("vehicle stopped because %s; throttle set to neutral", exc, exc_info=exc.__cause__)
+    return 1
 
 
 if __name__ == "__main__":

@@ -134,7 +134,8 @@ def resolve_pilot(pilot: Any, cfg: Any = None) -> tuple[Any, str, bool]:
         from vehicle.app.assembly.pilot import make_pilot
 
         cfg = cfg if cfg is not None else _default_config()
-        return make_pilot(cfg, path, measured_speed_key="sim/speed"), path.name, True
+        return make_pilot(cfg, path, measured_speed_key="sim/speed",
+                          frame_shape=(cfg.SIM_CAMERA_H, cfg.SIM_CAMERA_W, 3)), path.name, True
     if callable(getattr(pilot, "run", None)):
         return pilot, getattr(pilot, "name", None) or type(pilot).__name__, False
     raise TypeError(f"pilot must be 'expert', a model path or an object with run(), got {type(pilot).__name__}")

@@ -15,7 +15,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from vehicle.app.cli import configure_logging
+from vehicle.app.cli import configure_logging, stop_code
 from vehicle.config import Config, load_config
 from vehicle.errors import PartError, VehicleError, VehicleStopped
 
@@ -71,6 +71,8 @@ def main(parser: argparse.ArgumentParser, car_path: str | Path, argv: Sequence[s
     except VehicleError as exc:
         print(f"error: {exc}", file=sys.stderr)  # noqa: T201 - the CLI's own output
         return 2
+    except (VehicleStopped, KeyboardInterrupt, PartError) as exc:  # a vehicle a command started
+        return stop_code(exc)
 
 
 def int_list(text: str) -> list[int]:
@@ -112,14 +114,6 @@ def run(V: Any, cfg: Config, max_loops: int | None = None) -> int:
                 f" for {loops} loops" if loops else " (Ctrl-C to stop)", V.describe())
     try:
         V.start(rate_hz=cfg.DRIVE_LOOP_HZ, max_loop_count=loops)
-    except VehicleStopped as exc:
-        logger.warning("vehicle stopped by %s: throttle set to neutral", exc.signal_name)
-        return 128 + exc.signum
-    except KeyboardInterrupt:
-        logger.info("vehicle stopped by Ctrl-C: throttle set to neutral")
-        return 130
-    except PartError as exc:
-        logger.error("vehicle stopped because %s; throttle set to neutral", exc,
-                     exc_info=exc.__cause__)
-        return 1
+    except (VehicleStopped, KeyboardInterrupt, PartError) as exc:
+        return stop_code(exc)
     return 0

@@ -107,32 +107,40 @@ const TICK_MS = 50;            // drive messages (and dead-man heartbeat) at 20 
 const STEER_RATE = 4.0;        // keyboard steering ramp, full scale per second
 const STEER_RETURN = 6.0;      // keyboard steering return to centre, per second
 const DEADZONE = 0.08;         // gamepad stick dead zone
+const STALE_S = 1.0;           // no news from the car's loop for this long: what is shown is old
 
 const params = new URLSearchParams(location.search);
 const stats = { frames: 0, sent: 0, rejected: 0, role: "none", connected: false, state: null,
-  lastError: null, angle: 0, throttle: 0 };
+  lastError: null, angle: 0, throttle: 0, stale: true };
 window.webStats = stats;  // read by the tests and the benchmark
 
 const input = {
   keys: new Set(),
   steer: 0,                   // keyboard steering after the ramp
-  pad: { active: false, x: 0, y: 0 },
+  pad: { active: false, x: 0, y: 0, id: null },
   source: "keyboard",         // the input used last decides the command
   gamepadButtons: [],
 };
 let state = null;             // latest "state" message
+let stateAt = 0;              // performance.now() when it came
 let role = "none";
+let refused = null;           // why the car refused this page (pairing token), or null
 let lastTick = performance.now();
+let pickedAt = 0;             // when the user last chose in the model list (not synced meanwhile)
+let modelError = "";          // the last refusal of a model choice
 
 const sock = new SioClient(params.get("token") ? { token: params.get("token") } : {});
 
 function setRole(r) {
   role = r;
   stats.role = r;
-  $("role").textContent = r;
+  $("role").textContent = r === "none" ? "–" : r;
   $("role").className = "badge" + (r === "driver" ? " driver" : "");
-  $("take").hidden = r === "driver" || !sock.connected;
+  // Take control keeps its place when hidden: the header never moves
+  $("take").classList.toggle("reserved", r === "driver" || !sock.connected);
   document.body.classList.toggle("viewer", r !== "driver");
+  $("watching").hidden = r !== "viewer";
+  updateControls();
 }
 
 function notice(text) {
@@ -140,26 +148,52 @@ function notice(text) {
   $("notice").hidden = !text;
 }
 
-function send(event, data) {
-  sock.emit(event, data, (res) => {
-    if (res && res.ok === false) { stats.rejected++; stats.lastError = res.error; console.warn(res.error); }
+// send a message; onReply(res) when the car answers (at once with null when not connected)
+function send(event, data, onError, onReply) {
+  const sent = sock.emit(event, data, (res) => {
+    if (onReply) onReply(res);
+    if (res && res.ok === false) {
+      stats.rejected++; stats.lastError = res.error; console.warn(res.error);
+      if (onError) onError(res.error);
+    }
+  });
+  if (!sent && onReply) onReply(null);
+}
+
+// settings sent and not yet answered: the car's state messages already on their way still carry
+// the old value, and must not undo what the user just clicked (a checkbox flipping back)
+const pending = new Map();  // setting name -> messages in flight
+function setSetting(obj, onError) {
+  if (role !== "driver") return;
+  const names = Object.keys(obj);
+  for (const k of names) pending.set(k, (pending.get(k) || 0) + 1);
+  send("set", obj, onError, () => {
+    for (const k of names) { const n = (pending.get(k) || 1) - 1; if (n > 0) pending.set(k, n); else pending.delete(k); }
   });
 }
 
-function setSetting(obj) { if (role === "driver") send("set", obj); }
-
 // -- connection ---------------------------------------------------------------------------------
+function setConn(text, cls) { $("conn").textContent = text; $("conn").className = "badge " + cls; }
 sock.on("connect", () => {
   stats.connected = true;
-  $("conn").textContent = "connected"; $("conn").className = "badge good";
+  refused = null;
+  setConn("connected", "good");
   notice("");
 });
-sock.on("connect_error", (msg) => { notice(msg); stats.lastError = msg; });
+sock.on("connect_error", (msg) => {
+  refused = msg;
+  stats.lastError = msg;
+  setConn("refused", "bad");
+  notice(msg);
+});
 sock.on("disconnect", () => {
   stats.connected = false;
-  $("conn").textContent = "disconnected"; $("conn").className = "badge bad";
+  pending.clear();  // no reply comes for what was in flight
+  if (!refused) setConn("disconnected — retrying", "bad");
   setRole("none");
-  setTimeout(() => sock.open(), 1000);  // the car may have restarted: try again
+  updateStale();
+  // the car may have restarted: try again (slowly after a refusal: the URL needs its token)
+  setTimeout(() => sock.open(), refused ? 5000 : 1000);
 });
 sock.on("hello", (h) => {
   setRole(h.role);
@@ -187,10 +221,21 @@ sock.on("frame", (buf, ack) => {
 });
 setInterval(() => { $("fps").textContent = fpsCount; fpsCount = 0; }, 1000);
 
+// -- stale: grey what the car no longer confirms -------------------------------------------------
+function updateStale() {
+  const age = state && typeof state.age_s === "number" ? state.age_s : 0;
+  const stale = !sock.connected || !state || (performance.now() - stateAt) / 1000 > STALE_S || age > STALE_S;
+  stats.stale = stale;
+  document.body.classList.toggle("stale", stale);
+}
+setInterval(updateStale, 250);
+
 // -- state → page -------------------------------------------------------------------------------
 function onState(s) {
   state = s;
+  stateAt = performance.now();
   stats.state = s;
+  updateStale();
   const c = s.command, t = s.telemetry;
   if (s.driver !== undefined && sock.id) setRole(s.driver === sock.id ? "driver" : "viewer");
   const angle = t.angle !== null ? t.angle : c.angle;
@@ -206,11 +251,25 @@ function onState(s) {
   $("rate").textContent = fmt(t.loop_rate_hz, 1);
   $("overruns").textContent = t.loop_overruns === null ? "–" : t.loop_overruns;
   $("records").textContent = t.num_records === null ? "–" : t.num_records;
-  const piloting = c.mode !== "user" || t.pilot_angle !== null;
-  $("pilot").classList.toggle("idle", !piloting);
-  $("pmodel").textContent = t.pilot_model || "–";
+  // the pilot's outputs are live only in the loops it runs (a pilot mode)
+  $("pilot").classList.toggle("idle", t.pilot_active !== true);
+  $("pmodel").textContent = t.pilot_model || "none";
   $("pangle").textContent = fmt(t.pilot_angle);
   $("pthrottle").textContent = fmt(t.pilot_throttle);
+  const simulated = t.sim_cte !== null || t.sim_laps !== null;
+  $("sim").hidden = !simulated;
+  if (simulated) {
+    $("cte").textContent = t.sim_cte === null ? "–" : (t.sim_cte >= 0 ? "+" : "") + t.sim_cte.toFixed(2) + " m";
+    $("cte").classList.toggle("offroad", t.sim_off_track === true);
+    $("laps").textContent = t.sim_laps === null ? "–" : t.sim_laps;
+    $("offtrack").textContent = t.off_track_events;
+  }
+  // the car's own gamepad (when it has one): whether it can drive or stop the car
+  $("cargamepad").hidden = t.car_gamepad === null;
+  if (t.car_gamepad !== null) {
+    $("cargamepad").textContent = "car pad " + t.car_gamepad;
+    $("cargamepad").className = "badge " + (t.car_gamepad === "connected" ? "good" : "bad");
+  }
   for (const b of document.querySelectorAll("[data-mode]")) b.classList.toggle("on", b.dataset.mode === c.mode);
   $("record").classList.toggle("on", c.recording);
   $("record").textContent = c.recording ? "■ Recording" : "● Record";
@@ -219,10 +278,15 @@ function onState(s) {
   $("estop").textContent = estop ? "STOPPED — release" : "STOP";
   if (document.activeElement !== $("maxthrottle")) $("maxthrottle").value = c.max_throttle;
   $("maxthrottle-v").textContent = fmt(c.max_throttle);
-  $("constant").checked = c.constant_throttle;
-  $("nolimit").checked = c.speed_limit === null;
+  if (!pending.has("constant_throttle")) $("constant").checked = c.constant_throttle;
+  if (!pending.has("speed_limit")) $("nolimit").checked = c.speed_limit === null;
   if (c.speed_limit !== null && document.activeElement !== $("speedlimit")) $("speedlimit").value = c.speed_limit;
   $("speedlimit-v").textContent = c.speed_limit === null ? "none" : fmt(c.speed_limit, 1) + " m/s";
+  $("speedlimit-note").textContent = t.speed === null && t.loops > 0
+    ? "needs a measured speed (the simulator's or a wheel encoder's): not available on this car"
+    : "caps the car's speed in every mode, human or pilot; a slower car is not sped up";
+  syncModel(t);
+  updateControls();
   if (s.deadman_trips !== trips) {  // the car stopped itself: say why
     if (trips !== null) {
       notice(`Dead-man stop: no control message for over ${deadmanS} s, so throttle 0 and user mode`);
@@ -238,11 +302,42 @@ function onState(s) {
 let trips = null;
 let deadmanS = 0.5;
 
+// what this page may touch: a watcher nothing but STOP; while STOP is latched nothing that moves
+// the car or records; the speed limit only where the car measures its speed
+function updateControls() {
+  const driver = role === "driver";
+  const c = state ? state.command : null, t = state ? state.telemetry : null;
+  const latched = !!(c && c.estop);
+  for (const b of document.querySelectorAll("[data-mode]")) b.disabled = !driver || (latched && b.dataset.mode !== "user");
+  $("record").disabled = !driver || latched;
+  $("constant").disabled = !driver || latched;
+  $("maxthrottle").disabled = !driver;
+  const speed = !t || t.speed !== null || t.loops === 0;
+  $("speedlimit").disabled = !driver || !speed;
+  $("nolimit").disabled = !driver || !speed;
+  $("model").disabled = !driver;
+  $("load").disabled = !driver || !$("model").value;
+  $("behaviornext").disabled = !driver;
+}
+
 function fillModels(models) {
   const sel = $("model");
+  const cur = sel.value;
   sel.innerHTML = "";
   if (!models.length) { sel.add(new Option("(no models in the models folder)", "")); return; }
   for (const m of models) sel.add(new Option(m, m));
+  if (models.includes(cur)) sel.value = cur;
+}
+
+// the list shows the model driving, unless the user is choosing; errors come from the car
+function syncModel(t) {
+  const sel = $("model");
+  const choosing = document.activeElement === sel || performance.now() - pickedAt < 5000;
+  if (t.pilot_model && !choosing && sel.value !== t.pilot_model) {
+    if (![...sel.options].some((o) => o.value === t.pilot_model)) sel.add(new Option(t.pilot_model, t.pilot_model));
+    sel.value = t.pilot_model;
+  }
+  $("model-error").textContent = modelError || (t.pilot_error ? "not loaded: " + t.pilot_error : "");
 }
 
 // -- controls -----------------------------------------------------------------------------------
@@ -251,21 +346,36 @@ for (const b of document.querySelectorAll("[data-mode]")) b.onclick = () => setS
 $("record").onclick = () => state && setSetting({ recording: !state.command.recording });
 $("maxthrottle").oninput = () => setSetting({ max_throttle: Number($("maxthrottle").value) });
 $("constant").onchange = () => setSetting({ constant_throttle: $("constant").checked });
-$("speedlimit").oninput = () => { if (Number($("speedlimit").value) > 0) setSetting({ speed_limit: Number($("speedlimit").value) }); };
-$("nolimit").onchange = () => setSetting({ speed_limit: $("nolimit").checked ? null : Math.max(0.1, Number($("speedlimit").value)) });
-$("load").onclick = () => { if ($("model").value) setSetting({ model: $("model").value }); };
-$("model").onfocus = () => sock.emit("models", undefined, (res) => {
-  if (res && res.ok) { const cur = $("model").value; fillModels(res.models); $("model").value = cur; }
-});
+const speedError = (e) => { $("speedlimit-note").textContent = e; };
+$("speedlimit").oninput = () => {
+  if (Number($("speedlimit").value) > 0) setSetting({ speed_limit: Number($("speedlimit").value) }, speedError);
+};
+$("nolimit").onchange = () => setSetting({ speed_limit: $("nolimit").checked ? null : Math.max(0.1, Number($("speedlimit").value)) }, speedError);
+$("model").onchange = () => { pickedAt = performance.now(); updateControls(); };
+$("load").onclick = () => {
+  const name = $("model").value;
+  if (!name) return;
+  modelError = "";
+  pickedAt = 0;  // from now on the list follows the model driving again
+  setSetting({ model: name }, (e) => { modelError = e; $("model-error").textContent = e; });
+};
+$("model").onfocus = () => sock.emit("models", undefined, (res) => { if (res && res.ok) fillModels(res.models); });
 $("behaviornext").onclick = () => { if (role === "driver") send("behavior", { step: 1 }); };
-$("estop").onclick = () => {
-  const latched = state && (state.command.estop);
+
+// The emergency stop acts on the first touch of any finger (pointerdown), also while another
+// finger holds the joystick: a multi-touch tap makes no click. A click then only comes from the
+// keyboard (Enter / space on the focused button: detail 0); a pointer's own click is ignored.
+function pressStop() {
+  const latched = state && state.command.estop;
   stopNow();
   send("estop", { on: !latched });
-};
+  if (!latched && state) state.command.estop = true;  // until the car confirms: no second toggle
+}
+$("estop").addEventListener("pointerdown", (e) => { e.preventDefault(); pressStop(); });
+$("estop").addEventListener("click", (e) => { if (e.detail === 0) pressStop(); });
 
 function stopNow() {
-  input.keys.clear(); input.steer = 0; input.pad = { active: false, x: 0, y: 0 };
+  input.keys.clear(); input.steer = 0; input.pad = { active: false, x: 0, y: 0, id: null };
   placeKnob(0, 0);
 }
 
@@ -279,6 +389,7 @@ const DRIVE_KEYS = { ArrowUp: "up", KeyW: "up", ArrowDown: "down", KeyS: "down",
   ArrowLeft: "left", KeyA: "left", ArrowRight: "right", KeyD: "right" };
 window.addEventListener("keydown", (e) => {
   if (e.target && (e.target.tagName === "INPUT" || e.target.tagName === "SELECT") && !DRIVE_KEYS[e.code]) return;
+  if (e.target && e.target.id === "estop" && (e.code === "Enter" || e.code === "Space")) return;  // its click
   if (DRIVE_KEYS[e.code]) {
     e.preventDefault();
     input.keys.add(DRIVE_KEYS[e.code]);
@@ -300,9 +411,14 @@ window.addEventListener("keydown", (e) => {
 window.addEventListener("keyup", (e) => {
   if (DRIVE_KEYS[e.code]) { input.keys.delete(DRIVE_KEYS[e.code]); tick(); }
 });
-window.addEventListener("blur", () => { input.keys.clear(); });  // keys released while away
+// leaving the page releases every control at once: keys, joystick (the browser may never tell
+// the page that a held finger or button went up while it was hidden)
+window.addEventListener("blur", () => { input.keys.clear(); });
+document.addEventListener("visibilitychange", () => {
+  if (document.visibilityState === "hidden") { stopNow(); input.source = "keyboard"; tick(); }
+});
 
-// virtual joystick (pointer events: mouse, touch and pen)
+// virtual joystick (pointer events: mouse, touch and pen); one pointer holds it
 const pad = $("pad"), knob = $("knob");
 function placeKnob(x, y) {
   knob.style.left = (35 + x * 35) + "%";
@@ -313,20 +429,34 @@ function padMove(e) {
   let x = ((e.clientX - r.left) / r.width) * 2 - 1, y = ((e.clientY - r.top) / r.height) * 2 - 1;
   const n = Math.hypot(x, y);
   if (n > 1) { x /= n; y /= n; }
-  input.pad = { active: true, x, y };
+  input.pad = { active: true, x, y, id: e.pointerId };
   input.source = "pad";
   placeKnob(x, y);
 }
-pad.addEventListener("pointerdown", (e) => { pad.setPointerCapture(e.pointerId); padMove(e); tick(); });
-pad.addEventListener("pointermove", (e) => { if (input.pad.active) padMove(e); });
-const padUp = () => { input.pad = { active: false, x: 0, y: 0 }; placeKnob(0, 0); tick(); };
+pad.addEventListener("pointerdown", (e) => {
+  if (input.pad.active && input.pad.id !== e.pointerId) return;  // a second finger on the pad
+  pad.setPointerCapture(e.pointerId); padMove(e); tick();
+});
+pad.addEventListener("pointermove", (e) => { if (input.pad.active && input.pad.id === e.pointerId) padMove(e); });
+const padUp = (e) => {
+  if (input.pad.id !== null && e.pointerId !== input.pad.id) return;
+  input.pad = { active: false, x: 0, y: 0, id: null }; placeKnob(0, 0); tick();
+};
 pad.addEventListener("pointerup", padUp);
 pad.addEventListener("pointercancel", padUp);
 
 // browser Gamepad API ("standard" mapping)
+let gamepadName = null;
 function readGamepad() {
   const pads = navigator.getGamepads ? navigator.getGamepads() : [];
-  const gp = Array.from(pads).find((p) => p && p.connected);
+  const gp = Array.from(pads || []).find((p) => p && p.connected);
+  const name = gp ? gp.id : null;
+  if (name !== gamepadName) {
+    gamepadName = name;
+    $("gamepad").textContent = name ? "gamepad: " + name : "no gamepad";
+    $("gamepad").className = "badge" + (name ? " good" : "");
+    $("gamepad").title = name || "no gamepad connected to this computer or phone (press a button to wake one)";
+  }
   if (!gp) return null;
   const dz = (v) => (Math.abs(v) < DEADZONE ? 0 : v);
   const steer = dz(gp.axes[0] || 0);
@@ -354,7 +484,8 @@ function tick() {
   input.steer = clamp(input.steer + clamp(target - input.steer, -step, step), -1, 1);
   const gp = readGamepad();
   let angle = 0, throttle = 0;
-  if (input.source === "gamepad" && gp) { angle = gp.angle; throttle = gp.throttle; }
+  if (document.visibilityState === "hidden") { /* a hidden page drives nothing */ }
+  else if (input.source === "gamepad" && gp) { angle = gp.angle; throttle = gp.throttle; }
   else if (input.source === "pad" && input.pad.active) { angle = input.pad.x; throttle = -input.pad.y; }
   else { angle = input.steer; throttle = (k.has("up") ? 1 : 0) - (k.has("down") ? 1 : 0); }
   angle = Math.round(clamp(angle, -1, 1) * 1000) / 1000;

@@ -89,7 +89,9 @@ def test_watchdog_neutral_when_the_loop_stalls():
     V = Vehicle()  # real time: the watchdog measures real seconds
     V.add(Driver(), outputs=["angle", "throttle"])
     V.add(Stall())
-    add_drivetrain(V, Config.defaults(ACTUATOR_WATCHDOG_S=0.05, **CFG), bus_factory=i2c.smbus)
+    # the car loops at 200 Hz: a watchdog of 0.1 s is twenty loops (a busy test machine can delay
+    # a loop by 50 ms, which tripped a tighter one before the stall)
+    add_drivetrain(V, Config.defaults(ACTUATOR_WATCHDOG_S=0.1, DRIVE_LOOP_HZ=200, **CFG), bus_factory=i2c.smbus)
     with pytest.raises(PartError, match="stalled"):
         V.start(rate_hz=200)
     throttle = board.pulses(THROTTLE_CH)

@@ -201,3 +201,25 @@ def test_full_off_after_the_neutral_hold(make_drivetrain, board):
 def test_bad_part_settings(make_drivetrain, kwargs, message):
     with pytest.raises(ValueError, match=message):
         make_drivetrain(**kwargs)
+
+
+def test_pulses_outside_what_servos_take_are_refused_at_the_frequency(make_drivetrain):
+    # issue 21: THROTTLE_FORWARD_PWM = 4000 at 60 Hz is a 16 ms pulse (throttle 0.4 sent 1,822 ticks)
+    with pytest.raises(ValueError, match=r"THROTTLE_FORWARD_PWM = 4000 is a 16320 µs pulse at 59.84 Hz; "
+                                         r"valid: 123 to 612 ticks"):
+        make_drivetrain(throttle=ThrottleCalibration(4000, 370, 220))
+    with pytest.raises(ValueError, match="STEERING_RIGHT_PWM = 100 is a 408 µs pulse"):
+        make_drivetrain(steering=SteeringCalibration(460, 100))
+    part = make_drivetrain(throttle=ThrottleCalibration(612, 370, 123))  # the edges are valid
+    assert part.throttle.forward == 612
+
+
+def test_an_off_watchdog_is_said_at_start(make_drivetrain, caplog):
+    import logging
+
+    with caplog.at_level(logging.WARNING):
+        make_drivetrain(watchdog_s=0.5).open()
+    assert "watchdog" not in caplog.text
+    with caplog.at_level(logging.WARNING):
+        make_drivetrain(watchdog_s=None).open()
+    assert "ACTUATOR_WATCHDOG_S = None" in caplog.text and "stall" in caplog.text

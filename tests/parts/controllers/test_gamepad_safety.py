@@ -169,3 +169,15 @@ def test_non_threaded_run_replays_a_recording(tmp_path, stream_for):
     out = part.run()  # end of the recording: lost, neutral, and no reconnect attempts
     assert (out.angle, out.throttle, out.mode) == (0.0, 0.0, "user")
     part.shutdown()
+
+
+def test_an_off_silence_timeout_is_said_at_start(caplog):
+    from parts.controllers.logic import GamepadLogic
+
+    layout = load_layout("xbox")
+    with caplog.at_level(logging.WARNING):
+        GamepadLogic(layout, GamepadSettings(silence_timeout_s=2.0))
+    assert "JOYSTICK_SILENCE_TIMEOUT_S" not in caplog.text
+    with caplog.at_level(logging.WARNING):
+        GamepadLogic(layout, GamepadSettings(silence_timeout_s=None))
+    assert "JOYSTICK_SILENCE_TIMEOUT_S = None" in caplog.text and "Bluetooth" in caplog.text

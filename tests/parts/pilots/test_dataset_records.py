@@ -197,3 +197,18 @@ def test_default_preprocessing_centres_pixels_and_a_setting_overrides_it():
     assert x.min().item() == -1.0 and x.max().item() == 1.0
     unit = preprocess_from_config(Config.defaults(PREPROCESS_NORMALIZE="unit"), "linear", (120, 160, 3))
     assert unit.normalize == "unit"
+
+
+def test_frame_cache_counts_only_the_frames_it_holds(tiny_tub, tmp_path, caplog):
+    # issue 21: it logged "cached 120 decoded frames" after skipping some
+    import logging
+    import shutil
+
+    tub = tmp_path / "tub"
+    shutil.copytree(tiny_tub, tub)
+    next((tub / "images").glob("7_*")).write_bytes(bytes(range(256)))  # not an image
+    data = read_drive_data([tub])
+    with caplog.at_level(logging.INFO):
+        bad = FrameCache(data.records, ["cam/image_array"]).fill(np.arange(len(data)))
+    assert list(bad) == [7]
+    assert "cached 119 decoded frames" in caplog.text and "1 record skipped" in caplog.text

@@ -107,3 +107,41 @@ print("ok", report["tracks"][0]["frames"])
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
     assert "ok 20" in out.stdout
+
+
+def _foreign_torchscript(path, meta=None):
+    import torch
+
+    """A TorchScript file this framework did not write (optionally with a bogus pilot metadata)."""
+    module = torch.jit.script(torch.nn.Linear(2, 2))
+    from parts.pilots.export import META_KEY
+
+    extra = {} if meta is None else {f"{META_KEY}.txt": meta}
+    torch.jit.save(module, str(path), _extra_files=extra)
+    return path
+
+
+@pytest.mark.parametrize("content", ["garbage", "truncated", "foreign", "bad-meta", "incomplete-meta"])
+def test_corrupt_or_foreign_torchscript_files_are_clear_errors(make_model_file, tmp_path, content):
+    from parts.pilots.modelfile import ModelFileError
+    from vehicle.app.assembly.pilot import add_pilot
+    from vehicle.config import Config
+    from vehicle.errors import UserError
+    from vehicle.vehicle import Vehicle
+
+    path = tmp_path / f"{content}.ts"
+    if content == "garbage":
+        path.write_bytes(b"\x00not torchscript at all" * 10)
+    elif content == "truncated":
+        good = export_model(make_model_file("linear"), "torchscript")
+        path.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
+    elif content == "foreign":
+        _foreign_torchscript(path)
+    else:
+        _foreign_torchscript(path, "{not json" if content == "bad-meta" else '{"model": {}}')
+    with pytest.raises(ModelFileError) as info:
+        load_pilot(path)
+    msg = str(info.value)
+    assert str(path) in msg and "\n" not in msg and "Traceback" not in msg
+    with pytest.raises(UserError, match="cannot drive with"):
+        add_pilot(Vehicle(), Config.defaults(CAR_PATH=str(tmp_path)), path)

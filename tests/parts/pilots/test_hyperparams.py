@@ -75,9 +75,16 @@ def test_settings_and_defaults_map_to_the_config():
 
 
 def test_check_config_names_the_settings():
+    from types import SimpleNamespace
+
+    from vehicle.config import ConfigError
+
     hp.check_config(Config.defaults())
+    with pytest.raises(ConfigError, match="MAX_EPOCHS = 0 is out of range"):
+        Config.defaults(MAX_EPOCHS=0)  # a car's config refuses them already, with the same bounds
+    bad = SimpleNamespace(**{**dict(Config.defaults()), "MAX_EPOCHS": 0, "AUG_FLIP_P": 1.5})
     with pytest.raises(hp.HyperParamError) as info:
-        hp.check_config(Config.defaults(MAX_EPOCHS=0, AUG_FLIP_P=1.5))
+        hp.check_config(bad)
     assert str(info.value).startswith("MAX_EPOCHS = 0: must be a whole number ≥ 1 (got 0)")
     assert "AUG_FLIP_P = 1.5: must be a number in [0, 1] (got 1.5): it is a probability" in str(info.value)
 

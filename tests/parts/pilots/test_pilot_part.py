@@ -75,8 +75,9 @@ def test_infinite_and_nan_predictions_give_zero_and_a_rate_limited_warning(make_
 def test_no_frame_yet_means_stand_still(make_model_file):
     assert load_pilot(make_model_file("linear"), backend="torch").run(None) == (0.0, 0.0)
     # also with speed control, which would give full throttle at standstill
-    pilot = load_pilot(make_model_file("linear"), backend="torch", speed_control=SpeedControl("limit"))
-    assert pilot.run(None, 0.0, 2.0) == (0.0, 0.0)
+    pilot = load_pilot(make_model_file("linear"), backend="torch",
+                       speed_control=SpeedControl("limit", default_limit=2.0))
+    assert pilot.run(None, 0.0) == (0.0, 0.0)
 
 
 def test_wrong_number_of_inputs_is_a_clear_error(make_model_file, frame):
@@ -122,14 +123,16 @@ def test_sequence_model_buffers_the_last_frames(make_model_file, frame):
     assert list(pilot.run(other)) == pytest.approx(bare(path, other, frames=3), abs=1e-6)
 
 
-def test_speed_control_replaces_the_throttle_while_a_limit_is_set(make_model_file, frame):
+def test_speed_control_replaces_the_throttle_with_its_own_target(make_model_file, frame):
     path = make_model_file("linear")
-    pilot = load_pilot(path, backend="torch", speed_control=SpeedControl("limit"), speed_key="sim/speed")
-    assert pilot.inputs == ["cam/image_array", "sim/speed", "user/speed_limit"]
-    angle, throttle = pilot.run(frame, 1.0, 2.0)
+    pilot = load_pilot(path, backend="torch", speed_control=SpeedControl("limit", default_limit=2.0),
+                       speed_key="sim/speed")
+    assert pilot.inputs == ["cam/image_array", "sim/speed"]  # not the page's limit: that one caps
+    angle, throttle = pilot.run(frame, 1.0)
     assert throttle == pytest.approx(0.5)  # 1 - 1.0 / 2.0
     assert angle == pytest.approx(bare(path, frame)[0], abs=1e-6)
-    assert pilot.run(frame, 1.0, None)[1] == pytest.approx(bare(path, frame)[1], abs=1e-6)
+    off = load_pilot(path, backend="torch", speed_control=SpeedControl("limit"), speed_key="sim/speed")
+    assert off.run(frame, 1.0)[1] == pytest.approx(bare(path, frame)[1], abs=1e-6)  # no target set
 
 
 def test_hot_switch_loads_in_the_background_and_swaps(make_model_file, frame, tmp_path):
@@ -137,10 +140,10 @@ def test_hot_switch_loads_in_the_background_and_swaps(make_model_file, frame, tm
     b = make_model_file("linear", name="b", seed=2)
     pilot = Pilot(a, backend="torch", models_dir=a.parent)
     switch = ModelSwitch(pilot)
-    assert switch.run(None) == "a.pt"
-    assert switch.run("b.pt") in ("a.pt", "b.pt")  # relative to models_dir; never waits for the load
+    assert switch.run(None) == ("a.pt", None)
+    assert switch.run("b.pt")[0] in ("a.pt", "b.pt")  # relative to models_dir; never waits for the load
     assert pilot.wait_loaded(timeout=30)
-    assert switch.run("b.pt") == "b.pt"
+    assert switch.run("b.pt") == ("b.pt", None)
     assert pilot.resolve("models/b.pt") == b  # a car-relative path from another working directory
     assert list(pilot.run(frame)) == pytest.approx(bare(b, frame), abs=1e-6)
     # a file that does not load keeps the current model driving
@@ -149,6 +152,14 @@ def test_hot_switch_loads_in_the_background_and_swaps(make_model_file, frame, tm
     assert pilot.wait_loaded(timeout=30)
     assert pilot.model_name == "b.pt" and "broken.pt" in pilot.load_error
     assert list(pilot.run(frame)) == pytest.approx(bare(b, frame), abs=1e-6)
+    name, error = switch.run(str(tmp_path / "broken.pt"))  # the same request: not loaded again
+    assert name == "b.pt" and "broken.pt" in error  # pilot/load_error: the page shows why
+    # the file fixed and asked for again once the picker let go of the request: it loads
+    (tmp_path / "broken.pt").write_bytes(a.read_bytes())
+    switch.run(None)
+    switch.run(str(tmp_path / "broken.pt"))
+    assert pilot.wait_loaded(timeout=30)
+    assert switch.run(None) == ("broken.pt", None)
 
 
 def test_a_switch_to_another_type_changes_the_declared_inputs(make_model_file, frame):

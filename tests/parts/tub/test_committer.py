@@ -265,7 +265,12 @@ def test_a_catalog_is_fsynced_before_the_next_one_starts(tmp_path, monkeypatch):
     committer.submit([], next_catalog=(tmp_path / "t" / "catalog_1.catalog", 6))  # no manifest
     committer.wait()
     assert calls[3:] == ["fsync catalog_0.catalog"]  # lines 3-5 durable before catalog_0 closes
+    # catalog_1 appears with its first lines (never empty: DonkeyCar cannot open an empty catalog)
+    assert committer.catalog is None and not (tmp_path / "t" / "catalog_1.catalog").exists()
+    committer.submit(['{"_index": 6}\n'])
+    committer.wait()
     assert committer.catalog.path.name == "catalog_1.catalog"
+    assert (tmp_path / "t" / "catalog_1.catalog").read_text() == '{"_index": 6}\n'
     tub.close()
 
 

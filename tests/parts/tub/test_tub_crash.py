@@ -69,3 +69,32 @@ def test_sigkill_at_random_points_never_corrupts_the_tub(tmp_path):
     final = Tub(tub_path, read_only=True)
     assert len(final) == checked and final.problems == []
     assert np.all(np.diff([r.index for r in load_records(tub_path)]) == 1)
+
+
+def test_sigkill_right_after_a_catalog_rollover_leaves_a_tub_donkeycar_opens(tmp_path, donkeycar_opens):
+    """issue 21: a kill just after the writer started a new catalog left it empty (0 bytes, with
+    its .catalog_manifest): DonkeyCar 5.3's read-only open fails on it (cannot mmap an empty file).
+    Each run is killed the moment a new catalog file appears."""
+    tub_path = tmp_path / "tub"
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    seen = 1  # catalog_0 comes with the tub: aim at the rollovers to catalog_1, catalog_2 ...
+    for kill in range(8):
+        # a wide durability window: the first line of a new catalog waits for the next commit
+        proc = subprocess.Popen([sys.executable, str(CHILD), str(tub_path), str(kill), "10", "200"],
+                                env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        assert proc.stdout.readline() == b"ready\n", proc.stderr.read().decode()[-2000:]
+        end = time.monotonic() + 20
+        while len(list(tub_path.glob("catalog_*.catalog"))) <= seen:
+            assert time.monotonic() < end and proc.poll() is None, proc.stderr.read().decode()[-2000:]
+        proc.send_signal(signal.SIGKILL)
+        proc.communicate(timeout=10)
+        seen = len(list(tub_path.glob("catalog_*.catalog")))
+        assert donkeycar_opens(tub_path) == [], f"kill {kill}"
+        tub = Tub(tub_path, read_only=True)
+        empty = [p.name for p in tub_path.glob("catalog_*.catalog") if p.stat().st_size == 0]
+        assert empty == [], f"kill {kill}: empty catalog left behind"
+        indexes = [i for _, i, _, _, _ in tub.scan()]
+        assert indexes == list(range(len(indexes))), f"kill {kill}: indexes not contiguous"
+    check_tub(tub_path, repair=True)
+    report = check_tub(tub_path)
+    assert report.ok, report.lines()

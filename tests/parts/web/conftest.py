@@ -1,9 +1,11 @@
 """Fixtures for the web controller tests: a real server on 127.0.0.1 (ephemeral port), a real
-python-socketio client, a fake camera, and the loop side driven by the test."""
+python-socketio client, a raw protocol client, a fake camera, the loop side driven by the test, and
+real cars (a Vehicle in a thread) for the browser tests."""
 
 from __future__ import annotations
 
 import asyncio
+import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -169,3 +171,195 @@ def arun() -> Callable[[Any], Any]:
 def client_cls() -> type[Client]:
     """The recording Socket.IO client class: ``c = client_cls(); await c.connect(port)``."""
     return Client
+
+
+class RawSocketIO:
+    """A Socket.IO v5 client over Engine.IO v4 WebSocket written from the protocol, that sends
+    WebSocket messages exactly as given (hostile ones too). On the wire, ``42<id>[event, data]`` is
+    an Engine.IO MESSAGE (``4``) holding a Socket.IO EVENT (``2``) with an acknowledgement id,
+    answered by ``43<id>[reply]`` (MESSAGE, ACK)."""
+
+    def __init__(self) -> None:
+        self.http: Any = None
+        self.ws: Any = None
+        self.events: list[str] = []
+
+    async def connect(self, port: int) -> dict[str, Any]:
+        import json
+
+        import aiohttp
+
+        self.http = aiohttp.ClientSession()
+        self.ws = await self.http.ws_connect(f"http://127.0.0.1:{port}/socket.io/?EIO=4&transport=websocket")
+        opened = await self._text(engineio=True)
+        assert opened.startswith("0"), opened  # Engine.IO OPEN with the session's settings
+        await self.ws.send_str("40")  # MESSAGE: Socket.IO CONNECT to the main namespace
+        while True:
+            text = await self._text()
+            if text.startswith("0"):  # Socket.IO CONNECT answered: {"sid": ...}
+                return json.loads(text[1:])
+            self.events.append(text)
+
+    async def _text(self, timeout: float = 5.0, engineio: bool = False) -> str:
+        """The next Socket.IO packet (``engineio``: the next Engine.IO packet as it came)."""
+        import aiohttp
+
+        while True:
+            msg = await asyncio.wait_for(self.ws.receive(), timeout)
+            if msg.type != aiohttp.WSMsgType.TEXT:
+                raise ConnectionError(f"connection closed ({msg.type.name})")
+            if msg.data == "2":  # Engine.IO PING: answer PONG
+                await self.ws.send_str("3")
+                continue
+            if engineio:
+                return msg.data
+            if msg.data.startswith("4"):  # Engine.IO MESSAGE: a Socket.IO packet follows
+                return msg.data[1:]
+
+    async def send(self, message: str) -> None:
+        """Send one WebSocket message as given (e.g. ``42["drive",{...}]``)."""
+        await self.ws.send_str(message)
+
+    async def call(self, message: str, timeout: float = 5.0) -> Any:
+        """Send an event message with an ack id and return the acknowledgement's first value."""
+        import json
+        import re
+
+        ack_id = re.match(r"42(\d+)", message).group(1)
+        await self.send(message)
+        while True:
+            text = await self._text(timeout)
+            if text.startswith(f"3{ack_id}["):
+                return json.loads(text[len(ack_id) + 1:])[0]
+            if not text.startswith("3"):
+                self.events.append(text)  # events (hello, state, frame) until the acknowledgement
+
+    @property
+    def closed(self) -> bool:
+        return self.ws is None or self.ws.closed
+
+    async def close(self) -> None:
+        if self.ws is not None:
+            await self.ws.close()
+        if self.http is not None:
+            await self.http.close()
+
+
+@pytest.fixture
+def raw_client() -> type[RawSocketIO]:
+    """The raw protocol client class: ``c = raw_client(); await c.connect(port)``."""
+    return RawSocketIO
+
+
+# -- real cars for the browser tests ---------------------------------------------------------------
+class FakeCamera:
+    """A camera part: a bright column moving over a dark frame."""
+
+    OUTPUTS = ("cam/image_array",)
+
+    def __init__(self) -> None:
+        self.i = 0
+
+    def run(self) -> np.ndarray:
+        self.i += 1
+        img = np.full((120, 160, 3), 30, np.uint8)
+        img[:, self.i % 160] = 255
+        return img
+
+
+class Car:
+    """A real Vehicle running in a thread at 40 Hz (real time), as a context manager or with
+    :meth:`start` / :meth:`stop`. On stop the browser's pages (if given) are closed first."""
+
+    def __init__(self, V: Any, web: WebController, browser: Any = None) -> None:
+        self.V, self.web, self.browser = V, web, browser
+        self.errors: list[BaseException] = []
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.stopped = False
+
+    def _run(self) -> None:
+        try:
+            self.V.start(rate_hz=40)
+        except BaseException as exc:
+            self.errors.append(exc)
+
+    def start(self) -> Car:
+        self.thread.start()
+        end = time.monotonic() + 10
+        while self.web.port == 0 and time.monotonic() < end:
+            time.sleep(0.01)
+        return self
+
+    def stop(self) -> None:
+        if self.stopped:
+            return
+        self.stopped = True
+        if self.browser is not None:
+            for context in self.browser.contexts:
+                context.close()
+        self.V.stop()
+        self.thread.join(10)
+        assert not self.errors, self.errors
+
+    def __enter__(self) -> Car:
+        return self.start()
+
+    def __exit__(self, *exc: Any) -> None:
+        self.stop()
+
+    def until(self, cond: Callable[[Any], bool], timeout: float = 5.0, what: str = "") -> None:
+        """Wait until ``cond(vehicle memory)`` holds; fail after ``timeout`` seconds."""
+        end = time.monotonic() + timeout
+        while not cond(self.V.mem):
+            if time.monotonic() > end:
+                raise AssertionError(f"vehicle memory condition not met: {what}; "
+                                     f"user/angle={self.V.mem['user/angle']} "
+                                     f"user/throttle={self.V.mem['user/throttle']}")
+            time.sleep(0.01)
+
+
+def build_car(car_path: Path, browser: Any = None, *, sim: bool = False, model: Path | None = None,
+              tub: bool = False, **settings: Any) -> Car:
+    """The car as manage.py drive assembles it (not started): the simulator or a fake camera, the
+    web page, a pilot when ``model`` is given, the drive mode, a tub writer with ``tub``."""
+    from vehicle import Vehicle
+    from vehicle.app import assembly
+    from vehicle.config import Config
+
+    settings = {"WEB_CONTROL_PORT": 0, "WEB_MAX_THROTTLE": 1.0, "PILOT_BACKEND": "torch", **settings}
+    cfg = Config.defaults(CAR_PATH=str(car_path), **settings)
+    V = Vehicle()
+    if sim:
+        assembly.add_simulator(V, cfg)
+    else:
+        V.add(FakeCamera())
+    web = assembly.add_controller(V, cfg)
+    if model is not None:
+        assembly.add_pilot(V, cfg, model)
+    assembly.add_drive_mode(V, cfg)
+    if tub:
+        assembly.add_tub_writer(V, cfg)
+    return Car(V, web, browser)
+
+
+@pytest.fixture
+def make_car(tmp_path: Path) -> Iterator[Callable[..., Car]]:
+    """``make_car(sim=False, model=None, tub=False, **settings)``: a started car (see
+    :func:`build_car`), stopped after the test."""
+    cars: list[Car] = []
+
+    def make(**kwargs: Any) -> Car:
+        car = build_car(tmp_path, **kwargs).start()
+        cars.append(car)
+        return car
+
+    yield make
+    for car in cars:
+        car.stop()
+
+
+@pytest.fixture
+def fake_car() -> Callable[..., Car]:
+    """:func:`build_car` (``fake_car(tmp_path, browser, **settings)``, a context manager that
+    starts the car and stops it, its pages closed first)."""
+    return build_car

@@ -2,87 +2,19 @@
 
 from __future__ import annotations
 
-import threading
 import time
 
-import numpy as np
 import pytest
 
-from vehicle import Vehicle
-from vehicle.app.assembly.controller import add_controller
-from vehicle.app.assembly.drive import add_drive_mode
 from vehicle.config import Config
 
 pytestmark = pytest.mark.browser  # chromium missing: the browser fixture skips, with the reason
 
 
-class FakeCamera:
-    def __init__(self) -> None:
-        self.i = 0
-
-    def run(self) -> np.ndarray:
-        self.i += 1
-        img = np.full((120, 160, 3), 30, np.uint8)
-        img[:, self.i % 160] = 255
-        return img
-
-
-def fake_car(tmp_path, browser, **overrides) -> Car:
-    """Fake camera -> web controller -> drive mode."""
-    cfg = Config.defaults(CAR_PATH=str(tmp_path), WEB_CONTROL_PORT=0, WEB_MAX_THROTTLE=1.0, **overrides)
-    V = Vehicle()
-    V.add(FakeCamera(), outputs=["cam/image_array"])
-    web = add_controller(V, cfg)
-    add_drive_mode(V, cfg)
-    return Car(V, web, browser)
-
-
-class Car:
-    """A small real Vehicle (fake camera, web controller, drive mode) running in a thread.
-
-    On exit the browser's pages are closed first, then the car stops.
-    """
-
-    def __init__(self, V: Vehicle, web, browser) -> None:
-        self.V, self.web, self.browser = V, web, browser
-        self.errors: list[BaseException] = []
-        self.thread = threading.Thread(target=self._run)
-
-    def _run(self) -> None:
-        try:
-            self.V.start(rate_hz=40)
-        except BaseException as exc:
-            self.errors.append(exc)
-
-    def __enter__(self) -> Car:
-        self.thread.start()
-        end = time.monotonic() + 10
-        while self.web.port == 0 and time.monotonic() < end:
-            time.sleep(0.01)
-        return self
-
-    def __exit__(self, *exc) -> None:
-        for context in self.browser.contexts:
-            context.close()
-        self.V.stop()
-        self.thread.join(10)
-        assert not self.errors, self.errors
-
-    def until(self, cond, timeout: float = 5.0, what: str = "") -> None:
-        end = time.monotonic() + timeout
-        while not cond(self.V.mem):
-            if time.monotonic() > end:
-                raise AssertionError(f"vehicle memory condition not met: {what}; "
-                                     f"user/angle={self.V.mem['user/angle']} "
-                                     f"user/throttle={self.V.mem['user/throttle']}")
-            time.sleep(0.01)
-
-
 CONNECTED = "window.webStats && webStats.connected && webStats.role === '{}'"
 
 
-
-def test_keys_drive_the_car_frames_arrive_and_closing_the_page_stops(tmp_path, browser, new_page):
+def test_keys_drive_the_car_frames_arrive_and_closing_the_page_stops(tmp_path, browser, new_page, fake_car):
     with fake_car(tmp_path, browser) as car:
         page = new_page(car.web.url)
         page.wait_for_function(CONNECTED.format("driver"))
@@ -101,7 +33,7 @@ def test_keys_drive_the_car_frames_arrive_and_closing_the_page_stops(tmp_path, b
                   what="stop after the page closed")
 
 
-def test_a_frozen_page_trips_the_deadman(tmp_path, browser, new_page):
+def test_a_frozen_page_trips_the_deadman(tmp_path, browser, new_page, fake_car):
     with fake_car(tmp_path, browser) as car:
         page = new_page(car.web.url)
         page.wait_for_function(CONNECTED.format("driver"))
@@ -119,7 +51,7 @@ def test_a_frozen_page_trips_the_deadman(tmp_path, browser, new_page):
         page.wait_for_function("document.getElementById('notice').textContent.startsWith('Dead-man')")
 
 
-def test_buttons_modes_record_estop_and_watcher(tmp_path, browser, new_page):
+def test_buttons_modes_record_estop_and_watcher(tmp_path, browser, new_page, fake_car):
     with fake_car(tmp_path, browser) as car:
         driver = new_page(car.web.url)
         driver.wait_for_function(CONNECTED.format("driver"))
@@ -151,7 +83,7 @@ def test_buttons_modes_record_estop_and_watcher(tmp_path, browser, new_page):
         car.until(lambda m: m["user/throttle"] == 0.0, what="key released")
 
 
-def test_page_without_the_pairing_token_is_refused(tmp_path, browser, new_page):
+def test_page_without_the_pairing_token_is_refused(tmp_path, browser, new_page, fake_car):
     with fake_car(tmp_path, browser, WEB_TOKEN="pairing-token-42") as car:
         url = car.web.url
         assert "?token=" in url
@@ -162,19 +94,13 @@ def test_page_without_the_pairing_token_is_refused(tmp_path, browser, new_page):
         ok.wait_for_function(CONNECTED.format("driver"))
 
 
-def test_newcomer_drives_the_simulator_by_keyboard_and_records_a_tub(tmp_path, browser, new_page):
+def test_newcomer_drives_the_simulator_by_keyboard_and_records_a_tub(tmp_path, browser, new_page, fake_car):
     """The simulator car as manage.py drive assembles it: keys drive, R records a tub."""
     from parts.tub.reader import load_records
-    from vehicle.app import assembly
 
     cfg = Config.defaults(CAR_PATH=str(tmp_path), WEB_CONTROL_PORT=0)
-    V = Vehicle()
-    assembly.add_simulator(V, cfg)
-    web = assembly.add_controller(V, cfg)
-    assembly.add_drive_mode(V, cfg)
-    assembly.add_tub_writer(V, cfg)
-    with Car(V, web, browser) as car:
-        page = new_page(web.url)
+    with fake_car(tmp_path, browser, sim=True, tub=True, WEB_MAX_THROTTLE=cfg.WEB_MAX_THROTTLE) as car:
+        page = new_page(car.web.url)
         page.wait_for_function(CONNECTED.format("driver"))
         page.keyboard.press("r")
         page.keyboard.down("ArrowUp")

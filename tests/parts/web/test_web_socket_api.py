@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import logging
 
 import cv2
 import numpy as np
@@ -76,12 +77,14 @@ def test_model_picker_requests_a_file_of_the_models_folder(web, loop_side, clien
         c = client_cls()
         await c.connect(web.port)
         assert await c.call("set", {"model": "b.pt"}) == {"ok": True}
-        assert loop_side.step()["pilot/model_request"] == str((models_dir / "b.pt").resolve())
+        assert loop_side.step(pilot__model="a.pt")["pilot/model_request"] == str((models_dir / "b.pt").resolve())
         (models_dir / "c.pt").write_bytes(b"new")
         assert (await c.call("models"))["models"] == ["a.pt", "b.pt", "c.pt"]
         for bad in ("../a.pt", "notes.txt", str(models_dir / "a.pt"), "missing.pt", 3):
             res = await c.call("set", {"model": bad})
             assert res["ok"] is False and "models folder" in res["error"]
+        assert loop_side.step()["pilot/model_request"] is None  # a request is handed over once
+        assert await c.call("set", {"model": "b.pt"}) == {"ok": True}  # the same again: again
         assert loop_side.step()["pilot/model_request"] == str((models_dir / "b.pt").resolve())
         await c.close()
 
@@ -170,6 +173,49 @@ def test_pages_of_other_sites_cannot_connect(web, client_cls, arun):
     arun(main())
 
 
+def test_dns_rebinding_host_names_are_refused(web, loop_side, client_cls, arun):
+    """A page on evil.example, whose name an attacker made resolve to 127.0.0.1, sends exactly
+    these headers: same-origin by the Origin check alone. The Host name must be one of the car's."""
+    import aiohttp
+
+    async def main():
+        port = web.port
+        evil = {"Host": f"evil.example:{port}", "Origin": f"http://evil.example:{port}"}
+        c = client_cls()
+        with pytest.raises(socketio.exceptions.ConnectionError):
+            await c.connect(port, headers=evil)
+        async with aiohttp.ClientSession() as http:
+            async with http.get(f"http://127.0.0.1:{port}/", headers={"Host": evil["Host"]}) as r:
+                assert r.status == 403
+                assert "evil.example" in await r.text()
+            for host in (f"127.0.0.1:{port}", f"localhost:{port}", f"[::1]:{port}", "127.0.0.1"):
+                async with http.get(f"http://127.0.0.1:{port}/", headers={"Host": host}) as r:
+                    assert r.status == 200, host
+        for host in (f"localhost:{port}", f"[::1]:{port}"):
+            c = client_cls()
+            hello = await c.connect(port, headers={"Host": host, "Origin": f"http://{host}"})
+            assert hello["role"] == "driver"
+            await c.close()
+        assert loop_side.step()["user/throttle"] == 0.0
+
+    arun(main())
+
+
+def test_allowed_host_names_of_a_network_car():
+    from parts.web.pairing import allowed_hosts, host_allowed
+
+    loopback = allowed_hosts("127.0.0.1")
+    assert host_allowed("localhost:8887", loopback) and host_allowed("127.0.0.1", loopback)
+    assert host_allowed("[::1]:8887", loopback) and not host_allowed("evil.example:8887", loopback)
+    assert not host_allowed("", loopback) and not host_allowed("localhost.evil.example", loopback)
+    named = allowed_hosts("mycar.local", extra=["Car.Example.org"])
+    assert host_allowed("mycar.local:8887", named) and host_allowed("car.example.org", named)
+    # an address literal cannot be rebound to another machine: a phone opens the car by its IP
+    lan = allowed_hosts("0.0.0.0")
+    assert host_allowed("192.168.1.42:8887", lan) and host_allowed("[fe80::1]:8887", lan)
+    assert not host_allowed("rebind.evil.example:8887", lan)
+
+
 def test_network_interface_needs_a_token():
     from parts.web.controller import WebController
 
@@ -218,16 +264,76 @@ def test_malformed_messages_never_reach_the_outputs(web, loop_side, client_cls, 
     arun(main())
 
 
-def test_an_oversized_message_drops_the_connection(web, loop_side, client_cls, arun):
+HOSTILE = [  # (packet as sent, what the error reply must mention)
+    ('421["drive",{"angle":1' + "0" * 400 + ',"throttle":0}]', "not valid JSON"),  # 10**400
+    ('421["drive",{"angle":1' + "0" * 90 + ',"throttle":0}]', "angle"),  # 10**90: in JSON's range
+    ('421["drive",{"angle":1' + "0" * 5000 + ',"throttle":0}]', "larger than the limit of 4096"),
+    ('421["drive",{"angle":1e400,"throttle":0}]', "angle"),
+    ('421["drive",{"angle":0,"throttle":0,"pad":"' + "x" * 10_000 + '"}]', "larger than the limit of 4096"),
+    ('421["drive",{"angle":0,', "not valid JSON"),
+    ("421[]", "not an event"),
+    ('421[5,{"angle":0}]', "not an event"),
+    ('421{"drive":{"angle":0}}', "not an event"),
+    ('421["set",{"max_throttle":' + "9" * 4000 + "}]", "not valid JSON"),
+    ('421["set",{"model":"' + "m" * 3000 + '"}]', "model"),
+]
+
+
+@pytest.mark.parametrize("packet, word", HOSTILE, ids=[f"hostile{i}" for i in range(len(HOSTILE))])
+def test_hostile_packets_get_the_documented_error_reply(web, loop_side, raw_client, arun, packet, word):
     async def main():
-        c = client_cls()
-        await c.connect(web.port)
-        await c.call("drive", {"angle": 0.0, "throttle": 0.4})
-        with pytest.raises(socketio.exceptions.TimeoutError):
-            await c.sio.call("drive", {"angle": 1.0, "throttle": 1.0, "pad": "x" * 10_000}, timeout=1)
-        out = await loop_side.until(lambda o: o["user/throttle"] == 0.0)  # dropped driver: stop
-        assert out["user/angle"] == 0.0
-        await c.close()
+        c = raw_client()
+        try:
+            await c.connect(web.port)
+            reply = await c.call(packet)
+            assert reply["ok"] is False and word in reply["error"], reply
+            assert len(reply["error"]) < 400  # the reply never echoes a huge value
+            # the connection stays and the next message drives
+            assert await c.call('422["drive",{"angle":0.1,"throttle":0.4}]') == {"ok": True}
+            out = await loop_side.until(lambda o: o["user/throttle"] > 0)
+            assert out["user/throttle"] == pytest.approx(0.2) and out["user/angle"] == pytest.approx(0.1)
+        finally:
+            await c.close()
+
+    arun(main())
+
+
+def test_a_flood_of_hostile_messages_logs_a_bounded_amount(web, raw_client, arun, caplog):
+    # issue 21: 742 KB of log in 5 s, two full tracebacks per message
+    async def main():
+        c = raw_client()
+        try:
+            await c.connect(web.port)
+            for i in range(40):
+                for packet, _ in HOSTILE:
+                    await c.send(packet.replace("421", f"42{i + 10}", 1))
+            assert await c.call('422["drive",{"angle":0.0,"throttle":0.0}]', timeout=30) == {"ok": True}
+        finally:
+            await c.close()
+
+    with caplog.at_level(logging.DEBUG):
+        arun(main())
+        web.shutdown()  # writes the count of the lines held back
+    assert "Traceback" not in caplog.text
+    assert len(caplog.text) < 20_000, len(caplog.text)
+    assert web.server.rejected == 40 * len(HOSTILE)
+    assert "more rejected messages" in caplog.text  # the flood is summarised, not dropped silently
+
+
+def test_a_message_beyond_the_hard_limit_drops_the_connection_and_stops(web, loop_side, raw_client, arun):
+    async def main():
+        c = raw_client()
+        try:
+            await c.connect(web.port)
+            assert await c.call('421["drive",{"angle":0.3,"throttle":0.8}]') == {"ok": True}
+            await loop_side.until(lambda o: o["user/throttle"] > 0)
+            await c.send('422["drive",{"angle":0,"throttle":0,"pad":"' + "x" * 200_000 + '"}]')
+            with pytest.raises(ConnectionError):
+                await c.call('423["drive",{"angle":0.3,"throttle":0.8}]')
+            out = await loop_side.until(lambda o: o["user/throttle"] == 0.0)  # the dropped driver: stop
+            assert out["user/angle"] == 0.0
+        finally:
+            await c.close()
 
     arun(main())
 
@@ -344,6 +450,110 @@ def test_change_lane_steps_the_behaviour_once_and_the_page_sees_the_lane(web, lo
                 await asyncio.sleep(0.02)
         await asyncio.wait_for(lane_shown(), 5)
         await viewer.close()
+        await c.close()
+
+    arun(main())
+
+
+def test_shutdown_with_browsers_connected_is_prompt(web_factory, client_cls, raw_client, arun, caplog):
+    # issue 21: every stop with a browser connected waited for the web thread ("did not stop
+    # within 2.0 s"): the server waited for the browsers to leave
+    web = web_factory()
+
+    async def main():
+        page, silent = client_cls(), raw_client()
+        await page.connect(web.port)
+        await silent.connect(web.port)  # connected, reads nothing more
+        await asyncio.get_running_loop().run_in_executor(None, web.shutdown)
+        assert not web.running
+        await page.close()
+        await silent.close()
+
+    with caplog.at_level(logging.WARNING):
+        arun(main())
+    assert "did not stop" not in caplog.text
+
+
+# -- issue 21: what the page needs from the server ----------------------------------------------
+def test_every_loadable_model_is_listed(web, client_cls, arun, models_dir):
+    (models_dir / "a.onnx").write_bytes(b"an export of a.pt")
+    (models_dir / "c.ts").write_bytes(b"a TorchScript export")
+    (models_dir / ".hidden.pt").write_bytes(b"")
+
+    async def main():
+        c = client_cls()
+        hello = await c.connect(web.port)
+        assert hello["models"] == ["a.onnx", "a.pt", "b.pt", "c.ts"]
+        assert await c.call("set", {"model": "c.ts"}) == {"ok": True}
+        await c.close()
+
+    arun(main())
+
+
+def test_settings_that_move_or_record_wait_for_the_stop_to_be_released(web, loop_side, client_cls, arun):
+    async def main():
+        c = client_cls()
+        await c.connect(web.port)
+        assert await c.call("set", {"mode": "local", "recording": True}) == {"ok": True}
+        assert await c.call("estop", {"on": True}) == {"ok": True}
+        out = loop_side.step()
+        assert (out["estop"], out["user/mode"], out["recording"]) == (True, "user", False)
+        for setting in ({"mode": "local"}, {"mode": "local_angle"}, {"recording": True},
+                        {"constant_throttle": True}):
+            res = await c.call("set", setting)
+            assert res["ok"] is False and "emergency stop" in res["error"], setting
+        assert await c.call("set", {"max_throttle": 0.3, "mode": "user"}) == {"ok": True}  # harmless
+        out = loop_side.step()
+        assert (out["user/mode"], out["recording"], out["user/throttle"]) == ("user", False, 0.0)
+        assert await c.call("estop", {"on": False}) == {"ok": True}
+        out = loop_side.step()  # released: a stopped car in user mode, not recording
+        assert (out["estop"], out["user/mode"], out["recording"], out["user/throttle"]) == \
+            (False, "user", False, 0.0)
+        assert await c.call("set", {"mode": "local"}) == {"ok": True}  # set again: accepted
+        assert loop_side.step()["user/mode"] == "local"
+        await c.close()
+
+    arun(main())
+
+
+def test_telemetry_says_what_is_live_and_what_the_simulator_measures(web, loop_side, client_cls, arun):
+    async def main():
+        c = client_cls()
+        await c.connect(web.port)
+        loop_side.step(run_pilot=False, pilot__model="pilot.onnx", pilot__angle=0.4,
+                       pilot__load_error="models/bad.pt: not a model file", sim__cte=-0.12,
+                       sim__lap=2, sim__off_track=False, sim__speed=1.5)
+        assert web.server.state.snapshot()["telemetry"]["car_gamepad"] is None  # a car without a gamepad
+        for off in (True, True, False, True, False):  # two off-track events
+            loop_side.step(sim__off_track=off, js__status="silent")
+        for _ in range(100):  # the next state message after these loops
+            if c.states and c.states[-1]["telemetry"]["loops"] >= 6:
+                break
+            await asyncio.sleep(0.05)
+        state = c.states[-1]
+        t = state["telemetry"]
+        assert t["pilot_active"] is False and t["pilot_model"] == "pilot.onnx"
+        assert t["pilot_error"] == "models/bad.pt: not a model file"
+        assert (t["sim_cte"], t["sim_laps"], t["sim_off_track"], t["off_track_events"]) == (-0.12, 2, False, 2)
+        assert t["car_gamepad"] == "silent"  # the car's own gamepad, as js/status says
+        assert 0.0 <= state["age_s"] < 5.0  # seconds since the loop last reported
+        await c.close()
+
+    arun(main())
+
+
+def test_a_model_or_a_speed_limit_the_car_cannot_use_is_refused(web, loop_side, client_cls, arun):
+    async def main():
+        c = client_cls()
+        await c.connect(web.port)
+        loop_side.step()  # a car without a pilot and without a speed measurement
+        res = await c.call("set", {"model": "a.pt"})
+        assert res["ok"] is False and "without a pilot" in res["error"] and "--model" in res["error"]
+        res = await c.call("set", {"speed_limit": 1.0})
+        assert res["ok"] is False and "measures no speed" in res["error"]
+        assert await c.call("set", {"speed_limit": None}) == {"ok": True}
+        loop_side.step(pilot__model="a.pt", sim__speed=0.0)
+        assert await c.call("set", {"model": "b.pt", "speed_limit": 1.0}) == {"ok": True}
         await c.close()
 
     arun(main())

@@ -29,6 +29,8 @@ def test_page_and_assets_are_served(web, arun):
         assert status == 200 and b"class SioClient" in body
         status, body = await raw_get(web.port, "/static/style.css")
         assert status == 200 and b".estop" in body
+        status, body = await raw_get(web.port, "/favicon.ico")  # issue 21: it was a 404
+        assert status == 200 and body.startswith(b"<svg")
 
     arun(main())
 

@@ -56,7 +56,7 @@ def test_web_and_gamepad_are_arbitrated(tmp_path):
     V, web = build(tmp_path, USE_JOYSTICK_AS_DEFAULT=True, CONTROLLER_TYPE="generic",
                    JOYSTICK_DEVICE_FILE=str(tmp_path / "no-such-js0"), CONTROLLER_PRIORITY="latest")
     names = [type(e.part).__name__ for e in V.parts]
-    assert names[1:4] == ["WebController", "Gamepad", "ControllerArbiter"]
+    assert names[1:5] == ["WebController", "Gamepad", "GamepadStatus", "ControllerArbiter"]
     by_name = {type(e.part).__name__: e for e in V.parts}
     assert by_name["WebController"].outputs[:2] == ("web/angle", "web/throttle")
     assert by_name["Gamepad"].outputs[:2] == ("js/angle", "js/throttle")

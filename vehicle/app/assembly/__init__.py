@@ -14,6 +14,7 @@ from typing import Any
 # helper name -> module under vehicle.app.assembly that defines it
 HELPERS: dict[str, str] = {
     "add_drive_mode": "drive",
+    "add_speed_limit": "drive",
     "add_simulator": "sim",
     "sim_clock": "sim",
     "add_simulator_commands": "sim",

@@ -22,6 +22,23 @@ def add_drive_mode(V: Any, cfg: Config) -> Any:
 
     part = DriveMode(ai_throttle_mult=cfg.AI_THROTTLE_MULT)
     V.add(part)
+    add_speed_limit(V, cfg)
+    return part
+
+
+def add_speed_limit(V: Any, cfg: Config) -> Any:
+    """Add SpeedLimit after the drive mode: ``throttle`` capped so that the measured speed stays
+    under ``user/speed_limit`` (the web page's limit), in every mode. Returns None (and adds
+    nothing) when no part sets a limit or none measures the speed: the page then says that the
+    limit is not available."""
+    from parts.drive.speed import SpeedLimit
+    from vehicle.app.assembly.pilot import speed_key_of
+
+    speed_key = speed_key_of(V, cfg)
+    if not V.produces("user/speed_limit") or not V.produces(speed_key) or V.find(SpeedLimit):
+        return None
+    part = SpeedLimit(speed_key, dt=1.0 / cfg.DRIVE_LOOP_HZ, kp=cfg.PILOT_SPEED_KP, ki=cfg.PILOT_SPEED_KI)
+    V.add(part)
     return part
 
 

@@ -62,7 +62,7 @@ def add_gamepad(V: Any, cfg: Config, outputs: Sequence[str] | None = None) -> An
     at start: it is opened again every JOYSTICK_RETRY_S and gives throttle 0 and user mode
     meanwhile.
     """
-    from parts.controllers.gamepad import Gamepad
+    from parts.controllers.gamepad import Gamepad, GamepadStatus
 
     if outputs is not None and len(outputs) != len(Gamepad.OUTPUTS):
         raise ValueError(f"add_gamepad outputs needs {len(Gamepad.OUTPUTS)} keys in the order "
@@ -70,5 +70,6 @@ def add_gamepad(V: Any, cfg: Config, outputs: Sequence[str] | None = None) -> An
     layout = load_gamepad_layout(cfg)
     part = Gamepad(make_reader(cfg, layout), layout, gamepad_settings(cfg), retry_s=cfg.JOYSTICK_RETRY_S)
     V.add(part, outputs=outputs, threaded=True)
+    V.add(GamepadStatus(part))  # js/status: the web page shows whether the car's pad is there
     logger.info("gamepad: %s layout on %s", layout.name, part.reader.path)
     return part

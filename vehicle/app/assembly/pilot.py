@@ -19,8 +19,9 @@ def add_pilot(V: Any, cfg: Config, model_path: str | Path) -> Any:
     (``cam/image_array`` first); it outputs ``pilot/angle`` and ``pilot/throttle``. A
     :class:`parts.pilots.pilot.ModelSwitch` (every loop) loads the model named in
     ``pilot/model_request`` in the background and outputs ``pilot/model``. With
-    PILOT_SPEED_CONTROL set, a speed controller replaces the model's throttle while
-    ``user/speed_limit`` (the web page's limit; PILOT_SPEED_LIMIT while it is None) is set.
+    PILOT_SPEED_CONTROL and PILOT_SPEED_LIMIT set, a speed controller replaces the model's throttle
+    by one that drives at PILOT_SPEED_LIMIT. (The web page's speed limit caps the final throttle in
+    every mode: :func:`vehicle.app.assembly.drive.add_drive_mode`.)
     Returns the Pilot.
 
     Raises:
@@ -29,7 +30,8 @@ def add_pilot(V: Any, cfg: Config, model_path: str | Path) -> Any:
     from parts.drive.modes import PilotCondition
     from parts.pilots.pilot import ModelSwitch
 
-    pilot = make_pilot(cfg, model_path, measured_speed_key="sim/speed" if V.produces("sim/speed") else "enc/speed")
+    pilot = make_pilot(cfg, model_path, measured_speed_key=speed_key_of(V, cfg),
+                       frame_shape=camera_frame_shape(V))
     behavior = "behavior/one_hot_state_array"
     if behavior in pilot.inputs and not cfg.TRAIN_BEHAVIORS and not V.produces(behavior) and behavior not in V.mem:
         trained = (pilot.meta.get("training") or {}).get("behaviors")
@@ -44,7 +46,8 @@ def add_pilot(V: Any, cfg: Config, model_path: str | Path) -> Any:
     return pilot
 
 
-def make_pilot(cfg: Config, model_path: str | Path, measured_speed_key: str = "enc/speed") -> Any:
+def make_pilot(cfg: Config, model_path: str | Path, measured_speed_key: str = "enc/speed",
+               frame_shape: tuple[int, int, int] | None = None) -> Any:
     """The Pilot part for a model file with the car's settings: back-end (PILOT_BACKEND,
     PILOT_ONNX_THREADS) and speed control (PILOT_SPEED_*), exactly as the car drives with it.
 
@@ -55,6 +58,8 @@ def make_pilot(cfg: Config, model_path: str | Path, measured_speed_key: str = "e
     ``measured_speed_key`` is where the car's speed comes from when PILOT_SPEED_KEY is not set: the
     simulator's ``sim/speed``, or ``enc/speed`` from an encoder part. A relative path that does not
     exist here is looked up in the car folder (manage.py may run from another folder).
+    ``frame_shape`` (height, width, 3) of the camera frames: a model trained on others, or whose
+    extra inputs do not fit BEHAVIOR_LIST, is refused here (None: checked at the first frame).
 
     Raises:
         UserError: the model file is missing, unreadable, does not fit the car, or the backend
@@ -79,6 +84,28 @@ def make_pilot(cfg: Config, model_path: str | Path, measured_speed_key: str = "e
     try:
         return load_pilot(path, backend=cfg.PILOT_BACKEND, speed_control=speed_control, speed_key=speed_key,
                           onnx_threads=cfg.PILOT_ONNX_THREADS, models_dir=cfg.path("MODELS_PATH"),
+                          frame_shape=frame_shape,
+                          extra_sizes={"behavior/one_hot_state_array": len(cfg.BEHAVIOR_LIST)},
                           car=CarInputs.from_config(cfg))
     except (ValueError, ImportError, OSError) as exc:
         raise UserError(f"cannot drive with {path}: {exc}") from exc
+
+
+def speed_key_of(V: Any, cfg: Config) -> str:
+    """PILOT_SPEED_KEY, else sim/speed when the simulator is in ``V``, else enc/speed (a real car
+    needs an encoder part writing it)."""
+    return cfg.PILOT_SPEED_KEY or ("sim/speed" if V.produces("sim/speed") else "enc/speed")
+
+
+def camera_frame_shape(V: Any) -> tuple[int, int, int] | None:
+    """(height, width, 3) of the ``cam/image_array`` frames the pilot will get: the size of the part
+    that makes them (a camera part, or the simulator's camera), or None when that part does not say
+    (a simulator bridge: the pilot then learns the size from the first frame)."""
+    for entry in reversed(getattr(V, "parts", ())):
+        if "cam/image_array" in entry.outputs:
+            camera = getattr(entry.part, "camera", entry.part)  # the simulator renders with a Camera
+            width, height = getattr(camera, "width", None), getattr(camera, "height", None)
+            if isinstance(width, int) and isinstance(height, int):
+                return (height, width, 3)
+            return None
+    return None

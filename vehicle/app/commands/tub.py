@@ -43,12 +43,18 @@ def register(subparsers: Any) -> None:
         p.add_argument("ranges", help="e.g. 3,10:20,95: (A:B means A..B-1, as in Python)")
         p.set_defaults(func=cmd_delete if name == "delete" else cmd_restore)
 
-    p = sub.add_parser("check", help="report problems; --repair fixes them")
-    p.add_argument("tubs", nargs="+")
-    p.add_argument("--repair", action="store_true",
-                   help="rewrite the manifest, cut torn lines, soft-delete records with bad images")
-    p.add_argument("--no-decode", action="store_true", help="do not decode images (faster)")
-    p.set_defaults(func=cmd_check)
+    for name, repair in (("check", False), ("repair", True)):
+        p = sub.add_parser(name, help="fix what check finds (same as check --repair)" if repair else
+                           "report problems (every image is decoded); --repair fixes them")
+        p.add_argument("tubs", nargs="+")
+        if not repair:
+            p.add_argument("--repair", action="store_true",
+                           help="rewrite the manifest and catalog manifests, cut torn lines, drop empty "
+                                "trailing catalogs, soft-delete records with bad images")
+        p.add_argument("--quick", "--no-decode", dest="quick", action="store_true",
+                       help="do not decode the images, only look at their markers (faster; misses "
+                            "images damaged in their middle)")
+        p.set_defaults(func=cmd_check, repair=repair)
 
     p = sub.add_parser("hist", help="PNG histograms of steering/throttle")
     p.add_argument("tubs", nargs="+")
@@ -200,7 +206,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     bad = 0
     for path in _tubs(args.tubs):
         try:
-            report = check_tub(path, repair=args.repair, decode=not args.no_decode, progress=_tty())
+            report = check_tub(path, repair=args.repair, decode=not args.quick, progress=_tty())
         except _errors() as exc:
             raise _user_error(exc) from exc
         _out("\n".join(report.lines()))

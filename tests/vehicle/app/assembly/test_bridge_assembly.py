@@ -16,7 +16,7 @@ from vehicle import Vehicle
 from vehicle.app import assembly
 from vehicle.clock import SimulatedClock
 from vehicle.config import Config
-from vehicle.errors import UserError
+from vehicle.errors import UserError, VehicleError
 from vehicle.keys import is_valid_key
 
 
@@ -65,8 +65,8 @@ def test_settings_errors_name_the_setting(tmp_path):
         assembly.add_simulator(V, Config.defaults(GYM_CONF={"colour": "red"}), sim_type="donkey")
     with pytest.raises(UserError, match=r"body_style .*GYM_CONF"):
         assembly.add_simulator(V, Config.defaults(GYM_CONF={"body_style": "tank"}), sim_type="donkey")
-    with pytest.raises(UserError, match=r"port .*UDACITY_PORT"):
-        assembly.add_simulator(V, Config.defaults(UDACITY_PORT=70000), sim_type="udacity")
+    with pytest.raises(VehicleError, match=r"UDACITY_PORT = 70000 is out of range; valid: 1 to 65535"):
+        assembly.add_simulator(V, Config.defaults(UDACITY_PORT=70000), sim_type="udacity")  # the config refuses it
     with pytest.raises(UserError, match=r"unknown simulator 'carla'"):
         assembly.add_simulator(V, Config.defaults(), sim_type="carla")
 

@@ -129,3 +129,38 @@ def test_stalled_camera_disengages_the_pilot_in_the_drive_path():
     V.start(rate_hz=20, max_loop_count=12)
     assert log.rows[0] == (True, "local", 0.1, 0.6)  # the pilot drives while frames come
     assert log.rows[-1] == (False, "user", 0.0, 0.0)  # stalled: user mode, throttle 0
+
+
+def _simulated_car(cfg, limit, mode="user", throttle=1.0):
+    from vehicle.app.assembly.drive import add_drive_mode
+    from vehicle.app.assembly.sim import add_simulator
+
+    V = Vehicle(clock=SimulatedClock())
+    sim = add_simulator(V, cfg)
+    V.add(Script([(0.0, throttle, mode, limit)]),
+          outputs=["user/angle", "user/throttle", "user/mode", "user/speed_limit"])
+    add_drive_mode(V, cfg)
+    speeds = Log()
+    V.add(speeds, inputs=["sim/speed", "throttle"])
+    return V, sim, speeds
+
+
+def test_the_pages_speed_limit_caps_the_car_in_user_mode():
+    # issue 21: with PILOT_SPEED_CONTROL = "off" (the default) the limit did nothing
+    cfg = Config.defaults(SIM_RESET_OFF_TRACK=False, SIM_TRACK_SIZE=40.0)
+    V, _, log = _simulated_car(cfg, 1.0)
+    V.start(rate_hz=20, max_loop_count=200)
+    speeds = [s for s, _ in log.rows]
+    assert max(speeds) < 1.1 and speeds[-1] > 0.95  # held at the limit
+    V, _, log = _simulated_car(cfg, None)
+    V.start(rate_hz=20, max_loop_count=200)
+    assert max(s for s, _ in log.rows) > 3.0  # without a limit: the car's own top speed
+
+
+def test_no_speed_limit_part_without_a_speed_measurement():
+    from vehicle.app.assembly.drive import add_drive_mode, add_speed_limit
+
+    V = Vehicle(clock=SimulatedClock())
+    V.add(Script([(0.0, 1.0, "user", 1.0)]), outputs=["user/angle", "user/throttle", "user/mode", "user/speed_limit"])
+    add_drive_mode(V, Config.defaults())
+    assert add_speed_limit(V, Config.defaults()) is None

@@ -50,7 +50,9 @@ def test_custom_mapping_and_binding_overrides(tmp_path):
 
 
 def test_bad_joystick_settings_are_user_errors():
-    with pytest.raises(UserError, match="JOYSTICK_MAX_THROTTLE"):
+    from vehicle.errors import VehicleError
+
+    with pytest.raises(VehicleError, match="JOYSTICK_MAX_THROTTLE"):  # the config refuses it already
         add_gamepad(Vehicle(), Config.defaults(JOYSTICK_MAX_THROTTLE=2.0))
 
 
@@ -61,3 +63,22 @@ def test_renamed_outputs_for_an_arbiter(tmp_path):
     assert V.parts[0].outputs == tuple(keys)
     with pytest.raises(ValueError, match="needs 7 keys"):
         add_gamepad(V, Config.defaults(), outputs=["a"])
+
+
+def test_the_pads_link_is_published_for_the_web_page(tmp_path, stream_for):
+    # issue 21 (item 18): the page shows whether the car's gamepad is connected
+    from parts.controllers.gamepad import GamepadStatus
+
+    layout = load_layout("ps4")
+    (tmp_path / "pad.js").write_bytes(stream_for(layout).init_burst())
+    V = Vehicle(clock=SimulatedClock())
+    part = add_gamepad(V, Config.defaults(CAR_PATH=str(tmp_path), CONTROLLER_TYPE="ps4", JOYSTICK_DEVICE_FILE="pad.js"))
+    status = V.parts[1].part
+    assert isinstance(status, GamepadStatus) and V.parts[1].outputs == ("js/status",)
+    assert status.run() == "lost"  # not opened yet
+    part.run()
+    assert status.run() == "connected"
+    part.logic.silent = True  # what the silence timeout sets
+    assert status.run() == "silent"
+    part.shutdown()
+    assert status.run() == "lost"

@@ -38,7 +38,7 @@ def test_speed_control_wires_the_speed_and_the_limit(make_model_file, frame):
     V.add(lambda: 1.5, outputs=["sim/speed"])  # a simulator at 1.5 m/s
     cfg = Config.defaults(PILOT_BACKEND="torch", PILOT_SPEED_CONTROL="limit", PILOT_SPEED_LIMIT=2.0)
     pilot = add_pilot(V, cfg, make_model_file("linear"))
-    assert pilot.inputs == ["cam/image_array", "sim/speed", "user/speed_limit"]
+    assert pilot.inputs == ["cam/image_array", "sim/speed"]  # its own target: not the page's limit
     V.start(rate_hz=20, max_loop_count=2)
     assert V.mem["pilot/throttle"] == pytest.approx(0.25)  # 1 - 1.5 / 2.0
 
@@ -66,6 +66,58 @@ def test_hot_switch_in_a_running_vehicle(make_model_file, frame):
 def test_missing_model_is_a_user_error(tmp_path):
     with pytest.raises(UserError, match="no such model file"):
         add_pilot(Vehicle(), Config.defaults(CAR_PATH=str(tmp_path)), "models/nope.pt")
+
+
+def model_for_frames(tmp_path, shape, name="small", model_type="linear", **options):
+    """A model file trained (untrained here) on camera frames of ``shape`` (H, W, 3)."""
+    from parts.pilots.modelfile import save_model
+    from parts.pilots.models import create_model
+    from parts.pilots.preprocess import Preprocess
+
+    pre = Preprocess(image_shape=shape)
+    model = create_model(model_type, pre.output_shape(shape), **options)
+    return save_model(tmp_path / "models" / f"{name}.pt", model, {"preprocess": pre.to_dict()})
+
+
+def test_a_model_of_another_frame_size_is_refused_at_load(tmp_path):
+    # issue 21: it was accepted and stopped the whole drive process at the first frame in auto mode
+    from vehicle.app.assembly.sim import add_simulator
+
+    path = model_for_frames(tmp_path, (90, 120, 3))
+    V = Vehicle(clock=SimulatedClock())
+    cfg = Config.defaults(PILOT_BACKEND="torch", CAR_PATH=str(tmp_path))
+    add_simulator(V, cfg)
+    with pytest.raises(UserError, match=r"frame is 120x160x3 but the model was trained on 90x120x3 frames; "
+                                         r"set IMAGE_W/IMAGE_H to the training size or re-train"):
+        add_pilot(V, cfg, path)
+    # the simulator's own camera size counts, not IMAGE_W/IMAGE_H
+    V = Vehicle(clock=SimulatedClock())
+    cfg = cfg.replace(SIM_CAMERA_W=120, SIM_CAMERA_H=90)
+    add_simulator(V, cfg)
+    assert add_pilot(V, cfg, path).model_name == "small.pt"
+
+
+def test_a_model_with_another_number_of_behaviours_is_refused_at_load(make_model_file, frame):
+    path = make_model_file("behavior", num_behaviors=2)
+    V = vehicle_with_frames(frame, "local")
+    V.mem["behavior/one_hot_state_array"] = [1.0, 0.0, 0.0]
+    cfg = Config.defaults(PILOT_BACKEND="torch", TRAIN_BEHAVIORS=True, BEHAVIOR_LIST=["a", "b", "c"])
+    with pytest.raises(UserError, match=r"behavior/one_hot_state_array .*3 values.*trained with 2"):
+        add_pilot(V, cfg, path)
+
+
+def test_a_switch_to_a_model_of_another_frame_size_keeps_the_running_pilot(make_model_file, frame, tmp_path):
+    a = make_model_file("linear", name="a", seed=1)
+    small = model_for_frames(a.parent.parent, (90, 120, 3))
+    V = vehicle_with_frames(frame, "local")
+    pilot = add_pilot(V, Config.defaults(PILOT_BACKEND="torch", CAR_PATH=str(a.parent.parent)), a)
+    V.mem["pilot/model_request"] = small.name  # picked on the web page while the pilot drives
+    V.start(rate_hz=20, max_loop_count=2)
+    assert pilot.wait_loaded(timeout=30)
+    assert pilot.model_name == "a.pt"
+    assert "frame is 120x160x3 but the model was trained on 90x120x3 frames" in pilot.load_error
+    V.start(rate_hz=20, max_loop_count=3)  # the car goes on driving with the running pilot
+    assert V.mem["pilot/model"] == "a.pt" and V.mem["pilot/angle"] is not None
 
 
 def _behaviour_model(make_model_file, name, behaviors, camera=None):

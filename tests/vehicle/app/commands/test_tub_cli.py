@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from parts.tub.tools import format_ranges, parse_ranges
@@ -97,3 +98,96 @@ def test_movie_writes_an_mp4_with_every_frame(donkey_tub, tmp_path, capsys):
 def test_errors_are_user_errors(tmp_path, capsys):
     assert main(["tub", "info", str(tmp_path / "missing")]) == 2
     assert "no such folder" in capsys.readouterr().err
+
+
+# -- issue 21: what check finds and repair fixes --------------------------------------------------
+def _corrupt_middle(path):
+    """Zero 64 bytes in the middle of a JPEG (a zeroed block, what a power cut can leave in a file
+    being written): its start and end markers stay intact, it still decodes, with errors."""
+    data = bytearray(path.read_bytes())
+    mid = len(data) // 2
+    data[mid:mid + 64] = bytes(64)
+    path.write_bytes(bytes(data))
+
+
+def test_check_decodes_every_image_and_finds_a_corrupt_middle(donkey_tub, capsys):
+    path, _ = donkey_tub(6, max_len=3)
+    _corrupt_middle(path / "images" / "4_cam_image_array_.jpg")
+    (path / "images" / "2_cam_image_array_.jpg").write_bytes(bytes(range(256)) * 8)  # not a JPEG
+    assert main(["tub", "check", str(path), "--quick"]) == 1  # without decoding: only the stranger
+    out = capsys.readouterr().out
+    assert "record 2: 2_cam_image_array_.jpg: not a JPEG" in out and "record 4" not in out
+    assert main(["tub", "check", str(path)]) == 1
+    out = capsys.readouterr().out
+    assert "record 4: 4_cam_image_array_.jpg: decodes with errors (Corrupt JPEG data" in out, out
+    assert "truncated" not in out
+    assert main(["tub", "repair", str(path)]) == 0
+    assert Tub(path, read_only=True).deleted_indexes == {2, 4}
+    assert main(["tub", "check", str(path)]) == 0
+
+
+def test_a_missing_catalog_manifest_is_reported_and_rebuilt(donkey_tub, capsys, donkeycar_opens):
+    path, _ = donkey_tub(8, max_len=3)
+    expected = (path / "catalog_1.catalog_manifest").read_text()
+    (path / "catalog_1.catalog_manifest").unlink()
+    (path / "catalog_0.catalog_manifest").write_text('{"created_at": 1, "line_lengths": [5], '
+                                                      '"path": "catalog_0.catalog_manifest", "start_index": 0}\n')
+    assert donkeycar_opens(path)
+    assert main(["tub", "check", str(path)]) == 1
+    out = capsys.readouterr().out
+    assert "catalog_1.catalog_manifest is missing" in out
+    assert "catalog_0.catalog_manifest: line lengths do not match catalog_0.catalog" in out
+    assert main(["tub", "check", "--repair", str(path)]) == 0
+    assert donkeycar_opens(path) == []
+    rebuilt = json.loads((path / "catalog_1.catalog_manifest").read_text())
+    assert rebuilt["line_lengths"] == json.loads(expected)["line_lengths"] and rebuilt["start_index"] == 3
+    assert main(["tub", "check", str(path)]) == 0
+
+
+def test_an_empty_trailing_catalog_is_dropped(donkey_tub, capsys, donkeycar_opens):
+    # what a kill right after a rollover left behind (0-byte catalog_3.catalog, start_index 9)
+    path, _ = donkey_tub(9, max_len=3)
+    (path / "catalog_3.catalog").write_bytes(b"")
+    (path / "catalog_3.catalog_manifest").write_text(
+        '{"created_at": 1, "line_lengths": [], "path": "catalog_3.catalog_manifest", "start_index": 9}\n')
+    lines = (path / "manifest.json").read_text().splitlines()
+    cat = json.loads(lines[4])
+    cat["paths"].append("catalog_3.catalog")
+    lines[4] = json.dumps(cat)
+    (path / "manifest.json").write_text("\n".join(lines) + "\n")
+    assert donkeycar_opens(path) == ["ValueError: cannot mmap an empty file (catalog_3.catalog)"]
+    assert len(Tub(path, read_only=True)) == 9  # ours reads it
+    assert main(["tub", "check", str(path)]) == 1
+    assert "catalog_3.catalog is empty" in capsys.readouterr().out
+    assert main(["tub", "check", "--repair", str(path)]) == 0
+    assert donkeycar_opens(path) == [] and not (path / "catalog_3.catalog").exists()
+    with Tub(path) as tub:  # the next record starts the catalog again, with its line
+        tub.write_record({"cam/image_array": np.zeros((120, 160, 3), np.uint8), "user/angle": 0.0,
+                          "user/throttle": 0.0, "user/mode": "user"})
+    assert (path / "catalog_3.catalog").stat().st_size > 0 and donkeycar_opens(path) == []
+    assert main(["tub", "check", str(path)]) == 0
+
+
+def test_repair_of_a_half_truncated_manifest_converges_and_rebuilds_from_the_records(donkey_tub, capsys):
+    path, records = donkey_tub(8, max_len=3, sessions=("26-11-20_0", "26-11-21_1"))
+    text = (path / "manifest.json").read_bytes()
+    (path / "manifest.json").write_bytes(text[: len(text) // 2])
+    assert main(["tub", "check", str(path)]) == 1
+    capsys.readouterr()
+    assert main(["tub", "check", "--repair", str(path)]) == 0
+    capsys.readouterr()
+    assert main(["tub", "check", str(path)]) == 0, capsys.readouterr().out  # converged
+    line4 = json.loads((path / "manifest.json").read_text().splitlines()[3])
+    assert line4["created_at"] == records[0]["_timestamp_ms"] / 1000  # not the repair time
+    assert line4["sessions"] == {"all_full_ids": ["26-11-20_0", "26-11-21_1"], "last_id": 1,
+                                 "last_full_id": "26-11-21_1"}
+
+
+def test_info_mentions_a_torn_last_line(donkey_tub, capsys):
+    path, _ = donkey_tub(4, max_len=3)
+    with open(path / "catalog_1.catalog", "ab") as f:
+        f.write(b'{"_index": 4, "cam/ima')
+    assert main(["tub", "info", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "torn last line: 22 bytes at the end of catalog_1.catalog" in out
+    assert "vehicle tub repair" in out
