@@ -309,7 +309,8 @@ SIM_THEME: str | list[str] = "road"
 SIM_RANDOMIZE: Annotated[int | None, Range(0, 2**32 - 1)] = None
 # Overrides of the randomisation ranges, name -> (low, high), e.g. {"light": (0.8, 1.2),
 # "latency": (0, 0)}; names and defaults in docs/simulator.md.
-SIM_RANDOMIZE_RANGES: dict[str, tuple[float, float]] = {}
+SIM_RANDOMIZE_RANGES: Annotated[dict[str, tuple[float, float]],
+                                Checked("known names, each low <= high within its limits (docs/simulator.md)")] = {}
 # Static distractors (cones, boxes, parked cars) beside each track when SIM_RANDOMIZE is off
 # (randomised tracks draw their number); they never stand on the road.
 SIM_DISTRACTORS: Annotated[int, Range(0, 1000)] = 0

@@ -24,6 +24,10 @@ from typing import Any, NamedTuple
 import numpy as np
 
 
+class RangesError(ValueError):
+    """SIM_RANDOMIZE_RANGES names an unknown quantity or gives a pair outside its limits."""
+
+
 class Range(NamedTuple):
     """A randomised quantity: its default range, what the renderer can do, and what it means."""
 
@@ -66,20 +70,20 @@ def check_ranges(overrides: Mapping[str, Any] | None) -> dict[str, tuple[float, 
     """The ranges to draw from: :data:`RANGES` with the overrides of SIM_RANDOMIZE_RANGES applied.
 
     Raises:
-        ValueError: an unknown name, a malformed pair, low > high, or a value out of its limits.
+        RangesError: an unknown name, a malformed pair, low > high, or a value out of its limits.
     """
     ranges = {k: (r.low, r.high) for k, r in RANGES.items()}
     for name, value in (overrides or {}).items():
         if name not in RANGES:
-            raise ValueError(f"SIM_RANDOMIZE_RANGES: unknown quantity {name!r}; known: {', '.join(RANGES)}")
+            raise RangesError(f"SIM_RANDOMIZE_RANGES: unknown quantity {name!r}; known: {', '.join(RANGES)}")
         try:
             lo, hi = (float(v) for v in value)
         except (TypeError, ValueError):
-            raise ValueError(f"SIM_RANDOMIZE_RANGES[{name!r}] = {value!r}: give a (low, high) pair of numbers, "
+            raise RangesError(f"SIM_RANDOMIZE_RANGES[{name!r}] = {value!r}: give a (low, high) pair of numbers, "
                              f"e.g. {RANGES[name][:2]}") from None
         r = RANGES[name]
         if not r.limit_low <= lo <= hi <= r.limit_high:
-            raise ValueError(f"SIM_RANDOMIZE_RANGES[{name!r}] = {value!r}: need {r.limit_low} <= low <= high <= "
+            raise RangesError(f"SIM_RANDOMIZE_RANGES[{name!r}] = {value!r}: need {r.limit_low} <= low <= high <= "
                              f"{r.limit_high} ({r.meaning})")
         ranges[name] = (lo, hi)
     return ranges

@@ -18,10 +18,10 @@ import numpy as np
 
 from parts.sim.camera import Camera, camera_from_config
 from parts.sim.kinematics import Car, CarParams
-from parts.sim.randomize import Conditions, check_ranges
+from parts.sim.randomize import Conditions, RangesError, check_ranges
 from parts.sim.sensor import Sensor
 from parts.sim.telemetry import LapTracker, TelemetryFrame
-from parts.sim.themes import get_theme, theme_list, theme_of
+from parts.sim.themes import ThemeError, get_theme, theme_list, theme_of
 from parts.sim.world import (
     World,
     conditions_for,
@@ -32,6 +32,7 @@ from parts.sim.world import (
     registered_tracks,
     world_params,
 )
+from vehicle.config import ConfigError
 
 logger = logging.getLogger(__name__)
 
@@ -146,7 +147,11 @@ class SimCar:
             if cfg.SIM_EXPERT_LANE != "center":
                 options["start_offset"] = cfg.SIM_ROAD_WIDTH / 4 * (1 if lane == "left" else -1)
         options.update(kwargs)
-        return cls(list(seeds) if seeds is not None else cfg.SIM_TRACK_SEEDS, **options)
+        try:
+            return cls(list(seeds) if seeds is not None else cfg.SIM_TRACK_SEEDS, **options)
+        except (RangesError, ThemeError) as e:  # the user's settings: one line at their line in myconfig.py
+            names = ("SIM_RANDOMIZE_RANGES",) if isinstance(e, RangesError) else ("SIM_THEME", "SIM_LANES")
+            raise ConfigError(f"{cfg.where(*names)}{e}") from None
 
     # -- track and pose -----------------------------------------------------------------------
     @property

@@ -255,3 +255,22 @@ def test_worlds_drawn_in_the_background_are_the_ones_loaded(world):
     prefetch_world(78, theme="park", lanes=2, width=1.2, **world)  # an error surfaces when loaded
     with pytest.raises(ThemeError, match="two-lane"):
         load_world(78, theme="park", lanes=2, width=1.2, **world)
+
+
+@pytest.mark.parametrize("text, found", [
+    ('SIM_RANDOMIZE = 3\nSIM_RANDOMIZE_RANGES = {"lite": (0.5, 1.0)}\n',
+     "line 2: SIM_RANDOMIZE_RANGES: unknown quantity 'lite'"),
+    ('SIM_RANDOMIZE_RANGES = {"latency": (0, 30)}\n', "line 1: SIM_RANDOMIZE_RANGES['latency'] = (0, 30): need"),
+    ('SIM_THEME = "road"\nSIM_THEME = "desert"\n', "line 2: unknown theme 'desert': use one of road, indoor, park"),
+    ('SIM_LANES = 2\nSIM_ROAD_WIDTH = 1.2\nSIM_THEME = "park"\n', "line 3: theme 'park' has no two-lane variant"),
+])
+def test_bad_theme_or_ranges_in_myconfig_are_one_line_errors_at_their_line(tmp_path, text, found):
+    from parts.sim.simulator import SimCar
+    from vehicle.config import ConfigError, load_config
+
+    (tmp_path / "myconfig.py").write_text(text)
+    cfg = load_config(car_path=tmp_path)
+    with pytest.raises(ConfigError) as info:
+        SimCar.from_config(cfg)
+    assert str(info.value).startswith(f"{tmp_path.resolve() / 'myconfig.py'}, {found}")
+    assert "\n" not in str(info.value)
