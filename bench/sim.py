@@ -1,11 +1,18 @@
 """Benchmark of the built-in simulator on one core.
 
-Measures (median of --repeats runs each):
+Rates are per second of the process's CPU time (time.process_time): everything runs in one thread
+(cv2 and torch are set to 1), so they are rates on one core that other processes sharing the
+machine do not distort; wall-clock rates on a busy machine are lower by the share of the core the
+benchmark got. Measures (median of --repeats runs each):
   * the camera renderer (one cv2.warpPerspective with the precomputed homography) in frames/s,
     against a naive renderer measured in the same run (per-pixel ray casting in numpy + cv2.remap,
     the straightforward way to render a ground plane);
-  * a full simulator step (car physics + telemetry + render) in steps/s and as a multiple of real
-    time at DRIVE_LOOP_HZ;
+  * the whole frame of every theme as SimCar.render() makes it, without randomisation (the theme's
+    plain look) and with it (SIM_RANDOMIZE: backdrop, distractors, the car's shadow and the
+    per-frame sensor effects noise, vignetting, motion blur at 2 m/s and JPEG), both with the
+    default ranges and with every effect on and 8 distractors (the worst case);
+  * a full simulator step (car physics + telemetry + render + expert) in steps/s and as a multiple
+    of real time at DRIVE_LOOP_HZ, plain and randomised;
   * closed-loop evaluation of the expert (simulated laps per wall second).
 
 Usage: .venv/bin/python bench/sim.py [--frames 3000] [--repeats 5] [--size 160x120]
@@ -36,7 +43,8 @@ except ImportError:
 
 from parts.sim.camera import Camera  # noqa: E402
 from parts.sim.expert import Expert  # noqa: E402
-from parts.sim.simulator import SimCar, load_world  # noqa: E402
+from parts.sim.simulator import SimCar  # noqa: E402
+from parts.sim.world import load_world  # noqa: E402
 from vehicle.app.evaluate import evaluate  # noqa: E402
 from vehicle.config import Config  # noqa: E402
 
@@ -65,10 +73,34 @@ def naive_render(cam: Camera, texture, x: float, y: float, heading: float) -> np
 
 
 def timed(fn, n: int) -> float:
-    t0 = time.perf_counter()
+    """Calls per second of this process's CPU time: the benchmark runs in one thread, so this is the
+    rate on one core, and other processes sharing the core do not count against it."""
+    t0 = time.process_time()
     for i in range(n):
         fn(i)
-    return n / (time.perf_counter() - t0)
+    return n / (time.process_time() - t0)
+
+
+#: every per-frame effect on, eight distractors: the most a randomised frame costs
+WORST_CASE = {"noise": (4.0, 8.0), "vignetting": (0.3, 0.45), "motion_blur": (0.01, 0.015),
+              "jpeg_quality": (35, 60), "distractors": (8, 8), "shadows": (6, 6)}
+
+
+def frame_renderer(cfg: Config, theme: str, seeds: list[int], randomize: int | None,
+                   ranges: dict | None = None):
+    """A function rendering frame i as SimCar.render() does, cycling over tracks and poses at 2 m/s."""
+    c = cfg.replace(SIM_THEME=theme, SIM_RANDOMIZE=randomize, SIM_RANDOMIZE_RANGES=ranges or {})
+    sims = [SimCar.from_config(c, seeds=[s]) for s in seeds]
+    poses = [[sim.track.pose_at(d) for d in np.linspace(0, sim.track.length, 200, endpoint=False)] for sim in sims]
+
+    def render(i: int) -> None:
+        k = (i // 200) % len(sims)  # a few hundred frames on one track, then the next
+        sim, (x, y, h) = sims[k], poses[k][i % 200]
+        st = sim.car.state
+        st.x, st.y, st.heading, st.speed = x, y, h, 2.0
+        sim.render()
+
+    return render
 
 
 def main() -> int:
@@ -79,7 +111,8 @@ def main() -> int:
     args = ap.parse_args()
     w, h = (int(x) for x in args.size.split("x"))
     cfg = Config.defaults(SIM_CAMERA_W=w, SIM_CAMERA_H=h, SIM_REALTIME=False)
-    track, texture = load_world(1)
+    world = load_world(1)
+    track, texture = world.track, world.texture
     cam = Camera(w, h, cfg.SIM_CAMERA_FOV, cfg.SIM_CAMERA_PITCH, cfg.SIM_CAMERA_HEIGHT, cfg.SIM_CAMERA_FORWARD)
     poses = [track.pose_at(s) for s in np.linspace(0, track.length, 500)]
     out = np.empty((h, w, 3), np.uint8)
@@ -96,29 +129,52 @@ def main() -> int:
 
     sim = SimCar.from_config(cfg, seeds=[1])
     expert = Expert.from_config(cfg, sim)
+    sim_r = SimCar.from_config(cfg.replace(SIM_THEME="indoor", SIM_RANDOMIZE=3), seeds=[1])
+    expert_r = Expert.from_config(cfg, sim_r)
 
     def step(i: int) -> None:
         sim.run(*expert.command())
 
-    res: dict[str, list[float]] = {"warp": [], "naive": [], "step": [], "eval": []}
+    def step_randomised(i: int) -> None:
+        sim_r.run(*expert_r.command())
+
+    themes = ("road", "indoor", "park")
+    seeds = [1, 2, 3, 4]
+    renderers = {}
+    for theme in themes:
+        renderers[f"{theme} plain"] = frame_renderer(cfg, theme, seeds, None)
+        renderers[f"{theme} randomised"] = frame_renderer(cfg, theme, seeds, 7)
+        renderers[f"{theme} worst case"] = frame_renderer(cfg, theme, seeds, 7, WORST_CASE)
+    res: dict[str, list[float]] = {"warp": [], "naive": [], "step": [], "step randomised": [], "eval": []}
+    res.update({k: [] for k in renderers})
     for _ in range(args.repeats):
         res["warp"].append(timed(warp, args.frames))
         res["naive"].append(timed(naive, max(200, args.frames // 10)))
+        for name, fn in renderers.items():  # the variants in turn, so they see the same load
+            res[name].append(timed(fn, args.frames))
         res["step"].append(timed(step, args.frames))
-        t0 = time.perf_counter()
+        res["step randomised"].append(timed(step_randomised, args.frames))
+        t0 = time.process_time()
         report = evaluate("expert", [1], laps=2, cfg=cfg)
-        res["eval"].append(report["overall"]["laps_completed"] / (time.perf_counter() - t0))
+        res["eval"].append(report["overall"]["laps_completed"] / (time.process_time() - t0))
     med = {k: statistics.median(v) for k, v in res.items()}
     hz = cfg.DRIVE_LOOP_HZ
-    print(f"simulator benchmark, {w}x{h}, one core, median of {args.repeats} runs")
+    print(f"simulator benchmark, {w}x{h}, one core (rates per CPU second), median of {args.repeats} runs")
     print(f"  renderer (perspective warp) : {med['warp']:9.0f} frames/s  "
           f"({med['warp'] / hz:.0f}x real time at {hz} Hz)")
     print(f"  naive ray-cast + remap      : {med['naive']:9.0f} frames/s  "
           f"(warp is {med['warp'] / med['naive']:.1f}x faster; {agree * 100:.1f} % of ground pixels within 2/255)")
+    print("  whole frame (SimCar.render: ground, backdrop, distractors, shadow, sensor effects):")
+    for theme in themes:
+        plain = med[f"{theme} plain"]
+        print(f"    {theme:7s} plain {plain:7.0f} frames/s | randomised {med[f'{theme} randomised']:7.0f} "
+              f"({med[f'{theme} randomised'] / plain:.2f}x plain) | worst case {med[f'{theme} worst case']:7.0f} "
+              f"({med[f'{theme} worst case'] / plain:.2f}x plain)")
     print(f"  full step (car+telemetry+render+expert): {med['step']:7.0f} steps/s "
-          f"({med['step'] / hz:.0f}x real time)")
-    print(f"  expert evaluation           : {med['eval']:9.1f} laps per wall second "
-          f"(track cached; a lap is ~14 s simulated)")
+          f"({med['step'] / hz:.0f}x real time); indoor randomised {med['step randomised']:7.0f} steps/s "
+          f"({med['step randomised'] / hz:.0f}x real time)")
+    print(f"  expert evaluation           : {med['eval']:9.1f} laps per CPU second "
+          f"(no images drawn; a lap is ~14 s simulated)")
     print(f"  texture: {texture.image.shape[1]}x{texture.image.shape[0]} px at {texture.res:.3f} m/px")
     return 0
 

@@ -285,7 +285,8 @@ def read_overrides(path: Path) -> dict[str, Any]:
 
 
 def read_overrides_with_lines(path: Path) -> tuple[dict[str, Any], dict[str, int]]:
-    """:func:`read_overrides` plus the line of each name's first assignment."""
+    """:func:`read_overrides` plus the line of each name's last assignment (the one in effect when a
+    file sets a name twice)."""
     try:
         source = path.read_text()
     except OSError as exc:
@@ -295,13 +296,13 @@ def read_overrides_with_lines(path: Path) -> tuple[dict[str, Any], dict[str, int
     except SyntaxError as exc:
         raise ConfigError(f"{path}, line {exc.lineno}: invalid Python: {exc.msg}.") from exc
     lines: dict[str, int] = {}
-    for node in ast.walk(tree):
+    for node in sorted(ast.walk(tree), key=lambda n: getattr(n, "lineno", 0)):
         targets = node.targets if isinstance(node, ast.Assign) else [getattr(node, "target", None)]
         for t in targets:
             if isinstance(t, ast.Name) and t.id.isupper():
-                lines.setdefault(t.id, t.lineno)
+                lines[t.id] = t.lineno
         if isinstance(node, ast.FunctionDef | ast.ClassDef) and node.name.isupper():
-            lines.setdefault(node.name, node.lineno)
+            lines[node.name] = node.lineno
     namespace: dict[str, Any] = {"__file__": str(path), "__name__": "myconfig"}
     try:
         exec(compile(tree, str(path), "exec"), namespace)  # noqa: S102 - the user's own config file

@@ -232,8 +232,8 @@ PREPROCESS_NORMALIZE: Literal["unit", "symmetric"] | None = None
 
 # Training-only augmentations, each applied with its probability AUG_<NAME>_P: flip (mirror,
 # steering negated), brightness (and contrast), shadow, shift (pan with steering correction),
-# zoom, blur. `vehicle train preview-aug` shows them.
-AUGMENTATIONS: list[Literal["flip", "brightness", "shadow", "shift", "zoom", "blur"]] = [
+# zoom, blur, hue. `vehicle train preview-aug` shows them.
+AUGMENTATIONS: list[Literal["flip", "brightness", "shadow", "shift", "zoom", "blur", "hue"]] = [
     "flip", "brightness", "shadow", "shift"]
 # Probability of mirroring a training frame (and negating its steering).
 AUG_FLIP_P: Annotated[float, Range(0, 1)] = 0.5
@@ -264,6 +264,11 @@ AUG_ZOOM_RANGE: Annotated[float, Range(0, 1)] = 0.3
 AUG_BLUR_P: Annotated[float, Range(0, 1)] = 0.2
 # Gaussian blur sigma range in pixels.
 AUG_BLUR_RANGE: Annotated[tuple[float, float], Range(0, 20, lo_open=True, unit="pixels")] = (0.5, 1.5)
+# Probability of turning the hues round the colour wheel ("hue": yellow tape becomes blue, grass
+# purple; greys stay), so a pilot does not steer by one line colour.
+AUG_HUE_P: Annotated[float, Range(0, 1)] = 0.3
+# Largest hue turn in degrees (180 = any colour).
+AUG_HUE_RANGE: Annotated[float, Range(0, 180, unit="degrees")] = 180.0
 
 # == Simulator ==
 
@@ -289,6 +294,26 @@ SIM_TEXTURE_RES: Annotated[float, Range(0.001, 0.1, unit="m per pixel")] = 0.01
 # Strength of the per-track lighting variation (brightness, contrast, colour tint, shading);
 # 0 renders every track in the same light.
 SIM_LIGHTING_VARIATION: Annotated[float, Range(0, 1)] = 0.25
+# Visual theme of the tracks: "road" (asphalt, white edges, dashed centre line, open sky),
+# "indoor" (DonkeyCar-style tape lines on concrete, wood or carpet, walls around the floor) or
+# "park" (a paved path through a lawn, no painted lines, trees around; one lane only). A list
+# (or "road,indoor") deals the themes to the tracks in turn: SIM_TRACK_SEEDS = [1, 2, 3, 4] with
+# ["road", "indoor"] gives tracks 1 and 3 the road theme, 2 and 4 the indoor one.
+SIM_THEME: str | list[str] = "road"
+# Domain randomisation: None = off; an integer = the seed of the draws. Each track then gets its
+# own light level and colour temperature, contrast, shadows across the road, colours within its
+# theme, camera height/pitch/field of view, lens vignetting, sensor noise, motion blur, JPEG
+# quality, a camera-to-command latency of 0-2 loops and distractors beside the road, drawn once
+# from the ranges in docs/simulator.md. Same seed, same draws: evaluate with another seed for
+# conditions the pilot never saw.
+SIM_RANDOMIZE: Annotated[int | None, Range(0, 2**32 - 1)] = None
+# Overrides of the randomisation ranges, name -> (low, high), e.g. {"light": (0.8, 1.2),
+# "latency": (0, 0)}; names and defaults in docs/simulator.md.
+SIM_RANDOMIZE_RANGES: Annotated[dict[str, tuple[float, float]],
+                                Checked("known names, each low <= high within its limits (docs/simulator.md)")] = {}
+# Static distractors (cones, boxes, parked cars) beside each track when SIM_RANDOMIZE is off
+# (randomised tracks draw their number); they never stand on the road.
+SIM_DISTRACTORS: Annotated[int, Range(0, 1000)] = 0
 # Run the simulator in real time (the loop paces itself at DRIVE_LOOP_HZ). False = simulated
 # time, as fast as the CPU allows (recording and evaluation always use simulated time). The car
 # always advances 1 / DRIVE_LOOP_HZ per loop, so a run is deterministic either way.
@@ -325,7 +350,7 @@ SIM_IMAGE_NOISE: Annotated[float, Range(0, 255)] = 0.0
 SIM_IMAGE_BLUR: Annotated[int, Range(0, 99, unit="pixels")] = 0
 # Per-frame brightness jitter: each frame is scaled by a factor in [1 - x, 1 + x] (0 = off).
 SIM_BRIGHTNESS_JITTER: Annotated[float, Range(0, 1, hi_open=True)] = 0.0
-# Seed of the simulator's random parts (image jitter, expert noise).
+# Seed of the simulator's random parts (per-frame image effects, expert noise).
 SIM_SEED: Annotated[int, Range(0, 2**32 - 1)] = 0
 # Car model (kinematic bicycle, 1:10 RC scale). Distance between the axles in metres.
 SIM_WHEELBASE: Annotated[float, Range(0, 10, lo_open=True, unit="m")] = 0.26

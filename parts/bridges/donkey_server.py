@@ -135,10 +135,12 @@ class DonkeyServer:
             BridgeError: the port cannot be bound.
         """
         from parts.sim.simulator import load_world, world_params
+        from parts.sim.themes import theme_list
 
-        for seed in self.seeds[:6]:  # ~1 s each: now, not when the first client loads a scene
+        theme = theme_list(self.cfg.SIM_THEME)[0]  # a scene's SimCar drives one track: the first theme
+        for seed in self.seeds[:6]:  # a fraction of a second each: now, not when the first client loads a scene
             with _WORLD_LOCK:
-                load_world(seed, **world_params(self.cfg))
+                load_world(seed, theme=theme, **world_params(self.cfg))
         try:
             listener = socket.create_server((self.host, self.port), reuse_port=False)
         except OSError as exc:

@@ -14,7 +14,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-AUGMENTATION_NAMES = ("flip", "brightness", "shadow", "shift", "zoom", "blur")
+AUGMENTATION_NAMES = ("flip", "brightness", "shadow", "shift", "zoom", "blur", "hue")
 
 
 @dataclass(frozen=True)
@@ -36,6 +36,8 @@ class AugmentSettings:
     zoom_range: float = 0.3
     blur_p: float = 0.2
     blur_range: tuple[float, float] = (0.5, 1.5)
+    hue_p: float = 0.3
+    hue_range: float = 180.0
 
     def __post_init__(self) -> None:
         names = tuple(str(n).lower() for n in self.names)
@@ -49,6 +51,8 @@ class AugmentSettings:
                 raise ValueError(f"AUG_{name.upper()}_P = {p} must be a probability in [0, 1]")
         if not 0.0 <= self.shadow_darkness <= 1.0:
             raise ValueError(f"AUG_SHADOW_DARKNESS = {self.shadow_darkness} must be in [0, 1]")
+        if not 0.0 <= self.hue_range <= 180.0:
+            raise ValueError(f"AUG_HUE_RANGE = {self.hue_range} must be in [0, 180] degrees")
         lo, hi = self.blur_range
         if not 0.0 < lo <= hi:
             raise ValueError(f"AUG_BLUR_RANGE = {self.blur_range} must be (low, high) sigmas, "
@@ -64,7 +68,7 @@ class AugmentSettings:
                    shift_p=cfg.AUG_SHIFT_P, shift_x=cfg.AUG_SHIFT_X, shift_y=cfg.AUG_SHIFT_Y,
                    shift_steering=cfg.AUG_SHIFT_STEERING, zoom_p=cfg.AUG_ZOOM_P,
                    zoom_range=cfg.AUG_ZOOM_RANGE, blur_p=cfg.AUG_BLUR_P,
-                   blur_range=tuple(cfg.AUG_BLUR_RANGE))
+                   blur_range=tuple(cfg.AUG_BLUR_RANGE), hue_p=cfg.AUG_HUE_P, hue_range=cfg.AUG_HUE_RANGE)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain values (stored in the model file's training config)."""
@@ -73,14 +77,14 @@ class AugmentSettings:
 
 Draw = list[tuple[str, dict[str, float]]]
 _SHORT = {"flip": "flip", "brightness": "bright", "shadow": "shadow", "shift": "shift", "zoom": "zoom",
-          "blur": "blur"}
+          "blur": "blur", "hue": "hue"}
 
 
 class Augmenter:
     """Random augmentations of training frames with steering correction."""
 
     # Fixed application order: geometry first, then photometric, blur last.
-    _ORDER = ("flip", "shift", "zoom", "brightness", "shadow", "blur")
+    _ORDER = ("flip", "shift", "zoom", "hue", "brightness", "shadow", "blur")
 
     def __init__(self, settings: AugmentSettings) -> None:
         self.settings = settings
@@ -99,6 +103,8 @@ class Augmenter:
                                    "dy": rng.uniform(-s.shift_y, s.shift_y)}))
             elif name == "zoom":
                 ops.append((name, {"scale": 1.0 + rng.uniform(0.0, s.zoom_range)}))
+            elif name == "hue":
+                ops.append((name, {"degrees": rng.uniform(-s.hue_range, s.hue_range)}))
             elif name == "brightness":
                 ops.append((name, {"beta": rng.uniform(-s.brightness_range, s.brightness_range) * 255.0,
                                    "alpha": 1.0 + rng.uniform(-s.contrast_range, s.contrast_range)}))
@@ -138,6 +144,14 @@ class Augmenter:
             elif name == "zoom":
                 m = cv2.getRotationMatrix2D((w / 2.0, h / 2.0), 0.0, p["scale"])
                 out = cv2.warpAffine(out, m, (w, h), borderMode=cv2.BORDER_REPLICATE)
+            elif name == "hue":
+                # Turn every colour round the colour wheel (grey, white and black stay): yellow tape
+                # becomes blue, green grass purple; OpenCV's 8-bit hue is 0-179 (2 degrees a step).
+                hsv = cv2.cvtColor(out, cv2.COLOR_RGB2HSV)
+                step = int(round(p["degrees"] / 2.0)) % 180
+                lut = ((np.arange(256) + step) % 180).astype(np.uint8)
+                hsv[..., 0] = cv2.LUT(hsv[..., 0], lut)
+                out = cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB)
             elif name == "brightness":
                 # Contrast around mid-grey, then brightness; a lookup table is exact and fast on uint8.
                 lut = (np.arange(256, dtype=np.float32) - 128.0) * p["alpha"] + 128.0 + p["beta"]

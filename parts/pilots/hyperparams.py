@@ -26,7 +26,7 @@ from typing import Any
 __all__ = ["HYPERPARAMS", "HyperParam", "HyperParamError", "by_name", "check_config", "defaults", "describe",
            "for_setting", "parse", "settings_for"]
 
-AUGMENTATION_CHOICES = ("flip", "brightness", "shadow", "shift", "zoom", "blur")
+AUGMENTATION_CHOICES = ("flip", "brightness", "shadow", "shift", "zoom", "blur", "hue")
 MODE_CHOICES = ("user", "local_angle", "local")
 _DEVICE_RE = re.compile(r"^(auto|cpu|mps|cuda(:\d+)?)$")
 _INT_RE = re.compile(r"^[+-]?\d+$")
@@ -201,6 +201,10 @@ HYPERPARAMS: tuple[HyperParam, ...] = (
     HyperParam("aug_zoom_range", "AUG_ZOOM_RANGE", "Zoom range", "Augmentation", "float",
                "Largest zoom in, as a fraction (0.3 = up to 130 %).", "it is a fraction of the size", 0.0, 1.0),
     _p("blur", "a Gaussian blur"),
+    _p("hue", "its colours turned round the colour wheel"),
+    HyperParam("aug_hue_range", "AUG_HUE_RANGE", "Hue range", "Augmentation", "float",
+               "Largest hue turn in degrees (180 = any colour).",
+               "half the colour wheel reaches every colour", 0.0, 180.0),
     HyperParam("device", "TRAIN_DEVICE", "Device", "Hardware", "device",
                "Where to train: auto = the GPU when there is one.", "torch knows these devices"),
     HyperParam("workers", "TRAIN_NUM_WORKERS", "Data workers", "Hardware", "int",

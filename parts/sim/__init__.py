@@ -1,7 +1,11 @@
-"""The built-in simulator: generated tracks, a kinematic car, a warped-texture camera, telemetry,
-an expert driver and closed-loop evaluation (numpy + OpenCV only). See docs/simulator.md.
+"""The built-in simulator: generated tracks in visual themes, a kinematic car, a warped-texture
+camera, domain randomisation, telemetry and an expert driver (numpy + OpenCV only). See
+docs/simulator.md.
 
-Modules: track (centre lines), texture (top-down images), car (bicycle model), camera (renderer),
-telemetry (laps, CTE), simcar (the vehicle part), expert (pure pursuit, noise injection),
-evaluate / report (closed-loop metrics, JSON, PNG), record (expert demonstrations), cli.
+Modules: track (centre lines), themes (what a theme looks like: data), surfaces (ground materials),
+backdrops (walls, tree lines), texture (top-down images), randomize (per-episode conditions),
+scenery (backdrop, distractors and the car's shadow over the ground), world (a track drawn in a
+theme, cached), camera (renderer), sensor (per-frame image effects), kinematics (bicycle model),
+telemetry (laps, CTE), simulator (the SimCar part), expert (pure pursuit, noise injection),
+eval_report (tables, JSON, PNG).
 """

@@ -7,6 +7,8 @@ frame multiplies it by the car's pose and the texture's pixel mapping and calls
 than ``max_distance``, which would only alias) get a precomputed sky gradient. A camera with lens
 distortion (``SIM_CAMERA_DISTORTION``) renders that pinhole image on a larger canvas and bends it
 with one precomputed remap, so camera calibration can be tested against known coefficients.
+What stands above the ground (walls, distractors, the car's shadow) is drawn on the pinhole canvas
+before the lens by a :class:`parts.sim.scenery.Scenery`, with the projection helpers of this class.
 """
 
 from __future__ import annotations
@@ -23,6 +25,9 @@ from parts.sim.texture import TrackTexture
 from parts.vision.lens import LensError, undistort_grid
 
 logger = logging.getLogger(__name__)
+
+#: pixels between the samples of the coarse ray grid used to draw backdrops
+GRID = 4
 
 
 class Camera:
@@ -59,6 +64,7 @@ class Camera:
             raise ValueError(f"camera height must be > 0 m, got {height_m}")
         self.width, self.height = width, height
         self.fov_deg, self.pitch_deg, self.height_m, self.forward_m = fov_deg, pitch_deg, height_m, forward_m
+        self.max_distance = max_distance
         f = (width / 2.0) / math.tan(math.radians(fov_deg) / 2.0)
         cx, cy = width / 2.0 - 0.5, height / 2.0 - 0.5
         #: camera matrix of the output image (pixel centres at integer coordinates, as OpenCV)
@@ -95,11 +101,14 @@ class Camera:
                         [0.0, -math.cos(p), -math.sin(p)]])
         self.car_from_camera = rot
         a = rot @ k_inv  # canvas pixel -> ray in the car frame
+        self._ray = a
+        self.focal, self.centre = f, (cx, cy)  # of the canvas
         h = height_m
         # ground point of ray r from camera C=(fwd, 0, h): C + r * h / (-r_z); homogeneous form
         # (fwd * w + r_x, r_y, w) with w = -r_z / h, linear in the pixel
         #: homography canvas pixel -> ground point in the car frame (x ahead, y left), metres
         self.car_from_pixel = np.array([forward_m * (-a[2] / h) + a[0], a[1], -a[2] / h])
+        self.pixel_from_car = np.linalg.inv(self.car_from_pixel)
         # first canvas row whose ray meets the ground closer than max_distance
         rows = np.arange(ch, dtype=float)
         rays = a @ np.stack([np.full(ch, cx), rows, np.ones(ch)])  # centre column
@@ -110,6 +119,20 @@ class Camera:
         # the warp writes rows ground_row.. only; shift the destination rows accordingly
         self._shift = np.array([[1.0, 0, 0], [0, 1.0, self.ground_row], [0, 0, 1.0]])
         self._sky_cache: dict[tuple[int, ...], np.ndarray] = {}
+        # what the backdrop pass needs: the farthest ground hit of each canvas row (inf above the
+        # horizon), a field-of-view test for distractors, the coarse ray grid (made on first use)
+        self._row_reach = self._reach().max(axis=1)
+        self.half_width_slope = (cw / 2.0) / f * 1.3  # lateral / ahead at the canvas edge, with margin
+        self._grid: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    def _reach(self) -> np.ndarray:
+        """Horizontal distance (m) from the camera to the ground hit of every canvas pixel."""
+        cw, ch = self.canvas_size
+        cols, rows = np.meshgrid(np.arange(cw, dtype=float), np.arange(ch, dtype=float))
+        rays = self._ray @ np.stack([cols.ravel(), rows.ravel(), np.ones(cols.size)])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dist = np.where(rays[2] < 0, self.height_m * np.hypot(rays[0], rays[1]) / -rays[2], np.inf)
+        return dist.reshape(ch, cw)
 
     @property
     def distorted(self) -> bool:
@@ -145,8 +168,9 @@ class Camera:
                          borderMode=cv2.BORDER_REPLICATE)
 
     def render(self, texture: TrackTexture, x: float, y: float, heading: float,
-               out: np.ndarray | None = None) -> np.ndarray:
-        """The camera image (height x width x 3 uint8 RGB) for the car at (x, y, heading)."""
+               out: np.ndarray | None = None, scenery: Any = None) -> np.ndarray:
+        """The camera image (height x width x 3 uint8 RGB) for the car at (x, y, heading); with a
+        :class:`~parts.sim.scenery.Scenery`, its backdrop, distractors and car shadow too."""
         cw, ch = self.canvas_size
         canvas = out if out is not None and self._lens_maps is None else np.empty((ch, cw, 3), np.uint8)
         g = self.ground_row
@@ -157,6 +181,8 @@ class Camera:
                                 (cw, ch - g), dst=canvas[g:],
                                 flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
                                 borderMode=cv2.BORDER_CONSTANT, borderValue=texture.ground_color)
+        if scenery is not None:
+            scenery.draw(self, canvas, x, y, heading)
         if self._lens_maps is None:
             return canvas
         image = self.lens(canvas)
@@ -185,6 +211,61 @@ class Camera:
             out[ahead] = proj.reshape(-1, 2)
         return out
 
+    # -- projection helpers for what stands above the ground (canvas pixels, before the lens) --------
+    def world_to_camera(self, x: float, y: float, heading: float) -> tuple[np.ndarray, np.ndarray]:
+        """(M, t) with camera coordinates (right, down, forward) = world point @ M - t, for a car pose."""
+        c, s = math.cos(heading), math.sin(heading)
+        to_car = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])  # world row vector @ this = car frame
+        offset = np.array([x * c + y * s + self.forward_m, -x * s + y * c, self.height_m])
+        return to_car @ self.car_from_camera, offset @ self.car_from_camera
+
+    def project_with(self, to_camera: tuple[np.ndarray, np.ndarray],
+                     points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World points (N, 3) → canvas pixels (N, 2) and depth along the optical axis (N,), metres,
+        with a :meth:`world_to_camera` transform."""
+        m, t = to_camera
+        cam = points @ m - t
+        depth = cam[:, 2]
+        uv = cam[:, :2] * (self.focal / np.maximum(depth, 1e-6))[:, None] + self.centre
+        return uv, depth
+
+    def project(self, points: np.ndarray, x: float, y: float, heading: float) -> tuple[np.ndarray, np.ndarray]:
+        """World points (N, 3) → canvas pixels (N, 2) and depth along the optical axis (N,), metres."""
+        return self.project_with(self.world_to_camera(x, y, heading), np.asarray(points, float))
+
+    def ground_to_image(self, points: np.ndarray) -> np.ndarray | None:
+        """Ground points (K, 2) in the car frame → canvas pixels (K, 2); None if one is behind the camera."""
+        hom = np.column_stack([points, np.ones(len(points))]) @ self.pixel_from_car.T
+        if np.any(hom[:, 2] <= 1e-9):
+            return None
+        return hom[:, :2] / hom[:, 2:3]
+
+    def rows_reaching(self, distance: float) -> int:
+        """How many top canvas rows hold a pixel whose ray does not meet the ground within ``distance`` m."""
+        return int(np.searchsorted(-self._row_reach, -distance, side="left"))
+
+    def ray_grid(self, rows: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Rays of a grid of canvas pixels (every :data:`GRID`-th, at block centres) covering the top
+        ``rows``: horizontal unit direction (dx, dy) in the car frame and rise per horizontal metre."""
+        if self._grid is None:
+            g = GRID
+            cw, ch = self.canvas_size
+            cols = np.arange((cw + g - 1) // g) * g + (g - 1) / 2
+            rws = np.arange((ch + g - 1) // g) * g + (g - 1) / 2
+            cc, rr = np.meshgrid(cols, rws)
+            rays = self._ray @ np.stack([cc.ravel(), rr.ravel(), np.ones(cc.size)])
+            horiz = np.maximum(np.hypot(rays[0], rays[1]), 1e-9)
+            shape = cc.shape
+            self._grid = ((rays[0] / horiz).reshape(shape), (rays[1] / horiz).reshape(shape),
+                          (rays[2] / horiz).reshape(shape))
+        n = min(self._grid[0].shape[0], (rows + GRID - 1) // GRID + 1)
+        return self._grid[0][:n], self._grid[1][:n], self._grid[2][:n]
+
+    def upsample(self, coarse: np.ndarray, rows: int) -> np.ndarray:
+        """A value sampled on :meth:`ray_grid` → full canvas resolution for the top ``rows`` rows (float32)."""
+        full = cv2.resize(coarse, (coarse.shape[1] * GRID, coarse.shape[0] * GRID), interpolation=cv2.INTER_LINEAR)
+        return np.ascontiguousarray(full[:rows, :self.canvas_size[0]])
+
 
 def _check_distortion(distortion: Sequence[float] | None) -> np.ndarray | None:
     if distortion is None:
@@ -196,47 +277,13 @@ def _check_distortion(distortion: Sequence[float] | None) -> np.ndarray | None:
     return d if np.any(d != 0.0) else None
 
 
-def camera_from_config(cfg: Any) -> Camera:
-    """The simulated camera of a Config (SIM_CAMERA_*)."""
-    return Camera(cfg.SIM_CAMERA_W, cfg.SIM_CAMERA_H, cfg.SIM_CAMERA_FOV, cfg.SIM_CAMERA_PITCH,
-                  cfg.SIM_CAMERA_HEIGHT, cfg.SIM_CAMERA_FORWARD, distortion=cfg.SIM_CAMERA_DISTORTION)
-
-
-class ImageJitter:
-    """Optional per-frame image degradation: brightness jitter, box blur and Gaussian noise.
-
-    Args:
-        noise: standard deviation of per-pixel noise (0..255 units), 0 = off.
-        blur: box-blur kernel size in pixels, 0 or 1 = off.
-        brightness: each frame is scaled by a factor drawn from [1 - b, 1 + b], 0 = off.
-        seed: seed of the random draws.
-    """
-
-    def __init__(self, noise: float = 0.0, blur: int = 0, brightness: float = 0.0, seed: int = 0) -> None:
-        if noise < 0 or blur < 0 or not 0 <= brightness < 1:
-            raise ValueError(f"image jitter out of range (noise {noise} >= 0, blur {blur} >= 0, "
-                             f"0 <= brightness {brightness} < 1)")
-        self.noise, self.blur, self.brightness = float(noise), int(blur), float(brightness)
-        self.rng = np.random.default_rng([seed & 0xFFFFFFFF, 0x1A7])
-
-    @property
-    def active(self) -> bool:
-        """Whether any jitter is configured."""
-        return self.noise > 0 or self.blur > 1 or self.brightness > 0
-
-    def apply(self, image: np.ndarray) -> np.ndarray:
-        """Degrade ``image`` in place (and return it)."""
-        if self.blur > 1:
-            cv2.blur(image, (self.blur, self.blur), dst=image)
-        if self.brightness > 0 or self.noise > 0:
-            img = image.astype(np.float32)
-            if self.brightness > 0:
-                img *= self.rng.uniform(1 - self.brightness, 1 + self.brightness)
-            if self.noise > 0:
-                img += self.rng.normal(0.0, self.noise, img.shape).astype(np.float32)
-            np.clip(img, 0, 255, out=img)
-            image[:] = img.astype(np.uint8)
-        return image
+def camera_from_config(cfg: Any, *, height: float = 0.0, pitch: float = 0.0, fov: float = 0.0,
+                       max_distance: float = 12.0) -> Camera:
+    """The simulated camera of a Config (SIM_CAMERA_*), with offsets of height (m), pitch and field
+    of view (degrees) as a randomised track draws them."""
+    return Camera(cfg.SIM_CAMERA_W, cfg.SIM_CAMERA_H, cfg.SIM_CAMERA_FOV + fov, cfg.SIM_CAMERA_PITCH + pitch,
+                  cfg.SIM_CAMERA_HEIGHT + height, cfg.SIM_CAMERA_FORWARD, max_distance,
+                  distortion=cfg.SIM_CAMERA_DISTORTION)
 
 
 def lane_region_points(camera: Camera, near: float | None = None, far: float = 1.2, half_width: float = 0.5,

@@ -28,6 +28,8 @@ _COLUMNS: tuple[tuple[str, str, str], ...] = (
 )
 
 
+#: the theme column of built-in simulator reports
+_THEME = ("theme", "theme", "{}")
 #: lane table columns (commanded lane changes): (header, key of the "lanes" section, format)
 _LANE_COLUMNS: tuple[tuple[str, str, str], ...] = (
     ("changes", "lane_changes", "{:d}"),
@@ -58,11 +60,30 @@ def _table(rows_in: list[tuple[str, dict[str, Any]]], columns: tuple[tuple[str, 
     return lines
 
 
+def describe(report: dict[str, Any]) -> str:
+    """One line naming the conditions of a built-in simulator evaluation: themes and randomisation."""
+    cond = report.get("conditions")
+    if not cond:
+        return "conditions: not recorded"
+    themes = ", ".join(dict.fromkeys(cond["themes"]))
+    if cond["randomize"] is None:
+        rand = "not randomised"
+        if cond.get("distractors"):
+            rand += f", {cond['distractors']} distractors per track"
+    else:
+        rand = f"randomised with seed {cond['randomize']}"
+        if cond.get("ranges"):
+            rand += " (ranges " + ", ".join(f"{k} {v[0]:g}..{v[1]:g}" for k, v in cond["ranges"].items()) + ")"
+    lanes = " two-lane," if cond.get("lanes") == 2 else ""
+    return f"conditions: theme {themes},{lanes} {rand}"
+
+
 def format_table(report: dict[str, Any]) -> str:
-    """The report as a fixed-width text table: one row per track, then the overall row; with
-    commanded lane changes, a second table of the lane metrics."""
+    """The report as a fixed-width text table: the conditions (built-in simulator), one row per
+    track, then the overall row; with commanded lane changes, a second table of the lane metrics."""
     tracks = [(str(t["seed"]), t) for t in report["tracks"]] + [("all", report["overall"])]
-    lines = _table(tracks, _COLUMNS)
+    themed = bool(report.get("conditions"))
+    lines = ([describe(report)] if themed else []) + _table(tracks, (_THEME, *_COLUMNS) if themed else _COLUMNS)
     o = report["overall"]
     simulator = report.get("simulator", "builtin")
     success = "-" if o.get("success_rate") is None else f"{o['success_rate'] * 100:.0f} %"
@@ -98,13 +119,16 @@ def write_json(report: dict[str, Any], path: str | os.PathLike[str]) -> Path:
 
 
 def track_image(seed: int, cfg: Any, size: int = 480, trajectory: Any = None,
-                events: Any = None, title: str | None = None, commands: Any = None) -> np.ndarray:
-    """A square RGB map of a track (its texture), with a driven trajectory, off-track marks and,
-    for lane changes, where each change was commanded (a triangle and L/R; green if it was done,
-    red if not, grey if the episode ended first)."""
-    from parts.sim.simulator import load_world, world_params
+                events: Any = None, title: str | None = None, commands: Any = None,
+                theme: str | None = None) -> np.ndarray:
+    """A square RGB map of a track (its texture in ``theme``, default the first of SIM_THEME), with
+    a driven trajectory, off-track marks and, for lane changes, where each change was commanded (a
+    triangle and L/R; green if it was done, red if not, grey if the episode ended first)."""
+    from parts.sim.themes import theme_list
+    from parts.sim.world import load_world, world_params
 
-    track, texture = load_world(seed, **world_params(cfg))
+    world = load_world(seed, theme=theme or theme_list(cfg.SIM_THEME)[0], **world_params(cfg))
+    track, texture = world.track, world.texture
     img = texture.image
     h, w = img.shape[:2]
     scale = size / max(h, w)
@@ -151,13 +175,13 @@ def write_png(report: dict[str, Any], path: str | os.PathLike[str], cfg: Any = N
         cfg = Config.defaults()
     panels = []
     for t in report["tracks"]:
-        title = (f"track {t['seed']}: {t['autonomy']:.1f} % autonomy, {t['laps_completed']} laps, "
-                 f"{t['interventions']} off")
+        title = (f"track {t['seed']} ({t.get('theme', 'road')}): {t['autonomy']:.1f} % autonomy, "
+                 f"{t['laps_completed']} laps, {t['interventions']} off")
         lanes = t.get("lanes")
         if lanes is not None:
             title += f", lane changes {lanes['lane_changes_ok']}/{lanes['lane_changes']}"
         panels.append(track_image(t["seed"], cfg, panel, t.get("trajectory"), t.get("off_track_at"), title,
-                                  lanes["commands"] if lanes is not None else None))
+                                  lanes["commands"] if lanes is not None else None, theme=t.get("theme")))
     return write_panels(panels, path)
 
 

@@ -63,6 +63,7 @@ class EpisodeMetrics:
         stop: called once when the episode is over (``Vehicle.stop``).
         seed, track_length: the track, for the report.
         on_step: called after every recorded step (e.g. to show frames).
+        details: more about the episode for the report (e.g. the track's theme and conditions).
     """
 
     INPUTS: ClassVar[tuple[str, ...]] = ("angle", "sim/cte", "sim/off_track", "sim/speed", "sim/pos", "sim/lap",
@@ -73,9 +74,11 @@ class EpisodeMetrics:
 
     def __init__(self, dt: float, laps: int, max_time: float, penalty_s: float, *,
                  stop: Callable[[], None] | None = None, seed: int | None = None,
-                 track_length: float | None = None, on_step: Callable[[], None] | None = None) -> None:
+                 track_length: float | None = None, on_step: Callable[[], None] | None = None,
+                 details: dict[str, Any] | None = None) -> None:
         self.dt, self.laps, self.max_time, self.penalty = float(dt), int(laps), float(max_time), float(penalty_s)
         self.stop, self.seed, self.track_length, self.on_step = stop, seed, track_length, on_step
+        self.details = dict(details or {})
         self.trace = _Trace()
         self.time = 0.0
         self.done = False
@@ -159,6 +162,7 @@ class EpisodeMetrics:
                 out[key] = None
         out["unavailable"] = {name: {"signal": SIGNALS[name][0], "metrics": list(SIGNALS[name][1])}
                               for name in missing}
+        out.update(self.details)
         return out
 
     def _result(self) -> dict[str, Any]:

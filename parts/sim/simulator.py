@@ -10,17 +10,29 @@ from __future__ import annotations
 import logging
 import math
 import time
-from collections import OrderedDict
+from collections import deque
 from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import numpy as np
 
-from parts.sim.camera import Camera, ImageJitter, camera_from_config
+from parts.sim.camera import Camera, camera_from_config
 from parts.sim.kinematics import Car, CarParams
+from parts.sim.randomize import Conditions, RangesError, check_ranges
+from parts.sim.sensor import Sensor
 from parts.sim.telemetry import LapTracker, TelemetryFrame
-from parts.sim.texture import TrackTexture, render_texture
-from parts.sim.track import Track, make_track
+from parts.sim.themes import ThemeError, get_theme, theme_list, theme_of
+from parts.sim.world import (
+    World,
+    conditions_for,
+    load_track,
+    load_world,
+    prefetch_world,
+    register_track,
+    registered_tracks,
+    world_params,
+)
+from vehicle.config import ConfigError
 
 logger = logging.getLogger(__name__)
 
@@ -29,53 +41,7 @@ OUTPUTS: tuple[str, ...] = (
     "cam/image_array", "cam/timestamp", "sim/cte", "sim/heading_error", "sim/speed", "sim/progress",
     "sim/lap", "sim/lap_time", "sim/off_track", "sim/pos", "sim/track", "enc/speed",
 )
-
-_WORLDS: OrderedDict[tuple[Any, ...], tuple[Track, TrackTexture]] = OrderedDict()
-_WORLD_CACHE_SIZE = 6
-_CUSTOM: dict[int, Track] = {}
-
-
-def register_track(track: Track) -> None:
-    """Make a hand-made track (see :func:`parts.sim.track.track_from_points`) drivable under its
-    seed number: SimCar, evaluation and the CLI then use it instead of generating that seed."""
-    if not isinstance(track, Track):
-        raise TypeError(f"register_track needs a Track, got {type(track).__name__}")
-    _CUSTOM[track.seed] = track
-    for key in [k for k in _WORLDS if k[0] == track.seed]:
-        del _WORLDS[key]
-
-
-def registered_tracks() -> dict[int, Track]:
-    """The hand-made tracks registered with :func:`register_track`, by seed (a copy)."""
-    return dict(_CUSTOM)
-
-
-def load_world(seed: int, *, size: float = 8.0, width: float = 0.8, min_radius: float = 1.2,
-               lanes: int = 1, line_width: float = 0.04, res: float = 0.01,
-               lighting: float = 0.25) -> tuple[Track, TrackTexture]:
-    """Track and texture of a seed (a registered hand-made track, else a generated one); the last
-    few are cached (a texture takes ~1 s to draw at 1 cm per pixel)."""
-    key = (int(seed), size, width, min_radius, lanes, line_width, res, lighting)
-    if key in _WORLDS:
-        _WORLDS.move_to_end(key)
-        return _WORLDS[key]
-    if int(seed) in _CUSTOM:  # a registered hand-made track keeps its own geometry
-        track = _CUSTOM[int(seed)]
-    else:
-        track = make_track(int(seed), size=size, width=width, min_radius=min_radius, lanes=lanes,
-                           line_width=line_width)
-    world = (track, render_texture(track, res=res, lighting=lighting))
-    _WORLDS[key] = world
-    while len(_WORLDS) > _WORLD_CACHE_SIZE:
-        _WORLDS.popitem(last=False)
-    return world
-
-
-def world_params(cfg: Any) -> dict[str, Any]:
-    """The load_world() keyword arguments of a Config."""
-    return {"size": cfg.SIM_TRACK_SIZE, "width": cfg.SIM_ROAD_WIDTH, "min_radius": cfg.SIM_TRACK_MIN_RADIUS,
-            "lanes": cfg.SIM_LANES, "line_width": cfg.SIM_LINE_WIDTH, "res": cfg.SIM_TEXTURE_RES,
-            "lighting": cfg.SIM_LIGHTING_VARIATION}
+__all__ = ["OUTPUTS", "SimCar", "load_world", "register_track", "registered_tracks", "world_params"]
 
 
 class SimCar:
@@ -84,18 +50,24 @@ class SimCar:
     Args:
         seeds: track seeds; with several, the car moves to the next track after each lap.
         dt: simulated seconds per run() (1 / DRIVE_LOOP_HZ).
-        camera: the camera (default 160x120).
+        camera: the camera (default 160x120); randomised tracks offset its height, pitch and fov.
         car_params: the car model (default 1:10 RC car).
-        world: keyword arguments of :func:`load_world` (size, width, lanes, res, lighting ...).
+        world: keyword arguments of :func:`parts.sim.world.load_world` (size, width, lanes, res,
+            lighting, randomize, ranges, distractors ...).
+        themes: theme names dealt to the seeds in turn (seed i gets ``themes[i % len(themes)]``).
         reset_off_track: put the car back on the road when it leaves it.
         reset_to: "start" (start line, lap restarts) or "nearest" (re-centred where it left).
         off_track_cte: |CTE| in metres beyond which the car is off the road (default: half width).
-        jitter: optional image degradation.
+        sensor: keyword arguments of :class:`parts.sim.sensor.Sensor` applied to every frame
+            (noise, blur, brightness); randomised tracks add their own effects.
         realtime: cam/timestamp is the wall clock (True) or start time + simulated time (False).
         start_offset: lateral offset of the start position and of "nearest" resets, metres left of
             the centre line (from_config: the expert's lane on two-lane tracks).
         switch_every: with several seeds, move to the next track every this many steps instead of
             after each lap (spreads a recording evenly over the tracks).
+        render: draw camera frames (False: cam/image_array is None and no texture is drawn, for
+            drivers that do not look, like the expert).
+        seed: seed of the per-frame random draws (SIM_SEED).
     """
 
     INPUTS: ClassVar[tuple[str, ...]] = ("angle", "throttle", "sim/reset")
@@ -106,12 +78,12 @@ class SimCar:
     OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("sim/reset",)
     OUTPUTS: ClassVar[tuple[str, ...]] = OUTPUTS
 
-
     def __init__(self, seeds: Sequence[int] = (1,), *, dt: float = 0.05, camera: Camera | None = None,
                  car_params: CarParams | None = None, world: dict[str, Any] | None = None,
-                 reset_off_track: bool = True, reset_to: str = "start", off_track_cte: float | None = None,
-                 jitter: ImageJitter | None = None, realtime: bool = True, start_offset: float = 0.0,
-                 switch_every: int | None = None) -> None:
+                 themes: Sequence[str] | str = ("road",), reset_off_track: bool = True, reset_to: str = "start",
+                 off_track_cte: float | None = None, sensor: dict[str, Any] | None = None, realtime: bool = True,
+                 start_offset: float = 0.0, switch_every: int | None = None, render: bool = True,
+                 seed: int = 0) -> None:
         seeds = [seeds] if isinstance(seeds, int) else list(seeds)
         if not seeds or not all(isinstance(s, int | np.integer) and not isinstance(s, bool) for s in seeds):
             raise ValueError(f"track seeds must be a non-empty list of ints, got {seeds!r}")
@@ -120,19 +92,31 @@ class SimCar:
         if reset_to not in ("start", "nearest"):
             raise ValueError(f"reset_to must be 'start' or 'nearest', got {reset_to!r}")
         self.seeds = [int(s) for s in seeds]
+        self.themes = theme_list(themes)
         self.dt = float(dt)
-        self.camera = camera or Camera()
+        self.base_camera = camera or Camera()
+        self.camera = self.base_camera
         self.car = Car(car_params)
-        self.world = dict(world or {})
+        self.world_args = dict(world or {})
+        self.world_args["ranges"] = dict(self.world_args.get("ranges") or {})
+        check_ranges(self.world_args["ranges"])  # fail now on bad ranges, not at the first track
+        randomize = self.world_args.get("randomize")
+        if randomize is not None and (not isinstance(randomize, int | np.integer) or isinstance(randomize, bool)):
+            raise ValueError(f"SIM_RANDOMIZE must be None or an integer seed, got {randomize!r}")
+        if int(self.world_args.get("distractors", 0)) < 0:
+            raise ValueError(f"SIM_DISTRACTORS must be >= 0, got {self.world_args['distractors']}")
         self.reset_off_track = reset_off_track
         self.reset_to = reset_to
         self._off_track_cte = off_track_cte
-        self.jitter = jitter if jitter is not None and jitter.active else None
+        self.sensor_args = dict(sensor or {})
+        Sensor(8, 8, **self.sensor_args)  # check the settings now rather than at the first track
         self.realtime = realtime
         self.start_offset = float(start_offset)
         if switch_every is not None and switch_every < 1:
             raise ValueError(f"switch_every must be >= 1 step or None, got {switch_every}")
         self.switch_every = switch_every
+        self.render_images = bool(render)
+        self.frame_seed = int(seed)
         self.time = 0.0  # simulated seconds since the part was made
         self.steps = 0
         self.resets = 0
@@ -140,28 +124,34 @@ class SimCar:
         self._reset_requested = False
         self._reset_input = False
         self._track_index = 0
+        self._pending: deque[tuple[float, float]] = deque()
+        self.world: World | None = None
+        self.sensor: Sensor | None = None
         self.frame: TelemetryFrame | None = None
-        # draw the other tracks now (≈1 s each at 1 cm/px) rather than stall the loop at a switch
-        for seed in self.seeds[1:_WORLD_CACHE_SIZE]:
-            load_world(seed, **self.world)
+        for i in range(min(len(self.seeds), len(self.themes))):  # fail now on park with two lanes
+            get_theme(self.theme_for(i)).draw_look(np.random.default_rng(0), int(self.world_args.get("lanes", 1)))
         self.select_track(self.seeds[0])
 
     @classmethod
     def from_config(cls, cfg: Any, seeds: Sequence[int] | None = None, **kwargs: Any) -> SimCar:
         """A SimCar with every setting taken from a Config (SIM_* and DRIVE_LOOP_HZ)."""
-        camera = camera_from_config(cfg)
-        jitter = ImageJitter(cfg.SIM_IMAGE_NOISE, cfg.SIM_IMAGE_BLUR, cfg.SIM_BRIGHTNESS_JITTER, cfg.SIM_SEED)
         options: dict[str, Any] = {
-            "dt": 1.0 / cfg.DRIVE_LOOP_HZ, "camera": camera, "car_params": CarParams.from_config(cfg),
-            "world": world_params(cfg), "reset_off_track": cfg.SIM_RESET_OFF_TRACK,
-            "reset_to": cfg.SIM_RESET_TO, "off_track_cte": cfg.SIM_OFF_TRACK_CTE, "jitter": jitter,
-            "realtime": cfg.SIM_REALTIME}
+            "dt": 1.0 / cfg.DRIVE_LOOP_HZ, "camera": camera_from_config(cfg), "car_params": CarParams.from_config(cfg),
+            "world": world_params(cfg), "themes": cfg.SIM_THEME, "reset_off_track": cfg.SIM_RESET_OFF_TRACK,
+            "reset_to": cfg.SIM_RESET_TO, "off_track_cte": cfg.SIM_OFF_TRACK_CTE,
+            "sensor": {"noise": cfg.SIM_IMAGE_NOISE, "blur": cfg.SIM_IMAGE_BLUR,
+                       "brightness": cfg.SIM_BRIGHTNESS_JITTER},
+            "realtime": cfg.SIM_REALTIME, "seed": cfg.SIM_SEED}
         if cfg.SIM_LANES == 2:  # start (and re-centre) in the lane the expert keeps to
             lane = "left" if cfg.SIM_EXPERT_LANE == "left" else "right"
             if cfg.SIM_EXPERT_LANE != "center":
                 options["start_offset"] = cfg.SIM_ROAD_WIDTH / 4 * (1 if lane == "left" else -1)
         options.update(kwargs)
-        return cls(list(seeds) if seeds is not None else cfg.SIM_TRACK_SEEDS, **options)
+        try:
+            return cls(list(seeds) if seeds is not None else cfg.SIM_TRACK_SEEDS, **options)
+        except (RangesError, ThemeError) as e:  # the user's settings: one line at their line in myconfig.py
+            names = ("SIM_RANDOMIZE_RANGES",) if isinstance(e, RangesError) else ("SIM_THEME", "SIM_LANES")
+            raise ConfigError(f"{cfg.where(*names)}{e}") from None
 
     # -- track and pose -----------------------------------------------------------------------
     @property
@@ -169,19 +159,70 @@ class SimCar:
         """Seed of the current track."""
         return self.track.seed
 
+    @property
+    def texture(self) -> Any:
+        """The current track's texture (None when not rendering)."""
+        return None if self.world is None else self.world.texture
+
+    def theme_for(self, index: int) -> str:
+        """Theme of the ``index``-th track of :attr:`seeds`."""
+        return theme_of(self.themes, index)
+
     def select_track(self, seed: int) -> None:
-        """Move to the track of ``seed`` (generated on first use) and place the car on its start."""
-        self.track, self.texture = load_world(seed, **self.world)
+        """Move to the track of ``seed`` (drawn on first use) and place the car on its start.
+
+        The track's conditions are drawn here (once per episode): camera mounting, sensor effects
+        and latency of a randomised track take effect now."""
+        if self.seeds[self._track_index] != seed and seed in self.seeds:
+            self._track_index = self.seeds.index(seed)
+        index = self._track_index
+        theme = self.theme_for(index)
+        if self.render_images:
+            self.world = load_world(seed, theme=theme, **self.world_args)
+            self.track, self.conditions = self.world.track, self.world.conditions
+            if len(self.seeds) > 1:  # draw the next track while this one is driven: no stall at the switch
+                following = (index + 1) % len(self.seeds)
+                prefetch_world(self.seeds[following], theme=self.theme_for(following), **self.world_args)
+        else:
+            self.world = None
+            self.track = load_track(seed, **self.world_args)
+            self.conditions = conditions_for(seed, theme, **self.world_args)
+        self._apply_conditions(self.conditions)
         cte_limit = self._off_track_cte if self._off_track_cte is not None else self.track.width / 2
         self.tracker = LapTracker(self.track, cte_limit)
         self.tracker.restart(self.time)
         self.car.place(*self.track.pose_at(0.0, self.start_offset))
+        self._clear_pending()
         self.frame = self.tracker.update(self.car.state, self.time)
+
+    def _apply_conditions(self, cond: Conditions) -> None:
+        base = self.base_camera
+        theme = get_theme(cond.theme)
+        if self.render_images:
+            if (cond.camera_height, cond.camera_pitch, cond.camera_fov) == (0.0, 0.0, 0.0) and \
+                    base.max_distance == theme.far_distance:
+                self.camera = base
+            else:
+                self.camera = Camera(base.width, base.height, base.fov_deg + cond.camera_fov,
+                                     base.pitch_deg + cond.camera_pitch, base.height_m + cond.camera_height,
+                                     base.forward_m, theme.far_distance, distortion=base.distortion)
+            args = dict(self.sensor_args)
+            noise = float(np.hypot(args.pop("noise", 0.0), cond.noise))
+            sensor = Sensor(base.width, base.height, noise=noise, vignetting=cond.vignetting,
+                            motion_blur=cond.motion_blur, jpeg_quality=cond.jpeg_quality,
+                            seed=(self.frame_seed, self.track.seed, cond.randomize or 0), **args)
+            self.sensor = sensor if sensor.active else None
+        self.latency = int(cond.latency)
+
+    def _clear_pending(self) -> None:
+        """Forget commands in flight (a new episode or a reset): the car stands for `latency` loops."""
+        self._pending = deque([(0.0, 0.0)] * self.latency)
 
     def reset(self, to: str | None = None) -> None:
         """Put the car back on the road now: at the start line, or re-centred (in its lane) where it is."""
         to = to or self.reset_to
         self.resets += 1
+        self._clear_pending()
         if to == "start":
             self.car.place(*self.track.pose_at(0.0, self.start_offset))
             self.tracker.restart(self.time)
@@ -212,6 +253,9 @@ class SimCar:
         if self._reset_requested:
             self._reset_requested = False
             self.reset()
+        if self.latency:  # the command acts `latency` loops after the frame it answers
+            self._pending.append((a, t))
+            a, t = self._pending.popleft()
         self.car.step(a, t, self.dt)
         self.time += self.dt
         self.steps += 1
@@ -229,12 +273,16 @@ class SimCar:
             frame = self.frame  # the first frame on the new track
         return frame
 
-    def render(self) -> np.ndarray:
-        """The camera image for the car's current pose (a new HxWx3 uint8 RGB array)."""
+    def render(self) -> np.ndarray | None:
+        """The camera image for the car's current pose (a new HxWx3 uint8 RGB array; None when
+        the part does not render)."""
+        if self.world is None:
+            return None
         st = self.car.state
-        img = self.camera.render(self.texture, st.x, st.y, st.heading)
-        if self.jitter is not None:
-            self.jitter.apply(img)
+        scenery = None if self.world.scenery.empty else self.world.scenery
+        img = self.camera.render(self.world.texture, st.x, st.y, st.heading, scenery=scenery)
+        if self.sensor is not None:
+            self.sensor.apply(img, st.speed)
         return img
 
     def timestamp(self) -> float:

@@ -11,6 +11,8 @@ reported with the closest valid name.
 
 # -- simulator
 # SIM_TRACK_SEEDS = [1]          # tracks to drive; `vehicle sim track --seed N --png t.png` draws one
+# SIM_THEME = "road"             # "road", "indoor" (taped track in a room), "park"; a list mixes them
+# SIM_RANDOMIZE = None           # an integer seed: randomised light, camera, sensor, latency, distractors
 # SIM_TYPE = "builtin"           # or "udacity" / "donkey": drive their simulator (docs/simulators.md)
 # SIM_HOST = "127.0.0.1"         # the Donkey simulator's machine (SIM_PORT = 9091)
 # DONKEY_GYM_ENV_NAME = "donkey-generated-track-v0"

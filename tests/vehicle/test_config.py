@@ -145,6 +145,12 @@ def test_a_setting_that_breaks_another_is_located_at_its_own_line(tmp_path):
     assert "STEERING_LEFT_PWM = 460" in msg and "PWM_FREQ = 400" in msg and "µs" in msg
 
 
+def test_a_setting_set_twice_is_located_at_the_assignment_in_effect(tmp_path):
+    write(tmp_path, "DRIVE_LOOP_HZ = 20\nWEB_JPEG_QUALITY = 80\nWEB_JPEG_QUALITY = 0\n")
+    with pytest.raises(ConfigError, match=r", line 3: WEB_JPEG_QUALITY = 0 "):
+        load_config(car_path=tmp_path)
+
+
 def test_the_watchdog_must_outlast_two_loops(tmp_path):
     write(tmp_path, "DRIVE_LOOP_HZ = 5\nACTUATOR_WATCHDOG_S = 0.2\n")
     with pytest.raises(ConfigError, match=r"line 2: ACTUATOR_WATCHDOG_S = 0.2 .*two loops at DRIVE_LOOP_HZ = 5"):

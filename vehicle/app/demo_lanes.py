@@ -31,6 +31,11 @@ LANE_SETTINGS: dict[str, Any] = {
     # the simulator's white lines have almost no saturation: the thesis's S threshold marks the
     # grass beside the road, the white mask adds the lines
     "LANE_COLOR_MASK": "white",
+    # the lane experiment runs on plain roads: the demo's themes, randomisation and hue
+    # augmentation (tape of any colour) would change what the white-line mask sees
+    "SIM_THEME": "road",
+    "SIM_RANDOMIZE": None,
+    "AUGMENTATIONS": ["flip", "brightness", "shadow", "shift"],
 }
 DEFAULTS = {"records": 6000, "lane_changes": 40, "epochs": 10, "noise": 0.4,
             "train_tracks": [1, 2, 3, 4, 5, 6, 7, 8], "eval_tracks": [101, 102, 103, 104, 105], "laps": 2,

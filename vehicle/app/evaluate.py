@@ -54,7 +54,10 @@ from parts.drive.behavior import BehaviorSchedule, behavior_lane, periodic_chang
 from parts.drive.modes import PilotCondition
 from parts.sim.lane_metrics import CommandedLane, LaneMetrics, overall_lane_metrics
 from parts.sim.metrics import EpisodeMetrics, overall
+from parts.sim.randomize import check_ranges
 from parts.sim.simulator import SimCar
+from parts.sim.themes import theme_list, theme_of
+from parts.sim.world import prefetch_world, world_params
 from vehicle import Vehicle
 from vehicle.app.assembly.camera import add_undistort
 from vehicle.app.assembly.drive import add_behavior, add_drive_mode
@@ -152,7 +155,9 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
             ``inputs``: memory keys, default ``["cam/image_array"]``).
         seeds: track seeds of the built-in simulator (use tracks the pilot was not trained on).
         laps: laps per track.
-        cfg: a Config (default: package defaults); SIM_* settings shape tracks, camera and car.
+        cfg: a Config (default: package defaults); SIM_* settings shape tracks, camera and car;
+            SIM_THEME deals themes to the seeds in turn, SIM_RANDOMIZE draws the conditions (use a
+            theme or a randomisation seed the pilot was not trained on to measure transfer).
         max_time: simulated seconds per episode at most (default SIM_EVAL_MAX_TIME, else 60 s/lap).
         penalty_s: seconds charged per intervention (default SIM_INTERVENTION_PENALTY, DAVE-2: 6).
         fixed_throttle: drive at this throttle and use only the pilot's steering ("local_angle");
@@ -170,8 +175,9 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
             another. The report is the same either way.
 
     Returns:
-        ``{"pilot", "simulator", "laps", "seeds", "settings", "tracks": [per-track metrics],
-        "overall": {...}}``; each track's and the overall ``unavailable`` name the metrics the
+        ``{"pilot", "simulator", "laps", "seeds", "conditions", "settings", "tracks": [per-track
+        metrics, with the theme, look and drawn conditions of each built-in track], "overall": {...}}``;
+        each track's and the overall ``unavailable`` name the metrics the
         simulator cannot give.
         With lane changes each track and the overall dict also hold ``"lanes"``
         (:func:`parts.sim.lane_metrics.lane_metrics`).
@@ -202,6 +208,8 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
     if fixed_throttle is not None and not -1.0 <= fixed_throttle <= 1.0:
         raise ValueError(f"fixed_throttle must be in [-1, 1], got {fixed_throttle}")
 
+    themes = theme_list(cfg.SIM_THEME)
+    check_ranges(cfg.SIM_RANDOMIZE_RANGES)
     if not isinstance(workers, int) or isinstance(workers, bool) or workers < 0:
         raise ValueError(f"workers must be an int >= 0 (0 = one per core), got {workers!r}")
     n_workers = min(workers or os.cpu_count() or 1, len(episodes)) if sim == "builtin" else 1
@@ -228,12 +236,17 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
             if owned and callable(getattr(driver, "shutdown", None)):
                 owned = False
                 driver.shutdown()
-            outcomes = _run_parallel(pilot, episodes, laps, cfg, n_workers, episode_args, name)
+            outcomes = _run_parallel(pilot, episodes, laps, cfg, n_workers, episode_args, name,
+                                     [theme_of(themes, i) for i in range(len(episodes))])
         else:
             outcomes = []
-            for episode in episodes:
+            for i, episode in enumerate(episodes):
                 if sim == "builtin":
-                    outcomes.append(_builtin_episode(driver, episode, laps, cfg, episode_args, on_step))
+                    if driver != "expert" and i + 1 < len(episodes):
+                        # the next track is drawn in the background while this one is driven
+                        prefetch_world(episodes[i + 1], theme=theme_of(themes, i + 1), **world_params(cfg))
+                    outcomes.append(_builtin_episode(driver, episode, laps, cfg, episode_args, on_step,
+                                                     theme=theme_of(themes, i)))
                 else:
                     metrics = run_bridge_episode(driver, sim, episode, laps, cfg, max_time=max_time,
                                                  penalty_s=penalty, fixed_throttle=fixed_throttle,
@@ -261,12 +274,21 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
         "simulator": sim,
         "laps": laps,
         "seeds": episodes,
+        "conditions": describe_conditions(cfg, themes) if sim == "builtin" else None,
         "settings": settings,
         "tracks": results,
         "overall": {**overall(results, penalty, np.concatenate(pooled)),
                     **({"lanes": overall_lane_metrics([r["lanes"] for r in results])} if lanes_on else {})},
         "wall_time_s": round(time.perf_counter() - started, 3),
     }
+
+
+def describe_conditions(cfg: Any, themes: Sequence[str] | None = None) -> dict[str, Any]:
+    """The conditions of a built-in simulator evaluation, as the report names them."""
+    return {"themes": list(themes if themes is not None else theme_list(cfg.SIM_THEME)),
+            "randomize": cfg.SIM_RANDOMIZE, "ranges": {k: list(v) for k, v in cfg.SIM_RANDOMIZE_RANGES.items()},
+            "distractors": cfg.SIM_DISTRACTORS if cfg.SIM_RANDOMIZE is None else "randomised",
+            "lanes": cfg.SIM_LANES}
 
 
 def _log_episode(name: str, episode: Any, laps: int, res: dict[str, Any]) -> None:
@@ -276,15 +298,16 @@ def _log_episode(name: str, episode: Any, laps: int, res: dict[str, Any]) -> Non
 
 
 def _builtin_episode(driver: Any, seed: int, laps: int, cfg: Any, episode_args: dict[str, Any],
-                     on_step: Callable[[SimCar], None] | None = None) -> tuple[dict[str, Any], np.ndarray]:
-    """One built-in episode's (metrics, |cte| of its autonomous frames), lane metrics included
-    when ``episode_args["lanes"]``."""
+                     on_step: Callable[[SimCar], None] | None = None,
+                     theme: str | None = None) -> tuple[dict[str, Any], np.ndarray]:
+    """One built-in episode's (metrics, |cte| of its autonomous frames) on track ``seed`` in
+    ``theme``, lane metrics included when ``episode_args["lanes"]``."""
     args = dict(episode_args)
     lane_part = None
     if args.pop("lanes"):
         lane_part = LaneMetrics(1.0 / cfg.DRIVE_LOOP_HZ, cfg.SIM_ROAD_WIDTH / 2,
                                 time_limit=cfg.SIM_EVAL_LANE_CHANGE_TIME_LIMIT, hold=cfg.SIM_EVAL_LANE_CHANGE_HOLD)
-    metrics = run_episode(driver, seed, laps, cfg, **args, on_step=on_step, lanes=lane_part)
+    metrics = run_episode(driver, seed, laps, cfg, **args, on_step=on_step, lanes=lane_part, theme=theme)
     res = metrics.result()
     if lane_part is not None:
         res["lanes"] = lane_part.result()
@@ -332,14 +355,16 @@ def _init_worker(pilot: Any, config: tuple[dict[str, Any], frozenset[str], Any],
     _WORKER.update(cfg=cfg, driver=driver, laps=laps, episode_args=episode_args)
 
 
-def _worker_episode(seed: int) -> tuple[dict[str, Any], np.ndarray]:
+def _worker_episode(seed: int, theme: str) -> tuple[dict[str, Any], np.ndarray]:
     w = _WORKER
-    return _builtin_episode(w["driver"], seed, w["laps"], w["cfg"], w["episode_args"])
+    return _builtin_episode(w["driver"], seed, w["laps"], w["cfg"], w["episode_args"], theme=theme)
 
 
 def _run_parallel(pilot: Any, seeds: list[int], laps: int, cfg: Any, n_workers: int,
-                  episode_args: dict[str, Any], name: str) -> list[tuple[dict[str, Any], np.ndarray]]:
-    """The episodes of ``seeds`` in ``n_workers`` processes, in seed order."""
+                  episode_args: dict[str, Any], name: str,
+                  themes: list[str]) -> list[tuple[dict[str, Any], np.ndarray]]:
+    """The episodes of ``seeds`` (each in its theme of ``themes``) in ``n_workers`` processes, in
+    seed order."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
@@ -353,7 +378,7 @@ def _run_parallel(pilot: Any, seeds: list[int], laps: int, cfg: Any, n_workers: 
     initargs = (pilot_arg, _sendable_config(cfg), registered_tracks(), threads, laps, episode_args)
     outcomes = []
     with ProcessPoolExecutor(n_workers, mp_context=context, initializer=_init_worker, initargs=initargs) as pool:
-        for seed, (res, abs_cte) in zip(seeds, pool.map(_worker_episode, seeds), strict=True):
+        for seed, (res, abs_cte) in zip(seeds, pool.map(_worker_episode, seeds, themes), strict=True):
             _log_episode(name, seed, laps, res)
             outcomes.append((res, abs_cte))
     return outcomes
@@ -402,16 +427,20 @@ def _check_change_schedule(cfg: Any) -> None:
 
 def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float, penalty_s: float,
                 fixed_throttle: float | None = None, extra_inputs: dict[str, Any] | None = None,
-                on_step: Callable[[SimCar], None] | None = None, lanes: LaneMetrics | None = None) -> EpisodeMetrics:
-    """One episode on track ``seed``: build the loop, run it to the end, return its metrics part.
+                on_step: Callable[[SimCar], None] | None = None, lanes: LaneMetrics | None = None,
+                theme: str | None = None) -> EpisodeMetrics:
+    """One episode on track ``seed`` (in ``theme``, default the first of SIM_THEME): build the loop,
+    run it to the end, return its metrics part (its result names the track's theme and conditions).
 
     ``driver`` is "expert" or a pilot part; a pilot with a ``reset()`` (sequence models) starts the
     episode with no memory of the previous track, so every track is scored on its own. With
     ``lanes`` (a :class:`LaneMetrics`, filled by the episode) the behaviour is stepped at seeded
     times (SIM_EVAL_LANE_CHANGE_EVERY) and the car starts in the initial behaviour's lane.
     """
-    # image jitter stays as configured: a pilot is judged on the images it will get
-    sim = SimCar.from_config(cfg, seeds=[seed], reset_off_track=True, reset_to="nearest", realtime=False)
+    # image effects stay as configured: a pilot is judged on the images it will get; the expert
+    # drives from the map, so its episodes draw no images
+    sim = SimCar.from_config(cfg, seeds=[seed], themes=[theme or theme_list(cfg.SIM_THEME)[0]],
+                             reset_off_track=True, reset_to="nearest", realtime=False, render=driver != "expert")
     V = Vehicle(clock=SimulatedClock())
     V.mem.update(extra_inputs or {})  # seeded: keys the simulator does not make
     V.add(sim)
@@ -436,9 +465,13 @@ def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float,
     else:
         add_engaged_pilot(V, driver, fixed_throttle)
     add_drive_mode(V, cfg)
+    details: dict[str, Any] = {"theme": sim.conditions.theme, "conditions": sim.conditions.summary()}
+    if sim.world is not None:
+        details["look"] = sim.world.look.summary()
+        details["distractors"] = [d.kind for d in sim.world.scenery.distractors]
     metrics = EpisodeMetrics(sim.dt, laps, max_time, penalty_s, stop=V.stop, seed=seed,
                              track_length=sim.track.length,
-                             on_step=(lambda: on_step(sim)) if on_step is not None else None)
+                             on_step=(lambda: on_step(sim)) if on_step is not None else None, details=details)
     V.add(metrics)
     if lanes is not None:
         V.add(lanes)

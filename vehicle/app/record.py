@@ -68,7 +68,8 @@ def record_expert(cfg: Any, seeds: Sequence[int] | None, n_records: int, tub_pat
 
     Args:
         cfg: the car's Config (or a car folder, loaded with its myconfig.py).
-        seeds: track seeds (None: SIM_TRACK_SEEDS); the records are spread evenly over them.
+        seeds: track seeds (None: SIM_TRACK_SEEDS); the records are spread evenly over them, in the
+            themes of SIM_THEME dealt in turn, randomised by SIM_RANDOMIZE.
         n_records: records to write (one per loop of 1 / DRIVE_LOOP_HZ simulated seconds).
         tub_path: the tub folder to write (created; an existing tub is appended to). None: a new tub
             in the car's data folder, as ``manage.py drive`` records.
@@ -81,6 +82,7 @@ def record_expert(cfg: Any, seeds: Sequence[int] | None, n_records: int, tub_pat
         ValueError: n_records < 1 or bad seeds.
         UserError: lane changes on one-lane tracks, or more than fit into the recording.
     """
+    from parts.sim.themes import theme_list
     from vehicle.app.assembly.drive import add_drive_mode
     from vehicle.app.assembly.sim import add_expert, add_expert_noise, add_simulator
     from vehicle.clock import SimulatedClock
@@ -92,7 +94,8 @@ def record_expert(cfg: Any, seeds: Sequence[int] | None, n_records: int, tub_pat
     seeds = list(seeds) if seeds is not None else list(cfg.SIM_TRACK_SEEDS)
     overrides: dict[str, Any] = {
         "SIM_REALTIME": False,
-        "METADATA": [*cfg.METADATA, "source:sim expert", f"tracks:{','.join(map(str, seeds))}"]}
+        "METADATA": [*cfg.METADATA, "source:sim expert", f"tracks:{','.join(map(str, seeds))}",
+                     f"themes:{','.join(theme_list(cfg.SIM_THEME))}", f"randomize:{cfg.SIM_RANDOMIZE}"]}
     if noise is not None:
         overrides["SIM_EXPERT_NOISE"] = float(noise)
     if lane_changes:

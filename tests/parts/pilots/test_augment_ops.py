@@ -55,6 +55,21 @@ def test_brightness_contrast_shadow_zoom_blur_change_pixels_not_steering(image):
     assert int(bright[0, 0, 0]) == 111 and int(bright[0, 15, 0]) == 255  # +20 %, saturating
 
 
+def test_hue_turns_colours_and_keeps_greys_and_steering():
+    img = np.full((20, 30, 3), 90, np.uint8)
+    img[:, :10] = (240, 200, 40)  # yellow tape on a grey floor
+    aug = _only("hue")
+    out = aug.apply(img, [("hue", {"degrees": 180.0})])
+    r, g, b = (int(v) for v in out[5, 5])
+    assert b > 200 and r < 90 and abs(g - 80) < 50  # yellow turned to blue
+    assert np.array_equal(out[:, 10:], img[:, 10:])  # grey stays grey
+    assert np.array_equal(aug.apply(img, [("hue", {"degrees": 0.0})]), img)
+    ops = aug.draw(np.random.default_rng(2))
+    assert ops[0][0] == "hue" and -180.0 <= ops[0][1]["degrees"] <= 180.0 and aug.steering(-0.2, ops) == -0.2
+    with pytest.raises(ValueError, match="AUG_HUE_RANGE"):
+        AugmentSettings(hue_range=200.0)
+
+
 def test_probabilities_and_input_untouched(image):
     none = Augmenter(AugmentSettings(names=AugmentSettings().names, flip_p=0, brightness_p=0, shadow_p=0,
                                      shift_p=0))
@@ -96,6 +111,14 @@ def test_preview_aug_command_writes_png(tiny_tub, tmp_path):
                  "--variants", "4", "--car", str(tmp_path)]) == 0
     png = cv2.imread(str(out))
     assert png.shape == (3 * 128, 5 * 128, 3)
+
+
+def test_every_augmentation_is_a_hyperparameter_choice():
+    from parts.pilots.augment import AUGMENTATION_NAMES
+    from parts.pilots.hyperparams import AUGMENTATION_CHOICES, by_name
+
+    assert AUGMENTATION_CHOICES == AUGMENTATION_NAMES  # the console and the CLI offer what training does
+    assert by_name("aug_hue_p").setting == "AUG_HUE_P" and by_name("aug_hue_range").high == 180.0
 
 
 @pytest.mark.parametrize("side", [0.0, 1.0])

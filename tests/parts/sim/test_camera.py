@@ -5,13 +5,15 @@ import math
 import numpy as np
 import pytest
 
-from parts.sim.camera import Camera, ImageJitter
-from parts.sim.simulator import load_world
+from parts.sim.camera import Camera
+from parts.sim.sensor import Sensor
+from parts.sim.world import load_world
 
 
 @pytest.fixture
 def track_and_texture(world):
-    return load_world(2, **world)
+    w = load_world(2, **world)
+    return w.track, w.texture
 
 
 def ground_to_pixel(cam: Camera, x_car: float, y_car: float) -> tuple[float, float]:
@@ -68,21 +70,21 @@ def test_camera_rejects_bad_settings():
         Camera(height_m=0)
 
 
-def test_jitter_is_seeded_and_changes_images():
+def test_sensor_effects_are_seeded_and_change_images():
     img = np.full((20, 30, 3), 100, np.uint8)
-    assert not ImageJitter().active
-    a = ImageJitter(noise=5.0, brightness=0.3, seed=1).apply(img.copy())
-    b = ImageJitter(noise=5.0, brightness=0.3, seed=1).apply(img.copy())
-    c = ImageJitter(noise=5.0, brightness=0.3, seed=2).apply(img.copy())
+    assert not Sensor(30, 20).active
+    a = Sensor(30, 20, noise=5.0, brightness=0.3, seed=1).apply(img.copy())
+    b = Sensor(30, 20, noise=5.0, brightness=0.3, seed=1).apply(img.copy())
+    c = Sensor(30, 20, noise=5.0, brightness=0.3, seed=2).apply(img.copy())
     np.testing.assert_array_equal(a, b)
     assert not np.array_equal(a, c)
-    assert a.std() > 2.0  # per-pixel noise
+    assert 3.0 < (a.astype(float) - a.mean()).std() < 7.0  # per-pixel noise of about 5
     edge = np.zeros((20, 30, 3), np.uint8)
     edge[:, 15:] = 200
-    blurred = ImageJitter(blur=5).apply(edge.copy())
+    blurred = Sensor(30, 20, blur=5).apply(edge.copy())
     assert 0 < blurred[10, 14, 0] < 200
     with pytest.raises(ValueError, match="jitter"):
-        ImageJitter(brightness=1.5)
+        Sensor(30, 20, brightness=1.5)
 
 
 def test_lens_distortion_bends_the_pinhole_image_as_opencvs_model(track_and_texture):

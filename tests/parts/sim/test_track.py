@@ -72,8 +72,9 @@ def test_bad_parameters_are_explained():
 
 
 def test_hand_made_track_from_points_can_be_registered_and_driven(cfg):
-    from parts.sim.simulator import _CUSTOM, SimCar, register_track
+    from parts.sim.simulator import SimCar, register_track
     from parts.sim.track import track_from_points
+    from parts.sim.world import _CUSTOM
     from vehicle.app.evaluate import evaluate
 
     theta = np.linspace(0, 2 * np.pi, 200, endpoint=False)

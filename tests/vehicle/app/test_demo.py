@@ -13,19 +13,25 @@ from vehicle.app.cli import main
 
 def test_tiny_demo_writes_model_export_reports_and_registry(tmp_path, capsys):
     out = tmp_path / "demo"
-    code = main(["demo", "--out", str(out), "--records", "200", "--epochs", "1", "--train-tracks", "1",
-                 "--eval-tracks", "101", "--laps", "1", "--threads", "1"])
+    code = main(["demo", "--out", str(out), "--records", "200", "--epochs", "1", "--train-tracks", "1,2",
+                 "--eval-tracks", "101", "--laps", "1", "--threads", "1", "--eval-randomize", "2"])
     assert code == 0
     printed = capsys.readouterr().out
-    for step in ("[1/4]", "[2/4]", "[3/4] exporting to ONNX", "[4/4]", "trained pilot on unseen tracks:",
-                 "the expert on the same tracks", "demo finished in"):
+    for step in ("[1/4]", "themes road, indoor, randomised with seed 1", "[2/4]", "[3/4] exporting to ONNX",
+                 "[4/4]", "trained pilot on unseen tracks, theme road (a trained theme):",
+                 "trained pilot on unseen tracks, theme indoor (a trained theme):",
+                 "trained pilot on unseen tracks, theme park (a theme the pilot never saw):",
+                 "conditions: theme park, randomised with seed 2", "the expert on the same tracks",
+                 "demo finished in", "park (theme never seen in training): the trained pilot"):
         assert step in printed
     model = out / "models" / "demo_linear.pt"
     assert model.is_file() and model.with_suffix(".onnx").is_file()
-    pilot_report = json.loads((out / "eval" / "pilot.json").read_text())
-    expert_report = json.loads((out / "eval" / "expert.json").read_text())
-    assert pilot_report["seeds"] == [101] and pilot_report["pilot"] == "demo_linear.pt"
-    assert expert_report["overall"]["interventions"] == 0  # the baseline drives cleanly
+    for theme in ("road", "indoor", "park"):
+        pilot_report = json.loads((out / "eval" / f"pilot_{theme}.json").read_text())
+        expert_report = json.loads((out / "eval" / f"expert_{theme}.json").read_text())
+        assert pilot_report["seeds"] == [101] and pilot_report["pilot"] == "demo_linear.pt"
+        assert pilot_report["conditions"]["themes"] == [theme] and pilot_report["conditions"]["randomize"] == 2
+        assert expert_report["overall"]["interventions"] == 0  # the baseline drives cleanly
     assert len(list((out / "data" / "demo_tub" / "images").iterdir())) == 200
     entry = ModelRegistry.for_models_dir(out / "models").get("demo_linear")
     assert entry.type == "linear" and entry.comment == "vehicle demo"
@@ -33,7 +39,7 @@ def test_tiny_demo_writes_model_export_reports_and_registry(tmp_path, capsys):
     from vehicle.config import load_config
 
     cfg = load_config(car_path=out)  # the demo folder is a car folder with the demo's settings
-    assert cfg.ROI_CROP_TOP == 40
+    assert cfg.ROI_CROP_TOP == 40 and cfg.SIM_THEME == ["road", "indoor"] and cfg.SIM_RANDOMIZE == 1
     from parts.pilots.modelfile import load_model
 
     _, meta = load_model(model)  # what the pilot was trained on: cropped, pixels in [-1, 1]
@@ -44,6 +50,9 @@ def test_tiny_demo_writes_model_export_reports_and_registry(tmp_path, capsys):
     (["--train-tracks", "1,2", "--eval-tracks", "2,3"], "also training tracks"),
     (["--records", "10"], "records >= 100"),
     (["--threads", "0"], "--threads must be >= 1"),
+    (["--unseen-theme", "road"], "is a training theme"),
+    (["--unseen-theme", "moon"], "unknown theme 'moon'"),
+    (["--eval-randomize", "1"], "training draw"),
 ])
 def test_demo_refuses_bad_arguments(tmp_path, capsys, args, message):
     assert main(["demo", "--out", str(tmp_path / "d"), *args]) == 2

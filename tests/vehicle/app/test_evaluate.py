@@ -98,8 +98,11 @@ def test_reports_json_png_and_table(cfg, tmp_path):
     r = evaluate("expert", [11, 12], laps=1, cfg=cfg)
     table = format_table(r)
     lines = table.splitlines()
-    assert lines[0].split()[:3] == ["track", "autonomy", "%"]
-    assert lines[2].split()[:3] == ["11", "100.0", "1"] and lines[4].split()[0] == "all"
+    assert lines[0] == "conditions: theme road, not randomised"
+    assert lines[1].split()[:4] == ["track", "theme", "autonomy", "%"]
+    assert lines[3].split()[:4] == ["11", "road", "100.0", "1"] and lines[5].split()[0] == "all"
+    assert r["conditions"] == {"themes": ["road"], "randomize": None, "ranges": {}, "distractors": 0, "lanes": 1}
+    assert r["tracks"][0]["theme"] == "road" and r["tracks"][0]["conditions"]["latency"] == 0
     js = json.loads(write_json(r, tmp_path / "out" / "r.json").read_text())
     assert js["overall"]["laps_completed"] == 2 and len(js["tracks"][0]["trajectory"]) > 100
     import cv2

@@ -28,6 +28,23 @@ def test_expert_on_four_tracks_in_two_workers_equals_serial(cfg):
     _same(serial, parallel)
 
 
+def test_workers_drive_each_track_in_its_theme_and_draw(cfg, make_model_file):
+    """Themes are dealt to the tracks and conditions drawn per track the same in the workers; a
+    model pilot renders, so the frames (and so its commands) depend on the theme it is given."""
+    pytest.importorskip("onnxruntime")
+    from parts.pilots.export import export_model
+
+    path = make_model_file("linear", seed=5)
+    export_model(path, "onnx")
+    c = cfg.replace(SIM_THEME="road,indoor,park", SIM_RANDOMIZE=3)
+    kwargs = {"laps": 1, "cfg": c, "max_time": 4.0}
+    serial = evaluate(path, [31, 32, 33], **kwargs)
+    parallel = evaluate(path, [31, 32, 33], workers=3, **kwargs)
+    assert [t["theme"] for t in parallel["tracks"]] == ["road", "indoor", "park"]
+    assert parallel["conditions"]["themes"] == ["road", "indoor", "park"]
+    _same(serial, parallel)
+
+
 def test_model_file_pilot_in_workers_equals_serial(cfg, make_model_file, caplog):
     pytest.importorskip("onnxruntime")
     from parts.pilots.export import export_model

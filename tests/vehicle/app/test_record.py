@@ -66,3 +66,15 @@ def test_record_with_lane_changes_flips_the_behaviour_and_the_expert_follows(cfg
         record_expert(cfg, [1], 100, tmp_path / "x", lane_changes=2)
     with pytest.raises(UserError, match="do not fit"):
         record_expert(two, [1], 100, tmp_path / "y", lane_changes=5)
+
+
+def test_record_expert_mixes_themes_and_randomisation(cfg, tmp_path):
+    c = cfg.replace(SIM_THEME=["road", "indoor"], SIM_RANDOMIZE=4, SIM_RANDOMIZE_RANGES={"latency": (2, 2)})
+    path = record_expert(c, [1, 2], 40, tmp_path / "tub", noise=0.0)
+    with Tub(path, read_only=True) as tub:
+        assert tub.metadata.get("themes") == "road,indoor" and tub.metadata.get("randomize") == "4"
+        records = [r for _, r in tub.records()]
+    assert {r["sim/track"] for r in records} == {1, 2}
+    # two loops of latency: the car stands still for the first two loops on each track
+    speeds = [r["sim/speed"] for r in records if r["sim/track"] == 2]
+    assert speeds[:2] == [0.0, 0.0] and speeds[5] > 0

@@ -23,6 +23,15 @@ def _seeds(text: str) -> list[int]:
     return seeds
 
 
+def _seed_or_off(text: str) -> int | None:
+    if text.strip().lower() in ("off", "none"):
+        return None
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer seed or 'off', got {text!r}") from None
+
+
 def register(subparsers: Any) -> None:
     """Add the ``demo`` command."""
     p = subparsers.add_parser("demo", help="record, train and evaluate a pilot in the simulator (CPU, minutes)",
@@ -33,10 +42,15 @@ def register(subparsers: Any) -> None:
     p.add_argument("--noise", type=float, default=DEFAULTS["noise"],
                    help="steering noise injected while the expert drives (0 = off)")
     p.add_argument("--train-tracks", type=_seeds, default=DEFAULTS["train_tracks"], metavar="SEEDS",
-                   help="track seeds to record on, e.g. 1,2,3,4,5,6,7,8")
+                   help="track seeds to record on, e.g. 1,2,3,4,5,6,7,8 (default 1-32)")
     p.add_argument("--eval-tracks", type=_seeds, default=DEFAULTS["eval_tracks"], metavar="SEEDS",
                    help="track seeds to evaluate on (never trained on)")
     p.add_argument("--laps", type=int, default=DEFAULTS["laps"], help="laps per evaluation track")
+    p.add_argument("--eval-randomize", type=_seed_or_off, default=DEFAULTS["eval_randomize"], metavar="SEED|off",
+                   help="evaluate under this randomisation draw (the training draw is 1); default off: each "
+                        "theme's plain look")
+    p.add_argument("--unseen-theme", default=DEFAULTS["unseen_theme"], metavar="THEME",
+                   help="a theme the pilot is not trained on, evaluated as well")
     p.add_argument("--type", dest="model_type", default="linear", help="model type to train")
     p.add_argument("--threads", type=int, default=None,
                    help="torch threads (default: one per core, or 1 when the machine is already busy)")
@@ -67,24 +81,28 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     try:
         result = run_demo(Path(args.out), records=args.records, epochs=args.epochs, noise=args.noise,
                           train_tracks=args.train_tracks, eval_tracks=args.eval_tracks, laps=args.laps,
-                          model_type=args.model_type)
+                          model_type=args.model_type, eval_randomize=args.eval_randomize,
+                          unseen_theme=args.unseen_theme)
     except ValueError as exc:
         raise UserError(f"demo: {exc}") from exc
     total = time.perf_counter() - started
-    overall = result["pilot"]["overall"]
     laps_needed = args.laps * len(args.eval_tracks)
     steps = ", ".join(f"{k} {v:.0f} s" for k, v in result["seconds"].items())
     cpu = sum(result["cpu_seconds"].values())
     _say(f"\ndemo finished in {total:.0f} s ({steps}; CPU time {cpu:.0f} s); torch threads: "
          f"{torch.get_num_threads()}")
-    # a lap only counts as driven by the pilot when nobody had to put the car back on the road
-    done = overall["laps_completed"] >= laps_needed and overall["interventions"] == 0
-    verdict = "completed" if done else "did NOT complete"
-    _say(f"the trained pilot {verdict} its {laps_needed} laps on unseen tracks on its own "
-         f"({overall['laps_completed']} laps, {overall['interventions']} interventions, "
-         f"autonomy {overall['autonomy']:.1f} %)")
+    for theme, pair in result["reports"].items():
+        overall = pair["pilot"]["overall"]
+        # a lap only counts as driven by the pilot when nobody had to put the car back on the road
+        done = overall["laps_completed"] >= laps_needed and overall["interventions"] == 0
+        verdict = "completed" if done else "did NOT complete"
+        kind = "trained theme" if theme in result["trained_themes"] else "theme never seen in training"
+        _say(f"{theme} ({kind}): the trained pilot {verdict} its {laps_needed} laps on unseen tracks on its own "
+             f"({overall['laps_completed']} laps, {overall['interventions']} interventions, "
+             f"autonomy {overall['autonomy']:.1f} %)")
     out = Path(args.out)
-    _say(f"next: vehicle models --car {out}  |  vehicle sim eval --pilot {result['model']}  |  "
+    _say(f"next: vehicle models --car {out}  |  vehicle sim eval --pilot {result['model']} --theme "
+         f"{args.unseen_theme} --randomize {'off' if args.eval_randomize is None else args.eval_randomize}  |  "
          f"reports in {out / 'eval'}")
     sys.stdout.flush()
     return 0

@@ -25,8 +25,12 @@ def register(subparsers: Any) -> None:
     track.add_argument("--seed", type=int, required=True, help="track seed")
     track.add_argument("--png", required=True, help="output PNG file")
     track.add_argument("--camera", metavar="PNG", help="also write the camera's view from the start line")
+    track.add_argument("--views", type=int, default=1, metavar="N",
+                       help="with --camera: N views from points spread evenly around the track, tiled")
+    track.add_argument("--zoom", type=int, default=1, metavar="K",
+                       help="with --camera: enlarge the views K times (pixels stay square)")
     track.add_argument("--size", type=int, default=800, help="image size in pixels")
-    add_car_options(track)
+    _world_options(track)
     track.set_defaults(func=cmd_track)
 
     ev = sub.add_parser("eval", help="closed-loop evaluation of a pilot on simulated tracks", formatter_class=fmt)
@@ -48,7 +52,7 @@ def register(subparsers: Any) -> None:
                     help="command lane changes and score them (default: for a behaviour pilot when SIM_LANES = 2)")
     ev.add_argument("--store", action="store_true",
                     help="keep the result in the car's model registry (the leaderboard ranks stored results)")
-    add_car_options(ev)
+    _world_options(ev)
     ev.set_defaults(func=cmd_eval)
 
     rec = sub.add_parser("record", help="record expert demonstrations into a tub", formatter_class=fmt)
@@ -59,7 +63,7 @@ def register(subparsers: Any) -> None:
     rec.add_argument("--lane-changes", type=int, metavar="N",
                      help="two-lane tracks (SIM_LANES = 2): switch the behaviour (Left_Lane / Right_Lane) N times at "
                           "random; the expert changes lanes and the records carry the behaviour")
-    add_car_options(rec)
+    _world_options(rec)
     rec.set_defaults(func=cmd_record)
 
     serve = sub.add_parser("serve", formatter_class=fmt,
@@ -80,6 +84,64 @@ def register(subparsers: Any) -> None:
     serve.set_defaults(func=cmd_serve)
 
 
+def _world_options(p: argparse.ArgumentParser) -> None:
+    """--theme, --randomize and the car options."""
+    p.add_argument("--theme", type=_themes, metavar="NAME[,NAME]",
+                   help="visual theme(s): road, indoor, park; several are dealt to the tracks in turn "
+                        "(default SIM_THEME)")
+    p.add_argument("--randomize", type=_randomize, metavar="SEED|off",
+                   help="domain randomisation seed, or 'off' (default SIM_RANDOMIZE); use a seed the pilot "
+                        "was not trained on for held-out conditions")
+    add_car_options(p)
+
+
+def _themes(text: str) -> list[str]:
+    from parts.sim.themes import ThemeError, theme_list
+
+    try:
+        return theme_list(text)
+    except ThemeError as exc:
+        raise argparse.ArgumentTypeError(str(exc).replace(" (SIM_THEME)", "")) from None
+
+
+_OFF = "off"
+
+
+def _randomize(text: str) -> int | str:
+    if text.strip().lower() in ("off", "none", "no"):
+        return _OFF
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer seed or 'off', got {text!r}") from None
+
+
+def load_world_config(args: argparse.Namespace) -> Any:
+    """The command's settings (:func:`load_for_command`) with --theme and --randomize applied, the
+    themes and randomisation ranges checked before any work."""
+    from parts.sim.randomize import check_ranges
+    from parts.sim.themes import ThemeError, get_theme, theme_list
+
+    cfg = load_for_command(args)
+    overrides: dict[str, Any] = {}
+    if getattr(args, "theme", None):
+        overrides["SIM_THEME"] = args.theme if len(args.theme) > 1 else args.theme[0]
+    if getattr(args, "randomize", None) is not None:
+        overrides["SIM_RANDOMIZE"] = None if args.randomize == _OFF else args.randomize
+    cfg = cfg.replace(**overrides) if overrides else cfg
+    try:
+        themes = theme_list(cfg.SIM_THEME)
+        check_ranges(cfg.SIM_RANDOMIZE_RANGES)
+        if cfg.SIM_LANES == 2:
+            for name in themes:
+                if get_theme(name).divider is None:
+                    raise ThemeError(f"theme {name!r} has no two-lane variant: use SIM_LANES = 1 or the road "
+                                     "or indoor theme")
+    except ValueError as exc:
+        raise UserError(str(exc)) from exc
+    return cfg
+
+
 def _seeds(text: str) -> list[int]:
     try:
         seeds = [int(s) for s in text.split(",") if s.strip()]
@@ -92,13 +154,13 @@ def _seeds(text: str) -> list[int]:
 
 
 def cmd_track(args: argparse.Namespace) -> int:
-    """Draw one track (and optionally the camera view from its start)."""
+    """Draw one track (and optionally camera views from its start and around it)."""
     import cv2
 
     from parts.sim.eval_report import track_image, write_panels
     from parts.sim.track import TrackError
 
-    cfg = load_for_command(args)
+    cfg = load_world_config(args)
     if args.size < 64:
         raise UserError(f"--size {args.size} is too small: use at least 64 pixels")
     try:
@@ -110,12 +172,19 @@ def cmd_track(args: argparse.Namespace) -> int:
     if args.camera:
         from parts.sim.simulator import SimCar
 
-        frame = SimCar.from_config(cfg, seeds=[args.seed]).render()
-        path = Path(args.camera)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        if not cv2.imwrite(str(path), cv2.cvtColor(frame, cv2.COLOR_RGB2BGR)):
-            raise UserError(f"could not write {path}: use a .png file name in a writable folder")
-        print(f"camera view: wrote {path}")  # noqa: T201
+        if not 1 <= args.views <= 64 or not 1 <= args.zoom <= 8:
+            raise UserError(f"--views {args.views} / --zoom {args.zoom}: use 1 .. 64 views and a zoom of 1 .. 8")
+        sim = SimCar.from_config(cfg, seeds=[args.seed], realtime=False)
+        views = []
+        for k in range(args.views):
+            sim.car.place(*sim.track.pose_at(k * sim.track.length / args.views, sim.start_offset))
+            frame = sim.render()
+            views.append(cv2.resize(frame, None, fx=args.zoom, fy=args.zoom, interpolation=cv2.INTER_NEAREST))
+        try:
+            path = write_panels(views, args.camera, cols=min(args.views, 4))
+        except OSError as exc:
+            raise UserError(str(exc)) from exc
+        print(f"camera view{'s' if args.views > 1 else ''}: wrote {path}")  # noqa: T201
     return 0
 
 
@@ -124,7 +193,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     from parts.sim.eval_report import format_table, write_json, write_png
     from vehicle.app.evaluate import evaluate
 
-    cfg = load_for_command(args)
+    cfg = load_world_config(args)
     seeds = args.tracks or list(cfg.SIM_EVAL_TRACK_SEEDS)
     laps = args.laps if args.laps is not None else cfg.SIM_EVAL_LAPS
     if laps < 1:
@@ -176,7 +245,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     """Record expert demonstrations."""
     from vehicle.app.record import record_expert
 
-    cfg = load_for_command(args)
+    cfg = load_world_config(args)
     if args.records < 1:
         raise UserError(f"--records {args.records}: give at least 1 record")
     if args.lane_changes is not None and args.lane_changes < 0:

@@ -249,8 +249,11 @@ def test_lanes_points_and_preview_are_for_the_frames_the_pilot_sees(car, capsys,
                                 cv2.COLOR_RGB2BGR)
     # compare below the label band and away from the outlined region (drawn on both)
     body = (slice(30, 240), slice(0, 320))
-    assert np.abs(undistorted[body].astype(int) - expected_raw[body].astype(int)).mean() < 8
-    assert np.abs(undistorted[body].astype(int) - distorted[body].astype(int)).mean() > 8
+    # the undistorted frame, not the lens's: several times closer to the one than to the other (a
+    # ratio, since how far the two lie apart depends on what the theme draws: 5 on the road theme)
+    near, far = (np.abs(undistorted[body].astype(int) - other[body].astype(int)).mean()
+                 for other in (expected_raw, distorted))
+    assert near < 2 and far > 3 * near
     # without undistortion the lens's points are only near bird's-eye: said so
     assert main(["lanes", "points", "--sim"]) == 0
     assert "only near bird's-eye" in capsys.readouterr().out

@@ -49,3 +49,28 @@ def test_sim_record_command(car, capsys):
     assert main(["sim", "record", "--records", "25", "--tracks", "2", "--tub", "data/demo"]) == 0
     assert "recorded 25 records" in capsys.readouterr().out
     assert len((car / "data/demo/catalog_0.catalog").read_text().splitlines()) == 25
+
+
+def test_eval_cli_names_the_conditions(tmp_path, capsys):
+    code = main(["sim", "eval", "--pilot", "expert", "--tracks", "41,42", "--laps", "1", "--theme", "indoor,park",
+                 "--randomize", "8", "--json", str(tmp_path / "r.json")])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "conditions: theme indoor, park, randomised with seed 8" in out
+    assert " indoor " in out and " park " in out
+    for args, message in ((["--theme", "desert"], "unknown theme 'desert'"),
+                          (["--randomize", "x"], "integer seed or 'off'")):
+        with pytest.raises(SystemExit) as exc:  # argparse's usage error
+            main(["sim", "eval", "--pilot", "expert", *args])
+        assert exc.value.code == 2 and message in capsys.readouterr().err
+    (tmp_path / "myconfig.py").write_text("SIM_LANES = 2\nSIM_THEME = ['road', 'park']\n")
+    assert main(["sim", "eval", "--pilot", "expert", "--car", str(tmp_path)]) == 2
+    assert "theme 'park' has no two-lane variant" in capsys.readouterr().err
+
+
+def test_track_cli_draws_any_theme(tmp_path, capsys):
+    assert main(["sim", "track", "--seed", "3", "--theme", "park", "--randomize", "2", "--png",
+                 str(tmp_path / "t.png"), "--camera", str(tmp_path / "c.png"), "--size", "200"]) == 0
+    cam = cv2.imread(str(tmp_path / "c.png"))
+    assert cam.shape == (120, 160, 3)
+    assert cv2.imread(str(tmp_path / "t.png")).shape == (200, 200, 3)
