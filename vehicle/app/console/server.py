@@ -14,10 +14,8 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import ipaddress
 import json
 import logging
-import re
 import sys
 import threading
 import time
@@ -36,23 +34,6 @@ STATIC_DIR = Path(__file__).with_name("static")
 COOKIE = "vehicle_console_token"
 #: seconds between keep-alive comments on an idle event stream
 KEEPALIVE_S = 15.0
-_LOOPBACK_NAMES = {"localhost", "ip6-localhost"}
-
-
-def _is_loopback_name(host: str) -> bool:
-    host = host.strip("[]").lower()
-    if host in _LOOPBACK_NAMES or host.endswith(".localhost"):
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
-
-
-def _host_of(header: str) -> str:
-    """The host name of a Host header value (``[::1]:8890`` -> ``::1``)."""
-    m = re.match(r"^\[([^\]]+)\](?::\d+)?$", header) or re.match(r"^([^:]+)(?::\d+)?$", header)
-    return m.group(1) if m else header
 
 
 class ConsoleApp:
@@ -92,6 +73,7 @@ class ConsoleApp:
         self._thread: threading.Thread | None = None
         self._started = threading.Event()
         self._error: BaseException | None = None
+        self._hosts: frozenset[str] | None = None  # Host header names served without a token
 
     # -- helpers used by the API --------------------------------------------------------------------
     async def model_types(self) -> list[dict[str, Any]]:
@@ -136,9 +118,13 @@ class ConsoleApp:
     # -- the application ----------------------------------------------------------------------------
     def _allowed_host(self, request: Any) -> bool:
         """DNS rebinding guard: on loopback without a token, only loopback host names are served."""
+        from parts.web.pairing import allowed_hosts, host_allowed
+
         if self.token is not None:
-            return True
-        return _is_loopback_name(_host_of(request.host or ""))
+            return True  # a token is required: a rebound page has no cookie for this origin
+        if self._hosts is None:
+            self._hosts = allowed_hosts(self.host)
+        return host_allowed(request.host, self._hosts)
 
     def _token_ok(self, request: Any) -> bool:
         """The driver page's rule (parts.web.pairing.token_ok), the token carried by the cookie, a

@@ -49,6 +49,9 @@ def test_loopback_refuses_other_host_names_and_other_sites(console):
     assert request(port, "/api/datasets", headers={"Host": f"localhost:{port}"})[0] == 200
     status, _, body = request(port, "/api/datasets", headers={"Host": f"evil.example:{port}"})  # DNS rebinding
     assert status == 421 and b"unexpected Host" in body
+    assert request(port, "/api/datasets", headers={"Host": f"[::1]:{port}"})[0] == 200
+    assert request(port, "/api/datasets", headers={"Host": f"localhost.evil.example:{port}"})[0] == 421
+    assert request(port, "/api/datasets", headers={"Host": ""})[0] in (400, 421)
     status, _, body = request(port, "/api/datasets", "POST", {"action": "create", "name": "x"},
                               headers={"Origin": "http://evil.example"})
     assert status == 403 and not (console.datasets.data_path / "x").exists()
