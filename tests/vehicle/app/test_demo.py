@@ -98,3 +98,21 @@ def test_torch_threads_one_per_core_unless_the_machine_is_busy(monkeypatch):
     threads, why = demo.torch_threads(None)
     assert threads == 1 and "load average 3.0 on 4 cores" in why
     assert demo.torch_threads(2) == (2, "--threads")
+
+
+@pytest.mark.parametrize("mode, defaults", [("plain", "vehicle.app.demo"), ("lanes", "vehicle.app.demo_lanes")])
+def test_each_demo_runs_with_its_own_defaults(monkeypatch, tmp_path, mode, defaults):
+    import importlib
+
+    from vehicle.app import demo, demo_lanes
+
+    seen = {}
+    monkeypatch.setattr(demo, "run_demo", lambda out, **kw: seen.update(kw) or (_ for _ in ()).throw(ValueError("x")))
+    monkeypatch.setattr(demo_lanes, "run_lanes_demo",
+                        lambda out, **kw: seen.update(kw) or (_ for _ in ()).throw(ValueError("x")))
+    args = ["demo", "--out", str(tmp_path / "d"), "--threads", "1"] + (["--lanes"] if mode == "lanes" else [])
+    assert main(args) == 2  # stopped by the fake's ValueError once the arguments were resolved
+    expected = importlib.import_module(defaults).DEFAULTS
+    for key in ("records", "epochs", "noise", "train_tracks", "eval_tracks", "laps"):
+        assert seen[key] == expected[key], key
+    assert main([*args, "--records", "500"]) == 2 and seen["records"] == 500

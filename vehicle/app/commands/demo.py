@@ -32,20 +32,30 @@ def _seed_or_off(text: str) -> int | None:
         raise argparse.ArgumentTypeError(f"expected an integer seed or 'off', got {text!r}") from None
 
 
+def _span(seeds: list[int]) -> str:
+    """``1-64`` for a run of consecutive seeds, else ``1,5,9``."""
+    if seeds == list(range(seeds[0], seeds[0] + len(seeds))) and len(seeds) > 2:
+        return f"{seeds[0]}-{seeds[-1]}"
+    return ",".join(map(str, seeds))
+
+
 def register(subparsers: Any) -> None:
     """Add the ``demo`` command."""
     p = subparsers.add_parser("demo", help="record, train and evaluate a pilot in the simulator (CPU, minutes)",
                               description=_demo_doc(), formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", default="demo", metavar="DIR", help="working folder (a car folder; default ./demo)")
-    p.add_argument("--records", type=int, default=DEFAULTS["records"], help="expert records to train on")
-    p.add_argument("--epochs", type=int, default=DEFAULTS["epochs"], help="most training epochs")
-    p.add_argument("--noise", type=float, default=DEFAULTS["noise"],
-                   help="steering noise injected while the expert drives (0 = off)")
-    p.add_argument("--train-tracks", type=_seeds, default=DEFAULTS["train_tracks"], metavar="SEEDS",
-                   help="track seeds to record on, e.g. 1,2,3,4,5,6,7,8 (default 1-32)")
-    p.add_argument("--eval-tracks", type=_seeds, default=DEFAULTS["eval_tracks"], metavar="SEEDS",
-                   help="track seeds to evaluate on (never trained on)")
-    p.add_argument("--laps", type=int, default=DEFAULTS["laps"], help="laps per evaluation track")
+    # None = the chosen demo's own default (the plain and the --lanes demo differ)
+    p.add_argument("--records", type=int, help=f"expert records to train on (default {DEFAULTS['records']}, "
+                                                f"--lanes {LANE_DEFAULTS['records']})")
+    p.add_argument("--epochs", type=int, help=f"most training epochs (default {DEFAULTS['epochs']})")
+    p.add_argument("--noise", type=float,
+                   help=f"steering noise injected while the expert drives (0 = off; default {DEFAULTS['noise']})")
+    p.add_argument("--train-tracks", type=_seeds, metavar="SEEDS",
+                   help=f"track seeds to record on, e.g. 1,2,3 (default {_span(DEFAULTS['train_tracks'])}, "
+                        f"--lanes {_span(LANE_DEFAULTS['train_tracks'])})")
+    p.add_argument("--eval-tracks", type=_seeds, metavar="SEEDS",
+                   help=f"track seeds to evaluate on, never trained on (default {_span(DEFAULTS['eval_tracks'])})")
+    p.add_argument("--laps", type=int, help=f"laps per evaluation track (default {DEFAULTS['laps']})")
     p.add_argument("--eval-randomize", type=_seed_or_off, default=DEFAULTS["eval_randomize"], metavar="SEED|off",
                    help="evaluate under this randomisation draw (the training draw is 1); default off: each "
                         "theme's plain look")
@@ -75,6 +85,9 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     torch.set_num_threads(threads)
     _say(f"torch threads: {threads} ({why})")
 
+    for name, value in (LANE_DEFAULTS if args.lanes else DEFAULTS).items():
+        if getattr(args, name, "") is None:
+            setattr(args, name, value)
     if args.lanes:
         return _cmd_lanes(args)
     started = time.perf_counter()
