@@ -187,12 +187,14 @@ class ConsoleApp:
             return web.Response(status=401, content_type="text/html", text=(
                 "<!doctype html><meta charset=utf-8><title>Trainer console</title><p>This console needs the "
                 "car's pairing token: open the URL printed (or shown as a QR code) when it started."))
-        resp = web.FileResponse(STATIC_DIR / "index.html",
-                                headers={"Cache-Control": "no-cache", "Content-Type": "text/html"})
         given = request.query.get("token")
         if self.token is not None and given is not None:
-            resp.set_cookie(COOKIE, given, httponly=True, samesite="Strict", path="/")
-        return resp
+            # keep the token in a cookie and out of the address bar, history and shared screenshots
+            found = web.HTTPSeeOther("/")
+            found.set_cookie(COOKIE, given, httponly=True, samesite="Strict", path="/")
+            return found
+        return web.FileResponse(STATIC_DIR / "index.html",
+                                headers={"Cache-Control": "no-cache", "Content-Type": "text/html"})
 
     async def _static(self, request: Any) -> Any:
         from aiohttp import web

@@ -3,6 +3,7 @@ event stream, and the job queue (one at a time, cancel, restart)."""
 
 from __future__ import annotations
 
+import http.client
 import json
 import sqlite3
 import time
@@ -32,10 +33,17 @@ def test_off_loopback_rules_need_the_token(console_factory):
     assert request(app.port, "/api/datasets", headers={"X-Vehicle-Token": "wrong-token"})[0] == 401
     assert request(app.port, "/api/datasets", headers={"X-Vehicle-Token": "secret-token-1"})[0] == 200
     assert request(app.port, "/")[0] == 401
-    status, headers, _ = request(app.port, "/?token=secret-token-1")
-    cookie = headers["Set-Cookie"]
-    assert status == 200 and "vehicle_console_token=secret-token-1" in cookie and "HttpOnly" in cookie
-    assert "SameSite=Strict" in cookie
+    # the paired URL sets the cookie and sends the browser on to "/": the token leaves the address bar
+    conn = http.client.HTTPConnection("127.0.0.1", app.port, timeout=30)
+    conn.request("GET", "/?token=secret-token-1")
+    resp = conn.getresponse()
+    cookie = resp.headers["Set-Cookie"]
+    assert resp.status == 303 and resp.headers["Location"] == "/"
+    assert "vehicle_console_token=secret-token-1" in cookie and "HttpOnly" in cookie and "SameSite=Strict" in cookie
+    conn.close()
+    status, _, body = request(app.port, "/", headers={"Cookie": "vehicle_console_token=secret-token-1"})
+    assert status == 200 and b"<html" in body.lower()
+    assert request(app.port, "/?token=wrong-token")[0] == 401
     assert request(app.port, "/api/datasets", headers={"Cookie": "vehicle_console_token=secret-token-1"})[0] == 200
     # the page itself and its static files hold no data: served without the token
     assert request(app.port, "/static/console.js")[0] == 200
