@@ -16,6 +16,7 @@ import asyncio
 import contextlib
 import json
 import logging
+import os
 import sys
 import threading
 import time
@@ -27,6 +28,7 @@ from parts.pilots.model_db import ModelRegistry
 from vehicle.app.console.api import Api, ApiError, json_response
 from vehicle.app.console.datasets import DatasetStore
 from vehicle.app.console.jobs import JobQueue
+from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
 
@@ -34,6 +36,14 @@ STATIC_DIR = Path(__file__).with_name("static")
 COOKIE = "vehicle_console_token"
 #: seconds between keep-alive comments on an idle event stream
 KEEPALIVE_S = 15.0
+
+
+#: the lock file (in the car's models/.jobs) a running console holds
+CONSOLE_LOCK = "console.lock"
+
+
+class ConsoleBusyError(VehicleError):
+    """Another console serves this car already."""
 
 
 class ConsoleApp:
@@ -74,6 +84,7 @@ class ConsoleApp:
         self._started = threading.Event()
         self._error: BaseException | None = None
         self._hosts: frozenset[str] | None = None  # Host header names served without a token
+        self._car_lock: int | None = None  # fd holding the car's console lock while serving
 
     # -- helpers used by the API --------------------------------------------------------------------
     async def model_types(self) -> list[dict[str, Any]]:
@@ -245,7 +256,12 @@ class ConsoleApp:
         self.loop = asyncio.get_running_loop()
         self._stop = asyncio.Event()
         self._types_lock = asyncio.Lock()
-        await self.jobs.start()
+        self._hold_car()
+        try:
+            await self.jobs.start()
+        except BaseException:
+            self._release_car()
+            raise
         self._runner = web.AppRunner(self.build(), access_log=None, handle_signals=False, shutdown_timeout=2.0)
         await self._runner.setup()
         site = web.TCPSite(self._runner, self.host, self.port)
@@ -254,9 +270,12 @@ class ConsoleApp:
         except OSError as exc:
             await self._runner.cleanup()
             await self.jobs.close()
+            self._release_car()
             raise OSError(exc.errno, f"the console cannot listen on {self.host}:{self.port} ({exc.strerror}); "
                           "another program uses the port: pass --port or set CONSOLE_PORT in myconfig.py") from exc
         self.port = self._runner.addresses[0][1]
+        os.ftruncate(self._car_lock, 0)  # who holds the car, for a second console's message
+        os.pwrite(self._car_lock, f"{os.getpid()} http://{self.host}:{self.port}/".encode(), 0)
         self._warm = asyncio.create_task(self.model_types())  # the model type list, in the background
 
     async def serve_until_stopped(self) -> None:
@@ -274,6 +293,31 @@ class ConsoleApp:
                     await self._warm
             await self.jobs.close()
             await self._runner.cleanup()
+            self._release_car()
+
+    def _hold_car(self) -> None:
+        """Take the car's console lock (one console per car: two would run two job queues on one
+        table and mark each other's jobs interrupted); released on close, or by the kernel when
+        the process dies."""
+        import fcntl
+
+        path = self.jobs.jobs_dir / CONSOLE_LOCK
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 200, 0).decode(errors="replace").split()
+            os.close(fd)
+            where = f" (process {holder[0]}, {holder[1]})" if len(holder) == 2 else ""
+            raise ConsoleBusyError(f"a trainer console of {self.cfg.CAR_PATH} is already running{where}: open "
+                                   "that one, or stop it (Ctrl-C) before starting another") from None
+        self._car_lock = fd
+
+    def _release_car(self) -> None:
+        if self._car_lock is not None:
+            os.close(self._car_lock)  # closing releases the lock
+            self._car_lock = None
 
     def stop(self) -> None:
         """Ask the server to close (thread-safe)."""

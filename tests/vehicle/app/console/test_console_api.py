@@ -180,3 +180,20 @@ def test_dataset_ids_of_a_training_are_whole_numbers(console):
         status, _, body = request(console.port, "/api/jobs/train", "POST", {"datasets": [bad], "name": "m"})
         assert status == 400 and "does not exist" in json.loads(body)["errors"]["datasets"], bad
     assert console.jobs.list() == []
+
+
+def test_one_console_per_car_a_second_is_a_one_line_error_naming_the_first(console_factory):
+    import os
+
+    from vehicle.app.console.server import ConsoleBusyError
+
+    first = console_factory()
+    with pytest.raises(ConsoleBusyError) as info:
+        console_factory()
+    message = str(info.value)
+    assert f"already running (process {os.getpid()}, http://127.0.0.1:{first.port}/)" in message
+    assert "\n" not in message
+    assert request(first.port, "/api/jobs")[0] == 200  # the first is untouched
+    first.close()
+    second = console_factory()  # the lock went with the first console
+    assert request(second.port, "/api/jobs")[0] == 200
