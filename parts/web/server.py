@@ -10,6 +10,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import os
 import threading
 from pathlib import Path
 from typing import Any
@@ -20,8 +21,15 @@ from parts.web import protocol
 from parts.web.limits import HARD_LIMIT_BYTES, REFUSED_EVENT, BoundedLog, make_bounded_packet
 from parts.web.pairing import allowed_hosts, host_allowed, token_ok
 from parts.web.state import ControlState
+from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
+
+
+class ListenError(VehicleError, OSError):
+    """The web server cannot bind its address (port taken, address not on this machine);
+    the message names the address and the setting to change."""
+
 
 STATIC_DIR = Path(__file__).with_name("static")
 #: seconds the connections get to close at shutdown (a client that does not answer is cut off)
@@ -218,9 +226,12 @@ class WebServer:
             await site.start()
         except OSError as exc:
             await runner.cleanup()
-            raise OSError(exc.errno, f"web controller cannot listen on {self.host}:{self.port} "
-                          f"({exc.strerror}); another program (or car) uses the port: set "
-                          "WEB_CONTROL_PORT to a free port in myconfig.py") from exc
+            reason = os.strerror(exc.errno).lower() if exc.errno else exc.strerror
+            error = ListenError(f"web controller cannot listen on {self.host}:{self.port} ({reason}); "
+                                "another program (or car) uses the port: set WEB_CONTROL_PORT to a "
+                                "free port in myconfig.py")
+            error.errno = exc.errno
+            raise error from exc
         self.port = runner.addresses[0][1]
         return runner
 
