@@ -12,6 +12,7 @@ import numpy as np
 from parts.tub.codec import cv2
 from parts.tub.errors import TubError
 from parts.tub.reader import TubRecord, iter_images, iter_records
+from parts.tub.tools import check_fields
 
 logger = logging.getLogger(__name__)
 
@@ -38,6 +39,8 @@ def write_histograms(paths: Sequence[str | os.PathLike[str]], out: str | os.Path
     records = list(iter_records(paths, check_images=False))
     if not records:
         raise TubError(f"{', '.join(map(str, paths))}: no records to plot")
+    known = dict.fromkeys(k for rec in records for k in rec.data)
+    check_fields([f for f in fields if f != "user/steering"], known, str(paths[0]) if len(paths) == 1 else "the tubs")
     fig, axes = plt.subplots(1, len(fields), figsize=(5 * len(fields), 3.6), squeeze=False)
     for ax, key in zip(axes[0], fields, strict=True):
         vals = _values(records, key)
