@@ -75,8 +75,17 @@ def test_drive_with_the_web_port_taken_is_a_one_line_error(tmp_path, capsys):
         assert manage.main(["drive", "--max-loops", "5"]) == 2
     err = capsys.readouterr().err
     assert "Traceback" not in err, err
-    assert f"error: web controller cannot listen on 127.0.0.1:{port}" in err
+    assert f"error: web controller cannot listen on 127.0.0.1:{port}: port {port} is in use" in err
     assert "WEB_CONTROL_PORT" in err
+
+
+def test_drive_with_a_web_host_not_of_this_machine_names_web_host(tmp_path, capsys):
+    manage = _sim_car(tmp_path, 'WEB_HOST = "192.0.2.1"\n')  # TEST-NET-1: never a test machine's
+    assert manage.main(["drive", "--max-loops", "5"]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err, err
+    assert "error: web controller cannot listen on 192.0.2.1:8887: 192.0.2.1 is not an address of this " \
+           "machine; set WEB_HOST" in err
 
 
 @pytest.mark.parametrize("argv, option", [
