@@ -199,8 +199,11 @@ def _ctrl_c_stops_training() -> Iterator[threading.Event | None]:
         yield None
         return
     interrupted = threading.Event()
+    owner = os.getpid()
 
     def on_sigint(signum: int, frame: Any) -> None:
+        if os.getpid() != owner:  # a forked DataLoader worker got the terminal's Ctrl-C: the trainer stops it
+            return
         if interrupted.is_set():
             raise KeyboardInterrupt
         interrupted.set()
