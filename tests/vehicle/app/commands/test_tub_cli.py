@@ -212,3 +212,13 @@ def test_editing_a_tub_that_does_not_exist_leaves_no_folder(tmp_path, capsys, ve
     assert main(["tub", verb, str(tmp_path / "nope"), "1"]) == 2
     assert capsys.readouterr().err.strip() == f"error: {tmp_path / 'nope'}: no such tub folder"
     assert not (tmp_path / "nope").exists()
+
+
+def test_movie_fps_and_hist_bins_below_one_are_named(donkey_tub, tmp_path, capsys):
+    # acceptance: --fps 0 said "OpenCV cannot write ...: use a .mp4 file name", --bins 0 gave numpy's
+    # "`bins` must be positive, when an integer"
+    path, _ = donkey_tub(5)
+    assert main(["tub", "movie", str(path), "--fps", "0", "--out", str(tmp_path / "m.mp4")]) == 2
+    assert "fps must be > 0 frames per second, got 0.0" in capsys.readouterr().err
+    assert main(["tub", "hist", str(path), "--bins", "0", "--out", str(tmp_path / "h.png")]) == 2
+    assert "bins must be a whole number >= 1, got 0" in capsys.readouterr().err
