@@ -28,6 +28,8 @@ def drive(cfg, args):
     """Assemble the simulated car and drive it until Ctrl-C (or --max-loops)."""
     if args.expert:
         return record_demonstrations(cfg, args)
+    if args.record_records or args.lane_changes:
+        raise UserError("--record-records and --lane-changes are for the expert: add --expert")
     V = Vehicle(clock=assembly.sim_clock(cfg, args.sim))  # SIM_REALTIME = False: as fast as the CPU allows
     assembly.add_simulator(V, cfg, seeds=args.tracks, sim_type=args.sim)  # angle, throttle -> cam/image_array, sim/*
     assembly.add_controller(V, cfg)  # web page (and gamepad) -> user/angle, user/throttle, user/mode

@@ -104,3 +104,12 @@ def test_drive_rejects_counts_below_one_with_a_usage_error(tmp_path, capsys, arg
     err = capsys.readouterr().err
     assert "Traceback" not in err
     assert f"error: argument {option}: " in err.splitlines()[-1]
+
+
+@pytest.mark.parametrize("option", [["--record-records", "100"], ["--lane-changes", "2"]])
+def test_expert_options_without_expert_are_an_error(tmp_path, capsys, option):
+    # acceptance: `drive --record-records 100` without --expert opened the web page and ignored it
+    manage = _sim_car(tmp_path)
+    assert manage.main(["drive", *option, "--max-loops", "2"]) == 2
+    assert capsys.readouterr().err.strip() == \
+        "error: --record-records and --lane-changes are for the expert: add --expert"
