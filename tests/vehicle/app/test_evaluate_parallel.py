@@ -125,7 +125,7 @@ def test_ctrl_c_stops_a_parallel_evaluation_without_finishing_its_episodes(tmp_p
         for line in proc.stderr:  # the workers are being started
             if "worker processes" in line:
                 break
-        time.sleep(3)  # they import, load the tracks and drive
+        time.sleep(0.5)  # they are still starting: the Ctrl-C must not reach them there either
         os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C: to the command and its workers
         _, err = proc.communicate(timeout=60)  # a hang guard: the episodes alone would take hours
     except subprocess.TimeoutExpired:
