@@ -28,6 +28,8 @@ def drive(cfg, args):
     """Assemble the simulated car and drive it until Ctrl-C (or --max-loops)."""
     if args.expert:
         return record_demonstrations(cfg, args)
+    if args.record_records or args.lane_changes:
+        raise UserError("--record-records and --lane-changes are for the expert: add --expert")
     V = Vehicle(clock=assembly.sim_clock(cfg, args.sim))  # SIM_REALTIME = False: as fast as the CPU allows
     assembly.add_simulator(V, cfg, seeds=args.tracks, sim_type=args.sim)  # angle, throttle -> cam/image_array, sim/*
     assembly.add_controller(V, cfg)  # web page (and gamepad) -> user/angle, user/throttle, user/mode
@@ -57,11 +59,12 @@ def main(argv=None):
     d = manage.add_command(parser, "drive", drive, "drive the simulated car and record tubs")
     d.add_argument("--model", help="trained pilot to drive with (a models/*.pt file)")
     d.add_argument("--expert", action="store_true", help="let the built-in expert drive and record (simulated time)")
-    d.add_argument("--record-records", type=int, metavar="N", help="with --expert: records to write")
-    d.add_argument("--lane-changes", type=int, metavar="N", help="with --expert: change lanes N times at random")
+    d.add_argument("--record-records", type=manage.positive_int, metavar="N", help="with --expert: records to write")
+    d.add_argument("--lane-changes", type=manage.non_negative_int, metavar="N",
+                   help="with --expert: change lanes N times at random")
     d.add_argument("--tracks", type=manage.int_list, metavar="SEEDS", help="track seeds, e.g. 1,2,3")
     d.add_argument("--sim", choices=["builtin", "udacity", "donkey"], help="simulator to drive (default: SIM_TYPE)")
-    d.add_argument("--max-loops", type=int, metavar="N", help="stop after N loops")
+    d.add_argument("--max-loops", type=manage.positive_int, metavar="N", help="stop after N loops")
     manage.add_train_command(parser)  # the options of `vehicle train`, on this car's data/
     manage.add_console_command(parser)  # the trainer console: datasets, training, models, leaderboard
     return manage.main(parser, Path(__file__).resolve().parent, argv)

@@ -30,7 +30,14 @@ logger = logging.getLogger(__name__)
 DEFAULTS_MODULE = Path(__file__).with_name("config_defaults.py")
 
 #: DonkeyCar settings that have another name here, so a copied myconfig.py gets a precise hint
-RENAMED: dict[str, str] = {"WEB_INIT_MODE": "DEFAULT_MODE"}
+RENAMED: dict[str, str] = {
+    "WEB_INIT_MODE": "DEFAULT_MODE",
+    # DonkeyCar's settings for its simulator and its PWM drive train, which a copied myconfig.py
+    # brings along; the closest name by spelling (DONKEY_GYM_ENV_NAME, STEERING_TRIM) misleads
+    "DONKEY_GYM": 'SIM_TYPE = "donkey"',
+    "DONKEY_SIM_PATH": 'SIM_TYPE = "donkey" with SIM_HOST (docs/simulators.md)',
+    "PWM_STEERING_THROTTLE": "STEERING_CHANNEL, THROTTLE_CHANNEL and the *_PWM settings (docs/hardware.md)",
+}
 
 
 class ConfigError(VehicleError, ValueError):

@@ -103,6 +103,14 @@ def _read(path: str | os.PathLike[str], map_location: Any) -> dict[str, Any]:
     if not path.is_file():
         raise ModelFileError(f"{path}: no such model file. Train one with `manage.py train` "
                              "or check the path.")
+    suffix = path.suffix.lower()
+    if suffix in (".h5", ".hdf5", ".keras", ".tflite"):  # what DonkeyCar and drive.py scripts trained
+        raise ModelFileError(f"{path}: a Keras/TensorFlow model cannot be loaded; import its data "
+                             "(`vehicle tub import-udacity`, or DonkeyCar tubs as they are) and train here "
+                             "with `manage.py train`")
+    if suffix in (".onnx", ".ts"):
+        raise ModelFileError(f"{path}: an export for driving only; use the model it was exported from "
+                             f"({path.with_suffix('.pt')})")
     if not zipfile.is_zipfile(path):  # torch.save has written zip archives since torch 1.6
         raise ModelFileError(f"{path}: not a model file (not a torch zip archive; corrupt, truncated or "
                              "another format). Train a model with `manage.py train` or `vehicle train`.")

@@ -102,11 +102,14 @@ class Preprocess:
         return ((1 if self.color == "gray" else 3) + (1 if self.lanes is not None else 0), ch, cw)
 
     def check_frame_shape(self, shape: tuple[int, ...]) -> None:
-        """Raise ValueError when the model was trained on frames of another shape than ``shape``."""
+        """Raise ModelMismatch (a ValueError) when the model was trained on frames of another shape
+        than ``shape``."""
         if self.image_shape is not None and tuple(shape) != self.image_shape:
+            from parts.pilots.compat import ModelMismatch  # here: this check runs on every frame
+
             got = "x".join(map(str, shape))
             want = "x".join(map(str, self.image_shape))
-            raise ValueError(f"frame is {got} but the model was trained on {want} frames; set "
+            raise ModelMismatch(f"frame is {got} but the model was trained on {want} frames; set "
                              "IMAGE_W/IMAGE_H to the training size or re-train")
 
     # -- stage 1: per frame, uint8

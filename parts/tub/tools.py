@@ -6,11 +6,13 @@ import contextlib
 import os
 import time
 from collections import Counter
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from parts.tub.format import SESSION, TIMESTAMP
+from parts.tub.errors import TubError
+from parts.tub.format import INDEX, SESSION, TIMESTAMP
 from parts.tub.tub import Tub
 
 
@@ -128,6 +130,19 @@ def tub_info(path: str | os.PathLike[str]) -> TubInfo:
 def format_header(fields: list[str]) -> str:
     """The header line of ``vehicle tub ls``."""
     return "  ".join(["  index", " "] + [f"{k:>8}" for k in fields])
+
+
+def check_fields(fields: Sequence[str], known: Iterable[str], where: str) -> None:
+    """Raise :class:`TubError` naming the first of ``fields`` that is not in ``known`` (the tubs'
+    inputs), the closest known name and all of them; a misspelt field would show as empty."""
+    import difflib
+
+    known = list(dict.fromkeys([*known, INDEX, TIMESTAMP, SESSION]))
+    for name in fields:
+        if name not in known:
+            close = difflib.get_close_matches(name, known, n=1)
+            hint = f" (did you mean {close[0]}?)" if close else ""
+            raise TubError(f"{where} has no field {name!r}{hint}; its fields: {', '.join(known)}")
 
 
 def format_record(index: int, rec: dict[str, Any], deleted: bool, fields: list[str]) -> str:

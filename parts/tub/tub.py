@@ -126,6 +126,8 @@ class Tub:
         if not self.path.exists():
             if read_only:
                 raise TubError(f"{self.path}: no such tub folder")
+            if inputs is None:  # nothing to create a tub with: leave no empty folder behind
+                raise TubSchemaError(f"{self.path} is a new tub: give inputs and types")
             self.path.mkdir(parents=True)
         elif not self.path.is_dir():
             raise TubError(f"{self.path} is a file, not a tub folder")

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from parts.tub.errors import CorruptRecord, TubError
-from parts.tub.format import MANIFEST, building_folder
+from parts.tub.format import MANIFEST, building_folder, check_new_folder
 from parts.tub.manifest import parse_manifest
 from parts.tub.reader import IMAGE_KEY, SPEED_KEYS, TubRecord, find_tubs, iter_records
 from parts.tub.tub import Tub
@@ -179,6 +179,7 @@ def import_udacity(source: str | os.PathLike[str], tub_path: str | os.PathLike[s
     csv_path = src / "driving_log.csv" if src.is_dir() else src
     if not csv_path.is_file():
         raise TubError(f"{csv_path}: no such file; give driving_log.csv or the folder that holds it")
+    check_new_folder(Path(tub_path))  # a second import would append every row again
     rows = read_driving_log(csv_path)
     if not rows:
         raise TubError(f"{csv_path}: no rows to import")

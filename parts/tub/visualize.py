@@ -12,6 +12,7 @@ import numpy as np
 from parts.tub.codec import cv2
 from parts.tub.errors import TubError
 from parts.tub.reader import TubRecord, iter_images, iter_records
+from parts.tub.tools import check_fields
 
 logger = logging.getLogger(__name__)
 
@@ -35,9 +36,13 @@ def write_histograms(paths: Sequence[str | os.PathLike[str]], out: str | os.Path
     matplotlib.use("Agg")  # no display needed; imported here so the CLI stays light
     import matplotlib.pyplot as plt
 
+    if isinstance(bins, bool) or not isinstance(bins, int) or bins < 1:
+        raise ValueError(f"bins must be a whole number >= 1, got {bins!r}")
     records = list(iter_records(paths, check_images=False))
     if not records:
         raise TubError(f"{', '.join(map(str, paths))}: no records to plot")
+    known = dict.fromkeys(k for rec in records for k in rec.data)
+    check_fields([f for f in fields if f != "user/steering"], known, str(paths[0]) if len(paths) == 1 else "the tubs")
     fig, axes = plt.subplots(1, len(fields), figsize=(5 * len(fields), 3.6), squeeze=False)
     for ax, key in zip(axes[0], fields, strict=True):
         vals = _values(records, key)
@@ -93,6 +98,8 @@ def write_movie(path: str | os.PathLike[str], out: str | os.PathLike[str], *, st
 
     if scale < 1:
         raise ValueError(f"scale must be >= 1, got {scale}")
+    if not fps > 0:
+        raise ValueError(f"fps must be > 0 frames per second, got {fps}")
     cv = cv2()
     records = [r for r in iter_records([path]) if r.index >= start and (end is None or r.index < end)]
     if not records:

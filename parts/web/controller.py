@@ -25,7 +25,7 @@ from typing import Any, Final
 import numpy as np
 
 from parts.web.pairing import is_loopback, page_url, resolve_token, terminal_qr
-from parts.web.server import LatestFrame, WebServer
+from parts.web.server import LatestFrame, ListenError, WebServer
 from parts.web.state import ControlState, Telemetry
 from vehicle.part import ThreadedPart, run_event_loop
 
@@ -127,7 +127,7 @@ class WebController(ThreadedPart):
         """Start the server thread and wait until it listens.
 
         Raises:
-            OSError: the port is taken or the address cannot be bound (the message says the fix).
+            ListenError: the port is taken or the address cannot be bound (the message says the fix).
             TimeoutError: the server did not start within ``start_timeout`` seconds.
         """
         if self._thread is not None:
@@ -154,6 +154,11 @@ class WebController(ThreadedPart):
             self._loop = asyncio.new_event_loop()
             asyncio.set_event_loop(self._loop)
             self._runner = self._loop.run_until_complete(self.server.start())
+        except ListenError as exc:  # a user's mistake: start() raises it, one line, no traceback
+            self.error = exc
+            self.stop_event.set()
+            self._ready.set()
+            return
         except BaseException as exc:
             self.error = exc
             self._ready.set()

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import errno
 import logging
+import os
 import threading
 from pathlib import Path
 from typing import Any
@@ -20,8 +22,28 @@ from parts.web import protocol
 from parts.web.limits import HARD_LIMIT_BYTES, REFUSED_EVENT, BoundedLog, make_bounded_packet
 from parts.web.pairing import allowed_hosts, host_allowed, token_ok
 from parts.web.state import ControlState
+from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
+
+
+class ListenError(VehicleError, OSError):
+    """The web server cannot bind its address (port taken, address not on this machine);
+    the message names the address and the setting to change."""
+
+
+def listen_advice(exc: OSError, host: str, port: int, *, port_fix: str, host_fix: str) -> str:
+    """Why a server cannot bind ``host:port`` (``exc`` from binding) and which setting to change,
+    for a one-line error: ``port_fix`` when the port is the problem, ``host_fix`` for the address."""
+    if exc.errno == errno.EADDRINUSE:
+        return f"port {port} is in use by another program (or car); {port_fix}"
+    if exc.errno == errno.EADDRNOTAVAIL:
+        return f"{host} is not an address of this machine; {host_fix}"
+    if exc.errno == errno.EACCES:
+        return f"port {port} needs administrator rights; {port_fix}"
+    reason = os.strerror(exc.errno).lower() if exc.errno else str(exc)
+    return f"{reason}; {port_fix}"
+
 
 STATIC_DIR = Path(__file__).with_name("static")
 #: seconds the connections get to close at shutdown (a client that does not answer is cut off)
@@ -218,9 +240,11 @@ class WebServer:
             await site.start()
         except OSError as exc:
             await runner.cleanup()
-            raise OSError(exc.errno, f"web controller cannot listen on {self.host}:{self.port} "
-                          f"({exc.strerror}); another program (or car) uses the port: set "
-                          "WEB_CONTROL_PORT to a free port in myconfig.py") from exc
+            error = ListenError(f"web controller cannot listen on {self.host}:{self.port}: " + listen_advice(
+                exc, self.host, self.port, port_fix="set WEB_CONTROL_PORT to a free port in myconfig.py",
+                host_fix="set WEB_HOST in myconfig.py to one of its addresses (\"0.0.0.0\": all of them)"))
+            error.errno = exc.errno
+            raise error from exc
         self.port = runner.addresses[0][1]
         return runner
 

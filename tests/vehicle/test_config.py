@@ -99,6 +99,11 @@ def test_every_setting_is_documented():
 def test_donkeycar_name_gets_its_new_name():
     with pytest.raises(ConfigError, match="unknown setting WEB_INIT_MODE. Did you mean DEFAULT_MODE?"):
         Config.defaults(WEB_INIT_MODE="local")
+    # acceptance: a DonkeyCar myconfig.py's DONKEY_GYM = True was pointed to DONKEY_GYM_ENV_NAME
+    with pytest.raises(ConfigError, match='unknown setting DONKEY_GYM. Did you mean SIM_TYPE = "donkey"?'):
+        Config.defaults(DONKEY_GYM=True)
+    with pytest.raises(ConfigError, match="Did you mean STEERING_CHANNEL, THROTTLE_CHANNEL and the"):
+        Config.defaults(PWM_STEERING_THROTTLE={"PWM_STEERING_PIN": "PCA9685.1:40.1"})
 
 
 # -- ranges and rules across settings (issue 21: items 2, 3, 10) ------------------------------------

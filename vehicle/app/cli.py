@@ -63,7 +63,12 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def stop_code(exc: VehicleStopped | KeyboardInterrupt | PartError) -> int:
     """Log how a vehicle stopped (it has put the actuators to neutral and shut its parts down)
-    and return the exit code: 130 for Ctrl-C, 128+N for signal N, 1 for a failed part."""
+    and return the exit code: 130 for Ctrl-C, 128+N for signal N, 1 for a failed part, 2 for a
+    part that refused the user's input (its :class:`VehicleError` says how to fix it)."""
+    if isinstance(exc, PartError) and isinstance(exc.cause, VehicleError):
+        logger.warning("vehicle stopped: throttle set to neutral")
+        print(f"error: {exc.part_name}: {exc.cause}", file=sys.stderr)  # noqa: T201 - the CLI's own output
+        return 2
     if isinstance(exc, VehicleStopped):
         logger.warning("vehicle stopped by %s: throttle set to neutral", exc.signal_name)
         return 128 + exc.signum

@@ -40,11 +40,14 @@ they are identical).
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import pickle
+import signal
+import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -338,6 +341,7 @@ def _sendable_config(cfg: Any) -> tuple[dict[str, Any], frozenset[str], Any]:
 def _init_worker(pilot: Any, config: tuple[dict[str, Any], frozenset[str], Any], tracks: dict[int, Any],
                  threads: int, laps: int, episode_args: dict[str, Any]) -> None:
     """Runs once in each worker: thread limits, the parent's hand-made tracks, settings, pilot."""
+    import signal
     import sys
 
     import cv2
@@ -345,6 +349,7 @@ def _init_worker(pilot: Any, config: tuple[dict[str, Any], frozenset[str], Any],
     from parts.sim.simulator import register_track
     from vehicle.config import Config
 
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # a terminal's Ctrl-C reaches us too: the parent stops us
     cv2.setNumThreads(threads)
     for track in tracks.values():
         register_track(track)
@@ -378,10 +383,33 @@ def _run_parallel(pilot: Any, seeds: list[int], laps: int, cfg: Any, n_workers: 
     initargs = (pilot_arg, _sendable_config(cfg), registered_tracks(), threads, laps, episode_args)
     outcomes = []
     with ProcessPoolExecutor(n_workers, mp_context=context, initializer=_init_worker, initargs=initargs) as pool:
-        for seed, (res, abs_cte) in zip(seeds, pool.map(_worker_episode, seeds, themes), strict=True):
-            _log_episode(name, seed, laps, res)
-            outcomes.append((res, abs_cte))
+        try:
+            with _ctrl_c_ignored():  # map() starts the workers: they are born ignoring a terminal's Ctrl-C
+                results = pool.map(_worker_episode, seeds, themes)
+            for seed, (res, abs_cte) in zip(seeds, results, strict=True):
+                _log_episode(name, seed, laps, res)
+                outcomes.append((res, abs_cte))
+        except BaseException:  # Ctrl-C, a failed episode: the other episodes are not waited for
+            workers = list((getattr(pool, "_processes", None) or {}).values())  # shutdown() forgets them
+            pool.shutdown(wait=False, cancel_futures=True)
+            for process in workers:  # simulated cars only: nothing to bring to neutral, so no
+                process.kill()       # SIGTERM, which a worker's Vehicle turns into a stopped episode
+            raise
     return outcomes
+
+
+@contextlib.contextmanager
+def _ctrl_c_ignored() -> Iterator[None]:
+    """Ignore SIGINT while worker processes start (they inherit it: a Ctrl-C in their first
+    seconds, before ``_init_worker`` runs, would print a traceback per worker); main thread only."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def add_engaged_pilot(V: Vehicle, driver: Any, fixed_throttle: float | None) -> None:

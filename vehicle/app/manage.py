@@ -83,6 +83,26 @@ def int_list(text: str) -> list[int]:
         raise argparse.ArgumentTypeError(f"expected comma-separated integers like 1,2,3, got {text!r}") from None
 
 
+def positive_int(text: str) -> int:
+    """Parse a count that must be at least 1 (an argparse type: ``--max-loops``, ``--record-records``)."""
+    return _whole_number(text, 1)
+
+
+def non_negative_int(text: str) -> int:
+    """Parse a count that may be 0 (an argparse type: ``--lane-changes``)."""
+    return _whole_number(text, 0)
+
+
+def _whole_number(text: str, least: int) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = None
+    if value is None or value < least:
+        raise argparse.ArgumentTypeError(f"expected a whole number ≥ {least}, got {text!r}")
+    return value
+
+
 class StopAfter:
     """A part that stops the vehicle once a memory value reaches a limit (e.g. records written)."""
 

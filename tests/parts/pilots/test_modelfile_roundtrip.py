@@ -118,3 +118,14 @@ def test_metadata_must_be_plain(tmp_path):
     with pytest.raises(TypeError, match="PilotModel"):
         save_model(tmp_path / "m.pt", torch.nn.Linear(2, 2), {})
     assert not (tmp_path / "m.pt").exists()
+
+
+@pytest.mark.parametrize("name, said", [("model.h5", "a Keras/TensorFlow model cannot be loaded"),
+                                        ("pilot.tflite", "a Keras/TensorFlow model cannot be loaded"),
+                                        ("pilot.onnx", "an export for driving only")])
+def test_models_of_other_kinds_say_what_to_do(tmp_path, name, said):
+    # acceptance: a drive.py student's model.h5 (and an ONNX export given to --transfer) got
+    # "not a model file (... corrupt, truncated or another format)"
+    (tmp_path / name).write_bytes(b"\x89HDF\r\n\x1a\n")
+    with pytest.raises(ModelFileError, match=said):
+        load_model(tmp_path / name)

@@ -147,3 +147,36 @@ def test_training_without_validation_split_monitors_training_loss(tiny_tub, tmp_
     assert metrics["best_epoch"] >= 1 and metrics["best_loss"] == pytest.approx(min(metrics["train_loss"]))
     saved = json.loads((tmp_path / "m.metrics.json").read_text())
     assert saved["val_loss"] == [None, None]  # NaN is not JSON: written as null
+
+
+def test_ctrl_c_ends_a_command_line_training_with_its_best_model_registered(tiny_tub, tmp_path, capsys,
+                                                                           torch_one_thread):
+    # acceptance: Ctrl-C in `manage.py train` said "vehicle stopped by Ctrl-C: throttle set to
+    # neutral" and left a model without its metrics, plot or registry entry
+    import os
+    import signal
+    import threading
+    import time
+
+    from parts.pilots.model_db import ModelRegistry
+    from vehicle.app.cli import main
+
+    model = tmp_path / "models" / "p.pt"
+
+    def press_ctrl_c_after_the_first_saved_epoch() -> None:
+        end = time.monotonic() + 120
+        while not model.exists() and time.monotonic() < end:
+            time.sleep(0.02)
+        os.kill(os.getpid(), signal.SIGINT)
+
+    presser = threading.Thread(target=press_ctrl_c_after_the_first_saved_epoch, daemon=True)
+    presser.start()
+    rc = main(["train", "--car", str(tmp_path), "--tubs", str(tiny_tub), "--model", str(model),
+               "--epochs", "10000", "--no-early-stop", "--batch-size", "16"])
+    presser.join()
+    assert rc == 130
+    assert "stopped by Ctrl-C: saved" in capsys.readouterr().out
+    metrics = json.loads((tmp_path / "models" / "p.metrics.json").read_text())
+    assert metrics["cancelled"] and 1 <= metrics["best_epoch"] < 10000
+    assert ModelRegistry.for_models_dir(tmp_path / "models").get("p").type == "linear"
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the handler is put back

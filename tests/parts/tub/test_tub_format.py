@@ -102,6 +102,7 @@ def test_reopen_gives_a_new_session_and_metadata_merges(tmp_path):
 def test_schema_errors_say_what_to_do(tmp_path):
     with pytest.raises(TubSchemaError, match="give inputs and types"):
         Tub(tmp_path / "new")
+    assert not (tmp_path / "new").exists()  # no empty folder left behind
     with pytest.raises(TubSchemaError, match="same length"):
         Tub(tmp_path / "x", ["a", "b"], ["float"])
     with pytest.raises(TubSchemaError, match="unknown type"):

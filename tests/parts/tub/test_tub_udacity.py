@@ -57,6 +57,20 @@ def test_sample_data_form_header_relative_paths_posix(recording, tmp_path):
     assert len(recs) == 3 and recs[2].throttle == 0.9
 
 
+def test_importing_into_a_tub_that_holds_records_is_refused(recording, tmp_path, capsys):
+    # acceptance: a second import-udacity into the same tub appended every row again (the
+    # simulator appends to driving_log.csv, so re-importing an updated recording doubled the data)
+    lines = [f"IMG/center_{s}.jpg,,,0.05,0.9,0,22.1" for s in NAMES]
+    (recording / "driving_log.csv").write_text("\n".join(lines) + "\n")
+    assert main(["tub", "import-udacity", str(recording), str(tmp_path / "t")]) == 0
+    assert main(["tub", "import-udacity", str(recording), str(tmp_path / "t")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"error: {tmp_path / 't'} exists and is not empty; give a new folder (nothing was written)"
+    assert len(load_records(tmp_path / "t")) == 3
+    (tmp_path / "empty").mkdir()
+    assert import_udacity(recording, tmp_path / "empty").imported == 3  # an empty folder is fine
+
+
 def test_absolute_posix_paths_found_after_the_recording_moved(recording, tmp_path):
     rows = [f"/home/old/data/IMG/center_{s}.jpg,,,0.1,0.2,0.0,5.0" for s in NAMES[:2]]
     rows.append("/home/old/data/IMG/center_missing.jpg,,,0.1,0.2,0.0,5.0")

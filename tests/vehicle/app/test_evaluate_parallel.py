@@ -100,3 +100,39 @@ def test_cli_workers_option(tmp_path, capsys):
     assert main(["sim", "eval", "--pilot", "expert", "--tracks", "11", "--workers", "-2",
                  "--car", str(tmp_path)]) == 2
     assert "--workers -2" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_ctrl_c_stops_a_parallel_evaluation_without_finishing_its_episodes(tmp_path):
+    # acceptance: Ctrl-C in `sim eval --workers 2` printed "stopped" and then waited for every
+    # running and queued episode to finish (minutes on long evaluations)
+    import contextlib
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    (tmp_path / "myconfig.py").write_text("SIM_TEXTURE_RES = 0.02\n")
+    root = Path(__file__).resolve().parents[3]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "vehicle", "sim", "eval", "--pilot", "expert", "--tracks", "11,12,13", "--laps",
+         "5000", "--max-time", "100000", "--workers", "2", "--car", str(tmp_path)],
+        env=dict(os.environ, PYTHONPATH=str(root)), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    err = ""
+    try:
+        for line in proc.stderr:  # the workers are being started
+            if "worker processes" in line:
+                break
+        time.sleep(0.5)  # they are still starting: the Ctrl-C must not reach them there either
+        os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C: to the command and its workers
+        _, err = proc.communicate(timeout=60)  # a hang guard: the episodes alone would take hours
+    except subprocess.TimeoutExpired:
+        pass
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)  # workers left behind hold the pipes open
+        proc.communicate()
+    assert proc.returncode == 130, err[-2000:]
+    assert "Traceback" not in err

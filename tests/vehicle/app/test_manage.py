@@ -46,3 +46,70 @@ def test_drive_expert_stopped_by_a_signal_exits_with_its_code(tmp_path, sig, cod
     assert "Traceback" not in err, err[-2000:]
     assert "throttle set to neutral" in err
     assert _records(car) >= 30  # what was recorded is kept
+
+
+def _sim_car(tmp_path: Path, settings: str = ""):
+    """A simulator car made by createcar, its manage.py loaded as a module."""
+    import importlib.util
+
+    from vehicle.app.commands.createcar import create_car
+
+    car = tmp_path / "car"
+    create_car(car, "simulator")
+    (car / "myconfig.py").write_text(settings)
+    spec = importlib.util.spec_from_file_location("acceptance_manage", car / "manage.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_drive_with_the_web_port_taken_is_a_one_line_error(tmp_path, capsys):
+    # acceptance: a second car on the same port printed two tracebacks and exited 1
+    import socket
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        manage = _sim_car(tmp_path, f"WEB_CONTROL_PORT = {port}\n")
+        assert manage.main(["drive", "--max-loops", "5"]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err, err
+    assert f"error: web controller cannot listen on 127.0.0.1:{port}: port {port} is in use" in err
+    assert "WEB_CONTROL_PORT" in err
+
+
+def test_drive_with_a_web_host_not_of_this_machine_names_web_host(tmp_path, capsys):
+    manage = _sim_car(tmp_path, 'WEB_HOST = "192.0.2.1"\n')  # TEST-NET-1: never a test machine's
+    assert manage.main(["drive", "--max-loops", "5"]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err, err
+    assert "error: web controller cannot listen on 192.0.2.1:8887: 192.0.2.1 is not an address of this " \
+           "machine; set WEB_HOST" in err
+
+
+@pytest.mark.parametrize("argv, option", [
+    (["drive", "--max-loops", "-1"], "--max-loops"),
+    (["drive", "--max-loops", "0"], "--max-loops"),
+    (["drive", "--expert", "--record-records", "-5"], "--record-records"),
+    (["drive", "--expert", "--record-records", "0"], "--record-records"),
+    (["drive", "--expert", "--record-records", "10", "--lane-changes", "-2"], "--lane-changes"),
+])
+def test_drive_rejects_counts_below_one_with_a_usage_error(tmp_path, capsys, argv, option):
+    # acceptance: --max-loops -1 and --record-records -5 ended in a ValueError traceback
+    manage = _sim_car(tmp_path)
+    with pytest.raises(SystemExit) as stop:
+        manage.main(argv)
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert f"error: argument {option}: " in err.splitlines()[-1]
+
+
+@pytest.mark.parametrize("option", [["--record-records", "100"], ["--lane-changes", "2"]])
+def test_expert_options_without_expert_are_an_error(tmp_path, capsys, option):
+    # acceptance: `drive --record-records 100` without --expert opened the web page and ignored it
+    manage = _sim_car(tmp_path)
+    assert manage.main(["drive", *option, "--max-loops", "2"]) == 2
+    assert capsys.readouterr().err.strip() == \
+        "error: --record-records and --lane-changes are for the expert: add --expert"

@@ -143,7 +143,9 @@ def collect_live(cfg: Any, board: Any, folder: Path, views: int, timeout: float,
             source = ChessboardCamera(camera_from_config(cfg), board.columns, board.rows, poses=max(30, 2 * views),
                                       seed=cfg.SIM_SEED, square_mm=board.square_mm)
         except ValueError as exc:
-            raise UserError(f"simulated calibration: {exc} (SIM_CAMERA_* settings)") from exc
+            raise UserError(f"simulated calibration: {exc} with squares large enough to find: simulate a "
+                            "larger camera (SIM_CAMERA_W = 320, SIM_CAMERA_H = 240) or use a board with fewer "
+                            "corners (CAMERA_CALIB_BOARD = (7, 5) in myconfig.py, or --board 7x5)") from exc
         V.add(source, outputs=list(ChessboardCamera.OUTPUTS))
     else:
         from vehicle.app.assembly.camera import add_camera

@@ -23,8 +23,8 @@ def register(subparsers: Any) -> None:
 
     track = sub.add_parser("track", help="draw a generated track (top view) as PNG", formatter_class=fmt)
     track.add_argument("--seed", type=int, required=True, help="track seed")
-    track.add_argument("--png", required=True, help="output PNG file")
-    track.add_argument("--camera", metavar="PNG", help="also write the camera's view from the start line")
+    track.add_argument("--png", required=True, type=_png, help="output PNG file")
+    track.add_argument("--camera", metavar="PNG", type=_png, help="also write the camera's view from the start line")
     track.add_argument("--views", type=int, default=1, metavar="N",
                        help="with --camera: N views from points spread evenly around the track, tiled")
     track.add_argument("--zoom", type=int, default=1, metavar="K",
@@ -47,7 +47,7 @@ def register(subparsers: Any) -> None:
     ev.add_argument("--scenes", help="with --sim donkey: comma-separated scenes, one episode each (default "
                                      "DONKEY_GYM_ENV_NAME; --tracks N stands for scene track_N of `vehicle sim serve`)")
     ev.add_argument("--json", help="write the full report (metrics and trajectories) here")
-    ev.add_argument("--png", help="write the driven trajectories over the track maps here")
+    ev.add_argument("--png", type=_png, help="write the driven trajectories over the track maps here (.png)")
     ev.add_argument("--lane-changes", action=argparse.BooleanOptionalAction, default=None,
                     help="command lane changes and score them (default: for a behaviour pilot when SIM_LANES = 2)")
     ev.add_argument("--store", action="store_true",
@@ -102,6 +102,12 @@ def _themes(text: str) -> list[str]:
         return theme_list(text)
     except ThemeError as exc:
         raise argparse.ArgumentTypeError(str(exc).replace(" (SIM_THEME)", "")) from None
+
+
+def _png(text: str) -> str:
+    if not text.lower().endswith(".png"):
+        raise argparse.ArgumentTypeError(f"expected a .png file name, got {text!r}")
+    return text
 
 
 _OFF = "off"

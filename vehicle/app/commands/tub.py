@@ -150,16 +150,17 @@ def cmd_info(args: argparse.Namespace) -> int:
 
 def cmd_ls(args: argparse.Namespace) -> int:
     from parts.tub.format import IMAGE_TYPES
-    from parts.tub.tools import format_header, format_record, parse_ranges
+    from parts.tub.tools import check_fields, format_header, format_record, parse_ranges
     from parts.tub.tub import Tub
 
     try:
         tub = Tub(args.tub, read_only=True)
         wanted = set(parse_ranges(args.range, tub.current_index)) if args.range else None
+        fields = [f for f in args.fields.split(",") if f] if args.fields else \
+            [k for k, t in zip(tub.inputs, tub.types, strict=True) if t not in IMAGE_TYPES]
+        check_fields(fields, tub.inputs, args.tub)
     except _errors() as exc:
         raise _user_error(exc) from exc
-    fields = args.fields.split(",") if args.fields else \
-        [k for k, t in zip(tub.inputs, tub.types, strict=True) if t not in IMAGE_TYPES]
     _out(format_header(fields))
     deleted = tub.manifest.deleted_indexes
     for index, rec in tub.records(include_deleted=args.deleted):
@@ -172,6 +173,8 @@ def _edit(args: argparse.Namespace, delete: bool) -> int:
     from parts.tub.tools import format_ranges, parse_ranges
     from parts.tub.tub import Tub
 
+    if not Path(args.tub).is_dir():
+        raise UserError(f"{args.tub}: no such tub folder")
     try:
         with Tub(args.tub) as tub:
             idx = parse_ranges(args.ranges, tub.current_index)

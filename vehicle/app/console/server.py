@@ -271,8 +271,11 @@ class ConsoleApp:
             await self._runner.cleanup()
             await self.jobs.close()
             self._release_car()
-            raise OSError(exc.errno, f"the console cannot listen on {self.host}:{self.port} ({exc.strerror}); "
-                          "another program uses the port: pass --port or set CONSOLE_PORT in myconfig.py") from exc
+            from parts.web.server import listen_advice
+
+            raise OSError(exc.errno, f"the console cannot listen on {self.host}:{self.port}: " + listen_advice(
+                exc, self.host, self.port, port_fix="pass --port or set CONSOLE_PORT in myconfig.py",
+                host_fix="pass --host or set CONSOLE_HOST in myconfig.py")) from exc
         self.port = self._runner.addresses[0][1]
         os.ftruncate(self._car_lock, 0)  # who holds the car, for a second console's message
         os.pwrite(self._car_lock, f"{os.getpid()} http://{self.host}:{self.port}/".encode(), 0)

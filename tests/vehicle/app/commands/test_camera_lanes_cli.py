@@ -280,3 +280,18 @@ def test_bad_arguments_of_lanes_and_camera_are_one_line_errors(car, capsys, tmp_
     assert not (car / "strip.txt").exists()
     err_images = main(["lanes", "preview", "--images", str(tmp_path / "none")])
     assert err_images == 2 and "chessboard" not in capsys.readouterr().err
+
+
+def test_calibrate_sim_in_a_default_car_says_which_setting_makes_it_work(tmp_path, monkeypatch, capsys):
+    # acceptance: in a new simulator car (160x120 camera) `vehicle camera calibrate --sim` ended with
+    # "cannot place a 10x7 board fully in a 160x120 view (SIM_CAMERA_* settings)": no fix named
+    (tmp_path / "myconfig.py").write_text("")
+    monkeypatch.chdir(tmp_path)
+    assert main(["camera", "calibrate", "--sim", "--views", "3"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: simulated calibration: ")
+    assert "SIM_CAMERA_W = 320, SIM_CAMERA_H = 240" in err[0] and "--board 7x5" in err[0]
+    # and the board the message proposes is found at 160x120
+    (tmp_path / "myconfig.py").write_text("CAMERA_CALIB_BOARD = (7, 5)\n")
+    assert main(["camera", "calibrate", "--sim", "--views", "3"]) == 0
+    assert "calibrated from 3 views of 160x120" in capsys.readouterr().out

@@ -45,6 +45,21 @@ def test_sim_cli_errors_exit_2(car, capsys):
     assert "SIM_ROAD_WIDTH" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("argv", [
+    ["sim", "track", "--seed", "7", "--png", "t.jpg2"],
+    ["sim", "track", "--seed", "7", "--png", "t.png", "--camera", "c"],
+    ["sim", "eval", "--pilot", "expert", "--tracks", "11", "--png", "r.svg"],
+])
+def test_sim_image_outputs_other_than_png_are_refused_before_any_work(car, capsys, argv):
+    # acceptance: --png t.jpg2 ended in a cv2.error traceback (and eval --png only after the run)
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "expected a .png file name" in err.splitlines()[-1]
+    assert not any(car.glob("*.png"))
+
+
 def test_sim_record_command(car, capsys):
     assert main(["sim", "record", "--records", "25", "--tracks", "2", "--tub", "data/demo"]) == 0
     assert "recorded 25 records" in capsys.readouterr().out

@@ -191,3 +191,34 @@ def test_info_mentions_a_torn_last_line(donkey_tub, capsys):
     out = capsys.readouterr().out
     assert "torn last line: 22 bytes at the end of catalog_1.catalog" in out
     assert "vehicle tub repair" in out
+
+
+def test_a_misspelt_field_is_named_with_the_closest_one(donkey_tub, tmp_path, capsys):
+    # acceptance: `tub ls --fields user/angel` printed a column of None, `tub hist` an empty plot
+    path, _ = donkey_tub(5)
+    assert main(["tub", "ls", str(path), "--fields", "user/angel"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: ") and "no field 'user/angel' (did you mean user/angle?)" in err
+    out = str(tmp_path / "h.png")
+    assert main(["tub", "hist", str(path), "--fields", "user/angle,user/trottle", "--out", out]) == 2
+    assert "no field 'user/trottle' (did you mean user/throttle?)" in capsys.readouterr().err
+    assert not (tmp_path / "h.png").exists()
+    assert main(["tub", "ls", str(path), "--fields", "_session_id,user/angle"]) == 0
+
+
+@pytest.mark.parametrize("verb", ["delete", "restore"])
+def test_editing_a_tub_that_does_not_exist_leaves_no_folder(tmp_path, capsys, verb):
+    # acceptance: `tub restore nope 1` created an empty folder nope/ and said "is a new tub: give inputs and types"
+    assert main(["tub", verb, str(tmp_path / "nope"), "1"]) == 2
+    assert capsys.readouterr().err.strip() == f"error: {tmp_path / 'nope'}: no such tub folder"
+    assert not (tmp_path / "nope").exists()
+
+
+def test_movie_fps_and_hist_bins_below_one_are_named(donkey_tub, tmp_path, capsys):
+    # acceptance: --fps 0 said "OpenCV cannot write ...: use a .mp4 file name", --bins 0 gave numpy's
+    # "`bins` must be positive, when an integer"
+    path, _ = donkey_tub(5)
+    assert main(["tub", "movie", str(path), "--fps", "0", "--out", str(tmp_path / "m.mp4")]) == 2
+    assert "fps must be > 0 frames per second, got 0.0" in capsys.readouterr().err
+    assert main(["tub", "hist", str(path), "--bins", "0", "--out", str(tmp_path / "h.png")]) == 2
+    assert "bins must be a whole number >= 1, got 0" in capsys.readouterr().err

@@ -131,3 +131,18 @@ def test_udacity_drive_speed_limit_is_the_track_driver_rule(tmp_path, torch_one_
     for throttle in throttles:  # each is the rule applied to a speed the simulator reported
         assert np.abs((1 - speeds / 20) - throttle).min() < 1e-3
     assert min(throttles) < 0.99  # the car sped up and the throttle came down
+
+
+def test_a_pilot_trained_on_other_frames_stops_with_one_line(tmp_path, make_model_file, capsys, caplog):
+    # acceptance: a pilot trained on the built-in simulator's 160x120 frames stopped the drive at the
+    # simulator's first 320x160 frame with a traceback and exit code 1
+    model = make_model_file("linear")  # 120x160 frames
+    port = free_port()
+    with FakeUdacityClient(port, keep_images=50):
+        code = main(["udacity", "drive", str(model), "--port", str(port), "--max-loops", "400",
+                     "--car", str(tmp_path)])
+    assert code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == ("error: Pilot: frame is 160x320x3 but the model was trained on 120x160x3 frames; "
+                       "set IMAGE_W/IMAGE_H to the training size or re-train")
+    assert not [r for r in caplog.records if r.exc_info], "no traceback for a user's mistake"

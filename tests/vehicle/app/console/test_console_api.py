@@ -197,3 +197,20 @@ def test_one_console_per_car_a_second_is_a_one_line_error_naming_the_first(conso
     first.close()
     second = console_factory()  # the lock went with the first console
     assert request(second.port, "/api/jobs")[0] == 200
+
+
+def test_a_console_that_cannot_listen_says_whether_the_port_or_the_address_is_wrong(console_factory):
+    # acceptance: --host 10.99.99.99 (not this machine's) said "another program uses the port"
+    import socket
+
+    with pytest.raises(OSError, match=r"192\.0\.2\.1 is not an address of this machine; pass --host or set "
+                                      r"CONSOLE_HOST"):
+        console_factory(host="192.0.2.1")  # TEST-NET-1: never an address of a test machine
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        with pytest.raises(OSError, match=rf"port {port} is in use by another program .*; pass --port or set "
+                                          "CONSOLE_PORT"):
+            console_factory(port=port)
+    assert request(console_factory().port, "/api/jobs")[0] == 200  # the car's lock was let go both times
