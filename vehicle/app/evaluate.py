@@ -384,7 +384,7 @@ def _run_parallel(pilot: Any, seeds: list[int], laps: int, cfg: Any, n_workers: 
     outcomes = []
     with ProcessPoolExecutor(n_workers, mp_context=context, initializer=_init_worker, initargs=initargs) as pool:
         try:
-            with _ctrl_c_ignored():  # map() starts the workers: they are born ignoring a terminal's Ctrl-C
+            with _ctrl_c_deferred():  # map() starts the workers: they are born deaf to a terminal's Ctrl-C
                 results = pool.map(_worker_episode, seeds, themes)
             for seed, (res, abs_cte) in zip(seeds, results, strict=True):
                 _log_episode(name, seed, laps, res)
@@ -399,17 +399,19 @@ def _run_parallel(pilot: Any, seeds: list[int], laps: int, cfg: Any, n_workers: 
 
 
 @contextlib.contextmanager
-def _ctrl_c_ignored() -> Iterator[None]:
-    """Ignore SIGINT while worker processes start (they inherit it: a Ctrl-C in their first
-    seconds, before ``_init_worker`` runs, would print a traceback per worker); main thread only."""
+def _ctrl_c_deferred() -> Iterator[None]:
+    """Block SIGINT while worker processes start: they inherit the mask, so a terminal's Ctrl-C in
+    their first seconds (before ``_init_worker`` ignores it) cannot print a traceback per worker;
+    here a Ctrl-C meanwhile stays pending and arrives when the block ends (ignoring it instead
+    would lose it, and the evaluation would run on)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def add_engaged_pilot(V: Vehicle, driver: Any, fixed_throttle: float | None) -> None:
