@@ -2,7 +2,8 @@
 served over the Donkey protocol.
 
 - :mod:`parts.bridges.udacity` – the Udacity simulator as a car (we are its Socket.IO server);
-  :mod:`parts.bridges.engineio3` makes python-socketio 5 speak its Engine.IO v3 dialect.
+  :mod:`parts.bridges.engineio3` makes python-socketio 5 speak its Engine.IO v3 dialect;
+  :mod:`parts.bridges.udacity_protocol` reads and writes its values (units, keys, locales).
 - :mod:`parts.bridges.donkey_client` – the Donkey simulator as a car (we are its TCP client).
 - :mod:`parts.bridges.donkey_server` – our simulator behind the Donkey protocol, for gym-donkeycar
   and any other Donkey-sim client.

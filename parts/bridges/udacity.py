@@ -44,75 +44,29 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-import math
-import re
 import threading
 import time
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Final
+from typing import Any, ClassVar
 
 import numpy as np
 
 from parts.bridges.errors import BridgeError
+from parts.bridges.udacity_protocol import (
+    DECIMALS,
+    FORK_KEYS,
+    MS_PER_MPH,
+    STOCK_KEYS,
+    extra_key,
+    format_command,
+    parse_number,
+    uses_decimal_comma,
+)
 from vehicle.part import ThreadedPart, run_event_loop
 
 logger = logging.getLogger(__name__)
-
-MS_PER_MPH: Final = 0.44704
-#: telemetry keys of the stock simulator; everything else is a fork's extra
-STOCK_KEYS: Final = ("steering_angle", "throttle", "speed", "image")
-#: fork keys with a standard memory key of their own
-FORK_KEYS: Final = {"cte": "sim/cte", "lapNumber": "sim/lap"}
-DECIMALS: Final = ("auto", ".", ",")
-#: (width, height) of the frames the Udacity simulator sends
-FRAME_SIZE: Final = (320, 160)
-_COMMA_NUMBER = re.compile(r"^\s*[-+]?\d+,\d+\s*$")
-
-
-def parse_number(value: Any) -> float | None:
-    """A telemetry number whatever the simulator's locale; None when it is not a finite number.
-
-    ``"0.1234"``, ``"0,1234"``, ``"1,234.5"``, ``"1.234,5"``, ``"-3"`` and JSON numbers are read;
-    with both separators the last one is the decimal separator.
-    """
-    if isinstance(value, bool) or value is None:
-        return None
-    if isinstance(value, int | float):
-        out = float(value)
-    elif isinstance(value, str):
-        text = value.strip().replace("\u00a0", "").replace(" ", "")  # fr: a space groups thousands
-        if "," in text and "." in text:
-            if text.rfind(",") > text.rfind("."):
-                text = text.replace(".", "").replace(",", ".")
-            else:
-                text = text.replace(",", "")
-        elif "," in text:
-            text = text.replace(",", ".") if text.count(",") == 1 else text.replace(",", "")
-        try:
-            out = float(text)
-        except ValueError:
-            return None
-    else:
-        return None
-    return out if math.isfinite(out) else None
-
-
-def extra_key(name: str) -> str:
-    """The memory key of a fork's telemetry key: ``sim/`` + snake case (``currentWayPoint`` ->
-    ``sim/current_way_point``)."""
-    snake = re.sub(r"(?<=[a-z0-9])([A-Z])", r"_\1", name).lower()
-    return "sim/" + re.sub(r"[^a-z0-9_]+", "_", snake).strip("_")
-
-
-def format_command(value: Any, decimal: str = ".") -> str:
-    """A steer value as the simulator parses it: a string, fixed point, no exponent; 0 for junk."""
-    number = parse_number(value)
-    number = 0.0 if number is None else min(1.0, max(-1.0, number))
-    text = f"{number:.6f}"
-    return text.replace(".", ",") if decimal == "," else text
-
 
 @dataclass(frozen=True)
 class Telemetry:
@@ -503,8 +457,7 @@ class UdacitySim(ThreadedPart):
         if not isinstance(data.get("image"), str) or not data["image"]:
             raise ValueError("no 'image' field")
         image = decode_frame(data["image"], formats=("JPEG",))  # the simulator's EncodeToJPG
-        if self.decimal == "auto" and not self._comma and any(
-                isinstance(data.get(k), str) and _COMMA_NUMBER.match(data[k]) for k in STOCK_KEYS[:3]):
+        if self.decimal == "auto" and not self._comma and uses_decimal_comma(data):
             self._comma = True
             logger.info("Udacity simulator sends decimal commas (its locale): steer values follow")
         speed = parse_number(data.get("speed"))

@@ -18,7 +18,8 @@ pytest.importorskip("wsproto")
 
 from parts.bridges.errors import BridgeError  # noqa: E402
 from parts.bridges.fake_udacity_client import FakeUdacityClient, n4, parse_like_csharp  # noqa: E402
-from parts.bridges.udacity import MS_PER_MPH, UdacitySim, format_command, parse_number  # noqa: E402
+from parts.bridges.udacity import UdacitySim  # noqa: E402
+from parts.bridges.udacity_protocol import MS_PER_MPH, format_command, parse_number  # noqa: E402
 
 
 class LoopDriver:
@@ -74,7 +75,7 @@ def test_parse_number_reads_every_locale() -> None:
 
 
 def test_extra_keys_become_namespaced_snake_case_keys() -> None:
-    from parts.bridges.udacity import extra_key
+    from parts.bridges.udacity_protocol import extra_key
     from vehicle.keys import is_valid_key
 
     assert extra_key("lapNumber") == "sim/lap_number"

@@ -175,7 +175,7 @@ def test_a_training_sample_is_what_the_pilot_computes_from_the_same_frame(tmp_pa
     tub.close()
     data = read_drive_data([tmp_path / "tub"])
     pre = preprocess_from_config(cfg, "lanes", (120, 160, 3))
-    assert pre.lanes is not None
+    assert pre.lanes is not None and pre.lanes["color_mask"] == "white"  # the car's LANE_COLOR_MASK reached it
     model = create_model("lanes", pre.output_shape((120, 160, 3)), num_behaviors=2)
     path = save_model(tmp_path / "lanes.pt", model, {"preprocess": pre.to_dict()})
     runner = open_runner(path, "torch")

@@ -84,7 +84,7 @@ def bridge_frame_size(cfg: Any, sim_type: str) -> tuple[tuple[int, int], str]:
     """(width, height) of the frames an external simulator delivers, and what sets it: the Donkey
     simulator renders IMAGE_W x IMAGE_H, the Udacity simulator always 320 x 160."""
     if sim_type == "udacity":
-        from parts.bridges.udacity import FRAME_SIZE
+        from parts.bridges.udacity_protocol import FRAME_SIZE
 
         return FRAME_SIZE, "fixed by the Udacity simulator, 320 x 160"
     return (cfg.IMAGE_W, cfg.IMAGE_H), "IMAGE_W x IMAGE_H"
