@@ -370,31 +370,22 @@ def _run_parallel(pilot: Any, seeds: list[int], laps: int, cfg: Any, n_workers: 
                   themes: list[str]) -> list[tuple[dict[str, Any], np.ndarray]]:
     """The episodes of ``seeds`` (each in its theme of ``themes``) in ``n_workers`` processes, in
     seed order."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-
     from parts.sim.simulator import registered_tracks
+    from vehicle.app.worker_pool import WorkerPool
 
     threads = max(1, (os.cpu_count() or 1) // n_workers)
     logger.info("evaluating %d tracks in %d worker processes (%d thread(s) each)", len(seeds), n_workers, threads)
-    # spawn, not fork: a forked copy of a process whose OpenMP threads already ran can hang
-    context = multiprocessing.get_context("spawn")
     pilot_arg = pilot if pilot == "expert" else str(Path(pilot).expanduser().resolve())
     initargs = (pilot_arg, _sendable_config(cfg), registered_tracks(), threads, laps, episode_args)
     outcomes = []
-    with ProcessPoolExecutor(n_workers, mp_context=context, initializer=_init_worker, initargs=initargs) as pool:
-        try:
-            with _ctrl_c_deferred():  # map() starts the workers: they are born deaf to a terminal's Ctrl-C
-                results = pool.map(_worker_episode, seeds, themes)
-            for seed, (res, abs_cte) in zip(seeds, results, strict=True):
-                _log_episode(name, seed, laps, res)
-                outcomes.append((res, abs_cte))
-        except BaseException:  # Ctrl-C, a failed episode: the other episodes are not waited for
-            workers = list((getattr(pool, "_processes", None) or {}).values())  # shutdown() forgets them
-            pool.shutdown(wait=False, cancel_futures=True)
-            for process in workers:  # simulated cars only: nothing to bring to neutral, so no
-                process.kill()       # SIGTERM, which a worker's Vehicle turns into a stopped episode
-            raise
+    # spawn, not fork: a forked copy of a process whose OpenMP threads already ran can hang; a
+    # Ctrl-C or a failed episode kills the workers (simulated cars: nothing to bring to neutral)
+    with WorkerPool(_worker_episode, n_workers, _init_worker, initargs, context="spawn") as pool:
+        with _ctrl_c_deferred():  # the workers are born deaf to a terminal's Ctrl-C
+            pool.start()
+        for seed, (res, abs_cte) in zip(seeds, pool.map(list(zip(seeds, themes, strict=True))), strict=True):
+            _log_episode(name, seed, laps, res)
+            outcomes.append((res, abs_cte))
     return outcomes
 
 

@@ -103,9 +103,6 @@ def test_cli_workers_option(tmp_path, capsys):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=False, reason="open defect: inside the full suite (3 runs of 4) the command hangs "
-                   "at exit, its ProcessPoolExecutor manager thread blocked reading the result pipe after the "
-                   "workers were killed; alone it passes every time")
 def test_ctrl_c_stops_a_parallel_evaluation_without_finishing_its_episodes(tmp_path):
     # acceptance: Ctrl-C in `sim eval --workers 2` printed "stopped" and then waited for every
     # running and queued episode to finish (minutes on long evaluations)

@@ -107,7 +107,7 @@ def _wait(port, job, cond, timeout=120.0):
 def test_jobs_run_one_at_a_time_and_cancel(console):
     port = console.port
     ids = [d["id"] for d in json.loads(request(port, "/api/datasets")[2])]
-    hyper = {"epochs": "500", "steps_per_epoch": "1", "val_steps": "1", "batch_size": "4", "early_stop": "false"}
+    hyper = {"epochs": "100000", "steps_per_epoch": "1", "val_steps": "1", "batch_size": "4", "early_stop": "false"}
     a = json.loads(request(port, "/api/jobs/train", "POST", {"datasets": ids, "name": "first", "hyper": hyper})[2])
     b = json.loads(request(port, "/api/jobs/train", "POST", {"datasets": ids[:1], "name": "second",
                                                              "hyper": hyper})[2])
@@ -153,7 +153,7 @@ def test_a_model_in_use_by_a_job_is_neither_deleted_nor_renamed(console, registe
     registered_model("busy")
     registered_model("base")
     ids = [d["id"] for d in json.loads(request(port, "/api/datasets")[2])]
-    hold = {"epochs": "500", "steps_per_epoch": "1", "val_steps": "1", "batch_size": "4", "early_stop": "false"}
+    hold = {"epochs": "100000", "steps_per_epoch": "1", "val_steps": "1", "batch_size": "4", "early_stop": "false"}
     first = json.loads(request(port, "/api/jobs/train", "POST", {"datasets": ids, "name": "first", "hyper": hold})[2])
     ev = json.loads(request(port, "/api/jobs/evaluate", "POST", {"model": "busy", "tracks": "101", "laps": 1})[2])
     tr = json.loads(request(port, "/api/jobs/train", "POST", {"datasets": ids, "name": "child", "transfer": "base",

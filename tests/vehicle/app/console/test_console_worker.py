@@ -27,7 +27,7 @@ def _jobs_dir(config):
 
 def _job_file(config, name, job_id=1):
     tubs = sorted(str(p) for p in config.path("DATA_PATH").iterdir())
-    hyper, errors = hyperparams.parse({"epochs": "500", "steps_per_epoch": "1", "val_steps": "1",
+    hyper, errors = hyperparams.parse({"epochs": "100000", "steps_per_epoch": "1", "val_steps": "1",
                                        "batch_size": "4", "early_stop": "false"})
     assert not errors
     params = {"tubs": tubs, "model_name": name, "model_type": None, "settings": hyperparams.settings_for(hyper)}
