@@ -13,7 +13,7 @@ import logging
 import os
 import types
 import typing
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from enum import Enum
 from functools import cache
@@ -161,8 +161,8 @@ def check_value(name: str, value: Any, where: str = "") -> None:
     """Raise ConfigError unless ``name`` is a known setting and ``value`` fits its type and range."""
     known = settings()
     if name not in known:
-        close = [RENAMED[name]] if name in RENAMED else difflib.get_close_matches(name, known, n=1)
-        hint = f" Did you mean {close[0]}?" if close else ""
+        close = _closest(name)
+        hint = f" Did you mean {close}?" if close else ""
         raise ConfigError(f"{where}unknown setting {name}.{hint} "
                           "See docs/config.md for every setting.")
     setting = known[name]
@@ -170,6 +170,29 @@ def check_value(name: str, value: Any, where: str = "") -> None:
         raise ConfigError(f"{where}{name} = {value!r} has type {type(value).__name__}, "
                           f"expected {describe_type(setting.annotation)}.")
     check_range(name, value, where)
+
+
+def _closest(name: str) -> str | None:
+    """The setting an unknown ``name`` most likely means (a DonkeyCar rename, else by spelling)."""
+    if name in RENAMED:
+        return RENAMED[name]
+    close = difflib.get_close_matches(name, settings(), n=1)
+    return close[0] if close else None
+
+
+def _check_known(path: Path, names: Sequence[str], lines: Mapping[str, int]) -> None:
+    """Name every unknown setting of a config file in one message (a myconfig.py copied from
+    DonkeyCar brings several: fixing them one run at a time would be tedious)."""
+    unknown = [n for n in names if n not in settings()]
+    if len(unknown) < 2:
+        return  # none, or one: check_value says it with its line
+    shown = []
+    for name in sorted(unknown, key=lambda n: lines.get(n, 0)):
+        close = _closest(name)
+        line = f"line {lines[name]}" if name in lines else "set indirectly"
+        shown.append(f"{name} ({line}{f'; did you mean {close}?' if close else ''})")
+    raise ConfigError(f"{path}: {len(unknown)} unknown settings: {', '.join(shown)}. Rename or delete them; "
+                      "docs/config.md lists every setting.")
 
 
 def type_text(annotation: str) -> str:
@@ -316,6 +339,7 @@ def read_overrides_with_lines(path: Path) -> tuple[dict[str, Any], dict[str, int
     except Exception as exc:
         raise ConfigError(f"{path}: running the config file failed: {type(exc).__name__}: {exc}") from exc
     overrides = {k: v for k, v in namespace.items() if k.isupper()}
+    _check_known(path, list(overrides), lines)
     for name, value in overrides.items():
         where = f"{path}, line {lines[name]}: " if name in lines else f"{path}: "
         check_value(name, value, where)
