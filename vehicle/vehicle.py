@@ -257,7 +257,8 @@ class Vehicle:
         if max_loop_count is not None and max_loop_count < 1:
             raise ValueError(f"max_loop_count must be >= 1 or None, got {max_loop_count}")
         self.check_wiring()
-        previous = self._install_signal_handlers()
+        signals = contextlib.ExitStack()  # SIGTERM/SIGHUP raise VehicleStopped until the safe stop is done
+        signals.enter_context(stop_signals_raise())
         loops, t0 = 0, self.clock.now()
         self._last_loop_start = t0
         rk = RateKeeper(rate_hz, self.clock)
@@ -292,7 +293,7 @@ class Vehicle:
             try:
                 self._safe_stop(failure)
             finally:
-                self._restore_signal_handlers(previous)
+                signals.close()
             if log_summary:
                 logger.info("vehicle stopped\n%s", self.summary.format())
         return loops, elapsed
@@ -396,20 +397,6 @@ class Vehicle:
         achieved = (loops - 1) / span if loops > 1 and span > 0 else 0.0
         return LoopSummary(loops, elapsed, rate_hz, achieved, overruns, parts)
 
-    # -- signals ----------------------------------------------------------------------------------
-    def _install_signal_handlers(self) -> dict[int, Any]:
-        """SIGTERM/SIGHUP raise VehicleStopped in the loop thread (main thread only)."""
-        if threading.current_thread() is not threading.main_thread():
-            return {}
-        previous = {}
-        for sig in _STOP_SIGNALS:
-            previous[sig] = signal.signal(sig, _raise_stopped)
-        return previous
-
-    def _restore_signal_handlers(self, previous: dict[int, Any]) -> None:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-
 
 @contextlib.contextmanager
 def _ignoring_interrupts() -> Iterator[None]:
@@ -420,6 +407,21 @@ def _ignoring_interrupts() -> Iterator[None]:
     def note(signum: int, _frame: Any) -> None:
         logger.warning("%s ignored: the vehicle is already stopping", signal.Signals(signum).name)
     previous = {sig: signal.signal(sig, note) for sig in (signal.SIGINT, *_STOP_SIGNALS)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+@contextlib.contextmanager
+def stop_signals_raise() -> Iterator[None]:
+    """While inside, SIGTERM and SIGHUP raise :class:`VehicleStopped` (main thread only), as in the
+    loop: for work outside a Vehicle that must clean up when a service manager stops it."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {sig: signal.signal(sig, _raise_stopped) for sig in _STOP_SIGNALS}
     try:
         yield
     finally:

@@ -372,6 +372,7 @@ def _run_parallel(pilot: Any, seeds: list[int], laps: int, cfg: Any, n_workers: 
     seed order."""
     from parts.sim.simulator import registered_tracks
     from vehicle.app.worker_pool import WorkerPool
+    from vehicle.vehicle import stop_signals_raise
 
     threads = max(1, (os.cpu_count() or 1) // n_workers)
     logger.info("evaluating %d tracks in %d worker processes (%d thread(s) each)", len(seeds), n_workers, threads)
@@ -379,8 +380,9 @@ def _run_parallel(pilot: Any, seeds: list[int], laps: int, cfg: Any, n_workers: 
     initargs = (pilot_arg, _sendable_config(cfg), registered_tracks(), threads, laps, episode_args)
     outcomes = []
     # spawn, not fork: a forked copy of a process whose OpenMP threads already ran can hang; a
-    # Ctrl-C or a failed episode kills the workers (simulated cars: nothing to bring to neutral)
-    with WorkerPool(_worker_episode, n_workers, _init_worker, initargs, context="spawn") as pool:
+    # Ctrl-C, SIGTERM or a failed episode kills the workers (simulated cars: nothing to bring to
+    # neutral), and so does our death (they watch for it)
+    with stop_signals_raise(), WorkerPool(_worker_episode, n_workers, _init_worker, initargs, context="spawn") as pool:
         with _ctrl_c_deferred():  # the workers are born deaf to a terminal's Ctrl-C
             pool.start()
         for seed, (res, abs_cte) in zip(seeds, pool.map(list(zip(seeds, themes, strict=True))), strict=True):

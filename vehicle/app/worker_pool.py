@@ -8,7 +8,8 @@ for that thread at exit: the command hung. Here each worker has a pipe of its ow
 only the worker holds, so a worker's death is an end of file, never a wait; and stopping the pool
 kills and reaps its workers, leaving no thread behind.
 
-A worker ends when the pool sends it ``None``, or when its pipe closes (the parent died).
+A worker ends when the pool sends it ``None``, when its pipe closes, or, in the middle of a task,
+when its parent has died (killed: nobody wants the result, and an orphan would run on for minutes).
 """
 
 from __future__ import annotations
@@ -16,7 +17,10 @@ from __future__ import annotations
 import collections
 import contextlib
 import logging
+import os
 import pickle
+import threading
+import time
 import traceback
 from collections.abc import Callable, Iterator, Sequence
 from multiprocessing.connection import Connection, wait
@@ -26,6 +30,8 @@ logger = logging.getLogger(__name__)
 
 #: seconds a worker has to exit after the pool asked it to, before it is killed
 EXIT_GRACE_S = 5.0
+#: seconds between a worker's checks that its parent is alive
+PARENT_CHECK_S = 0.5
 
 
 class WorkerDied(RuntimeError):
@@ -44,9 +50,17 @@ def _sendable(exc: BaseException) -> BaseException:
     return out
 
 
-def _serve(conn: Connection, fn: Callable[..., Any], initializer: Callable[..., Any] | None,
+def _exit_with(parent: int) -> None:
+    """End this process as soon as ``parent`` is no longer its parent (it died and we were adopted)."""
+    while os.getppid() == parent:
+        time.sleep(PARENT_CHECK_S)
+    os._exit(1)  # no clean-up to wait for: the pool's tasks have nothing to bring to a safe state
+
+
+def _serve(conn: Connection, parent: int, fn: Callable[..., Any], initializer: Callable[..., Any] | None,
            initargs: tuple[Any, ...]) -> None:
     """A worker's life: initialise, then answer ``(index, args)`` with ``(index, ok, value)``."""
+    threading.Thread(target=_exit_with, args=(parent,), name="parent-watch", daemon=True).start()
     try:
         if initializer is not None:
             initializer(*initargs)
@@ -89,8 +103,8 @@ class WorkerPool:
         ctx = multiprocessing.get_context(self._context)
         for _ in range(self._size):
             ours, theirs = ctx.Pipe(duplex=True)
-            process = ctx.Process(target=_serve, args=(theirs, self._fn, self._initializer, self._initargs),
-                                  daemon=True, name="pool-worker")
+            args = (theirs, os.getpid(), self._fn, self._initializer, self._initargs)
+            process = ctx.Process(target=_serve, args=args, daemon=True, name="pool-worker")
             self._workers.append((process, ours))
             process.start()
             theirs.close()  # only the worker holds its end: its death reads as end of file here
