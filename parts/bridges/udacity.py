@@ -57,6 +57,7 @@ from parts.bridges.errors import BridgeError
 from parts.bridges.udacity_protocol import (
     DECIMALS,
     FORK_KEYS,
+    FRAME_SIZE,
     MS_PER_MPH,
     STOCK_KEYS,
     extra_key,
@@ -99,6 +100,9 @@ class UdacitySim(ThreadedPart):
     """
 
     #: memory keys the part reads, in this order: the commands of the previous loop
+    #: size of the frames it delivers, fixed by the simulator (a pilot checks it fits when it loads)
+    width: ClassVar[int] = FRAME_SIZE[0]
+    height: ClassVar[int] = FRAME_SIZE[1]
     INPUTS: ClassVar[tuple[str, ...]] = ("angle", "throttle")
     FEEDBACK: ClassVar[tuple[str, ...]] = ("angle", "throttle")
     #: memory keys the part writes, in this order (an instance adds ``sim/<key>`` per extra key)

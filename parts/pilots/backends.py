@@ -90,8 +90,7 @@ class Runner(abc.ABC):
         got = pre.output_shape(frame_shape)
         if got != self.input_shape:
             raise ValueError(f"{'x'.join(map(str, frame_shape))} frames give model inputs of shape {got} "
-                             f"after the model's preprocessing, but it takes {self.input_shape}; set "
-                             "IMAGE_W/IMAGE_H to the training size or re-train")
+                             f"after the model's preprocessing, but it takes {self.input_shape}")
 
 
     @property

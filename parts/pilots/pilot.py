@@ -84,6 +84,8 @@ class Pilot:
         frame_shape: (height, width, 3) of the camera frames the car gives; a model trained on
             other frames, or whose input shape they do not give, is refused when it loads
             (ValueError here, ``load_error`` on a switch). None: learnt from the first frame.
+        frame_hint: what to do about such a model, after the message (the settings that size this
+            car's frames, or that a simulator's size is fixed).
         extra_sizes: values per extra input in this car, e.g. ``{"behavior/one_hot_state_array":
             len(BEHAVIOR_LIST)}``; a model trained with another size is refused when it loads.
         car: what the car feeds the model (BEHAVIOR_LIST, CAMERA_UNDISTORT); every model, the
@@ -96,6 +98,7 @@ class Pilot:
     def __init__(self, model: str | Path, *, backend: Backend | str = "auto", speed_control: Any = None,
                  speed_key: str = "sim/speed", onnx_threads: int = 1,
                  models_dir: str | Path | None = None, frame_shape: tuple[int, ...] | None = None,
+                 frame_hint: str = "give it frames of the training size or re-train",
                  extra_sizes: Mapping[str, int] | None = None, car: CarInputs | None = None) -> None:
         self.backend = backend
         self.car = car
@@ -104,6 +107,7 @@ class Pilot:
         self.speed_key = speed_key
         self.models_dir = Path(models_dir) if models_dir is not None else None
         self.frame_shape = tuple(frame_shape) if frame_shape is not None else None
+        self.frame_hint = frame_hint
         self.extra_sizes = dict(extra_sizes or {})
         runner = open_runner(model, backend, onnx_threads)
         try:
@@ -176,6 +180,7 @@ class Pilot:
             return 0.0, 0.0  # with speed control (which would accelerate from standstill blind)
         if self.frame_shape is None and isinstance(image, np.ndarray):
             self.frame_shape = image.shape  # what a model switched to must take
+            self._check_frames(runner)
         angle, throttle = self._predict(active, image, rest[:n_extra])
         if self.speed_control is not None:
             throttle = self.speed_control.run(throttle, rest[n_extra], None)  # its own target speed
@@ -233,7 +238,7 @@ class Pilot:
         car's frames and extra inputs: checked when a model loads, so that a wrong model never
         reaches the first frame in a pilot mode."""
         if self.frame_shape is not None:
-            runner.check_frames(self.frame_shape)
+            self._check_frames(runner)
         known = [k for k in runner.extra_inputs if k in self.extra_sizes]
         if known and len(known) == len(runner.extra_inputs):
             given = 2 * runner.command_history + sum(self.extra_sizes[k] for k in known)
@@ -243,6 +248,12 @@ class Pilot:
                                  "(a different number of behaviours? check BEHAVIOR_LIST, or re-train)")
         if self.car is not None:  # behaviour order, undistortion (ModelMismatch, a ValueError)
             check_model(runner.name, runner.meta, runner.extra_inputs, runner.extra_size, self.car)
+
+    def _check_frames(self, runner: Runner) -> None:
+        try:
+            runner.check_frames(self.frame_shape)
+        except ValueError as exc:  # ModelMismatch included: the same type, with what to do
+            raise type(exc)(f"{exc}; {self.frame_hint}") from None
 
     # -- hot switch -----------------------------------------------------------------------------
     def resolve(self, path: str | Path) -> Path:

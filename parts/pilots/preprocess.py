@@ -109,8 +109,7 @@ class Preprocess:
 
             got = "x".join(map(str, shape))
             want = "x".join(map(str, self.image_shape))
-            raise ModelMismatch(f"frame is {got} but the model was trained on {want} frames; set "
-                             "IMAGE_W/IMAGE_H to the training size or re-train")
+            raise ModelMismatch(f"frame is {got} but the model was trained on {want} frames")
 
     # -- stage 1: per frame, uint8
     def frame(self, image: np.ndarray) -> np.ndarray:

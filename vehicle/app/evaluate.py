@@ -121,11 +121,12 @@ def _default_config() -> Any:
     return Config.defaults()
 
 
-def resolve_pilot(pilot: Any, cfg: Any = None) -> tuple[Any, str, bool]:
+def resolve_pilot(pilot: Any, cfg: Any = None, sim: str = "builtin") -> tuple[Any, str, bool]:
     """(pilot part or "expert", display name, whether we loaded it and must shut it down).
 
     A model file is loaded as ``manage.py drive --model`` loads it, with the car's back-end and
-    speed-control settings (``cfg``; default: the package defaults).
+    speed-control settings (``cfg``; default: the package defaults), and refused unless it takes the
+    frames of simulator ``sim``.
     """
     if isinstance(pilot, str) and pilot == "expert":
         return "expert", "expert", False
@@ -134,11 +135,12 @@ def resolve_pilot(pilot: Any, cfg: Any = None) -> tuple[Any, str, bool]:
         if not path.exists():
             raise FileNotFoundError(f"pilot model {path} does not exist: pass 'expert' or the path of a "
                                     "trained model file (see `manage.py train`)")
-        from vehicle.app.assembly.pilot import make_pilot
+        from vehicle.app.assembly.pilot import make_pilot, sim_frames
 
         cfg = cfg if cfg is not None else _default_config()
-        return make_pilot(cfg, path, measured_speed_key="sim/speed",
-                          frame_shape=(cfg.SIM_CAMERA_H, cfg.SIM_CAMERA_W, 3)), path.name, True
+        shape, hint = sim_frames(cfg, sim)
+        return make_pilot(cfg, path, measured_speed_key="sim/speed", frame_shape=shape, frame_hint=hint), \
+            path.name, True
     if callable(getattr(pilot, "run", None)):
         return pilot, getattr(pilot, "name", None) or type(pilot).__name__, False
     raise TypeError(f"pilot must be 'expert', a model path or an object with run(), got {type(pilot).__name__}")
@@ -223,7 +225,7 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
 
     # loaded here also for a parallel run: a missing or broken model file fails with its own message,
     # and the pilot's inputs decide the lane changes
-    driver, name, owned = resolve_pilot(pilot, cfg)
+    driver, name, owned = resolve_pilot(pilot, cfg, sim)
     started = time.perf_counter()
     modes: dict[str, Any] = {}  # what the bridge episodes found out (Donkey: stepped or real time)
     try:

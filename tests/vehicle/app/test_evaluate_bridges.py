@@ -17,6 +17,7 @@ from parts.sim.simulator import SimCar
 from vehicle.app.cli import main
 from vehicle.app.evaluate import evaluate
 from vehicle.config import Config
+from vehicle.errors import UserError
 
 
 def free_port() -> int:
@@ -116,6 +117,22 @@ def test_udacity_evaluation_names_what_the_stock_simulator_cannot_report():
     row = table.splitlines()[2].split()
     assert row[2] == "-" and row[5] == "-"  # laps, mean|cte|: unknown, not 0
 
+
+
+def test_a_model_file_is_checked_against_the_udacity_simulators_frames(tmp_path, make_model_file):
+    # a model trained on the Udacity simulator's 320x160 frames was refused by `sim eval --sim
+    # udacity`: it was checked against the built-in simulator's camera
+    from parts.bridges.fake_udacity_client import FakeUdacityClient
+
+    port = free_port()
+    cfg = Config.defaults(UDACITY_PORT=port, DRIVE_LOOP_HZ=20, PILOT_BACKEND="torch", CAR_PATH=str(tmp_path))
+    with FakeUdacityClient(port):
+        report = evaluate(str(make_model_file("linear", name="udacity", frames=(160, 320))), laps=1, cfg=cfg,
+                          sim="udacity", max_time=1.0)
+    assert report["tracks"][0]["frames"] >= 10
+    with pytest.raises(UserError, match=r"frame is 160x320x3 but the model was trained on 120x160x3 frames; "
+                                        r"the Udacity simulator's frames are always 320x160"):
+        evaluate(str(make_model_file("linear")), laps=1, cfg=cfg, sim="udacity", max_time=1.0)
 
 def test_udacity_fork_keys_make_the_cte_metrics_available():
     from parts.bridges.fake_udacity_client import FakeUdacityClient

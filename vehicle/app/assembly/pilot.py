@@ -12,6 +12,14 @@ from vehicle.errors import UserError
 logger = logging.getLogger(__name__)
 
 
+#: what to do about a model trained on frames of another size than a camera's (or the Donkey
+#: simulator's, which it renders at IMAGE_W x IMAGE_H), the built-in simulator's, the Udacity simulator's
+IMAGE_SIZE_HINT = "set IMAGE_W/IMAGE_H to the training size or re-train"
+SIM_SIZE_HINT = "set SIM_CAMERA_W/SIM_CAMERA_H to the training size or re-train"
+UDACITY_SIZE_HINT = ("the Udacity simulator's frames are always 320x160: train on tubs recorded in it, or on its "
+                     "driving_log.csv (vehicle tub import-udacity)")
+
+
 def add_pilot(V: Any, cfg: Config, model_path: str | Path) -> Any:
     """Add PilotCondition (``user/mode`` -> ``run_pilot``), the model switcher and the Pilot.
 
@@ -30,8 +38,9 @@ def add_pilot(V: Any, cfg: Config, model_path: str | Path) -> Any:
     from parts.drive.modes import PilotCondition
     from parts.pilots.pilot import ModelSwitch
 
-    pilot = make_pilot(cfg, model_path, measured_speed_key=speed_key_of(V, cfg),
-                       frame_shape=camera_frame_shape(V))
+    frame_shape, frame_hint = camera_frames(V)
+    pilot = make_pilot(cfg, model_path, measured_speed_key=speed_key_of(V, cfg), frame_shape=frame_shape,
+                       frame_hint=frame_hint)
     behavior = "behavior/one_hot_state_array"
     if behavior in pilot.inputs and not cfg.TRAIN_BEHAVIORS and not V.produces(behavior) and behavior not in V.mem:
         trained = (pilot.meta.get("training") or {}).get("behaviors")
@@ -47,7 +56,7 @@ def add_pilot(V: Any, cfg: Config, model_path: str | Path) -> Any:
 
 
 def make_pilot(cfg: Config, model_path: str | Path, measured_speed_key: str = "enc/speed",
-               frame_shape: tuple[int, int, int] | None = None) -> Any:
+               frame_shape: tuple[int, int, int] | None = None, frame_hint: str = IMAGE_SIZE_HINT) -> Any:
     """The Pilot part for a model file with the car's settings: back-end (PILOT_BACKEND,
     PILOT_ONNX_THREADS) and speed control (PILOT_SPEED_*), exactly as the car drives with it.
 
@@ -59,7 +68,8 @@ def make_pilot(cfg: Config, model_path: str | Path, measured_speed_key: str = "e
     simulator's ``sim/speed``, or ``enc/speed`` from an encoder part. A relative path that does not
     exist here is looked up in the car folder (manage.py may run from another folder).
     ``frame_shape`` (height, width, 3) of the camera frames: a model trained on others, or whose
-    extra inputs do not fit BEHAVIOR_LIST, is refused here (None: checked at the first frame).
+    extra inputs do not fit BEHAVIOR_LIST, is refused here (None: checked at the first frame);
+    ``frame_hint`` says what to do then (see :func:`camera_frames`).
 
     Raises:
         UserError: the model file is missing, unreadable, does not fit the car, or the backend
@@ -84,7 +94,7 @@ def make_pilot(cfg: Config, model_path: str | Path, measured_speed_key: str = "e
     try:
         return load_pilot(path, backend=cfg.PILOT_BACKEND, speed_control=speed_control, speed_key=speed_key,
                           onnx_threads=cfg.PILOT_ONNX_THREADS, models_dir=cfg.path("MODELS_PATH"),
-                          frame_shape=frame_shape,
+                          frame_shape=frame_shape, frame_hint=frame_hint,
                           extra_sizes={"behavior/one_hot_state_array": len(cfg.BEHAVIOR_LIST)},
                           car=CarInputs.from_config(cfg))
     except (ValueError, ImportError, OSError) as exc:
@@ -97,15 +107,33 @@ def speed_key_of(V: Any, cfg: Config) -> str:
     return cfg.PILOT_SPEED_KEY or ("sim/speed" if V.produces("sim/speed") else "enc/speed")
 
 
-def camera_frame_shape(V: Any) -> tuple[int, int, int] | None:
-    """(height, width, 3) of the ``cam/image_array`` frames the pilot will get: the size of the part
-    that makes them (a camera part, or the simulator's camera), or None when that part does not say
-    (a simulator bridge: the pilot then learns the size from the first frame)."""
+def camera_frames(V: Any) -> tuple[tuple[int, int, int] | None, str]:
+    """(height, width, 3) of the ``cam/image_array`` frames the pilot will get, the size of the part
+    that makes them (a camera part, the simulator's camera, the Udacity simulator's fixed frames),
+    or None when that part does not say (the Donkey simulator: the pilot then learns the size from
+    the first frame); and what to do about a model trained on frames of another size."""
+    from parts.bridges.udacity import UdacitySim
+    from parts.sim.simulator import SimCar
+
     for entry in reversed(getattr(V, "parts", ())):
         if "cam/image_array" in entry.outputs:
+            hint = SIM_SIZE_HINT if isinstance(entry.part, SimCar) else \
+                UDACITY_SIZE_HINT if isinstance(entry.part, UdacitySim) else IMAGE_SIZE_HINT
             camera = getattr(entry.part, "camera", entry.part)  # the simulator renders with a Camera
             width, height = getattr(camera, "width", None), getattr(camera, "height", None)
             if isinstance(width, int) and isinstance(height, int):
-                return (height, width, 3)
-            return None
-    return None
+                return (height, width, 3), hint
+            return None, hint
+    return None, IMAGE_SIZE_HINT
+
+
+def sim_frames(cfg: Config, sim: str) -> tuple[tuple[int, int, int] | None, str]:
+    """:func:`camera_frames` for a car in simulator ``sim`` ("builtin", "udacity", "donkey"), before
+    the car is built: the Donkey simulator's size is learnt from its first frame."""
+    if sim == "builtin":
+        return (cfg.SIM_CAMERA_H, cfg.SIM_CAMERA_W, 3), SIM_SIZE_HINT
+    if sim == "udacity":
+        from parts.bridges.udacity_protocol import FRAME_SIZE
+
+        return (FRAME_SIZE[1], FRAME_SIZE[0], 3), UDACITY_SIZE_HINT
+    return None, IMAGE_SIZE_HINT

@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from parts.drive.modes import DriveMode
+from parts.pilots.compat import ModelMismatch
 from vehicle import Vehicle
 from vehicle.app.assembly.pilot import add_pilot, make_pilot
 from vehicle.clock import SimulatedClock
 from vehicle.config import Config
-from vehicle.errors import UserError
+from vehicle.errors import PartError, UserError
 
 
 def vehicle_with_frames(frame, mode):
@@ -88,7 +90,7 @@ def test_a_model_of_another_frame_size_is_refused_at_load(tmp_path):
     cfg = Config.defaults(PILOT_BACKEND="torch", CAR_PATH=str(tmp_path))
     add_simulator(V, cfg)
     with pytest.raises(UserError, match=r"frame is 120x160x3 but the model was trained on 90x120x3 frames; "
-                                         r"set IMAGE_W/IMAGE_H to the training size or re-train"):
+                                         r"set SIM_CAMERA_W/SIM_CAMERA_H to the training size or re-train"):
         add_pilot(V, cfg, path)
     # the simulator's own camera size counts, not IMAGE_W/IMAGE_H
     V = Vehicle(clock=SimulatedClock())
@@ -96,6 +98,19 @@ def test_a_model_of_another_frame_size_is_refused_at_load(tmp_path):
     add_simulator(V, cfg)
     assert add_pilot(V, cfg, path).model_name == "small.pt"
 
+
+
+def test_a_model_of_another_frame_size_says_what_sizes_the_frames_at_the_first_frame(make_model_file):
+    # frames of a part that does not say their size (the Donkey simulator's, a camera part of the
+    # user's): the pilot learns it from the first frame and refuses there, with the setting to change
+    path = make_model_file("linear")  # 120x160 frames
+    V = vehicle_with_frames(np.zeros((90, 120, 3), np.uint8), "local")
+    add_pilot(V, Config.defaults(PILOT_BACKEND="torch"), path)
+    with pytest.raises(PartError) as info:
+        V.start(rate_hz=20, max_loop_count=2)
+    assert isinstance(info.value.cause, ModelMismatch)
+    assert str(info.value.cause) == ("frame is 90x120x3 but the model was trained on 120x160x3 frames; "
+                                     "set IMAGE_W/IMAGE_H to the training size or re-train")
 
 def test_a_model_with_another_number_of_behaviours_is_refused_at_load(make_model_file, frame):
     path = make_model_file("behavior", num_behaviors=2)

@@ -92,8 +92,8 @@ def test_udacity_drive_explains_bad_input(tmp_path, capsys):
     assert "--speed-limit 99" in capsys.readouterr().err
 
 
-def test_udacity_drive_port_in_use_is_one_line(tmp_path, make_model_file, capsys):
-    model = make_model_file("linear")
+def test_udacity_drive_port_in_use_is_one_line(tmp_path, capsys):
+    model = untrained_udacity_model(tmp_path)  # one that fits: a model of other frames is refused first
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         s.listen()
@@ -143,6 +143,8 @@ def test_a_pilot_trained_on_other_frames_stops_with_one_line(tmp_path, make_mode
                      "--car", str(tmp_path)])
     assert code == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err[-1] == ("error: Pilot: frame is 160x320x3 but the model was trained on 120x160x3 frames; "
-                       "set IMAGE_W/IMAGE_H to the training size or re-train")
+    # refused when it loads, and the advice is not IMAGE_W/IMAGE_H, which do not size these frames
+    assert err[-1] == (f"error: cannot drive with {model}: frame is 160x320x3 but the model was trained on "
+                       "120x160x3 frames; the Udacity simulator's frames are always 320x160: train on tubs "
+                       "recorded in it, or on its driving_log.csv (vehicle tub import-udacity)")
     assert not [r for r in caplog.records if r.exc_info], "no traceback for a user's mistake"
