@@ -15,6 +15,7 @@ import contextlib
 import fractions
 import logging
 import os
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -138,9 +139,10 @@ class VideoFiles:
     def _mux(self, frame: Any) -> None:
         """Encode ``frame`` (None: flush) and write the packets that come out."""
         try:
-            for packet in self._stream.encode(frame):
-                self.bytes_in_file += packet.size
-                self._container.mux(packet)
+            with scheduling_kept():
+                for packet in self._stream.encode(frame):
+                    self.bytes_in_file += packet.size
+                    self._container.mux(packet)
         except self._av.FFmpegError as exc:  # the codec opens on the first frame: most failures show here
             raise self._failed(exc) from exc
 
@@ -178,6 +180,23 @@ class VideoFiles:
             return {}
         return probe(self.first_file, extra={"video.g": GOP, "video.crf": self.crf,
                                              **({"video.preset": SVTAV1_PRESET} if self.codec == "libsvtav1" else {})})
+
+
+@contextlib.contextmanager
+def scheduling_kept() -> Iterator[None]:
+    """Give the calling thread back its scheduling policy if the encoder changed it: SVT-AV1, run as
+    root, raises the thread that starts an encoder to real time (SCHED_FIFO 99) and leaves it so;
+    every thread and process started from it afterwards would inherit that, and a busy one would
+    take a core from everything else (a car's loop included). Lowering a priority needs no rights."""
+    if not hasattr(os, "sched_getscheduler"):  # not on macOS or Windows, nor is SVT-AV1's habit
+        yield
+        return
+    policy, param = os.sched_getscheduler(0), os.sched_getparam(0)
+    try:
+        yield
+    finally:
+        if (os.sched_getscheduler(0), os.sched_getparam(0)) != (policy, param):
+            os.sched_setscheduler(0, policy, param)
 
 
 def probe(path: Path, extra: dict[str, Any] | None = None) -> dict[str, Any]:

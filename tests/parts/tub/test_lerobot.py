@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import shutil
 import sys
 import tracemalloc
@@ -90,6 +91,15 @@ def exported(source, tmp_path_factory) -> Path:
     export_lerobot([source[0]], out)
     return out
 
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_getscheduler"), reason="POSIX scheduling policies")
+def test_encoding_leaves_the_threads_scheduling_alone(source, tmp_path):
+    # SVT-AV1 (LeRobot's codec), run as root, set the exporting thread to SCHED_FIFO 99 and left it
+    # so: every process started afterwards was real-time, and a busy one starved the test process
+    before = os.sched_getscheduler(0), os.sched_getparam(0)
+    export_lerobot([source[0]], tmp_path / "ds", codec="libsvtav1")
+    assert (os.sched_getscheduler(0), os.sched_getparam(0)) == before
 
 # -- reading a dataset back with pyarrow and PyAV, checking it against its own schema -------------------
 
@@ -642,12 +652,18 @@ def test_files_roll_over_and_read_back_across_them(source, tmp_path, monkeypatch
         assert sorted(chunk_file(p) for p in (out / folder).glob("chunk-*/file-*.parquet")) == files, folder
     assert [(e["data/chunk_index"], e["data/file_index"]) for e in episodes] == files
     assert [(e["meta/episodes/chunk_index"], e["meta/episodes/file_index"]) for e in episodes] == files
-    # a video file counts the bytes the encoder gave out; SVT-AV1 holds back a mini-GOP of frames
-    # (up to 32), so these episodes of 10 to 15 frames go two to a file
+    # a video file counts the bytes the encoder gave out, and SVT-AV1 holds frames back (a mini-GOP,
+    # given out as its threads get to it): how many of these short episodes share a file varies
     cam = "videos/observation.images.cam"
-    assert sorted(chunk_file(p) for p in (out / cam).glob("chunk-*/file-*.mp4")) == files[:2]
-    assert [(e[f"{cam}/chunk_index"], e[f"{cam}/file_index"], e[f"{cam}/from_timestamp"]) for e in episodes] \
-        == [(0, 0, 0.0), (0, 0, 0.75), (0, 1, 0.0), (0, 1, 0.5)]
+    videos = sorted(chunk_file(p) for p in (out / cam).glob("chunk-*/file-*.mp4"))
+    assert len(videos) >= 2 and videos == files[:len(videos)]  # rolled over, in order
+    placed = [(e[f"{cam}/chunk_index"], e[f"{cam}/file_index"]) for e in episodes]
+    assert placed == sorted(placed) and sorted(set(placed)) == videos
+    for i, e in enumerate(episodes):
+        # an episode starts where the one before it in the same file ended, the first at 0
+        start = episodes[i - 1][f"{cam}/to_timestamp"] if i and placed[i - 1] == placed[i] else 0.0
+        assert e[f"{cam}/from_timestamp"] == pytest.approx(start)
+        assert e[f"{cam}/to_timestamp"] == pytest.approx(start + e["length"] / info["fps"])
 
     # the way back reads every file: every value, every frame
     report = import_lerobot(out, tmp_path / "back")
