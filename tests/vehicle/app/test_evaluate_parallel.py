@@ -102,10 +102,9 @@ def test_cli_workers_option(tmp_path, capsys):
     assert "--workers -2" in capsys.readouterr().err
 
 
-#: stands in for a terminal, in the evaluation's own session: starts the command, waits until its
-#: workers are being started, then sends a signal to the whole group (a Ctrl-C) or to the command
-#: alone (``kill PID``), and exits with the command's exit code. Being in that session, it gets its
-#: share of the CPU next to the busy workers, which the test process, in another, did not always get.
+#: stands in for a terminal, in a session of its own: starts the command, waits until its workers
+#: are being started, then sends a signal to the whole group (a Ctrl-C) or to the command alone
+#: (``kill PID``), and exits with the command's exit code (128 + N when signal N killed it).
 _TERMINAL = """
 import os, signal, subprocess, sys, time
 sig, target, cmd = getattr(signal, sys.argv[1]), sys.argv[2], sys.argv[3:]
