@@ -28,7 +28,8 @@ logger = logging.getLogger(__name__)
 
 #: keys the vehicle itself writes every loop
 LOOP_KEYS = ("loop/rate_hz", "loop/overruns", "loop/count")
-_STOP_SIGNALS = tuple(s for s in (getattr(signal, "SIGTERM", None), getattr(signal, "SIGHUP", None)) if s)
+#: signals that stop a car as Ctrl-C does (a service manager's stop, a dropped ssh session)
+STOP_SIGNALS = tuple(s for s in (getattr(signal, "SIGTERM", None), getattr(signal, "SIGHUP", None)) if s)
 
 
 @dataclass
@@ -399,39 +400,36 @@ class Vehicle:
 
 
 @contextlib.contextmanager
-def _ignoring_interrupts() -> Iterator[None]:
-    """A second Ctrl-C or SIGTERM while stopping is logged, not allowed to cut the safe path short."""
+def handling(signals: Sequence[int], handler: Any) -> Iterator[None]:
+    """While inside, ``handler`` handles ``signals``; the previous handlers come back on leaving.
+    Only the main thread can set handlers: elsewhere this does nothing."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    previous = {sig: signal.signal(sig, handler) for sig in signals}
+    try:
+        yield
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+
+def _ignoring_interrupts() -> contextlib.AbstractContextManager[None]:
+    """A second Ctrl-C or SIGTERM while stopping is logged, not allowed to cut the safe path short."""
     def note(signum: int, _frame: Any) -> None:
         logger.warning("%s ignored: the vehicle is already stopping", signal.Signals(signum).name)
-    previous = {sig: signal.signal(sig, note) for sig in (signal.SIGINT, *_STOP_SIGNALS)}
-    try:
-        yield
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+    return handling((signal.SIGINT, *STOP_SIGNALS), note)
 
 
-@contextlib.contextmanager
-def stop_signals_raise() -> Iterator[None]:
+def stop_signals_raise() -> contextlib.AbstractContextManager[None]:
     """While inside, SIGTERM and SIGHUP raise :class:`VehicleStopped` (main thread only), as in the
     loop: for work outside a Vehicle that must clean up when a service manager stops it."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = {sig: signal.signal(sig, _raise_stopped) for sig in _STOP_SIGNALS}
-    try:
-        yield
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+    return handling(STOP_SIGNALS, _raise_stopped)
 
 
 def _raise_stopped(signum: int, _frame: Any) -> None:
     # Further stop signals while the safe path runs must not interrupt it.
-    for sig in _STOP_SIGNALS:
+    for sig in STOP_SIGNALS:
         signal.signal(sig, signal.SIG_IGN)
     raise VehicleStopped(signum, signal.Signals(signum).name)
 

@@ -99,10 +99,10 @@ class UdacitySim(ThreadedPart):
         start_timeout: seconds :meth:`start` waits for the server to listen. Default 10.
     """
 
-    #: memory keys the part reads, in this order: the commands of the previous loop
     #: size of the frames it delivers, fixed by the simulator (a pilot checks it fits when it loads)
     width: ClassVar[int] = FRAME_SIZE[0]
     height: ClassVar[int] = FRAME_SIZE[1]
+    #: memory keys the part reads, in this order: the commands of the previous loop
     INPUTS: ClassVar[tuple[str, ...]] = ("angle", "throttle")
     FEEDBACK: ClassVar[tuple[str, ...]] = ("angle", "throttle")
     #: memory keys the part writes, in this order (an instance adds ``sim/<key>`` per extra key)

@@ -3,18 +3,16 @@
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
-from contextlib import contextmanager
+from contextlib import AbstractContextManager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from vehicle.app.carconfig import add_car_options, car_folder, load_for_command
 from vehicle.errors import UserError
+from vehicle.vehicle import STOP_SIGNALS, handling
 
 if TYPE_CHECKING:
-    from collections.abc import Iterator
-
     from vehicle.config import Config
 
 
@@ -62,19 +60,12 @@ def _default_neutral(cfg: Config, channel: int) -> int:
     return 370  # the starting value of Oršolić's thesis (Building a self-driving RC car, 2020)
 
 
-@contextmanager
-def _signals_exit() -> Iterator[None]:
+def _signals_exit() -> AbstractContextManager[None]:
     """SIGTERM / SIGHUP (ssh drop) raise SystemExit, so the session's neutral-on-exit still runs."""
     def leave(signum: int, _frame: Any) -> None:
         raise SystemExit(128 + signum)
 
-    sigs = [s for s in (getattr(signal, "SIGTERM", None), getattr(signal, "SIGHUP", None)) if s]
-    previous = {s: signal.signal(s, leave) for s in sigs}
-    try:
-        yield
-    finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler)
+    return handling(STOP_SIGNALS, leave)
 
 
 def _reader() -> Any:
