@@ -306,6 +306,12 @@ class PCA9685:
         _check_channel(channel)
         self._write_block(LED0_ON_L + 4 * channel, [0, 0, 0, FULL_BIT])
 
+    def set_full_on(self, channel: int) -> None:
+        """Hold one channel HIGH (a digital output, or 100 % duty for a motor driver's input)."""
+        _check_channel(channel)
+        # full-ON is bit 4 of ON_H; OFF_H's full-OFF bit must be clear (it wins, datasheet 7.3.3)
+        self._write_block(LED0_ON_L + 4 * channel, [0, FULL_BIT, 0, 0])
+
     def all_off(self) -> None:
         """Hold every channel LOW with one write to ALL_LED_OFF_H."""
         self._write_block(ALL_LED_ON_L, [0, 0, 0, FULL_BIT])

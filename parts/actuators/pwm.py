@@ -1,4 +1,4 @@
-"""Steering and throttle commands in [-1, 1] to PCA9685 ticks, with DonkeyCar's arithmetic.
+"""Steering and throttle commands in [-1, 1] to servo/ESC pulse ticks, with DonkeyCar's arithmetic.
 
 DonkeyCar maps with ``map_range`` (a *floor*, after clamping the input to [-1, 1]), so the same
 STEERING_LEFT_PWM / STEERING_RIGHT_PWM / THROTTLE_*_PWM values give the same pulses here: with the
@@ -13,29 +13,16 @@ defaults at 60 Hz, steering -1/0/+1 -> 460/375/290 and throttle -1/0/+1 -> 220/3
 from __future__ import annotations
 
 import logging
-import math
-import numbers
-import threading
-import time
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar
+from typing import Any
 
-from parts.actuators.esc import ReverseStateMachine, SlewLimiter
-from parts.actuators.watchdog import CommandWatchdog
+from parts.actuators.drivetrain import Drivetrain, check_number, clamp
+from parts.actuators.pins import PinSet, PwmPin, parse_pin
 from vehicle.config_checks import PULSE_MAX_US, PULSE_MIN_US, pulse_tick_range
-
-if TYPE_CHECKING:
-    from parts.actuators.pca9685 import PCA9685
 
 logger = logging.getLogger(__name__)
 
 MAX_TICK = 4095
-
-
-def clamp(x: float, lo: float, hi: float) -> float:
-    """``x`` limited to [lo, hi]."""
-    return lo if x < lo else hi if x > hi else x
 
 
 def map_range(x: float, x_min: float, x_max: float, y_min: float, y_max: float) -> int:
@@ -54,12 +41,6 @@ def _check_tick(name: str, value: object) -> int:
         raise ValueError(f"{name} must be a pulse in ticks, an int 1-4095, got {value!r} "
                          "(find yours with `vehicle calibrate`)")
     return value
-
-
-def _check_number(name: str, value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise TypeError(f"{name} must be a finite number, got {value!r}")
-    return float(value)
 
 
 @dataclass(frozen=True)
@@ -81,7 +62,7 @@ class SteeringCalibration:
         if self.left == self.right:
             raise ValueError(f"STEERING_LEFT_PWM and STEERING_RIGHT_PWM are both {self.left}: the "
                              "wheels could not turn; calibrate both ends with `vehicle calibrate`")
-        if not -0.5 <= _check_number("STEERING_TRIM", self.trim) <= 0.5:
+        if not -0.5 <= check_number("STEERING_TRIM", self.trim) <= 0.5:
             raise ValueError(f"STEERING_TRIM must be within [-0.5, 0.5] (steering units), got "
                              f"{self.trim}; a larger offset means LEFT/RIGHT_PWM need recalibrating")
 
@@ -122,7 +103,7 @@ class ThrottleCalibration:
                 f"THROTTLE_FORWARD_PWM ({f}); recalibrate with `vehicle calibrate`")
         for name, limit in (("THROTTLE_FORWARD_LIMIT", self.forward_limit),
                             ("THROTTLE_REVERSE_LIMIT", self.reverse_limit)):
-            if not 0.0 <= _check_number(name, limit) <= 1.0:
+            if not 0.0 <= check_number(name, limit) <= 1.0:
                 raise ValueError(f"{name} must be within [0, 1] (fraction of full throttle), got {limit}")
 
     def limit(self, throttle: float) -> float:
@@ -147,187 +128,104 @@ class ThrottleCalibration:
         return self.stopped
 
 
-class PWMSteeringThrottle:
-    """The drivetrain part: steering servo + ESC on two channels of one PCA9685.
+class PWMSteeringThrottle(Drivetrain):
+    """The drivetrain part for a steering servo + ESC on two PWM pins (DRIVE_TRAIN_TYPE =
+    "PWM_STEERING_THROTTLE"): PCA9685 channels or GPIO pins, named by pin specifiers.
 
-    Inputs ``angle``, ``throttle`` in [-1, 1]; no outputs. Safety behaviour:
+    Inputs ``angle``, ``throttle`` in [-1, 1]; no outputs. The safety rules are
+    :class:`~parts.actuators.drivetrain.Drivetrain`'s: neutral (steering centre, THROTTLE_STOPPED_PWM)
+    at open, during ``arm_s`` (the ESC arms on neutral; no other pulse is ever sent to arm, where
+    DonkeyCar pulses full throttle), under the watchdog and on every stop path; shutdown holds
+    neutral for at least two PWM periods so the ESC sees whole neutral pulses, then optionally
+    switches the outputs off.
 
-    - :meth:`open` (called by ``add_drivetrain`` before the loop starts, or lazily by the first
-      ``run``) probes and initialises the chip and writes neutral to both channels; it is the only
-      place hardware is touched before driving. Constructors never touch the bus.
-    - ESC arming: throttle stays at THROTTLE_STOPPED_PWM for ``arm_s`` seconds after open, and
-      then until a command at neutral arrives (a throttle held at start never launches the car).
-      No other pulse is ever sent to arm (DonkeyCar pulses full throttle here).
-    - command watchdog: no fresh command for ``watchdog_s`` -> neutral, and throttle stays neutral
-      until a command at neutral arrives again. None or NaN commands are not fresh.
-    - :meth:`neutral` (the Vehicle calls it first on every stop path) writes neutral at once;
-      :meth:`shutdown` writes neutral again, holds it ``hold_s`` (at least two PWM periods) so the
-      ESC sees complete neutral pulses, optionally switches the outputs off, closes the bus.
-
-    Writes happen only when a channel's ticks change (one 4-byte block write each).
+    ``steering_scale`` / ``throttle_scale`` and ``*_inverted`` are DonkeyCar's PWM_*_SCALE and
+    PWM_*_INVERTED: the pulse sent is ``int(pulse * scale)``, of ``4095 - pulse`` when inverted.
+    Writes happen only when a pin's ticks change (one 4-byte block write on a PCA9685).
     """
 
-    INPUTS: ClassVar[tuple[str, ...]] = ("angle", "throttle")
-    OUTPUTS: ClassVar[tuple[str, ...]] = ()
-
-    #: |throttle| at or below this counts as "at neutral" for arming and re-arming
-    NEUTRAL_BAND = 0.05
-
-    def __init__(self, driver: PCA9685, steering_channel: int, throttle_channel: int,
+    def __init__(self, pins: PinSet, steering_pin: str, throttle_pin: str,
                  steering: SteeringCalibration, throttle: ThrottleCalibration, *,
-                 slew_rate: float | None = None, reverse: ReverseStateMachine | None = None,
-                 arm_s: float = 1.5, watchdog_s: float | None = 0.5, hold_s: float = 0.1,
-                 full_off_on_shutdown: bool = False, clock: Callable[[], float] = time.monotonic,
-                 sleep: Callable[[float], None] = time.sleep) -> None:
-        for name, ch in (("STEERING_CHANNEL", steering_channel), ("THROTTLE_CHANNEL", throttle_channel)):
-            if not isinstance(ch, int) or isinstance(ch, bool) or not 0 <= ch <= 15:
-                raise ValueError(f"{name} must be a PCA9685 channel 0-15, got {ch!r}")
-        if steering_channel == throttle_channel:
-            raise ValueError(f"STEERING_CHANNEL and THROTTLE_CHANNEL are both {steering_channel}; "
-                             "the servo and the ESC need their own channels")
-        if not 0 <= _check_number("ESC_ARM_TIME_S", arm_s) <= 10:
-            raise ValueError(f"ESC_ARM_TIME_S must be 0-10 seconds, got {arm_s}")
-        if not 0 <= _check_number("PWM_SHUTDOWN_HOLD_S", hold_s) <= 5:
-            raise ValueError(f"PWM_SHUTDOWN_HOLD_S must be 0-5 seconds, got {hold_s}")
-        _check_pulse_widths(driver, steering, throttle)
-        self.name = "PWMSteeringThrottle"
-        self.driver = driver
-        self.channels = (steering_channel, throttle_channel)
+                 steering_scale: float = 1.0, throttle_scale: float = 1.0,
+                 steering_inverted: bool = False, throttle_inverted: bool = False,
+                 full_off_on_shutdown: bool = False, **safety: Any) -> None:
+        safety.setdefault("arm_s", 1.5)
+        super().__init__(**safety)
+        self.specs = (parse_pin(steering_pin, "PWM_STEERING_PIN"), parse_pin(throttle_pin, "PWM_THROTTLE_PIN"))
+        if str(self.specs[0]) == str(self.specs[1]):
+            raise ValueError(f"PWM_STEERING_PIN and PWM_THROTTLE_PIN are both {str(self.specs[0])!r}; "
+                             "the servo and the ESC need their own pins")
+        for name, scale in (("PWM_STEERING_SCALE", steering_scale), ("PWM_THROTTLE_SCALE", throttle_scale)):
+            if not 0.1 <= check_number(name, scale) <= 10:
+                raise ValueError(f"{name} must be within [0.1, 10] (pulse multiplier for a PWM frequency "
+                                 f"other than 60 Hz), got {scale}")
+        self.pins = pins
         self.steering = steering
         self.throttle = throttle
-        self.slew = SlewLimiter(slew_rate)
-        self.reverse = reverse or ReverseStateMachine("direct")
-        self.arm_s = float(arm_s)
-        self.hold_s = float(hold_s)
+        self.scales = (float(steering_scale), float(throttle_scale))
+        self.inverted = (bool(steering_inverted), bool(throttle_inverted))
         self.full_off_on_shutdown = full_off_on_shutdown
-        self.clock = clock
-        self._sleep = sleep
-        self._lock = threading.RLock()
+        self.frequency = pins.pwm_frequency(self.specs[0])
+        _check_pulse_widths(self.frequency, steering, throttle)
+        self._outputs: tuple[PwmPin, PwmPin] | None = None
         self._written: dict[int, int] = {}
-        self._opened_at: float | None = None
-        self._armed = False
-        self._closed = False
-        self.watchdog = CommandWatchdog(watchdog_s, self._on_watchdog, clock) if watchdog_s else None
         self.last_ticks: tuple[int, int] | None = None  # (steering, throttle) of the last run
 
-    # -- life cycle ---------------------------------------------------------------------------
-    def open(self) -> PWMSteeringThrottle:
-        """Probe and initialise the board, write neutral, start the arming time and the watchdog."""
-        with self._lock:
-            if self._opened_at is not None:
-                return self
-            self.driver.open()
-            self._write_neutral()
-            self._opened_at = self.clock()
-        if self.watchdog is not None:
-            self.watchdog.start()
-        else:
-            logger.warning("drivetrain: the command watchdog is off (ACTUATOR_WATCHDOG_S = None): if the "
-                           "loop stalls, the last throttle stays on; set it to 0.5 in myconfig.py")
-        logger.info("drivetrain ready: steering ch %d (L %d / centre %d / R %d), throttle ch %d "
-                    "(rev %d / stop %d / fwd %d) at %.2f Hz; arming the ESC for %.1f s",
-                    self.channels[0], self.steering.left, self.steering.neutral, self.steering.right,
-                    self.channels[1], self.throttle.reverse, self.throttle.stopped, self.throttle.forward,
-                    self.driver.frequency, self.arm_s)
-        return self
+    def describe(self) -> str:
+        s, t = self.steering, self.throttle
+        return (f"steering {self.specs[0]} (L {s.left} / centre {s.neutral} / R {s.right}), throttle "
+                f"{self.specs[1]} (rev {t.reverse} / stop {t.stopped} / fwd {t.forward}) at {self.frequency:.2f} Hz")
 
-    def run(self, angle: float | None, throttle: float | None) -> None:
-        """Drive: map the commands to ticks and write the channels that changed."""
-        if self._opened_at is None:
-            self.open()
-        with self._lock:
-            if self._closed:
-                return
-            now = self.clock()
-            fresh = _valid(throttle)
-            if not fresh and throttle is not None:
-                logger.warning("throttle command %r is not a finite number: neutral", throttle)
-            a = float(angle) if _valid(angle) else 0.0
-            t = float(throttle) if fresh else 0.0
-            if fresh and self.watchdog is not None:
-                self.watchdog.feed()
-            if not self._armed:
-                if now - self._opened_at < self.arm_s:
-                    t = 0.0
-                elif abs(t) <= self.NEUTRAL_BAND:
-                    self._armed = True
-                    logger.info("drivetrain armed: throttle commands now reach the ESC")
-                else:
-                    t = 0.0
-            t = self.reverse.step(self.slew.step(self.throttle.limit(t), now), now)
-            ticks = (self.steering.ticks(a), self.throttle.map(t))
-            self._write(self.channels[0], ticks[0])
-            self._write(self.channels[1], ticks[1])
-            self.last_ticks = ticks
+    def _open_hardware(self) -> None:
+        try:
+            self._outputs = (self.pins.pwm(self.specs[0], "PWM_STEERING_PIN"),
+                             self.pins.pwm(self.specs[1], "PWM_THROTTLE_PIN"))
+        except BaseException:
+            self.pins.close()
+            raise
 
-    def neutral(self) -> None:
-        """Steering centre and throttle stopped, now (the Vehicle calls this on every stop path)."""
-        with self._lock:
-            if self._opened_at is None or self._closed:
-                return
-            self._write_neutral()
+    def _limit(self, throttle: float) -> float:
+        return self.throttle.limit(throttle)
 
-    def shutdown(self) -> None:
-        """Stop the watchdog, write neutral and hold it >= two PWM periods, then release the bus."""
-        if self.watchdog is not None:
-            self.watchdog.shutdown()
-        with self._lock:
-            if self._closed:
-                return
-            self._closed = True
-            if self._opened_at is None:
-                return
-            try:
-                self._write_neutral()
-                # the ESC must see whole neutral pulses before anything else happens to the signal
-                self._sleep(max(self.hold_s, 2.0 / self.driver.frequency))
-                if self.full_off_on_shutdown:
-                    for ch in self.channels:
-                        self.driver.set_full_off(ch)
-            finally:
-                self.driver.close()
+    def _drive(self, angle: float, throttle: float) -> None:
+        ticks = (self.steering.ticks(angle), self.throttle.map(throttle))
+        self._write(0, ticks[0])
+        self._write(1, ticks[1])
+        self.last_ticks = ticks
 
-    # -- internals ----------------------------------------------------------------------------
-    def _on_watchdog(self) -> None:
-        with self._lock:
-            if self._closed:
-                return
-            self._write_neutral()  # also disarms: throttle waits for a command at neutral again
+    def _neutral_outputs(self) -> None:
+        self._write(0, self.steering.neutral, force=True)
+        self._write(1, self.throttle.neutral, force=True)
 
-    def _write_neutral(self) -> None:
-        self.slew.reset()
-        self.reverse.reset()
-        self._armed = False
-        self._write(self.channels[0], self.steering.neutral, force=True)
-        self._write(self.channels[1], self.throttle.neutral, force=True)
+    def _hold_seconds(self) -> float:
+        # the ESC must see whole neutral pulses before anything else happens to the signal
+        return max(self.hold_s, 2.0 / self.frequency)
 
-    def _write(self, channel: int, ticks: int, force: bool = False) -> None:
-        if force or self._written.get(channel) != ticks:
-            self.driver.set_ticks(channel, ticks)
-            self._written[channel] = ticks
+    def _close_hardware(self) -> None:
+        try:
+            if self.full_off_on_shutdown and self._outputs is not None:
+                for pin in self._outputs:
+                    pin.off()
+        finally:
+            self.pins.close()
+
+    def _write(self, index: int, ticks: int, force: bool = False) -> None:
+        if force or self._written.get(index) != ticks:
+            assert self._outputs is not None
+            out = MAX_TICK - ticks if self.inverted[index] else ticks
+            self._outputs[index].set_ticks(int(out * self.scales[index]))
+            self._written[index] = ticks
 
 
-def _check_pulse_widths(driver: PCA9685, steering: SteeringCalibration, throttle: ThrottleCalibration) -> None:
-    """Refuse calibrations whose pulses are outside what servos and ESCs take at the driver's
+def _check_pulse_widths(frequency: float, steering: SteeringCalibration, throttle: ThrottleCalibration) -> None:
+    """Refuse calibrations whose pulses are outside what servos and ESCs take at the pins'
     frequency (the config loader refuses them too; this guards code that builds the part)."""
-    tick_us = driver.tick_us
+    tick_us = 1e6 / frequency / 4096.0
     lo, hi = pulse_tick_range(tick_us)
     for name, ticks in (("STEERING_LEFT_PWM", steering.left), ("STEERING_RIGHT_PWM", steering.right),
                         ("THROTTLE_FORWARD_PWM", throttle.forward), ("THROTTLE_STOPPED_PWM", throttle.stopped),
                         ("THROTTLE_REVERSE_PWM", throttle.reverse)):
         if not lo <= ticks <= hi:
-            raise ValueError(f"{name} = {ticks} is a {ticks * tick_us:.0f} µs pulse at {driver.frequency:.2f} Hz; "
+            raise ValueError(f"{name} = {ticks} is a {ticks * tick_us:.0f} µs pulse at {frequency:.2f} Hz; "
                              f"valid: {lo} to {hi} ticks ({PULSE_MIN_US:.0f} to {PULSE_MAX_US:.0f} µs, what "
                              "servos and ESCs take; find yours with `vehicle calibrate`)")
-
-
-def _valid(x: object) -> bool:
-    """A usable command: a finite real number (numpy scalars too). None and NaN mean "no command";
-    anything else is a wiring mistake."""
-    if x is None:
-        return False
-    if isinstance(x, bool) or not isinstance(x, numbers.Real):
-        raise TypeError(f"PWMSteeringThrottle: drive commands must be numbers in [-1, 1] or None, got "
-                        f"{type(x).__name__} {x!r}; check what feeds the angle/throttle keys")
-    return math.isfinite(x)
-

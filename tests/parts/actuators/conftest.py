@@ -6,6 +6,7 @@ import pytest
 
 from parts.actuators.fake_pca9685 import FakeI2C, PCA9685Model
 from parts.actuators.pca9685 import PCA9685
+from parts.actuators.pins import PinSet
 from parts.actuators.pwm import PWMSteeringThrottle, SteeringCalibration, ThrottleCalibration
 
 STEERING_CH, THROTTLE_CH = 1, 0
@@ -56,8 +57,8 @@ def make_drivetrain(i2c, board, clock):
         kwargs.setdefault("watchdog_s", None)
         kwargs.setdefault("clock", clock)
         kwargs.setdefault("sleep", lambda s: None)
-        part = PWMSteeringThrottle(PCA9685(1, 0x40, 60, bus_factory=i2c.smbus), STEERING_CH, THROTTLE_CH,
-                                   kwargs.pop("steering", SteeringCalibration()),
+        part = PWMSteeringThrottle(PinSet(60, bus_factory=i2c.smbus), f"PCA9685.1:40.{STEERING_CH}",
+                                   f"PCA9685.1:40.{THROTTLE_CH}", kwargs.pop("steering", SteeringCalibration()),
                                    kwargs.pop("throttle", ThrottleCalibration()), **kwargs)
         made.append(part)
         return part

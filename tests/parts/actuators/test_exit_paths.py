@@ -67,7 +67,7 @@ def test_mock_drivetrain_from_config_alone():
     part = add_drivetrain(V, cfg)
     V.start(rate_hz=20, max_loop_count=4)
     assert part.last_ticks == (460, 500)
-    assert part.driver.frequency == pytest.approx(59.838, abs=1e-3)
+    assert part.frequency == pytest.approx(59.838, abs=1e-3)
 
 
 def test_watchdog_neutral_when_the_loop_stalls():

@@ -60,6 +60,7 @@ def build_drivetrain(cfg: Config, *, bus_factory: BusFactory | None = None,
     import time
 
     from parts.actuators.esc import ReverseStateMachine
+    from parts.actuators.pins import PinSet
     from parts.actuators.pwm import PWMSteeringThrottle, SteeringCalibration, ThrottleCalibration
     from vehicle.errors import UserError
 
@@ -76,8 +77,10 @@ def build_drivetrain(cfg: Config, *, bus_factory: BusFactory | None = None,
                                    cfg.THROTTLE_REVERSE_PWM, cfg.THROTTLE_FORWARD_LIMIT,
                                    cfg.THROTTLE_REVERSE_LIMIT, cfg.THROTTLE_INVERT)
     reverse = ReverseStateMachine(cfg.ESC_REVERSE_MODE, cfg.ESC_REVERSE_BRAKE_S, cfg.ESC_REVERSE_NEUTRAL_S)
+    board = f"PCA9685.{busnum(cfg)}:{cfg.PCA9685_I2C_ADDR:02X}"
+    pins = PinSet(cfg.PWM_FREQ, osc_hz=cfg.PCA9685_OSC_HZ, bus_factory=bus_factory)
     return PWMSteeringThrottle(
-        make_driver(cfg, bus_factory), cfg.STEERING_CHANNEL, cfg.THROTTLE_CHANNEL, steering, throttle,
+        pins, f"{board}.{cfg.STEERING_CHANNEL}", f"{board}.{cfg.THROTTLE_CHANNEL}", steering, throttle,
         slew_rate=cfg.THROTTLE_SLEW_RATE, reverse=reverse, arm_s=cfg.ESC_ARM_TIME_S,
         watchdog_s=cfg.ACTUATOR_WATCHDOG_S, hold_s=cfg.PWM_SHUTDOWN_HOLD_S,
         full_off_on_shutdown=cfg.PWM_FULL_OFF_ON_SHUTDOWN, clock=clock)
