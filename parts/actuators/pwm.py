@@ -166,7 +166,9 @@ class PWMSteeringThrottle(Drivetrain):
         self.inverted = (bool(steering_inverted), bool(throttle_inverted))
         self.full_off_on_shutdown = full_off_on_shutdown
         self.frequency = pins.pwm_frequency(self.specs[0])
-        _check_pulse_widths(self.frequency, steering, throttle)
+        check_pulse_widths(self.frequency, {
+            **steering_pulses(steering), "THROTTLE_FORWARD_PWM": throttle.forward,
+            "THROTTLE_STOPPED_PWM": throttle.stopped, "THROTTLE_REVERSE_PWM": throttle.reverse})
         self._outputs: tuple[PwmPin, PwmPin] | None = None
         self._written: dict[int, int] = {}
         self.last_ticks: tuple[int, int] | None = None  # (steering, throttle) of the last run
@@ -217,15 +219,18 @@ class PWMSteeringThrottle(Drivetrain):
             self._written[index] = ticks
 
 
-def _check_pulse_widths(frequency: float, steering: SteeringCalibration, throttle: ThrottleCalibration) -> None:
-    """Refuse calibrations whose pulses are outside what servos and ESCs take at the pins'
-    frequency (the config loader refuses them too; this guards code that builds the part)."""
+def check_pulse_widths(frequency: float, pulses: dict[str, int]) -> None:
+    """Refuse pulses (``{setting: ticks}``) outside what servos and ESCs take at ``frequency``
+    (the config loader refuses them too; this guards code that builds the part)."""
     tick_us = 1e6 / frequency / 4096.0
     lo, hi = pulse_tick_range(tick_us)
-    for name, ticks in (("STEERING_LEFT_PWM", steering.left), ("STEERING_RIGHT_PWM", steering.right),
-                        ("THROTTLE_FORWARD_PWM", throttle.forward), ("THROTTLE_STOPPED_PWM", throttle.stopped),
-                        ("THROTTLE_REVERSE_PWM", throttle.reverse)):
+    for name, ticks in pulses.items():
         if not lo <= ticks <= hi:
             raise ValueError(f"{name} = {ticks} is a {ticks * tick_us:.0f} µs pulse at {frequency:.2f} Hz; "
                              f"valid: {lo} to {hi} ticks ({PULSE_MIN_US:.0f} to {PULSE_MAX_US:.0f} µs, what "
                              "servos and ESCs take; find yours with `vehicle calibrate`)")
+
+
+def steering_pulses(steering: SteeringCalibration) -> dict[str, int]:
+    """The steering calibration's pulses by setting name."""
+    return {"STEERING_LEFT_PWM": steering.left, "STEERING_RIGHT_PWM": steering.right}
