@@ -106,10 +106,7 @@ def test_differential_drive_mixes_and_brakes(gpio, three_pin):
     assert (speed(left), speed(right)) == (0, 0)
 
 
-def test_watchdog_brakes_motors(gpio):
-    from tests.parts.actuators.conftest import FakeClock
-
-    clock = FakeClock()
+def test_watchdog_brakes_motors(gpio, clock):
     part = DifferentialDrive(PinSet(60, gpio_factory=gpio), MotorPins("RPI_GPIO.BOARD.18", "RPI_GPIO.BOARD.16"),
                              MotorPins("RPI_GPIO.BOARD.15", "RPI_GPIO.BOARD.13"), arm_s=0.0, watchdog_s=0.5,
                              clock=clock, sleep=lambda s: None)

@@ -1,0 +1,179 @@
+"""VESC motor controller over serial (DRIVE_TRAIN_TYPE = "VESC"): drive, steer, and measured speed.
+
+The VESC drives the motor (duty cycle, current or RPM control) and a steering servo on its servo
+output; every loop the part sends the commands and a COMM_GET_VALUES request, and reads the
+replies that have arrived without waiting for them (the loop never blocks on the serial port).
+From the electrical RPM in the reply it reports the car's speed as ``enc/speed`` (m/s):
+
+    speed = ERPM / (MOTOR_POLES / 2) / GEAR_RATIO / 60 * 2 pi WHEEL_RADIUS
+
+and None when no reply arrived for ``stale_s`` seconds (the speed controller then stops trusting
+it). Neutral is the servo centre and a braking current (``brake_current`` A; 0 = release the
+motor); the VESC's own command timeout (VESC Tool: App Settings > General > Timeout) stops the
+motor if this computer goes silent.
+
+pyserial is imported when the part opens.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable
+from typing import Any, Literal
+
+from parts.actuators import vesc_protocol as vp
+from parts.actuators.drivetrain import Drivetrain, check_number, clamp
+
+logger = logging.getLogger(__name__)
+
+ControlMode = Literal["duty", "current", "rpm"]
+CONTROL_MODES: tuple[str, ...] = ("duty", "current", "rpm")
+
+
+def open_serial(port: str, baudrate: int, setting: str) -> Any:
+    """Open a serial port for a drivetrain: non-blocking reads, one-line errors naming ``setting``."""
+    try:
+        import serial  # noqa: PLC0415 - hardware library, imported when the part opens
+    except ImportError as exc:
+        raise RuntimeError(f"{setting} = {port!r} needs pyserial: pip install 'vehicle[car]'") from exc
+    try:
+        return serial.serial_for_url(port, baudrate=baudrate, timeout=0, write_timeout=0.5)
+    except serial.SerialException as exc:
+        text = str(exc)
+        if "Permission denied" in text:
+            hint = "add your user to the dialout group (`sudo usermod -aG dialout $USER`) and log in again"
+        else:
+            hint = "check the cable and set it to the port that appears when you plug the board in (`ls /dev/tty*`)"
+        raise RuntimeError(f"{setting} = {port!r}: cannot open the serial port ({text}); {hint}") from exc
+
+
+class VESC(Drivetrain):
+    """The VESC drivetrain part: inputs ``angle``, ``throttle``; output ``enc/speed`` when the gear
+    ratio is set (see the module doc).
+
+    Args:
+        port: serial device or pyserial URL (VESC_SERIAL_PORT).
+        baudrate: VESC_BAUDRATE (USB VESCs ignore it).
+        mode: "duty" (throttle x ``max_duty``), "current" (x ``max_current`` A) or "rpm"
+            (x ``max_erpm``).
+        steering_scale, steering_offset: servo position = angle x scale + offset (DonkeyCar's
+            VESC_STEERING_SCALE / _OFFSET: 0.5 / 0.5 map [-1, 1] to [0, 1]).
+        motor_poles, gear_ratio, wheel_radius: for the speed (poles of the motor, motor turns per
+            wheel turn, metres). ``gear_ratio=None``: no speed output.
+        serial_factory: ``factory(port, baudrate)`` -> a pyserial-like port (default pyserial).
+    """
+
+    def __init__(self, port: str, baudrate: int = 115200, *, mode: ControlMode = "duty",
+                 max_duty: float = 0.2, max_current: float = 10.0, max_erpm: float = 10000.0,
+                 brake_current: float = 5.0, steering_scale: float = 0.5, steering_offset: float = 0.5,
+                 motor_poles: int = 4, gear_ratio: float | None = None, wheel_radius: float = 0.0315,
+                 stale_s: float = 0.5, serial_factory: Callable[[str, int], Any] | None = None,
+                 **safety: Any) -> None:
+        safety.setdefault("arm_s", 0.0)
+        super().__init__(**safety)
+        if mode not in CONTROL_MODES:
+            raise ValueError(f"VESC_CONTROL_MODE must be one of {CONTROL_MODES}, got {mode!r}")
+        checks = (("VESC_MAX_SPEED_PERCENT", max_duty, 0.0, 0.95), ("VESC_MAX_CURRENT", max_current, 0.0, 200.0),
+                  ("VESC_MAX_ERPM", max_erpm, 0.0, 200_000.0), ("VESC_BRAKE_CURRENT", brake_current, 0.0, 200.0))
+        for name, value, lo, hi in checks:
+            if not lo <= check_number(name, value) <= hi:
+                raise ValueError(f"{name} must be within [{lo:g}, {hi:g}], got {value}")
+        if isinstance(motor_poles, bool) or not isinstance(motor_poles, int) or motor_poles < 2 or motor_poles % 2:
+            raise ValueError(f"VESC_MOTOR_POLES must be an even number >= 2 (magnet poles of the motor), "
+                             f"got {motor_poles!r}")
+        if gear_ratio is not None and not check_number("VESC_GEAR_RATIO", gear_ratio) > 0:
+            raise ValueError(f"VESC_GEAR_RATIO must be > 0 (motor turns per wheel turn), got {gear_ratio}")
+        if not check_number("WHEEL_RADIUS", wheel_radius) > 0:
+            raise ValueError(f"WHEEL_RADIUS must be > 0 metres, got {wheel_radius}")
+        self.port_name = port
+        self.baudrate = baudrate
+        self.mode = mode
+        self.max_duty, self.max_current, self.max_erpm = float(max_duty), float(max_current), float(max_erpm)
+        self.brake_current = float(brake_current)
+        self.steering_scale, self.steering_offset = float(steering_scale), float(steering_offset)
+        self.motor_poles = motor_poles
+        self.gear_ratio = gear_ratio
+        self.wheel_radius = float(wheel_radius)
+        self.stale_s = float(stale_s)
+        self._factory = serial_factory or (lambda p, b: open_serial(p, b, "VESC_SERIAL_PORT"))
+        self._serial: Any = None
+        self._reader = vp.PacketReader()
+        self.values: vp.Values | None = None
+        self._values_at: float | None = None
+
+    @property
+    def OUTPUTS(self) -> tuple[str, ...]:  # type: ignore[override]  # noqa: N802 - the part contract's name
+        """``enc/speed`` when the speed can be computed (VESC_GEAR_RATIO set)."""
+        return ("enc/speed",) if self.gear_ratio is not None else ()
+
+    def describe(self) -> str:
+        limit = {"duty": f"duty {self.max_duty:g}", "current": f"{self.max_current:g} A",
+                 "rpm": f"{self.max_erpm:g} ERPM"}[self.mode]
+        return f"VESC on {self.port_name} ({self.mode} control, full throttle = {limit})"
+
+    # -- Drivetrain hooks -------------------------------------------------------------------------
+    def _open_hardware(self) -> None:
+        self._serial = self._factory(self.port_name, self.baudrate)
+
+    def _drive(self, angle: float, throttle: float) -> None:
+        if self.mode == "duty":
+            motor = vp.set_duty(throttle * self.max_duty)
+        elif self.mode == "current":
+            motor = vp.set_current(throttle * self.max_current)
+        else:
+            motor = vp.set_rpm(throttle * self.max_erpm)
+        self._send(self._servo(angle) + motor + vp.get_values())
+
+    def _neutral_outputs(self) -> None:
+        brake = vp.set_current_brake(self.brake_current) if self.brake_current > 0 else vp.set_current(0.0)
+        self._send(self._servo(0.0) + brake)
+
+    def _close_hardware(self) -> None:
+        port, self._serial = self._serial, None
+        if port is not None:
+            try:
+                port.flush()
+            finally:
+                port.close()
+
+    # -- the part ---------------------------------------------------------------------------------
+    def run(self, angle: float | None, throttle: float | None) -> float | None:  # type: ignore[override]
+        """Drive, then return the measured speed (m/s) when the part has the ``enc/speed`` output."""
+        super().run(angle, throttle)
+        with self._lock:
+            self._receive()
+            return self.speed() if self.gear_ratio is not None else None
+
+    def speed(self) -> float | None:
+        """The car's speed in m/s from the last GET_VALUES reply; None when stale or never seen."""
+        if self.values is None or self.gear_ratio is None or self._values_at is None:
+            return None
+        if self.clock() - self._values_at > self.stale_s:
+            return None
+        wheel_rpm = self.values.erpm / (self.motor_poles / 2) / self.gear_ratio
+        return wheel_rpm / 60.0 * 2 * math.pi * self.wheel_radius
+
+    def _servo(self, angle: float) -> bytes:
+        return vp.set_servo_pos(clamp(angle * self.steering_scale + self.steering_offset, 0.0, 1.0))
+
+    def _send(self, data: bytes) -> None:
+        if self._serial is None:
+            return
+        self._serial.write(data)
+
+    def _receive(self) -> None:
+        port = self._serial
+        if port is None:
+            return
+        waiting = port.in_waiting
+        if not waiting:
+            return
+        for payload in self._reader.feed(port.read(waiting)):
+            if payload[0] == vp.COMM_GET_VALUES:
+                try:
+                    self.values = vp.Values.parse(payload)
+                except ValueError as exc:
+                    logger.warning("VESC: %s", exc)
+                    continue
+                self._values_at = self.clock()

@@ -1,0 +1,121 @@
+"""The VESC drivetrain against a fake VESC on a pty (real pyserial, real tty): bytes on the wire are
+checked by the fake's own framing and CRC; speed comes back from its COMM_GET_VALUES replies."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from fixtures.fake_vesc import FakeVESC, crc16_xmodem_bitwise
+
+from parts.actuators import vesc_protocol as vp
+from parts.actuators.vesc import VESC
+
+SAFE = dict(watchdog_s=None, sleep=lambda s: None)
+
+
+@pytest.fixture
+def vesc():
+    with FakeVESC() as device:
+        yield device
+
+
+def drive_until(part, device, predicate, angle=0.0, throttle=0.0, tries=200):
+    """Run the part until the fake has seen what ``predicate`` wants (the serial link is async)."""
+    for _ in range(tries):
+        out = part.run(angle, throttle)
+        if device.wait_for(predicate, timeout=0.05):
+            return out
+    raise AssertionError("the fake VESC never saw it")
+
+
+def test_crc_and_framing_match_the_protocol():
+    assert vp.crc16_xmodem(b"123456789") == 0x31C3 == crc16_xmodem_bitwise(b"123456789")
+    assert vp.get_values() == bytes([0x02, 0x01, 0x04, 0x40, 0x84, 0x03])
+    long = vp.encode_packet(bytes(300))
+    assert long[:3] == bytes([0x03, 0x01, 0x2C]) and long[-1] == 0x03 and len(long) == 306
+    reader = vp.PacketReader()
+    noisy = b"\x00\xff" + vp.set_rpm(1000)[:-1] + b"\x04" + long + vp.set_duty(0.5)
+    assert list(reader.feed(noisy[:7])) == []
+    got = list(reader.feed(noisy[7:]))
+    assert got == [bytes(300), bytes([5]) + (50_000).to_bytes(4, "big")]
+    assert reader.errors >= 1  # the packet with the bad terminator was dropped
+
+
+def test_duty_mode_drives_and_steers(vesc):
+    part = VESC(vesc.port, mode="duty", max_duty=0.2, brake_current=4.0, **SAFE).open()
+    assert vesc.wait_for(lambda: vesc.last("brake") == 4.0)  # neutral at open: braking current
+    assert vesc.last("servo") == 0.5
+    part.run(0.0, 0.5)  # a throttle held at start does not pass before a command at neutral
+    part.run(0.0, 0.0)
+    drive_until(part, vesc, lambda: vesc.last("duty") == 0.1, angle=1.0, throttle=0.5)
+    assert vesc.last("servo") == 1.0
+    part.neutral()
+    assert vesc.wait_for(lambda: vesc.motor_commands()[-1] == ("brake", 4.0))
+    part.shutdown()
+    assert vesc.crc_errors == 0 and vesc.framing_errors == 0
+
+
+@pytest.mark.parametrize(("mode", "name", "expected"), [("current", "current", -2.5), ("rpm", "rpm", -2500)])
+def test_current_and_rpm_modes(vesc, mode, name, expected):
+    part = VESC(vesc.port, mode=mode, max_current=10.0, max_erpm=10000, **SAFE).open()
+    part.run(0.0, 0.0)
+    drive_until(part, vesc, lambda: vesc.last(name) == expected, throttle=-0.25)
+    part.shutdown()
+
+
+def test_zero_brake_current_releases_the_motor(vesc):
+    part = VESC(vesc.port, brake_current=0.0, **SAFE).open()
+    assert vesc.wait_for(lambda: vesc.last("current") == 0.0)
+    assert vesc.last("brake") is None
+    part.shutdown()
+
+
+def test_measured_speed_from_erpm(vesc, clock):
+    # 4-pole motor, 10:1 gearing, 5 cm wheels: 2 m/s is 2 / (2 pi 0.05) * 60 * 10 * 2 ERPM
+    wheel_rpm = 2.0 / (2 * math.pi * 0.05) * 60
+    vesc.erpm = round(wheel_rpm * 10 * 2)
+    part = VESC(vesc.port, motor_poles=4, gear_ratio=10.0, wheel_radius=0.05, stale_s=0.5, clock=clock,
+                **SAFE).open()
+    assert part.OUTPUTS == ("enc/speed",)
+    assert part.speed() is None  # nothing received yet
+    part.run(0.0, 0.0)  # sends the first GET_VALUES request
+    assert vesc.wait_for(lambda: vesc.replies >= 1)
+    speed = None
+    for _ in range(200):  # the reply is on its way through the pty
+        speed = part.run(0.0, 0.0)
+        if speed is not None:
+            break
+        vesc.wait_for(lambda: False, timeout=0.01)
+    assert speed == pytest.approx(2.0, rel=1e-3)
+    assert part.values.v_in == pytest.approx(11.1)
+    vesc.answering = False
+    clock.advance(0.6)
+    assert part.run(0.0, 0.0) is None  # stale: no reply for longer than stale_s
+    part.shutdown()
+
+
+def test_no_gear_ratio_no_speed_output(vesc):
+    part = VESC(vesc.port, **SAFE)
+    assert part.OUTPUTS == ()
+    part.open()
+    assert part.run(0.0, 0.0) is None
+    part.shutdown()
+
+
+def test_a_missing_port_is_one_line_naming_the_setting(tmp_path):
+    part = VESC(str(tmp_path / "ttyACM9"), **SAFE)
+    with pytest.raises(RuntimeError, match=r"^VESC_SERIAL_PORT = '.*ttyACM9': cannot open the serial port") as info:
+        part.open()
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"mode": "torque"}, "VESC_CONTROL_MODE"),
+    ({"max_duty": 1.5}, "VESC_MAX_SPEED_PERCENT"),
+    ({"motor_poles": 3}, "VESC_MOTOR_POLES"),
+    ({"gear_ratio": 0}, "VESC_GEAR_RATIO"),
+])
+def test_bad_settings(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        VESC("/dev/null", **kwargs)
