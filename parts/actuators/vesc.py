@@ -24,28 +24,12 @@ from typing import Any, Literal
 
 from parts.actuators import vesc_protocol as vp
 from parts.actuators.drivetrain import Drivetrain, check_number, clamp
+from parts.actuators.serial_port import open_serial
 
 logger = logging.getLogger(__name__)
 
 ControlMode = Literal["duty", "current", "rpm"]
 CONTROL_MODES: tuple[str, ...] = ("duty", "current", "rpm")
-
-
-def open_serial(port: str, baudrate: int, setting: str) -> Any:
-    """Open a serial port for a drivetrain: non-blocking reads, one-line errors naming ``setting``."""
-    try:
-        import serial  # noqa: PLC0415 - hardware library, imported when the part opens
-    except ImportError as exc:
-        raise RuntimeError(f"{setting} = {port!r} needs pyserial: pip install 'vehicle[car]'") from exc
-    try:
-        return serial.serial_for_url(port, baudrate=baudrate, timeout=0, write_timeout=0.5)
-    except serial.SerialException as exc:
-        text = str(exc)
-        if "Permission denied" in text:
-            hint = "add your user to the dialout group (`sudo usermod -aG dialout $USER`) and log in again"
-        else:
-            hint = "check the cable and set it to the port that appears when you plug the board in (`ls /dev/tty*`)"
-        raise RuntimeError(f"{setting} = {port!r}: cannot open the serial port ({text}); {hint}") from exc
 
 
 class VESC(Drivetrain):
