@@ -490,9 +490,14 @@ PILOT_SPEED_MAX_THROTTLE: Annotated[float, Range(0, 1, lo_open=True)] = 1.0
 
 # == Drivetrain (PCA9685) ==
 
-# What drives the wheels: "PWM_STEERING_THROTTLE" = steering servo and ESC on a PCA9685 board;
-# "MOCK" = the same driver code on a simulated PCA9685 (bench tests without a car).
-DRIVE_TRAIN_TYPE: Literal["PWM_STEERING_THROTTLE", "MOCK"] = "PWM_STEERING_THROTTLE"
+# What drives the wheels (DonkeyCar's names; docs/drivetrains.md): "PWM_STEERING_THROTTLE" =
+# steering servo + ESC on two PWM pins (a PCA9685 board or GPIO); "SERVO_HBRIDGE_2PIN" /
+# "SERVO_HBRIDGE_3PIN" = servo + DC motor on an H-bridge; "DC_STEER_THROTTLE" = DC steering motor +
+# DC drive motor; "DC_TWO_WHEEL" / "DC_TWO_WHEEL_L298N" = differential drive, two motors;
+# "VESC" = VESC motor controller over serial; "MM1" = Robo HAT MM1 over serial; "MOCK" = the
+# PWM_STEERING_THROTTLE code on a simulated PCA9685 (bench tests without a car).
+DRIVE_TRAIN_TYPE: Literal["PWM_STEERING_THROTTLE", "SERVO_HBRIDGE_2PIN", "SERVO_HBRIDGE_3PIN", "DC_STEER_THROTTLE",
+                          "DC_TWO_WHEEL", "DC_TWO_WHEEL_L298N", "VESC", "MM1", "MOCK"] = "PWM_STEERING_THROTTLE"
 # 7-bit I2C address of the PCA9685 (0x40 with no address jumpers bridged; `i2cdetect -y 1`).
 PCA9685_I2C_ADDR: Annotated[int, Range(0x03, 0x77, note="a 7-bit address, 0x03 to 0x77; 0x40 unless A0-A5 "
                                                       "are bridged")] = 0x40
@@ -555,6 +560,80 @@ PWM_FULL_OFF_ON_SHUTDOWN: bool = False
 # MOCK drivetrain: append every output change of the simulated board to this file
 # ("<time> <channel> <ticks|off|on>" per line; relative to CAR_PATH). None = keep it in memory.
 PCA9685_MOCK_TRACE: str | None = None
+
+# == Drivetrains beyond the PCA9685 ==
+
+# DonkeyCar's dict for PWM_STEERING_THROTTLE: "PWM_STEERING_PIN", "PWM_THROTTLE_PIN" (pin
+# specifiers: "PCA9685.1:40.1", "RPI_GPIO.BOARD.33", "RPI_GPIO.BCM.13", "PIGPIO.BCM.13"),
+# "PWM_*_SCALE" (pulse multiplier for a board not at 60 Hz), "PWM_*_INVERTED" and the five *_PWM
+# pulses. None = built from PCA9685_I2C_*, STEERING_CHANNEL, THROTTLE_CHANNEL and the *_PWM settings
+# above; a dict wins for the keys it names.
+PWM_STEERING_THROTTLE: dict[str, Any] | None = None
+# SERVO_HBRIDGE_2PIN: steering servo on PWM_STEERING_PIN, motor on two PWM pins (duty on FWD_DUTY_PIN
+# forward, on BWD_DUTY_PIN reverse; both HIGH brakes). Keys not given keep these defaults.
+SERVO_HBRIDGE_2PIN: dict[str, Any] = {
+    "FWD_DUTY_PIN": "RPI_GPIO.BOARD.18", "BWD_DUTY_PIN": "RPI_GPIO.BOARD.16",
+    "PWM_STEERING_PIN": "RPI_GPIO.BOARD.33", "PWM_STEERING_SCALE": 1.0, "PWM_STEERING_INVERTED": False,
+    "STEERING_LEFT_PWM": 460, "STEERING_RIGHT_PWM": 290}
+# SERVO_HBRIDGE_3PIN: steering servo, motor on an L298N-style bridge: FWD_PIN / BWD_PIN digital
+# direction inputs, DUTY_PIN the PWM enable (both HIGH brakes).
+SERVO_HBRIDGE_3PIN: dict[str, Any] = {
+    "FWD_PIN": "RPI_GPIO.BOARD.18", "BWD_PIN": "RPI_GPIO.BOARD.16", "DUTY_PIN": "RPI_GPIO.BOARD.35",
+    "PWM_STEERING_PIN": "RPI_GPIO.BOARD.33", "PWM_STEERING_SCALE": 1.0, "PWM_STEERING_INVERTED": False,
+    "STEERING_LEFT_PWM": 460, "STEERING_RIGHT_PWM": 290}
+# DC_STEER_THROTTLE: DC steering motor on LEFT_DUTY_PIN / RIGHT_DUTY_PIN (coasts at neutral), DC drive
+# motor on FWD_DUTY_PIN / BWD_DUTY_PIN (brakes at neutral); all PWM pins.
+DC_STEER_THROTTLE: dict[str, Any] = {
+    "LEFT_DUTY_PIN": "RPI_GPIO.BOARD.18", "RIGHT_DUTY_PIN": "RPI_GPIO.BOARD.16",
+    "FWD_DUTY_PIN": "RPI_GPIO.BOARD.15", "BWD_DUTY_PIN": "RPI_GPIO.BOARD.13"}
+# DC_TWO_WHEEL: differential drive, each wheel's motor on two PWM pins; steering is mixed in
+# (left = throttle + angle, right = throttle - angle).
+DC_TWO_WHEEL: dict[str, Any] = {
+    "LEFT_FWD_DUTY_PIN": "RPI_GPIO.BOARD.18", "LEFT_BWD_DUTY_PIN": "RPI_GPIO.BOARD.16",
+    "RIGHT_FWD_DUTY_PIN": "RPI_GPIO.BOARD.15", "RIGHT_BWD_DUTY_PIN": "RPI_GPIO.BOARD.13"}
+# DC_TWO_WHEEL_L298N: differential drive on an L298N: per wheel two digital direction pins and a
+# PWM enable (EN_DUTY).
+DC_TWO_WHEEL_L298N: dict[str, Any] = {
+    "LEFT_FWD_PIN": "RPI_GPIO.BOARD.16", "LEFT_BWD_PIN": "RPI_GPIO.BOARD.18", "LEFT_EN_DUTY_PIN": "RPI_GPIO.BOARD.22",
+    "RIGHT_FWD_PIN": "RPI_GPIO.BOARD.15", "RIGHT_BWD_PIN": "RPI_GPIO.BOARD.13",
+    "RIGHT_EN_DUTY_PIN": "RPI_GPIO.BOARD.11"}
+# VESC: serial device of the VESC (USB: /dev/ttyACM0; `ls /dev/tty*` before and after plugging in).
+VESC_SERIAL_PORT: str = "/dev/ttyACM0"
+# VESC: serial speed in baud (a USB VESC ignores it).
+VESC_BAUDRATE: Annotated[int, Range(1200, 4_000_000, unit="baud")] = 115200
+# VESC: how throttle is sent: "duty" (x VESC_MAX_SPEED_PERCENT), "current" (x VESC_MAX_CURRENT)
+# or "rpm" (x VESC_MAX_ERPM, the VESC's own speed loop).
+VESC_CONTROL_MODE: Literal["duty", "current", "rpm"] = "duty"
+# VESC: duty cycle at full throttle (DonkeyCar's name; 0.2 = 20 %).
+VESC_MAX_SPEED_PERCENT: Annotated[float, Range(0, 0.95)] = 0.2
+# VESC: motor current at full throttle in "current" mode.
+VESC_MAX_CURRENT: Annotated[float, Range(0, 200, unit="A")] = 10.0
+# VESC: electrical RPM at full throttle in "rpm" mode (motor RPM x pole pairs).
+VESC_MAX_ERPM: Annotated[float, Range(0, 200_000, unit="ERPM")] = 10000.0
+# VESC: braking current at neutral (every stop path, the watchdog); 0 = release the motor (coast).
+VESC_BRAKE_CURRENT: Annotated[float, Range(0, 200, unit="A")] = 5.0
+# VESC: servo position = angle x VESC_STEERING_SCALE + VESC_STEERING_OFFSET (the VESC's servo
+# output takes 0..1; DonkeyCar's defaults centre it at 0.5).
+VESC_STEERING_SCALE: Annotated[float, Range(-1, 1)] = 0.5
+# VESC: servo position at angle 0.
+VESC_STEERING_OFFSET: Annotated[float, Range(0, 1)] = 0.5
+# VESC: magnet poles of the motor (not pole pairs), for the measured speed.
+VESC_MOTOR_POLES: Annotated[int, Range(2, 100)] = 4
+# VESC: motor turns per wheel turn (spur / pinion x any other reduction). None = no measured speed;
+# set it to publish enc/speed (m/s) from the VESC's RPM.
+VESC_GEAR_RATIO: Annotated[float | None, Range(0, 1000, lo_open=True)] = None
+# Wheel radius in metres (DonkeyCar's name), for speed from motor or wheel RPM.
+WHEEL_RADIUS: Annotated[float, Range(0.005, 1, unit="m")] = 0.0315
+# MM1: serial port of the Robo HAT MM1 (Pi: /dev/ttyS0; Jetson Nano: /dev/ttyTHS1).
+MM1_SERIAL_PORT: str = "/dev/ttyS0"
+# MM1: steering pulse in µs that drives straight (DonkeyCar's name; -1 -> 2000, +1 -> 1000 µs).
+MM1_STEERING_MID: Annotated[int, Range(1000, 2000, unit="µs")] = 1500
+# MM1: throttle pulse in µs at full forward.
+MM1_MAX_FORWARD: Annotated[int, Range(1000, 2000, unit="µs")] = 2000
+# MM1: throttle pulse in µs that stops the motor (the ESC's neutral).
+MM1_STOPPED_PWM: Annotated[int, Range(1000, 2000, unit="µs")] = 1500
+# MM1: throttle pulse in µs at full reverse.
+MM1_MAX_REVERSE: Annotated[int, Range(1000, 2000, unit="µs")] = 1000
 
 # == Gamepad ==
 

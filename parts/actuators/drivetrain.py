@@ -30,8 +30,14 @@ from typing import ClassVar
 
 from parts.actuators.esc import ReverseStateMachine, SlewLimiter
 from parts.actuators.watchdog import CommandWatchdog
+from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
+
+
+class DrivetrainError(VehicleError, RuntimeError):
+    """The drivetrain's hardware cannot be opened (no GPIO, no serial port, missing library); the
+    message names the setting and what to check."""
 
 
 def clamp(x: float, lo: float, hi: float) -> float:

@@ -50,6 +50,16 @@ class RoboHatMM1(Drivetrain):
         self._serial: Any = None
         self.last_pulses: tuple[int, int] | None = None  # (steering, throttle) µs last sent
 
+    @classmethod
+    def from_config(cls, cfg: Any, *, serial_factory: Callable[[str, int], Any] | None = None,
+                    clock: Callable[[], float] | None = None, **_: Any) -> RoboHatMM1:
+        """DRIVE_TRAIN_TYPE = "MM1": DonkeyCar's MM1_* settings."""
+        from parts.actuators.drivetrain_config import safety_from_config  # noqa: PLC0415
+
+        return cls(cfg.MM1_SERIAL_PORT, steering_mid=cfg.MM1_STEERING_MID, max_forward=cfg.MM1_MAX_FORWARD,
+                   stopped=cfg.MM1_STOPPED_PWM, max_reverse=cfg.MM1_MAX_REVERSE, serial_factory=serial_factory,
+                   **safety_from_config(cfg, clock))
+
     def describe(self) -> str:
         return (f"Robo HAT MM1 on {self.port_name} (steering centre {self.steering_mid} µs, throttle "
                 f"{self.max_reverse}/{self.stopped}/{self.max_forward} µs)")

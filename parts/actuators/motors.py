@@ -26,10 +26,12 @@ DC_TWO_WHEEL_L298N, with arcade mixing: :func:`arcade_mix`).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 from parts.actuators.drivetrain import Drivetrain, check_number, clamp
+from parts.actuators.drivetrain_config import drivetrain_dict, motor_limits, pinset, safety_from_config
 from parts.actuators.pins import OutputPin, PinSet, PwmPin, parse_pin
 from parts.actuators.pwm import MAX_TICK, SteeringCalibration, check_pulse_widths, steering_pulses
 
@@ -55,6 +57,12 @@ class MotorPins:
     bwd: str
     duty: str | None = None
     names: tuple[str, str, str] = ("FWD_DUTY_PIN", "BWD_DUTY_PIN", "DUTY_PIN")
+
+    @classmethod
+    def from_dict(cls, kind: str, d: dict[str, Any], fwd: str, bwd: str, duty: str | None = None) -> MotorPins:
+        """The motor whose pins are keys ``fwd``, ``bwd`` (and ``duty``) of the dict setting ``kind``."""
+        names = tuple(f"{kind}[{k!r}]" if k else "" for k in (fwd, bwd, duty))
+        return cls(d[fwd], d[bwd], d[duty] if duty else None, names)  # type: ignore[arg-type]
 
     def check(self) -> None:
         """Parse every specifier now (one-line errors naming the setting)."""
@@ -191,6 +199,21 @@ class ServoHBridge(_MotorDrivetrain):
         self.servo: PwmPin | None = None
         self.last: tuple[int, float] | None = None  # (steering ticks, motor command) of the last run
 
+    @classmethod
+    def from_config(cls, cfg: Any, *, bus_factory: Any = None, gpio_factory: Any = None,
+                    clock: Callable[[], float] | None = None) -> ServoHBridge:
+        """SERVO_HBRIDGE_2PIN / SERVO_HBRIDGE_3PIN (DRIVE_TRAIN_TYPE picks the dict)."""
+        kind = cfg.DRIVE_TRAIN_TYPE
+        d = drivetrain_dict(cfg, kind)
+        if kind == "SERVO_HBRIDGE_3PIN":
+            motor = MotorPins.from_dict(kind, d, "FWD_PIN", "BWD_PIN", "DUTY_PIN")
+        else:
+            motor = MotorPins.from_dict(kind, d, "FWD_DUTY_PIN", "BWD_DUTY_PIN")
+        steering = SteeringCalibration(d["STEERING_LEFT_PWM"], d["STEERING_RIGHT_PWM"], cfg.STEERING_TRIM)
+        return cls(pinset(cfg, bus_factory=bus_factory, gpio_factory=gpio_factory), d["PWM_STEERING_PIN"], steering,
+                   motor, steering_scale=d["PWM_STEERING_SCALE"], steering_inverted=d["PWM_STEERING_INVERTED"],
+                   **motor_limits(cfg), **safety_from_config(cfg, clock))
+
     def describe(self) -> str:
         s = self.steering
         return (f"steering servo {self.steering_spec} (L {s.left} / centre {s.neutral} / R {s.right} at "
@@ -237,6 +260,17 @@ class DCSteerThrottle(_MotorDrivetrain):
         self.specs = (steering, drive)
         self.last: tuple[float, float] | None = None
 
+    @classmethod
+    def from_config(cls, cfg: Any, *, bus_factory: Any = None, gpio_factory: Any = None,
+                    clock: Callable[[], float] | None = None) -> DCSteerThrottle:
+        """DC_STEER_THROTTLE."""
+        kind = "DC_STEER_THROTTLE"
+        d = drivetrain_dict(cfg, kind)
+        steering = MotorPins.from_dict(kind, d, "RIGHT_DUTY_PIN", "LEFT_DUTY_PIN")
+        drive = MotorPins.from_dict(kind, d, "FWD_DUTY_PIN", "BWD_DUTY_PIN")
+        return cls(pinset(cfg, bus_factory=bus_factory, gpio_factory=gpio_factory), steering, drive,
+                   **motor_limits(cfg), **safety_from_config(cfg, clock))
+
     def describe(self) -> str:
         return f"steering motor {self.specs[0]}, drive motor {self.specs[1]}"
 
@@ -268,6 +302,20 @@ class DifferentialDrive(_MotorDrivetrain):
         self.specs = (left, right)
         self.last: tuple[float, float] | None = None  # (left, right) of the last run
 
+    @classmethod
+    def from_config(cls, cfg: Any, *, bus_factory: Any = None, gpio_factory: Any = None,
+                    clock: Callable[[], float] | None = None) -> DifferentialDrive:
+        """DC_TWO_WHEEL (2-pin) / DC_TWO_WHEEL_L298N (3-pin)."""
+        kind = cfg.DRIVE_TRAIN_TYPE
+        d = drivetrain_dict(cfg, kind)
+        if kind == "DC_TWO_WHEEL_L298N":
+            sides = [MotorPins.from_dict(kind, d, f"{s}_FWD_PIN", f"{s}_BWD_PIN", f"{s}_EN_DUTY_PIN")
+                     for s in ("LEFT", "RIGHT")]
+        else:
+            sides = [MotorPins.from_dict(kind, d, f"{s}_FWD_DUTY_PIN", f"{s}_BWD_DUTY_PIN") for s in ("LEFT", "RIGHT")]
+        return cls(pinset(cfg, bus_factory=bus_factory, gpio_factory=gpio_factory), *sides,
+                   **motor_limits(cfg), **safety_from_config(cfg, clock))
+
     def describe(self) -> str:
         return f"differential drive: left {self.specs[0]}, right {self.specs[1]}"
 
@@ -283,3 +331,4 @@ class DifferentialDrive(_MotorDrivetrain):
     def _neutral_outputs(self) -> None:
         for motor in self.motors:
             motor.brake()
+

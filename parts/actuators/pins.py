@@ -28,6 +28,8 @@ import re
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
+from parts.actuators.drivetrain import DrivetrainError
+
 if TYPE_CHECKING:
     from parts.actuators.pca9685 import PCA9685, BusFactory
 
@@ -304,7 +306,7 @@ class PinSet:
         try:
             return cls(spec, self._gpio_factory(spec), *args)
         except ImportError as exc:
-            raise RuntimeError(f"{setting} = {str(spec)!r} needs gpiozero: pip install 'vehicle[car]' "
+            raise DrivetrainError(f"{setting} = {str(spec)!r} needs gpiozero: pip install 'vehicle[car]' "
                                f"({exc})") from exc
         except Exception as exc:  # noqa: BLE001 - gpiozero has many error classes, all said the same way
             kind = type(exc).__name__
@@ -312,7 +314,7 @@ class PinSet:
                 hint = ("start the pigpio daemon (`sudo systemctl enable --now pigpiod`)"
                         if spec.provider == "PIGPIO" else
                         "run on a Raspberry Pi with a GPIO backend (`sudo apt install python3-lgpio`)")
-                raise RuntimeError(f"{setting} = {str(spec)!r}: no GPIO here ({exc}); {hint}") from exc
+                raise DrivetrainError(f"{setting} = {str(spec)!r}: no GPIO here ({exc}); {hint}") from exc
             raise ValueError(f"{setting} = {str(spec)!r}: {exc} ({kind})") from exc
 
     def _gpio_factory(self, spec: PinSpec) -> Any:

@@ -13,6 +13,7 @@ defaults at 60 Hz, steering -1/0/+1 -> 460/375/290 and throttle -1/0/+1 -> 220/3
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -172,6 +173,25 @@ class PWMSteeringThrottle(Drivetrain):
         self._outputs: tuple[PwmPin, PwmPin] | None = None
         self._written: dict[int, int] = {}
         self.last_ticks: tuple[int, int] | None = None  # (steering, throttle) of the last run
+
+    @classmethod
+    def from_config(cls, cfg: Any, *, bus_factory: Any = None, gpio_factory: Any = None,
+                    clock: Callable[[], float] | None = None) -> PWMSteeringThrottle:
+        """DRIVE_TRAIN_TYPE = "PWM_STEERING_THROTTLE" (and "MOCK", given the simulated board's
+        ``bus_factory``): pins and pulses from the PWM_STEERING_THROTTLE dict or the flat
+        settings; not opened (no hardware touched)."""
+        from parts.actuators.drivetrain_config import drivetrain_dict, pinset, safety_from_config  # noqa: PLC0415
+
+        d = drivetrain_dict(cfg, "PWM_STEERING_THROTTLE")
+        steering = SteeringCalibration(d["STEERING_LEFT_PWM"], d["STEERING_RIGHT_PWM"], cfg.STEERING_TRIM,
+                                       cfg.STEERING_INVERT)
+        throttle = ThrottleCalibration(d["THROTTLE_FORWARD_PWM"], d["THROTTLE_STOPPED_PWM"], d["THROTTLE_REVERSE_PWM"],
+                                       cfg.THROTTLE_FORWARD_LIMIT, cfg.THROTTLE_REVERSE_LIMIT, cfg.THROTTLE_INVERT)
+        return cls(pinset(cfg, bus_factory=bus_factory, gpio_factory=gpio_factory), d["PWM_STEERING_PIN"],
+                   d["PWM_THROTTLE_PIN"], steering, throttle, steering_scale=d["PWM_STEERING_SCALE"],
+                   throttle_scale=d["PWM_THROTTLE_SCALE"], steering_inverted=d["PWM_STEERING_INVERTED"],
+                   throttle_inverted=d["PWM_THROTTLE_INVERTED"], full_off_on_shutdown=cfg.PWM_FULL_OFF_ON_SHUTDOWN,
+                   **safety_from_config(cfg, clock))
 
     def describe(self) -> str:
         s, t = self.steering, self.throttle

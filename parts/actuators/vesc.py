@@ -86,6 +86,19 @@ class VESC(Drivetrain):
         self.values: vp.Values | None = None
         self._values_at: float | None = None
 
+    @classmethod
+    def from_config(cls, cfg: Any, *, serial_factory: Callable[[str, int], Any] | None = None,
+                    clock: Callable[[], float] | None = None, **_: Any) -> VESC:
+        """DRIVE_TRAIN_TYPE = "VESC": DonkeyCar's VESC_* settings plus control mode, brake and speed."""
+        from parts.actuators.drivetrain_config import safety_from_config  # noqa: PLC0415
+
+        return cls(cfg.VESC_SERIAL_PORT, cfg.VESC_BAUDRATE, mode=cfg.VESC_CONTROL_MODE,
+                   max_duty=cfg.VESC_MAX_SPEED_PERCENT, max_current=cfg.VESC_MAX_CURRENT, max_erpm=cfg.VESC_MAX_ERPM,
+                   brake_current=cfg.VESC_BRAKE_CURRENT, steering_scale=cfg.VESC_STEERING_SCALE,
+                   steering_offset=cfg.VESC_STEERING_OFFSET, motor_poles=cfg.VESC_MOTOR_POLES,
+                   gear_ratio=cfg.VESC_GEAR_RATIO, wheel_radius=cfg.WHEEL_RADIUS, serial_factory=serial_factory,
+                   **safety_from_config(cfg, clock))
+
     @property
     def OUTPUTS(self) -> tuple[str, ...]:  # type: ignore[override]  # noqa: N802 - the part contract's name
         """``enc/speed`` when the speed can be computed (VESC_GEAR_RATIO set)."""

@@ -12,7 +12,7 @@ values found on your car into this file.
 # IMAGE_H = 120
 
 # -- drivetrain (PCA9685): run `vehicle calibrate` to find these
-# DRIVE_TRAIN_TYPE = "PWM_STEERING_THROTTLE"   # or "MOCK" to run on the bench
+# DRIVE_TRAIN_TYPE = "PWM_STEERING_THROTTLE"   # "MOCK" on the bench; H-bridges, VESC, MM1: docs/drivetrains.md
 # STEERING_CHANNEL = 1
 # THROTTLE_CHANNEL = 0
 # STEERING_LEFT_PWM = 460

@@ -9,6 +9,7 @@ import pytest
 from fixtures.fake_vesc import FakeVESC, crc16_xmodem_bitwise
 
 from parts.actuators import vesc_protocol as vp
+from parts.actuators.drivetrain import DrivetrainError
 from parts.actuators.vesc import VESC
 
 SAFE = dict(watchdog_s=None, sleep=lambda s: None)
@@ -105,7 +106,7 @@ def test_no_gear_ratio_no_speed_output(vesc):
 
 def test_a_missing_port_is_one_line_naming_the_setting(tmp_path):
     part = VESC(str(tmp_path / "ttyACM9"), **SAFE)
-    with pytest.raises(RuntimeError, match=r"^VESC_SERIAL_PORT = '.*ttyACM9': cannot open the serial port") as info:
+    with pytest.raises(DrivetrainError, match=r"^VESC_SERIAL_PORT = '.*ttyACM9': cannot open the serial port") as info:
         part.open()
     assert "\n" not in str(info.value)
 

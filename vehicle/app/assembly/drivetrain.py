@@ -1,8 +1,8 @@
-"""Assembly helper for the drivetrain: steering servo + ESC on a PCA9685 (real or simulated).
+"""Assembly helper for the drivetrain: the part DRIVE_TRAIN_TYPE picks in :data:`DRIVETRAINS`.
 
-The board is probed and initialised here, when the car is assembled, so a wiring problem stops
-``manage.py drive`` with a message naming bus and address before the loop starts, not at the
-first drive command.
+The hardware (PCA9685 board, GPIO pins, serial port) is opened here, when the car is assembled, so
+a wiring problem stops ``manage.py drive`` with a message naming the setting before the loop
+starts, not at the first drive command.
 """
 
 from __future__ import annotations
@@ -14,7 +14,6 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from parts.actuators.fake_pca9685 import PCA9685Model
     from parts.actuators.pca9685 import PCA9685, BusFactory
-    from parts.actuators.pwm import PWMSteeringThrottle
     from vehicle.config import Config
 
 logger = logging.getLogger(__name__)
@@ -50,52 +49,67 @@ def make_driver(cfg: Config, bus_factory: BusFactory | None = None) -> PCA9685:
                    bus_factory=bus_factory)
 
 
-def build_drivetrain(cfg: Config, *, bus_factory: BusFactory | None = None,
-                     clock: Callable[[], float] | None = None) -> PWMSteeringThrottle:
-    """The drivetrain part for the car's settings, not opened yet (no hardware touched).
+#: DRIVE_TRAIN_TYPE -> the drivetrain part, built by its ``from_config`` (DonkeyCar's type names)
+DRIVETRAINS: dict[str, str] = {
+    "PWM_STEERING_THROTTLE": "parts.actuators.pwm:PWMSteeringThrottle",
+    "MOCK": "parts.actuators.pwm:PWMSteeringThrottle",
+    "SERVO_HBRIDGE_2PIN": "parts.actuators.motors:ServoHBridge",
+    "SERVO_HBRIDGE_3PIN": "parts.actuators.motors:ServoHBridge",
+    "DC_STEER_THROTTLE": "parts.actuators.motors:DCSteerThrottle",
+    "DC_TWO_WHEEL": "parts.actuators.motors:DifferentialDrive",
+    "DC_TWO_WHEEL_L298N": "parts.actuators.motors:DifferentialDrive",
+    "VESC": "parts.actuators.vesc:VESC",
+    "MM1": "parts.actuators.mm1:RoboHatMM1",
+}
 
-    ``bus_factory`` replaces the one DRIVE_TRAIN_TYPE selects (smbus2, or the simulated board for
-    "MOCK").
+
+def build_drivetrain(cfg: Config, *, clock: Callable[[], float] | None = None, **wiring: Any) -> Any:
+    """The drivetrain part DRIVE_TRAIN_TYPE picks, not opened yet (no hardware touched).
+
+    ``wiring`` replaces what the type would open (tests and bench tools): ``bus_factory`` (I2C,
+    default smbus2, or the simulated board for "MOCK"), ``gpio_factory`` (a gpiozero pin factory),
+    ``serial_factory`` (``factory(port, baudrate)``).
+
+    Raises:
+        UserError: a drivetrain setting is invalid (one line naming it).
     """
-    import time
+    import importlib
 
-    from parts.actuators.esc import ReverseStateMachine
-    from parts.actuators.pins import PinSet
-    from parts.actuators.pwm import PWMSteeringThrottle, SteeringCalibration, ThrottleCalibration
+    from parts.actuators.drivetrain_config import drivetrain_problems
     from vehicle.errors import UserError
 
     kind = cfg.DRIVE_TRAIN_TYPE
-    if kind not in ("PWM_STEERING_THROTTLE", "MOCK"):
-        raise UserError(f"DRIVE_TRAIN_TYPE = {kind!r} is not supported: set it to 'PWM_STEERING_THROTTLE' "
-                        "or 'MOCK' in myconfig.py")
-    clock = clock or time.monotonic
-    if bus_factory is None and kind == "MOCK":
-        bus_factory, _ = mock_board(cfg)
-    steering = SteeringCalibration(cfg.STEERING_LEFT_PWM, cfg.STEERING_RIGHT_PWM, cfg.STEERING_TRIM,
-                                   cfg.STEERING_INVERT)
-    throttle = ThrottleCalibration(cfg.THROTTLE_FORWARD_PWM, cfg.THROTTLE_STOPPED_PWM,
-                                   cfg.THROTTLE_REVERSE_PWM, cfg.THROTTLE_FORWARD_LIMIT,
-                                   cfg.THROTTLE_REVERSE_LIMIT, cfg.THROTTLE_INVERT)
-    reverse = ReverseStateMachine(cfg.ESC_REVERSE_MODE, cfg.ESC_REVERSE_BRAKE_S, cfg.ESC_REVERSE_NEUTRAL_S)
-    board = f"PCA9685.{busnum(cfg)}:{cfg.PCA9685_I2C_ADDR:02X}"
-    pins = PinSet(cfg.PWM_FREQ, osc_hz=cfg.PCA9685_OSC_HZ, bus_factory=bus_factory)
-    return PWMSteeringThrottle(
-        pins, f"{board}.{cfg.STEERING_CHANNEL}", f"{board}.{cfg.THROTTLE_CHANNEL}", steering, throttle,
-        slew_rate=cfg.THROTTLE_SLEW_RATE, reverse=reverse, arm_s=cfg.ESC_ARM_TIME_S,
-        watchdog_s=cfg.ACTUATOR_WATCHDOG_S, hold_s=cfg.PWM_SHUTDOWN_HOLD_S,
-        full_off_on_shutdown=cfg.PWM_FULL_OFF_ON_SHUTDOWN, clock=clock)
+    for problem in drivetrain_problems(cfg):
+        raise UserError(f"{_where(cfg, problem.setting)}{problem.message}")
+    if kind == "MOCK" and wiring.get("bus_factory") is None:
+        wiring["bus_factory"] = mock_board(cfg)[0]
+    module, _, name = DRIVETRAINS[kind].partition(":")
+    cls = getattr(importlib.import_module(module), name)
+    wanted = {k: v for k, v in wiring.items() if v is not None}
+    try:
+        return cls.from_config(cfg, clock=clock, **wanted)
+    except (ValueError, TypeError) as exc:
+        raise UserError(f"{_where(cfg, 'DRIVE_TRAIN_TYPE')}{exc}") from exc
 
 
-def add_drivetrain(V: Any, cfg: Config, *, bus_factory: BusFactory | None = None) -> PWMSteeringThrottle:
-    """Add the drivetrain (inputs ``angle``, ``throttle``) and open it: the board is probed now.
+def _where(cfg: Config, setting: str) -> str:
+    """``"<file>, line <n>: "`` where the car's config sets ``setting``, else ``""``."""
+    line = getattr(cfg, "lines", {}).get(setting)
+    source = getattr(cfg, "source", None)
+    return f"{source}, line {line}: " if source and line else ""
+
+
+def add_drivetrain(V: Any, cfg: Config, **wiring: Any) -> Any:
+    """Add the drivetrain (inputs ``angle``, ``throttle``; a VESC with a gear ratio also outputs
+    ``enc/speed``) and open it: the hardware is probed now, before the loop starts.
 
     Raises:
-        PCA9685Error: the board is missing or does not answer (the message names bus and address
-            and how to check the wiring).
-        ValueError: inconsistent calibration settings.
+        UserError: an invalid drivetrain setting.
+        VehicleError: the board, pins or serial port cannot be opened (the message names the
+            setting and how to check the wiring).
     """
     clock = getattr(getattr(V, "clock", None), "now", None)
-    part = build_drivetrain(cfg, bus_factory=bus_factory, clock=clock)
+    part = build_drivetrain(cfg, clock=clock, **wiring)
     part.open()
     V.add(part)
     return part
