@@ -22,15 +22,13 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, ClassVar
 
 from parts.actuators.esc import ReverseStateMachine, SlewLimiter
+from parts.actuators.pca9685 import MAX_TICK, PULSE_MAX_US, PULSE_MIN_US, pulse_tick_range
 from parts.actuators.watchdog import CommandWatchdog
-from vehicle.config_checks import PULSE_MAX_US, PULSE_MIN_US, pulse_tick_range
 
 if TYPE_CHECKING:
     from parts.actuators.pca9685 import PCA9685
 
 logger = logging.getLogger(__name__)
-
-MAX_TICK = 4095
 
 
 def clamp(x: float, lo: float, hi: float) -> float:
