@@ -39,7 +39,7 @@ from functools import cache
 from pathlib import Path
 from typing import Annotated, Any
 
-from vehicle.config_checks import Checked, Constraint, Length, Range, Rule
+from vehicle.config_checks import Checked, Constraint, Length, OneOf, Range, Rule
 from vehicle.errors import VehicleError
 from vehicle.keys import Mode
 
@@ -233,7 +233,7 @@ def constraints(name: str) -> tuple[Constraint, ...]:
     tp = _type_of(name)
     if typing.get_origin(tp) is not Annotated:
         return ()
-    return tuple(m for m in tp.__metadata__ if isinstance(m, Range | Length | Checked))
+    return tuple(m for m in tp.__metadata__ if isinstance(m, Range | Length | Checked | OneOf))
 
 
 def check_range(name: str, value: Any, where: str = "") -> None:

@@ -154,7 +154,31 @@ class Checked:
         return f"{name} = {value!r}"
 
 
-Constraint = Range | Length | Checked
+@dataclass(frozen=True)
+class OneOf:
+    """One of a set of names: a family's table (:class:`vehicle.registry.Registry`) or any iterable of
+    strings, read when checked, so a row registered later is valid too."""
+
+    choices: Any
+
+    def names(self) -> list[str]:
+        """The valid names, in table order."""
+        return list(self.choices)
+
+    def problem(self, value: Any) -> str | None:
+        """Why ``value`` is invalid, or None."""
+        return None if value in self.names() else "is unknown"
+
+    def describe(self) -> str:
+        """What is valid, e.g. ``one of "PICAM", "MOCK"``."""
+        return "one of " + ", ".join(f'"{n}"' for n in self.names())
+
+    def show(self, name: str, value: Any) -> str:
+        """How the value appears in a message."""
+        return f"{name} = {value!r}"
+
+
+Constraint = Range | Length | Checked | OneOf
 
 
 @dataclass(frozen=True)

@@ -54,6 +54,8 @@ MAX_TICK = 4095  # the 12-bit counter: a pulse is 0-4095 ticks of 1/4096 period
 #: little more travel). `vehicle calibrate`, the drivetrain part and the config refuse others.
 PULSE_MIN_US, PULSE_MAX_US = 500.0, 2500.0
 CHANNELS = 16
+#: bus when PCA9685_I2C_BUSNUM is None: header pins 3/5 on a Raspberry Pi and a Jetson Nano
+DEFAULT_BUS = 1
 WAKE_DELAY_S = 0.005  # datasheet: >= 500 µs for the oscillator; Adafruit waits 5 ms
 GENERAL_CALL = 0x00
 SWRST_BYTE = 0x06
@@ -110,6 +112,11 @@ def pwm_timing(freq_hz: float, osc_hz: float = OSC_HZ) -> tuple[int, float, floa
 def pulse_tick_range(tick_us: float) -> tuple[int, int]:
     """The ticks that make a pulse of PULSE_MIN_US to PULSE_MAX_US at ``tick_us`` µs per tick."""
     return math.ceil(PULSE_MIN_US / tick_us), min(MAX_TICK, math.floor(PULSE_MAX_US / tick_us))
+
+
+def busnum(cfg: Any) -> int:
+    """PCA9685_I2C_BUSNUM, with None meaning :data:`DEFAULT_BUS`."""
+    return DEFAULT_BUS if cfg.PCA9685_I2C_BUSNUM is None else cfg.PCA9685_I2C_BUSNUM
 
 
 def prescale_for(frequency: float, osc_hz: float = OSC_HZ) -> int:
@@ -203,6 +210,13 @@ class PCA9685:
         self._sleep = sleep
         self._bus: SMBusLike | None = None
         self._lock = threading.RLock()
+
+    @classmethod
+    def from_config(cls, cfg: Any, bus_factory: BusFactory | None = None) -> PCA9685:
+        """The board of the car's settings (PCA9685_I2C_BUSNUM, _ADDR, PWM_FREQ, PCA9685_OSC_HZ),
+        not opened yet."""
+        return cls(busnum(cfg), cfg.PCA9685_I2C_ADDR, cfg.PWM_FREQ, osc_hz=cfg.PCA9685_OSC_HZ,
+                   bus_factory=bus_factory)
 
     # -- life cycle ---------------------------------------------------------------------------
     @property

@@ -11,6 +11,7 @@ from collections.abc import Iterator, Mapping
 from typing import Annotated, Any, Literal
 
 from parts.actuators.pca9685 import PRESCALE_MAX, PRESCALE_MIN, PULSE_MAX_US, PULSE_MIN_US, pulse_tick_range, pwm_timing
+from parts.actuators.registry import DRIVETRAINS
 from vehicle.config_checks import Checked, Problem, Range, Rule, number_text
 
 #: what a pulse setting must be (:func:`_pwm_pulses` checks it against PWM_FREQ)
@@ -26,7 +27,7 @@ PULSE_SETTINGS = ("STEERING_LEFT_PWM", "STEERING_RIGHT_PWM", "THROTTLE_FORWARD_P
 
 # What drives the wheels: "PWM_STEERING_THROTTLE" = steering servo and ESC on a PCA9685 board;
 # "MOCK" = the same driver code on a simulated PCA9685 (bench tests without a car).
-DRIVE_TRAIN_TYPE: Literal["PWM_STEERING_THROTTLE", "MOCK"] = "PWM_STEERING_THROTTLE"
+DRIVE_TRAIN_TYPE: Annotated[str, DRIVETRAINS.choice()] = "PWM_STEERING_THROTTLE"
 # 7-bit I2C address of the PCA9685 (0x40 with no address jumpers bridged; `i2cdetect -y 1`).
 PCA9685_I2C_ADDR: Annotated[int, Range(0x03, 0x77, note="a 7-bit address, 0x03 to 0x77; 0x40 unless A0-A5 "
                                                       "are bridged")] = 0x40

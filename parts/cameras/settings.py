@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
+from parts.cameras.registry import CAMERAS
 from vehicle.config_checks import Range
 from vehicle.settings import DRIVE_LOOP_HZ
 
@@ -25,7 +26,7 @@ CAMERA_FRAMERATE: Annotated[int, Range(1, 1000, unit="Hz")] = DRIVE_LOOP_HZ
 # OpenCV/V4L2), "CSIC" (Jetson CSI camera via GStreamer), "VIDEO" (replays CAMERA_VIDEO_PATH),
 # "IMAGE_LIST" (replays CAMERA_IMAGE_PATH: a folder of images or a tub), "MOCK" (a generated moving
 # pattern: no hardware).
-CAMERA_TYPE: Literal["PICAM", "CVCAM", "WEBCAM", "CSIC", "VIDEO", "IMAGE_LIST", "MOCK"] = "PICAM"
+CAMERA_TYPE: Annotated[str, CAMERAS.choice()] = "PICAM"
 # Which camera: N of /dev/videoN (CVCAM, WEBCAM), the sensor id (CSIC) or camera number (PICAM).
 CAMERA_INDEX: Annotated[int, Range(0)] = 0
 # Flip the image upside down (a camera mounted the other way round).
