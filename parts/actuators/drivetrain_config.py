@@ -18,8 +18,9 @@ import time
 from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
+from parts.actuators.pca9685 import pulse_tick_range, pwm_timing
 from parts.actuators.pins import PinSet, parse_pin
-from vehicle.config_checks import Problem, pulse_tick_range, pwm_timing
+from vehicle.config_checks import Problem
 
 #: DonkeyCar's defaults for each dict setting (donkeycar/templates/cfg_complete.py)
 DONKEY_DICTS: dict[str, dict[str, Any]] = {
@@ -70,12 +71,14 @@ def flat_pwm_dict(cfg: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def drivetrain_dict(cfg: Mapping[str, Any], kind: str) -> dict[str, Any]:
-    """The dict setting ``kind`` with the user's keys over the defaults (ValueError: unknown key)."""
+    """The dict setting ``kind`` with the user's keys over the defaults (ConfigError: unknown key)."""
+    from vehicle.config import ConfigError  # noqa: PLC0415 - the loader imports this module
+
     base = flat_pwm_dict(cfg) if kind == "PWM_STEERING_THROTTLE" else dict(DONKEY_DICTS[kind])
     given = cfg[kind] or {}
     unknown = sorted(set(given) - set(base))
     if unknown:
-        raise ValueError(f"{kind} has unknown key {unknown[0]!r}; valid keys: {', '.join(base)}")
+        raise ConfigError(f"{kind} has unknown key {unknown[0]!r}; valid keys: {', '.join(base)}")
     return {**base, **given}
 
 
@@ -92,7 +95,7 @@ def drivetrain_problems(v: Mapping[str, Any]) -> Iterator[Problem]:
         return
     try:
         values = drivetrain_dict(v, kind)
-    except ValueError as exc:
+    except ValueError as exc:  # ConfigError
         yield Problem(kind, str(exc))
         return
     seen: dict[str, str] = {}

@@ -315,7 +315,7 @@ class PinSet:
                         if spec.provider == "PIGPIO" else
                         "run on a Raspberry Pi with a GPIO backend (`sudo apt install python3-lgpio`)")
                 raise DrivetrainError(f"{setting} = {str(spec)!r}: no GPIO here ({exc}); {hint}") from exc
-            raise ValueError(f"{setting} = {str(spec)!r}: {exc} ({kind})") from exc
+            raise DrivetrainError(f"{setting} = {str(spec)!r}: {exc} ({kind})") from exc
 
     def _gpio_factory(self, spec: PinSpec) -> Any:
         """The pin factory: the given one, pigpio's for PIGPIO, else None (gpiozero's default)."""

@@ -18,12 +18,10 @@ from dataclasses import dataclass
 from typing import Any
 
 from parts.actuators.drivetrain import Drivetrain, check_number, clamp
+from parts.actuators.pca9685 import MAX_TICK, PULSE_MAX_US, PULSE_MIN_US, pulse_tick_range
 from parts.actuators.pins import PinSet, PwmPin, parse_pin
-from vehicle.config_checks import PULSE_MAX_US, PULSE_MIN_US, pulse_tick_range
 
 logger = logging.getLogger(__name__)
-
-MAX_TICK = 4095
 
 
 def map_range(x: float, x_min: float, x_max: float, y_min: float, y_max: float) -> int:
@@ -237,6 +235,21 @@ class PWMSteeringThrottle(Drivetrain):
             out = MAX_TICK - ticks if self.inverted[index] else ticks
             self._outputs[index].set_ticks(int(out * self.scales[index]))
             self._written[index] = ticks
+
+
+class MockPWMSteeringThrottle(PWMSteeringThrottle):
+    """DRIVE_TRAIN_TYPE = "MOCK": the same part and driver on a simulated PCA9685
+    (:func:`parts.actuators.fake_pca9685.mock_board`), for bench tests without a car."""
+
+    @classmethod
+    def from_config(cls, cfg: Any, *, bus_factory: Any = None, gpio_factory: Any = None,
+                    clock: Callable[[], float] | None = None) -> PWMSteeringThrottle:
+        """The simulated board at the car's bus and address, unless ``bus_factory`` is given."""
+        if bus_factory is None:
+            from parts.actuators.fake_pca9685 import mock_board  # noqa: PLC0415
+
+            bus_factory = mock_board(cfg)[0]
+        return super().from_config(cfg, bus_factory=bus_factory, gpio_factory=gpio_factory, clock=clock)
 
 
 def check_pulse_widths(frequency: float, pulses: dict[str, int]) -> None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 from gpiozero.pins.mock import MockFactory, MockPWMPin
 
+from parts.actuators.drivetrain import DrivetrainError
 from parts.actuators.fake_pca9685 import OFF, ON
 from parts.actuators.pins import PinSet, PinSpec, parse_pin
 from parts.actuators.pwm import PWMSteeringThrottle, SteeringCalibration, ThrottleCalibration
@@ -91,9 +92,9 @@ def test_one_pin_twice_is_refused(gpio, i2c, board):
     with pytest.raises(ValueError, match="PWM_THROTTLE_PIN = 'PCA9685.1:40.1' is the same pin as PWM_STEERING_PIN"):
         pins.pwm("PCA9685.1:40.1", "PWM_THROTTLE_PIN")
     pins.pwm("RPI_GPIO.BOARD.33", "FWD_DUTY_PIN")
-    with pytest.raises(ValueError, match="BWD_DUTY_PIN = 'RPI_GPIO.BCM.13': "):  # the same header pin
+    with pytest.raises(DrivetrainError, match="BWD_DUTY_PIN = 'RPI_GPIO.BCM.13': "):  # the same header pin
         pins.pwm("RPI_GPIO.BCM.13", "BWD_DUTY_PIN")
-    with pytest.raises(ValueError, match="DUTY_PIN = 'RPI_GPIO.BOARD.1': .*not a GPIO pin"):  # 3V3
+    with pytest.raises(DrivetrainError, match="DUTY_PIN = 'RPI_GPIO.BOARD.1': .*not a GPIO pin"):  # 3V3
         pins.pwm("RPI_GPIO.BOARD.1", "DUTY_PIN")
     pins.close()
 
