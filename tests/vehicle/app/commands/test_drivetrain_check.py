@@ -1,0 +1,38 @@
+"""`vehicle drivetrain check` steps the car's drivetrain through its bench script (here the MOCK
+board, whose trace file records every pulse the car would have received)."""
+
+from __future__ import annotations
+
+from parts.actuators.fake_pca9685 import read_trace_file
+from vehicle.app.cli import main
+
+STEERING_CH, THROTTLE_CH = 1, 0
+
+
+def _car(tmp_path):
+    (tmp_path / "myconfig.py").write_text('DRIVE_TRAIN_TYPE = "MOCK"\nPCA9685_MOCK_TRACE = "pwm.txt"\n'
+                                          "ESC_ARM_TIME_S = 0.0\n")
+    return tmp_path
+
+
+def test_the_bench_script_steers_drives_and_ends_in_neutral(tmp_path, capsys):
+    car = _car(tmp_path)
+    assert main(["drivetrain", "check", "--yes", "--seconds", "0.05", "--throttle", "0.2", "--car", str(car)]) == 0
+    pulses = read_trace_file(car / "pwm.txt")
+    assert pulses[STEERING_CH] == [375, 460, 290, 375]  # centre, full left, full right, centre
+    assert pulses[THROTTLE_CH] == [370, 396, 370, 340, 370]  # stop, forward 0.2, stop, reverse 0.2, stop
+    out = capsys.readouterr().out
+    assert "steering full LEFT" in out and "done: the drivetrain is at neutral" in out
+
+
+def test_nothing_moves_unless_the_wheels_are_off_the_ground(tmp_path, monkeypatch, capsys):
+    car = _car(tmp_path)
+    monkeypatch.setattr("builtins.input", lambda prompt: "n")
+    assert main(["drivetrain", "check", "--car", str(car)]) == 1
+    assert not (car / "pwm.txt").exists()
+    assert "Put the car on a stand first" in capsys.readouterr().out
+
+
+def test_too_much_throttle_is_refused(tmp_path, capsys):
+    assert main(["drivetrain", "check", "--yes", "--throttle", "0.8", "--car", str(_car(tmp_path))]) == 2
+    assert "--throttle 0.8: give 0 < throttle <= 0.5" in capsys.readouterr().err
