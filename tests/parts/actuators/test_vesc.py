@@ -120,3 +120,27 @@ def test_a_missing_port_is_one_line_naming_the_setting(tmp_path):
 def test_bad_settings(kwargs, message):
     with pytest.raises(ValueError, match=message):
         VESC("/dev/null", **kwargs)
+
+
+def test_speed_reaches_the_vehicle_memory_as_enc_speed(vesc):
+    """In a car built from settings alone, the VESC part writes enc/speed for the parts after it."""
+    from vehicle import Vehicle
+    from vehicle.app.assembly.drivetrain import add_drivetrain
+    from vehicle.config import Config
+
+    vesc.erpm = -round(1.5 / (2 * math.pi * 0.04) * 60 * 7.0 * 1)  # 1.5 m/s backwards, 2-pole motor
+    seen = []
+    V = Vehicle()
+    V.add(lambda: (0.0, 0.0), outputs=["angle", "throttle"])
+    cfg = Config.defaults(DRIVE_TRAIN_TYPE="VESC", VESC_SERIAL_PORT=vesc.port, VESC_MOTOR_POLES=2,
+                          VESC_GEAR_RATIO=7.0, WHEEL_RADIUS=0.04)
+    add_drivetrain(V, cfg)
+
+    def watch(speed):
+        seen.append(speed)
+        if speed is not None:
+            V.stop()
+
+    V.add(watch, inputs=["enc/speed"])
+    V.start(rate_hz=100, max_loop_count=500)
+    assert seen[-1] == pytest.approx(-1.5, rel=1e-3)
