@@ -303,19 +303,23 @@ class PinSet:
 
     def _gpio(self, cls: Any, spec: PinSpec, setting: str, *args: Any) -> Any:
         """Make a gpiozero-backed pin; gpiozero's errors become one line naming the setting."""
+        where = f"{setting} = {str(spec)!r}"
         try:
             return cls(spec, self._gpio_factory(spec), *args)
-        except ImportError as exc:
-            raise DrivetrainError(f"{setting} = {str(spec)!r} needs gpiozero: pip install 'vehicle[car]' "
-                               f"({exc})") from exc
-        except Exception as exc:  # noqa: BLE001 - gpiozero has many error classes, all said the same way
+        except Exception as exc:  # noqa: BLE001 - gpiozero has many error classes, each said in one line
             kind = type(exc).__name__
-            if kind in ("BadPinFactory", "PinFactoryFallback") or "pigpio" in str(exc).lower():
-                hint = ("start the pigpio daemon (`sudo systemctl enable --now pigpiod`)"
-                        if spec.provider == "PIGPIO" else
-                        "run on a Raspberry Pi with a GPIO backend (`sudo apt install python3-lgpio`)")
-                raise DrivetrainError(f"{setting} = {str(spec)!r}: no GPIO here ({exc}); {hint}") from exc
-            raise DrivetrainError(f"{setting} = {str(spec)!r}: {exc} ({kind})") from exc
+            if isinstance(exc, ImportError) and exc.name == "gpiozero":
+                raise DrivetrainError(f"{where} needs gpiozero: pip install 'vehicle-rc[car]'") from exc
+            if spec.provider == "PIGPIO" and (isinstance(exc, ImportError | OSError) or "pigpio" in str(exc).lower()):
+                raise DrivetrainError(
+                    f"{where}: pigpio is not available ({exc}); install it and start its daemon (`sudo apt install "
+                    "pigpio python3-pigpio && sudo systemctl enable --now pigpiod`; the Pi 5 has no pigpio: use "
+                    "RPI_GPIO pins)") from exc
+            if isinstance(exc, ImportError) or kind == "BadPinFactory":
+                raise DrivetrainError(
+                    f"{where}: no GPIO here ({exc}); run on a Raspberry Pi with a GPIO backend (`sudo apt install "
+                    "python3-lgpio`, a venv made with --system-site-packages), or use PCA9685 pins") from exc
+            raise DrivetrainError(f"{where}: {exc} ({kind})") from exc
 
     def _gpio_factory(self, spec: PinSpec) -> Any:
         """The pin factory: the given one, pigpio's for PIGPIO, else None (gpiozero's default)."""

@@ -12,7 +12,7 @@ def open_serial(port: str, baudrate: int, setting: str) -> Any:
     try:
         import serial  # noqa: PLC0415 - hardware library, imported when the part opens
     except ImportError as exc:
-        raise DrivetrainError(f"{setting} = {port!r} needs pyserial: pip install 'vehicle[car]'") from exc
+        raise DrivetrainError(f"{setting} = {port!r} needs pyserial: pip install 'vehicle-rc[car]'") from exc
     try:
         return serial.serial_for_url(port, baudrate=baudrate, timeout=0, write_timeout=0.5)
     except serial.SerialException as exc:

@@ -3,6 +3,8 @@ MockFactory (the pin numbers of the 40-pin header: BOARD33 is GPIO13, BOARD18 is
 
 from __future__ import annotations
 
+import sys
+
 import pytest
 from gpiozero.pins.mock import MockFactory, MockPWMPin
 
@@ -122,3 +124,15 @@ def test_scale_and_inversion_like_donkeycar(i2c, board):
     assert board.output(1) == int(375 * 1.2)
     assert board.output(0) == 4095 - 370
     part.shutdown()
+
+
+def test_no_gpio_backend_is_one_line_naming_the_setting(monkeypatch):
+    from gpiozero import Device
+
+    monkeypatch.setenv("GPIOZERO_PIN_FACTORY", "no-such-backend")
+    monkeypatch.setattr(Device, "pin_factory", None)
+    with pytest.raises(DrivetrainError, match=r"^PWM_STEERING_PIN = 'RPI_GPIO.BOARD.33': no GPIO here .*python3-lgpio"):
+        PinSet(60).pwm("RPI_GPIO.BOARD.33", "PWM_STEERING_PIN")
+    monkeypatch.setitem(sys.modules, "pigpio", None)  # the pigpio library is not installed
+    with pytest.raises(DrivetrainError, match=r"^FWD_PIN = 'PIGPIO.BCM.13': pigpio is not available .*pigpiod"):
+        PinSet(60).output("PIGPIO.BCM.13", "FWD_PIN")
