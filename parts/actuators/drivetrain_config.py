@@ -110,7 +110,9 @@ def drivetrain_problems(v: Mapping[str, Any]) -> Iterator[Problem]:
                           "valid: a pin of its own for every output")
             return
         seen[str(spec)] = f"{kind}[{key!r}]"
-    pulses = [key for key in PULSE_KEYS if key in values]
+    # PWM_STEERING_THROTTLE's pulses from the flat settings are checked (and named) by their own rule
+    source = (v[kind] or {}) if kind == "PWM_STEERING_THROTTLE" else values
+    pulses = [key for key in PULSE_KEYS if key in source]
     if not pulses:
         return
     steering = parse_pin(values["PWM_STEERING_PIN"])

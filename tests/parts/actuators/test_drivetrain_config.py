@@ -71,3 +71,8 @@ def test_vesc_and_differential_drive_from_settings():
     assert (vesc.port_name, vesc.gear_ratio, vesc.wheel_radius, vesc.arm_s) == ("/dev/ttyACM1", 8.5, 0.05, 0.0)
     diff = build_drivetrain(Config.defaults(DRIVE_TRAIN_TYPE="DC_TWO_WHEEL_L298N"))
     assert isinstance(diff, DifferentialDrive) and diff.specs[1].duty == "RPI_GPIO.BOARD.11"
+
+
+def test_a_bad_flat_pulse_is_named_by_its_own_name_not_the_dict(tmp_path):
+    with pytest.raises(ConfigError, match=r"line 1: STEERING_LEFT_PWM = 1000 is a 4080 µs pulse at PWM_FREQ = 60"):
+        _load(tmp_path, "STEERING_LEFT_PWM = 1000\n")
