@@ -35,7 +35,7 @@ LANE_SETTINGS: dict[str, Any] = {
     # augmentation (tape of any colour) would change what the white-line mask sees
     "SIM_THEME": "road",
     "SIM_RANDOMIZE": None,
-    "AUGMENTATIONS": ["flip", "brightness", "shadow", "shift"],
+    "AUGMENTATIONS": ["flip", "shift", "brightness", "shadow"],
 }
 DEFAULTS = {"records": 6000, "lane_changes": 40, "epochs": 10, "noise": 0.4,
             "train_tracks": [1, 2, 3, 4, 5, 6, 7, 8], "eval_tracks": [101, 102, 103, 104, 105], "laps": 2,

@@ -97,6 +97,10 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", metavar="FILE.pt", help="model file to write (default models/pilot_<date>.pt)")
     parser.add_argument("--transfer", metavar="OLD.pt", help="start from the weights of an earlier model")
     parser.add_argument("--comment", help="free text stored with the model in the registry")
+    parser.add_argument("--recipe", metavar="NAME",
+                        help="train as a source document does: track-driver-ai, udacity-bc or donkey-thesis "
+                             "(sets every value the document states; the options here still win; "
+                             "docs/training.md, 'Recipes')")
     parser.add_argument("--no-register", action="store_true", help="do not add the model to the registry")
     groups: dict[str, Any] = {}
     for p in HYPERPARAMS:
@@ -157,20 +161,33 @@ def run_from_args(cfg: Any, args: argparse.Namespace) -> int:
     from parts.pilots.fit import TrainingDiverged
     from parts.pilots.hyperparams import settings_for
     from parts.pilots.train_report import sidecar
-    from parts.pilots.training import default_model_path, train
+    from parts.pilots.training import dataset_model_path, default_model_path, train
 
     clean = hyperparams_from_args(args)
     model_type_name = clean.pop("model_type", None)
+    recipe = _recipe(getattr(args, "recipe", None))
     try:
+        if recipe is not None:
+            cfg = cfg.replace(**recipe.settings)
         cfg = cfg.replace(**settings_for(clean))
     except ValueError as exc:
         raise UserError(str(exc)) from exc
     tubs = tub_list(args.tubs) or [str(cfg.path("DATA_PATH"))]
-    model_path = Path(args.model) if args.model else default_model_path(cfg.path("MODELS_PATH"))
+    if args.model:
+        model_path = Path(args.model)
+    elif recipe is not None and recipe.name_by_dataset:
+        model_path = dataset_model_path(cfg.path("MODELS_PATH"), tubs[0])
+    else:
+        model_path = default_model_path(cfg.path("MODELS_PATH"))
+    if recipe is not None:
+        logger.info("recipe %s (%s): %s", recipe.name, recipe.document, recipe.summary)
+        if recipe.drive_settings:
+            logger.info("to drive as the document does, set %s", ", ".join(
+                f"{k} = {v!r}" for k, v in recipe.drive_settings.items()))
     with _ctrl_c_stops_training() as interrupted:
         try:
             metrics = train(cfg, tubs, model_path, model_type_name=model_type_name, transfer=args.transfer,
-                            comment=args.comment, register=not args.no_register,
+                            comment=args.comment, register=not args.no_register, recipe=recipe,
                             should_stop=interrupted.is_set if interrupted else None)
         except UserError:
             raise
@@ -187,6 +204,18 @@ def run_from_args(cfg: Any, args: argparse.Namespace) -> int:
         print(f"{stopped}saved {model_path} (best epoch {metrics['best_epoch']} of {metrics['epochs']}, "  # noqa: T201
               f"val_loss {loss}); metrics: {sidecar(model_path, '.metrics.json')}")
     return 130 if metrics.get("cancelled") else 0
+
+
+def _recipe(name: str | None) -> Any:
+    """The recipe called ``name`` (None for None); UserError naming the known ones otherwise."""
+    if name is None:
+        return None
+    from parts.pilots.recipes import recipe
+
+    try:
+        return recipe(name)
+    except ValueError as exc:
+        raise UserError(f"--recipe: {exc}") from exc
 
 
 @contextlib.contextmanager
