@@ -162,6 +162,26 @@ RECIPES: dict[str, Recipe] = {r.name: r for r in (
 )}
 
 
+def describe() -> list[dict[str, Any]]:
+    """Every recipe as plain values for the trainer console's preset: name, document, summary, the
+    model type, and ``values``: the training form's fields the recipe sets (the form shows them;
+    the recipe's other settings, such as its preprocessing, travel with its name)."""
+    from parts.pilots.hyperparams import for_setting
+
+    out = []
+    for r in RECIPES.values():
+        values = {}
+        for setting, value in r.settings.items():
+            p = for_setting(setting)
+            if p is not None and p.name != "model_type":
+                values[p.name] = p.from_setting(value)
+        others = sorted(s for s in r.settings if for_setting(s) is None)
+        out.append({"name": r.name, "document": r.document, "summary": r.summary, "model_type": r.model_type,
+                    "values": values, "other_settings": others,
+                    "frames": f"{r.frame_shape[1]}x{r.frame_shape[0]}"})
+    return out
+
+
 def recipe_names() -> list[str]:
     """Every recipe's name."""
     return sorted(RECIPES)

@@ -145,8 +145,18 @@ def _config(job: dict[str, Any]) -> Any:
     from vehicle.config import load_config
 
     cfg = load_config(job.get("myconfig"), car_path=job["car"])
+    recipe = _recipe(job)
+    if recipe is not None:  # the form's values (settings) were filled from it and win over it
+        cfg = cfg.replace(**recipe.settings)
     settings = job.get("params", {}).get("settings") or {}
     return cfg.replace(**settings) if settings else cfg
+
+
+def _recipe(job: dict[str, Any]) -> Any:
+    from parts.pilots.recipes import recipe
+
+    name = job.get("params", {}).get("recipe")
+    return recipe(name) if name else None
 
 
 def run_train(job: dict[str, Any], events: Events, watcher: StopWatcher) -> dict[str, Any]:
@@ -169,7 +179,7 @@ def run_train(job: dict[str, Any], events: Events, watcher: StopWatcher) -> dict
 
     metrics = train(cfg, params["tubs"], model_path, model_type_name=params.get("model_type"),
                     transfer=params.get("transfer"), comment=params.get("comment"), register=True,
-                    progress=False, on_event=on_event, should_stop=watcher.stop.is_set)
+                    progress=False, on_event=on_event, should_stop=watcher.stop.is_set, recipe=_recipe(job))
     watcher.interruptible = True
     keys = ("best_epoch", "best_val_loss", "best_train_loss", "epochs", "stopped_early", "cancelled",
             "train_loss", "val_loss", "wall_seconds", "train_samples", "val_samples")
