@@ -35,7 +35,6 @@ RENAMED: dict[str, str] = {
     # DonkeyCar's settings for its simulator and its PWM drive train, which a copied myconfig.py
     # brings along; the closest name by spelling (DONKEY_GYM_ENV_NAME, STEERING_TRIM) misleads
     "DONKEY_GYM": 'SIM_TYPE = "donkey"',
-    "DONKEY_SIM_PATH": 'SIM_TYPE = "donkey" with SIM_HOST (docs/simulators.md)',
     "PWM_STEERING_THROTTLE": "STEERING_CHANNEL, THROTTLE_CHANNEL and the *_PWM settings (docs/hardware.md)",
 }
 
