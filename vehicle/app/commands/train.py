@@ -92,7 +92,7 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
     console's form shows the same table and checks it with the same function)."""
     from parts.pilots.hyperparams import HYPERPARAMS
 
-    parser.add_argument("--tubs", nargs="+", metavar="PATH",
+    parser.add_argument("--tubs", "--tub", nargs="+", metavar="PATH",
                         help="tubs or folders of tubs (comma-separated also accepted); default: the car's data/")
     parser.add_argument("--model", metavar="FILE.pt", help="model file to write (default models/pilot_<date>.pt)")
     parser.add_argument("--transfer", metavar="OLD.pt", help="start from the weights of an earlier model")
@@ -174,7 +174,7 @@ def run_from_args(cfg: Any, args: argparse.Namespace) -> int:
         raise UserError(str(exc)) from exc
     tubs = tub_list(args.tubs) or [str(cfg.path("DATA_PATH"))]
     if args.model:
-        model_path = Path(args.model)
+        model_path = keras_name_to_pt(Path(args.model))
     elif recipe is not None and recipe.name_by_dataset:
         model_path = dataset_model_path(cfg.path("MODELS_PATH"), tubs[0])
     else:
@@ -204,6 +204,20 @@ def run_from_args(cfg: Any, args: argparse.Namespace) -> int:
         print(f"{stopped}saved {model_path} (best epoch {metrics['best_epoch']} of {metrics['epochs']}, "  # noqa: T201
               f"val_loss {loss}); metrics: {sidecar(model_path, '.metrics.json')}")
     return 130 if metrics.get("cancelled") else 0
+
+
+KERAS_SUFFIXES = (".h5", ".keras", ".tflite", ".hdf5")
+
+
+def keras_name_to_pt(path: Path) -> Path:
+    """DonkeyCar's ``--model models/x.h5``: a PyTorch model is written to ``models/x.pt`` instead,
+    with a one-line note (this project never writes Keras files)."""
+    if path.suffix.lower() not in KERAS_SUFFIXES:
+        return path
+    pt = path.with_suffix(".pt")
+    logger.warning("--model %s: %s is a Keras file name; writing the PyTorch model to %s (drive with "
+                   "--model %s)", path, path.suffix, pt, pt)
+    return pt
 
 
 def _recipe(name: str | None) -> Any:
