@@ -103,7 +103,7 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
 
     t, c = time.perf_counter(), cpu_seconds()
     say(f"[2/4] training a {model_type} model for up to {epochs} epochs ...")
-    from parts.pilots.training import train
+    from training.trainer import train
 
     metrics = train(cfg, [tub], model_path, model_type_name=model_type, epochs=epochs,
                     comment="vehicle demo")
@@ -197,7 +197,7 @@ def export_onnx(model_path: Path) -> Path | None:
     if not have_onnx:
         say("[3/4] onnx/onnxruntime not installed: the pilot runs in PyTorch")
         return None
-    from parts.pilots.export import export_model
+    from training.export import export_model
 
     path = export_model(model_path, "onnx")
     say(f"[3/4] exporting to ONNX: {path}")

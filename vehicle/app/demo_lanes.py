@@ -61,8 +61,8 @@ def run_lanes_demo(out: Path, *, records: int, lane_changes: int, epochs: int, n
                    types: list[str] | None = None) -> dict[str, Any]:
     """Run the four steps in ``out``; returns ``{"reports": {name: report}, "models": {type: path},
     "metrics": {type: training metrics}, "seconds": {step: s}}``. Raises ValueError on bad arguments."""
-    from parts.pilots.training import train
     from parts.sim.eval_report import format_table, write_json, write_png
+    from training.trainer import train
     from vehicle.app.demo import write_myconfig
     from vehicle.app.evaluate import evaluate
     from vehicle.app.record import record_expert

@@ -151,7 +151,7 @@ def _config(job: dict[str, Any]) -> Any:
 
 def run_train(job: dict[str, Any], events: Events, watcher: StopWatcher) -> dict[str, Any]:
     """Train as asked by the console; returns the result event."""
-    from parts.pilots.training import train
+    from training.trainer import train
 
     params = job["params"]
     cfg = _config(job)
@@ -179,7 +179,7 @@ def run_train(job: dict[str, Any], events: Events, watcher: StopWatcher) -> dict
 
 def run_evaluate(job: dict[str, Any], events: Events, watcher: StopWatcher) -> dict[str, Any]:
     """Evaluate a registered model in the built-in simulator and store the result."""
-    from parts.pilots.model_db import ModelRegistry
+    from training.model_db import ModelRegistry
     from vehicle.app.eval_store import store_report
     from vehicle.app.evaluate import evaluate
 
@@ -333,8 +333,8 @@ def describe_model_types() -> list[dict[str, Any]]:
 
 
 def _export(car: str, name: str, fmt: str) -> int:
-    from parts.pilots.export import export_model
-    from parts.pilots.model_db import ModelRegistry
+    from training.export import export_model
+    from training.model_db import ModelRegistry
     from vehicle.config import load_config
 
     cfg = load_config(car_path=car)
