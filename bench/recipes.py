@@ -23,7 +23,7 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from parts.pilots.recipes import RECIPES  # noqa: E402
+from training.recipes import RECIPES  # noqa: E402
 from vehicle.app.demo import DEFAULTS, DEMO_SETTINGS  # noqa: E402
 from vehicle.config import Config  # noqa: E402
 
@@ -59,7 +59,7 @@ def main() -> int:
 
     import torch
 
-    from parts.pilots.training import train
+    from training.trainer import train
     from vehicle.app.evaluate import evaluate
     from vehicle.app.record import record_expert
 

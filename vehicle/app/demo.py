@@ -31,7 +31,7 @@ from typing import Any
 logger = logging.getLogger(__name__)
 
 #: settings the demo runs with (tuned so the pilot completes its laps within the time budget);
-#: each is a normal setting of vehicle/config_defaults.py
+#: each is a normal setting (docs/config.md)
 DEMO_SETTINGS: dict[str, Any] = {
     "ROI_CROP_TOP": 40,  # the top third of the frame is sky: less to learn and 1/3 less compute
     "BATCH_SIZE": 64,
@@ -103,7 +103,7 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
 
     t, c = time.perf_counter(), cpu_seconds()
     say(f"[2/4] training a {model_type} model for up to {epochs} epochs ...")
-    from parts.pilots.training import train
+    from training.trainer import train
 
     metrics = train(cfg, [tub], model_path, model_type_name=model_type, epochs=epochs,
                     comment="vehicle demo")
@@ -197,7 +197,7 @@ def export_onnx(model_path: Path) -> Path | None:
     if not have_onnx:
         say("[3/4] onnx/onnxruntime not installed: the pilot runs in PyTorch")
         return None
-    from parts.pilots.export import export_model
+    from training.export import export_model
 
     path = export_model(model_path, "onnx")
     say(f"[3/4] exporting to ONNX: {path}")

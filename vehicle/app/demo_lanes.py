@@ -24,7 +24,7 @@ from typing import Any
 
 from vehicle.app.demo import DEMO_SETTINGS, say
 
-#: the lane demo's settings on top of the demo's; each a normal setting (config_defaults.py)
+#: the lane demo's settings on top of the demo's; each a normal setting (docs/config.md)
 LANE_SETTINGS: dict[str, Any] = {
     "SIM_LANES": 2,
     "TRAIN_BEHAVIORS": True,  # BEHAVIOR_LIST: Left_Lane, Right_Lane
@@ -61,8 +61,8 @@ def run_lanes_demo(out: Path, *, records: int, lane_changes: int, epochs: int, n
                    types: list[str] | None = None) -> dict[str, Any]:
     """Run the four steps in ``out``; returns ``{"reports": {name: report}, "models": {type: path},
     "metrics": {type: training metrics}, "seconds": {step: s}}``. Raises ValueError on bad arguments."""
-    from parts.pilots.training import train
     from parts.sim.eval_report import format_table, write_json, write_png
+    from training.trainer import train
     from vehicle.app.demo import write_myconfig
     from vehicle.app.evaluate import evaluate
     from vehicle.app.record import record_expert

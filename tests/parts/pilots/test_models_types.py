@@ -5,11 +5,11 @@ from __future__ import annotations
 import pytest
 import torch
 
-from parts.pilots.dataset import PilotDataset, build_samples, read_drive_data
-from parts.pilots.framecache import FrameCache
 from parts.pilots.models import create_model, model_type, model_type_names
 from parts.pilots.preprocess import Preprocess
 from parts.vision.lanes import LaneSettings
+from training.dataset import PilotDataset, build_samples, read_drive_data
+from training.framecache import FrameCache
 
 ALL_TYPES = ["linear", "categorical", "inferred", "pilotnet", "memory", "behavior", "rnn", "3d", "lanes", "lanes_basic",
              "nvidia"]

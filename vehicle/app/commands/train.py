@@ -69,8 +69,8 @@ def write_preview(cfg: Any, tubs: list[str], out: Path, rows: int = 4, variants:
     """Write a PNG grid: ``rows`` frames spread over the tubs, each with ``variants`` augmented copies."""
     import cv2
 
-    from parts.pilots.augment import Augmenter, AugmentSettings, preview_frames, preview_grid
     from parts.tub.errors import TubError
+    from training.augment import Augmenter, AugmentSettings, preview_frames, preview_grid
 
     if rows < 1 or variants < 1:
         raise UserError("--rows and --variants must be >= 1")
@@ -88,9 +88,9 @@ def write_preview(cfg: Any, tubs: list[str], out: Path, rows: int = 4, variants:
 
 def add_train_arguments(parser: argparse.ArgumentParser) -> None:
     """The training options shared by ``manage.py train`` and ``vehicle train``: the data, the
-    model file, and every hyper-parameter of :mod:`parts.pilots.hyperparams` (the trainer
+    model file, and every hyper-parameter of :mod:`training.hyperparams` (the trainer
     console's form shows the same table and checks it with the same function)."""
-    from parts.pilots.hyperparams import HYPERPARAMS
+    from training.hyperparams import HYPERPARAMS
 
     parser.add_argument("--tubs", "--tub", nargs="+", metavar="PATH",
                         help="tubs or folders of tubs (comma-separated also accepted); default: the car's data/")
@@ -129,8 +129,8 @@ def hyperparams_from_args(args: argparse.Namespace) -> dict[str, Any]:
 
     Raises UserError naming each bad option with the rule and its reason.
     """
-    from parts.pilots.hyperparams import HYPERPARAMS, parse
     from parts.pilots.models import model_type_names
+    from training.hyperparams import HYPERPARAMS, parse
 
     given = {p.name: getattr(args, p.name) for p in HYPERPARAMS if getattr(args, p.name, None) is not None}
     clean, errors = parse(given, model_types=model_type_names())
@@ -158,10 +158,10 @@ def run_from_args(cfg: Any, args: argparse.Namespace) -> int:
     Returns the exit code (0; 130 when Ctrl-C ended it early); bad input raises
     :class:`vehicle.errors.UserError`.
     """
-    from parts.pilots.fit import TrainingDiverged
-    from parts.pilots.hyperparams import settings_for
-    from parts.pilots.train_report import sidecar
-    from parts.pilots.training import dataset_model_path, default_model_path, train
+    from training.fit import TrainingDiverged
+    from training.hyperparams import settings_for
+    from training.train_report import sidecar
+    from training.trainer import dataset_model_path, default_model_path, train
 
     clean = hyperparams_from_args(args)
     model_type_name = clean.pop("model_type", None)
@@ -224,7 +224,7 @@ def _recipe(name: str | None) -> Any:
     """The recipe called ``name`` (None for None); UserError naming the known ones otherwise."""
     if name is None:
         return None
-    from parts.pilots.recipes import recipe
+    from training.recipes import recipe
 
     try:
         return recipe(name)

@@ -16,8 +16,8 @@ from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from parts.pilots import hyperparams, recipes
-from parts.pilots.model_db import RegistryError, check_model_name
+from training import hyperparams, recipes
+from training.model_db import RegistryError, check_model_name
 from vehicle.app.console.datasets import DatasetError, augmentation_preview
 from vehicle.app.console.jsonsafe import finite
 from vehicle.errors import VehicleError
@@ -228,7 +228,7 @@ class Api:
     async def augment_preview(self, request: Any) -> Any:
         from aiohttp import web
 
-        from parts.pilots.augment import AugmentSettings
+        from training.augment import AugmentSettings
 
         q = dict(request.query)
         ids = [_int(x, "dataset id") for x in q.pop("datasets", "").split(",") if x.strip()]

@@ -153,7 +153,7 @@ def _config(job: dict[str, Any]) -> Any:
 
 
 def _recipe(job: dict[str, Any]) -> Any:
-    from parts.pilots.recipes import recipe
+    from training.recipes import recipe
 
     name = job.get("params", {}).get("recipe")
     return recipe(name) if name else None
@@ -161,7 +161,7 @@ def _recipe(job: dict[str, Any]) -> Any:
 
 def run_train(job: dict[str, Any], events: Events, watcher: StopWatcher) -> dict[str, Any]:
     """Train as asked by the console; returns the result event."""
-    from parts.pilots.training import train
+    from training.trainer import train
 
     params = job["params"]
     cfg = _config(job)
@@ -189,7 +189,7 @@ def run_train(job: dict[str, Any], events: Events, watcher: StopWatcher) -> dict
 
 def run_evaluate(job: dict[str, Any], events: Events, watcher: StopWatcher) -> dict[str, Any]:
     """Evaluate a registered model in the built-in simulator and store the result."""
-    from parts.pilots.model_db import ModelRegistry
+    from training.model_db import ModelRegistry
     from vehicle.app.eval_store import store_report
     from vehicle.app.evaluate import evaluate
 
@@ -343,8 +343,8 @@ def describe_model_types() -> list[dict[str, Any]]:
 
 
 def _export(car: str, name: str, fmt: str) -> int:
-    from parts.pilots.export import export_model
-    from parts.pilots.model_db import ModelRegistry
+    from training.export import export_model
+    from training.model_db import ModelRegistry
     from vehicle.config import load_config
 
     cfg = load_config(car_path=car)

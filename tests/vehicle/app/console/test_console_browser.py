@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from parts.pilots.model_db import ModelRegistry
 from parts.tub.tub import Tub
+from training.model_db import ModelRegistry
 
 pytestmark = pytest.mark.browser
 expect = pytest.importorskip("playwright.sync_api").expect

@@ -1,6 +1,6 @@
 """Tub records -> training samples: filters, labels, continuity, side cameras, and the torch Dataset.
 
-Flow (see :func:`parts.pilots.training.prepare_data`)::
+Flow (see :func:`training.trainer.prepare_data`)::
 
     load_records(paths) -> read_drive_data (filter modes + TRAIN_FILTER, labels, continuity)
         -> split_train_val (sessions / blocks) -> balance (train only) -> build_samples
@@ -25,9 +25,9 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
-from parts.pilots.augment import Augmenter
-from parts.pilots.framecache import FrameCache
 from parts.pilots.preprocess import Preprocess
+from training.augment import Augmenter
+from training.framecache import FrameCache
 
 logger = logging.getLogger(__name__)
 

@@ -1,7 +1,7 @@
 """Train a pilot from tubs: ``manage.py train`` and ``vehicle train`` both end up in :func:`train`.
 
-Data (:mod:`parts.pilots.dataset`) -> model (:mod:`parts.pilots.models`) -> loop
-(:mod:`parts.pilots.fit`) -> model file (:mod:`parts.pilots.modelfile`) with the loss curve
+Data (:mod:`training.dataset`) -> model (:mod:`parts.pilots.models`) -> loop
+(:mod:`training.fit`) -> model file (:mod:`parts.pilots.modelfile`) with the loss curve
 ``NAME.loss.png`` and ``NAME.metrics.json`` next to it, and an entry in the car's model registry.
 Runs on the GPU when there is one and on several GPUs/machines under torchrun.
 """
@@ -22,11 +22,14 @@ import numpy as np
 import torch
 from torch.utils.data import DataLoader, DistributedSampler
 
-from parts.pilots.acceleration import TrainPlan, apply_layout, plan_for
-from parts.pilots.augment import Augmenter, AugmentSettings
-from parts.pilots.balance import balance_by_steering
 from parts.pilots.compat import camera_meta
-from parts.pilots.dataset import (
+from parts.pilots.modelfile import load_model, save_model
+from parts.pilots.models import PilotModel, create_model, model_type, model_type_names
+from parts.pilots.preprocess import Preprocess, preprocess_from_config
+from training.acceleration import TrainPlan, apply_layout, plan_for
+from training.augment import Augmenter, AugmentSettings
+from training.balance import balance_by_steering
+from training.dataset import (
     IMAGE_KEY,
     DriveData,
     PilotDataset,
@@ -35,16 +38,13 @@ from parts.pilots.dataset import (
     build_samples,
     read_drive_data,
 )
-from parts.pilots.distributed import DistInfo, init_distributed, shutdown_distributed
-from parts.pilots.fit import EventSink, FitSettings, fit
-from parts.pilots.framecache import FrameCache
-from parts.pilots.hyperparams import check_config
-from parts.pilots.modelfile import load_model, save_model
-from parts.pilots.models import PilotModel, create_model, model_type, model_type_names
-from parts.pilots.preprocess import Preprocess, preprocess_from_config
-from parts.pilots.recipes import Recipe
-from parts.pilots.split import split_train_val
-from parts.pilots.train_report import plot_losses, sidecar, write_metrics
+from training.distributed import DistInfo, init_distributed, shutdown_distributed
+from training.fit import EventSink, FitSettings, fit
+from training.framecache import FrameCache
+from training.hyperparams import check_config
+from training.recipes import Recipe
+from training.split import split_train_val
+from training.train_report import plot_losses, sidecar, write_metrics
 
 __all__ = ["default_model_path", "prepare_data", "train"]
 
@@ -126,7 +126,7 @@ def prepare_data(cfg: Any, data: DriveData, model: PilotModel, preprocess: Prepr
 
     A behaviour model's one-hot input follows ``behavior_order`` (default BEHAVIOR_LIST; a
     transferred model's own order), each record placed by its behaviour's name
-    (:func:`parts.pilots.dataset.behavior_labels`).
+    (:func:`training.dataset.behavior_labels`).
     """
     train_pos, val_pos = split_train_val(data.segments, cfg.TRAIN_TEST_SPLIT, cfg.TRAIN_SPLIT_BY,
                                          cfg.TRAIN_SPLIT_BLOCK, cfg.TRAIN_SEED)
@@ -246,7 +246,7 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
 
     Arguments left None take the car's settings (MAX_EPOCHS, BATCH_SIZE, LEARNING_RATE,
     TRAIN_DEVICE, TRAIN_NUM_WORKERS, AUGMENTATIONS, DEFAULT_MODEL_TYPE, TRAIN_PRECISION). The car's
-    settings are checked by :func:`parts.pilots.hyperparams.check_config`, the rules the CLI and the
+    settings are checked by :func:`training.hyperparams.check_config`, the rules the CLI and the
     console use.
 
     Raises:
@@ -409,7 +409,7 @@ def _finish(model_path: Path, base_meta: dict[str, Any], metrics: dict[str, Any]
             logger.warning("matplotlib is not installed: no loss plot (pip install matplotlib)")
     if register:
         try:
-            from parts.pilots.model_db import register_model
+            from training.model_db import register_model
 
             register_model(model_path, meta, comment=comment)
         except Exception as exc:  # the model is written; a registry problem must not lose it

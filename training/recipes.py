@@ -166,7 +166,7 @@ def describe() -> list[dict[str, Any]]:
     """Every recipe as plain values for the trainer console's preset: name, document, summary, the
     model type, and ``values``: the training form's fields the recipe sets (the form shows them;
     the recipe's other settings, such as its preprocessing, travel with its name)."""
-    from parts.pilots.hyperparams import for_setting
+    from training.hyperparams import for_setting
 
     out = []
     for r in RECIPES.values():

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 import torch
 
-from parts.pilots.augment import Augmenter, AugmentSettings
 from parts.pilots.models import create_model
 from parts.pilots.preprocess import preprocess_from_config
-from parts.pilots.recipes import LEFT_KEY, RECIPES, RIGHT_KEY, recipe
+from training.augment import Augmenter, AugmentSettings
+from training.recipes import LEFT_KEY, RECIPES, RIGHT_KEY, recipe
 from vehicle.config import Config
 
 
@@ -263,9 +263,9 @@ def test_unknown_recipe_and_wrong_frames_say_what_to_do():
 
 
 def test_flip_copy_doubles_the_data_with_mirrored_frames(tiny_tub):
-    from parts.pilots.dataset import PilotDataset, build_samples, read_drive_data
-    from parts.pilots.framecache import FrameCache
     from parts.pilots.preprocess import Preprocess
+    from training.dataset import PilotDataset, build_samples, read_drive_data
+    from training.framecache import FrameCache
 
     data = read_drive_data([tiny_tub])
     samples = build_samples(data, np.arange(10)).with_mirrored_copies()
@@ -310,7 +310,7 @@ def test_vehicle_train_recipe_trains_as_the_document_and_names_the_model_by_data
 
 
 def test_udacity_bc_recipe_doubles_the_samples(tmp_path, torch_one_thread):
-    from parts.pilots.training import train
+    from training.trainer import train
 
     tub = __import__("tests.fixtures.pilots", fromlist=["write_tub"]).write_tub(
         tmp_path / "tub", n=20, sessions=1, size=(160, 320))

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from parts.pilots.balance import balance_by_steering
-from parts.pilots.split import split_train_val
+from training.balance import balance_by_steering
+from training.split import split_train_val
 
 
 def _runs(positions: np.ndarray) -> list[int]:

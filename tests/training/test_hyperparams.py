@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from parts.pilots import hyperparams as hp
+from training import hyperparams as hp
 from vehicle.config import Config
 
 # Track Driver AI's "Validation Tests" of the training setup: field, normal, extreme, erroneous
