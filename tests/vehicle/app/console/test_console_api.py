@@ -219,13 +219,14 @@ def test_a_console_that_cannot_listen_says_whether_the_port_or_the_address_is_wr
 def test_a_training_with_a_recipe_carries_its_settings_to_the_worker(console):
     from vehicle.app.console.worker import _config
 
+    first = json.loads(request(console.port, "/api/datasets")[2])[0]["id"]  # registers the car's tubs
     status, _, body = request(console.port, "/api/jobs/train", "POST",
-                              {"datasets": [1], "name": "by_recipe", "recipe": "udacity_bc"})
+                              {"datasets": [first], "name": "by_recipe", "recipe": "udacity_bc"})
     assert status == 400 and "Did you mean 'udacity-bc'" in json.loads(body)["errors"]["recipe"]
     status, _, body = request(console.port, "/api/jobs/train", "POST",
-                              {"datasets": [1], "name": "by_recipe", "recipe": "udacity-bc",
+                              {"datasets": [first], "name": "by_recipe", "recipe": "udacity-bc",
                                "hyper": {"epochs": "1"}})
-    assert status == 201
+    assert status == 201, body
     job = json.loads(body)
     params = console.jobs.get(job["id"]).params
     assert params["recipe"] == "udacity-bc" and params["model_type"] == "pilotnet"
