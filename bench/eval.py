@@ -33,10 +33,10 @@ TRACKS = [101, 102, 103, 104, 105, 106, 107, 108]
 def untrained_pilot(folder: Path) -> Path:
     import torch
 
-    from parts.pilots.export import export_model
     from parts.pilots.modelfile import save_model
     from parts.pilots.models import create_model
     from parts.pilots.preprocess import Preprocess
+    from training.export import export_model
 
     torch.manual_seed(0)
     pre = Preprocess(crop=(40, 0, 0, 0), normalize="symmetric", image_shape=(120, 160, 3))

@@ -5,7 +5,7 @@
 
 The simulator expert records a training tub on tracks 1-4 and a held-out tub on tracks 101-102
 (the demo's settings: 40 rows of sky cropped, 1.5 m/s). Each model type is trained on the training
-tub (``parts.pilots.training.train``, the real training path), exported to float ONNX and to int8
+tub (``training.trainer.train``, the real training path), exported to float ONNX and to int8
 ONNX, static (calibrated on 300 frames of the training tub) and dynamic.
 
 - **Accuracy**: every held-out frame through each export (the pilot's own preprocessing, batch 1);
@@ -40,7 +40,7 @@ EXPORTS = ("float", "int8 static", "int8 dynamic")
 def machine_state() -> str:
     import onnxruntime
 
-    from parts.pilots.acceleration import cpu_caps
+    from training.acceleration import cpu_caps
 
     load = ", ".join(f"{v:.1f}" for v in os.getloadavg())
     return (f"{cpu_caps().name}, {os.cpu_count()} cores, load average {load}, onnxruntime "
@@ -61,8 +61,8 @@ def held_out_inputs(runner: Any, tub: Path) -> tuple[list[np.ndarray], np.ndarra
 def bench_type(mtype: str, cfg: Config, train_tub: Path, held_out: Path, folder: Path, epochs: int,
                iters: int, drive: bool) -> dict[str, Any]:
     from parts.pilots import load_pilot
-    from parts.pilots.export import export_model
-    from parts.pilots.training import train
+    from training.export import export_model
+    from training.trainer import train
 
     model = folder / "models" / f"{mtype}.pt"
     t = time.perf_counter()

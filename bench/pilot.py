@@ -29,10 +29,10 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from parts.pilots import load_pilot  # noqa: E402
-from parts.pilots.export import export_model  # noqa: E402
 from parts.pilots.modelfile import load_model, save_model  # noqa: E402
 from parts.pilots.models import create_model, model_type_names  # noqa: E402
 from parts.pilots.preprocess import preprocess_from_config  # noqa: E402
+from training.export import export_model  # noqa: E402
 from vehicle.config import Config  # noqa: E402
 
 FRAME_SHAPE = (120, 160, 3)

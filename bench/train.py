@@ -7,14 +7,14 @@
 
 A tub recorded by the simulator expert (``--records``, 4 training tracks) goes through the training
 data path (tub reader, decoded-frame cache, augmentations, preprocessing, DataLoader, prefetch
-thread) into ``parts.pilots.fit.fit``, batch 64, the demo's preprocessing (40 rows of sky
+thread) into ``training.fit.fit``, batch 64, the demo's preprocessing (40 rows of sky
 cropped: linear sees 3x80x160, pilotnet 3x66x200 YUV). Each round trains one epoch of every
 variant in turn, so all variants see the same load of the shared machine; the figures are medians
 over the rounds, ratios taken within each round.
 
 - **baseline**: training as it was before the device plan: fp32, contiguous NCHW, torch's own
   ``nn.Dropout``, Adam without the fused kernel.
-- **real path**: what ``vehicle train`` runs: the plan of ``parts.pilots.acceleration`` (printed),
+- **real path**: what ``vehicle train`` runs: the plan of ``training.acceleration`` (printed),
   ``FastDropout``, fused Adam.
 - **from memory**: the real path's model and plan fed batches already made (same samples, one
   augmentation draw); real / from memory is what the data path costs the training loop.
@@ -41,11 +41,11 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from parts.pilots.acceleration import TrainPlan, apply_layout, plan_for  # noqa: E402
-from parts.pilots.fit import FitSettings, fit, make_optimizer, plain_plan  # noqa: E402
 from parts.pilots.models import create_model  # noqa: E402
 from parts.pilots.models.base import FastDropout  # noqa: E402
 from parts.pilots.preprocess import preprocess_from_config  # noqa: E402
+from training.acceleration import TrainPlan, apply_layout, plan_for  # noqa: E402
+from training.fit import FitSettings, fit, make_optimizer, plain_plan  # noqa: E402
 from vehicle.config import Config  # noqa: E402
 
 FRAME_SHAPE = (120, 160, 3)
@@ -64,7 +64,7 @@ def torch_dropout(model: torch.nn.Module) -> torch.nn.Module:
 
 def machine_state() -> str:
     """CPU, cores and load average, for the record."""
-    from parts.pilots.acceleration import cpu_caps
+    from training.acceleration import cpu_caps
 
     caps = cpu_caps()
     load = ", ".join(f"{v:.1f}" for v in os.getloadavg())
@@ -93,8 +93,8 @@ def variants(mtype: str, cfg: Config, tub: Path, compile_too: bool) -> tuple[lis
     """The variants of one model type, all on the same training samples."""
     from torch.utils.data import DataLoader, TensorDataset
 
-    from parts.pilots.dataset import read_drive_data
-    from parts.pilots.training import prepare_data
+    from training.dataset import read_drive_data
+    from training.trainer import prepare_data
 
     data = read_drive_data([tub], modes=cfg.TRAIN_MODES)
     pre = preprocess_from_config(cfg, mtype, FRAME_SHAPE)

@@ -166,8 +166,8 @@ def ours_read(path: Path, how: str) -> tuple[float, int]:
     missing or empty images are reported when read); "cache" fills the training
     frame cache (``load_records``, then every frame decoded by 2 threads into one array held in
     memory); "serial" calls TubRecord.image() in a loop in one thread."""
-    from parts.pilots.framecache import FrameCache
     from parts.tub.reader import iter_images, iter_records, load_records
+    from training.framecache import FrameCache
 
     settle()
     t0 = time.perf_counter()

@@ -16,6 +16,9 @@ from vehicle.keys import Mode
 
 # Model type used when training without --type.
 DEFAULT_MODEL_TYPE: str = "linear"
+# Options of the model type that differ from its defaults, e.g. {"dropout": 0.1, "batch_norm":
+# True} or, for pilotnet, {"activation": "elu"}; docs/training.md lists each type's options.
+MODEL_OPTIONS: dict[str, Any] = {}
 # Optional function record -> bool choosing which tub records are trained on (None = all).
 # It receives the record's catalog fields (dict: user/angle, user/throttle, user/mode, ...).
 TRAIN_FILTER: Callable[[dict[str, Any]], bool] | None = None
@@ -28,8 +31,9 @@ BATCH_SIZE: Annotated[int, Range(1)] = 128
 TRAIN_TEST_SPLIT: Annotated[float, Range(0, 1, note="1 trains on every record, without validation; at "
                                                       "least one block always trains")] = 0.8
 # "session": validate on whole recording sessions when the data has at least 2; "block": on
-# contiguous blocks of TRAIN_SPLIT_BLOCK records of every tub.
-TRAIN_SPLIT_BY: Literal["session", "block"] = "block"
+# contiguous blocks of TRAIN_SPLIT_BLOCK records of every tub; "random": on single random records
+# (the source documents' split: optimistic, since a frame's neighbours then train).
+TRAIN_SPLIT_BY: Literal["session", "block", "random"] = "block"
 # Length of one block of the block split, in records (100 = 5 s at 20 Hz).
 TRAIN_SPLIT_BLOCK: Annotated[int, Range(1)] = 100
 # Seed of the split, balancing, shuffling and augmentations (same seed, same run).
@@ -80,6 +84,10 @@ TRAIN_BALANCE: bool = False
 TRAIN_BALANCE_BINS: Annotated[int, Range(1)] = 25
 # Most training records kept per steering bin (Track Driver AI's trainer: max_samples_per_bin).
 TRAIN_BALANCE_MAX_PER_BIN: Annotated[int, Range(1)] = 400
+# Add a mirrored copy of every frame (steering negated, behaviours swapped) to the training and
+# validation sets, doubling them: the Udacity behavioural-cloning project's deterministic
+# augmentation (a random "flip" augmentation is the other way to the same end).
+TRAIN_FLIP_COPY: bool = False
 # Udacity-style side cameras: image key -> steering offset added to the label of that camera's frame
 # (e.g. {"cam/left_image_array": 0.15, "cam/right_image_array": -0.15}: the left camera sees the road
 # as if the car were left of centre, so it must steer right). Empty = centre camera only.
@@ -103,15 +111,26 @@ ROI_CROP_RIGHT: Annotated[int, Range(0, unit="pixels")] = 0
 PREPROCESS_RESIZE: Annotated[tuple[int, int] | None, Range(1, 4096, unit="pixels")] = None
 # Colour space fed to the model; None = the model type's default (pilotnet: yuv, others: rgb).
 PREPROCESS_COLOR: Literal["rgb", "yuv", "hsv", "gray"] | None = None
-# Pixel scaling: "unit" = [0, 1] (DonkeyCar's), "symmetric" = [-1, 1]; None = the model type's
+# Pixel scaling: "unit" = [0, 1] (DonkeyCar's), "symmetric" = [-1, 1] (x / 127.5 - 1),
+# "symmetric127" = x / 127 - 1 (the Udacity behavioural-cloning project's); None = the model type's
 # default, [-1, 1] for every type (centred inputs: the linear model learns from the first epoch).
-PREPROCESS_NORMALIZE: Literal["unit", "symmetric"] | None = None
+PREPROCESS_NORMALIZE: Literal["unit", "symmetric", "symmetric127"] | None = None
+# Convert the colour space (and blur) before resizing: Track Driver AI's order (crop, YUV, blur,
+# resize). False: crop, resize, then colour (cheaper: the colour conversion runs on fewer pixels).
+PREPROCESS_COLOR_FIRST: bool = False
+# Side of a fixed Gaussian blur kernel in pixels (odd; OpenCV's sigma for that size) applied after
+# the colour conversion, 0 = none. Track Driver AI blurs 3x3 against sensor noise.
+PREPROCESS_BLUR: Annotated[int, Range(0, 31, unit="pixels", note="odd, or 0 for none")] = 0
+# Resampling of the resize: "area" averages the pixels a shrunk pixel covers (no aliasing);
+# "linear" is OpenCV's and TensorFlow's default, which both Udacity-simulator documents use.
+PREPROCESS_INTERPOLATION: Literal["area", "linear"] = "area"
 
-# Training-only augmentations, each applied with its probability AUG_<NAME>_P: flip (mirror,
-# steering negated), brightness (and contrast), shadow, shift (pan with steering correction),
-# zoom, blur, hue. `vehicle train preview-aug` shows them.
-AUGMENTATIONS: list[Literal["flip", "brightness", "shadow", "shift", "zoom", "blur", "hue"]] = [
-    "flip", "brightness", "shadow", "shift"]
+# Training-only augmentations, each applied with its probability AUG_<NAME>_P, in the order listed:
+# flip (mirror, steering negated), brightness (and contrast, additive), multiply (brightness as a
+# factor), shadow, shift (pan with steering correction), zoom, blur, hue. `vehicle train preview-aug`
+# shows them.
+AUGMENTATIONS: list[Literal["flip", "brightness", "multiply", "shadow", "shift", "zoom", "blur", "hue"]] = [
+    "flip", "shift", "brightness", "shadow"]
 # Probability of mirroring a training frame (and negating its steering).
 AUG_FLIP_P: Annotated[float, Range(0, 1)] = 0.5
 # Probability of a brightness/contrast change.
@@ -120,6 +139,10 @@ AUG_BRIGHTNESS_P: Annotated[float, Range(0, 1)] = 0.5
 AUG_BRIGHTNESS_RANGE: Annotated[float, Range(0, 1)] = 0.2
 # Largest contrast change (0.2 = x0.8..1.2 around mid-grey).
 AUG_CONTRAST_RANGE: Annotated[float, Range(0, 1)] = 0.2
+# Probability of multiplying every pixel by one random factor (Track Driver AI's brightness).
+AUG_MULTIPLY_P: Annotated[float, Range(0, 1)] = 0.5
+# Range of that factor (0.2, 1.2 = from a fifth of the brightness to 20 % brighter).
+AUG_MULTIPLY_RANGE: Annotated[tuple[float, float], Range(0, 10)] = (0.2, 1.2)
 # Probability of a shadow (one side of a random line from top to bottom darkened).
 AUG_SHADOW_P: Annotated[float, Range(0, 1)] = 0.3
 # Darkest a shadow gets: pixel values multiplied by down to this factor.
@@ -133,6 +156,9 @@ AUG_SHIFT_Y: Annotated[float, Range(0, 1)] = 0.05
 # Steering added per full frame width of horizontal shift (a frame shifted right looks as if the car
 # were left of its path, so it must steer right).
 AUG_SHIFT_STEERING: Annotated[float, Range(0)] = 1.0
+# What fills the edge a shift or zoom uncovers: "replicate" (the nearest pixels) or "constant"
+# (black: imgaug's Affine default, which Track Driver AI used).
+AUG_BORDER: Literal["replicate", "constant"] = "replicate"
 # Probability of a centred zoom in.
 AUG_ZOOM_P: Annotated[float, Range(0, 1)] = 0.3
 # Largest zoom in, as a fraction (0.3 = up to 130 %), centred.

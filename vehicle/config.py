@@ -54,10 +54,9 @@ SETTINGS_ROOTS: tuple[str, ...] = ("parts", "training", "vehicle.app")
 #: DonkeyCar settings that have another name here, so a copied myconfig.py gets a precise hint
 RENAMED: dict[str, str] = {
     "WEB_INIT_MODE": "DEFAULT_MODE",
-    # DonkeyCar's settings for its simulator and its PWM drive train, which a copied myconfig.py
-    # brings along; the closest name by spelling (DONKEY_GYM_ENV_NAME, STEERING_TRIM) misleads
+    # DonkeyCar's setting for its simulator, which a copied myconfig.py brings along; the closest
+    # name by spelling (DONKEY_GYM_ENV_NAME) misleads
     "DONKEY_GYM": 'SIM_TYPE = "donkey"',
-    "DONKEY_SIM_PATH": 'SIM_TYPE = "donkey" with SIM_HOST (docs/simulators.md)',
 }
 
 

@@ -25,6 +25,12 @@ SIM_HOST: str = "127.0.0.1"
 SIM_PORT: Annotated[int, Range(1, 65535)] = 9091
 # Seconds a drive keeps trying to reach the Donkey simulator at start (it may still be starting).
 SIM_CONNECT_TIMEOUT_S: Annotated[float, Range(0, 3600, lo_open=True, unit="s")] = 10.0
+# The Donkey simulator's executable, which a drive then starts itself (DonkeyCar's setting: it runs
+# `EXE --port SIM_PORT --host SIM_HOST -logFile logs/unitylog.txt`, waits for the port and ends it
+# on exit); None or "remote": a simulator you start yourself, at SIM_HOST:SIM_PORT.
+DONKEY_SIM_PATH: str | None = None
+# Seconds to wait for a simulator started from DONKEY_SIM_PATH to listen (Unity takes 5-30 s).
+DONKEY_SIM_START_TIMEOUT: Annotated[float, Range(1, 600, unit="s")] = 60.0
 # Scene the Donkey simulator loads: a gym id (DonkeyCar's setting: donkey-generated-track-v0,
 # donkey-warren-track-v0 ...) or a scene name (generated_track, warren, track_5 on `vehicle sim serve`).
 DONKEY_GYM_ENV_NAME: str = "donkey-generated-track-v0"

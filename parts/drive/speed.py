@@ -4,7 +4,10 @@
   controller that drives the measured speed to a set point), with a time step, output limits and
   anti-windup so that a long stall cannot wind the integral up.
 - :func:`limit_throttle` – Track Driver AI's driver rule ``throttle = 1 - speed / limit``: full
-  throttle at standstill, falling linearly to 0 at the limit.
+  throttle at standstill, falling linearly to 0 at the limit (its later driver divides by
+  ``limit * 1.25``: ``headroom``).
+- :class:`DrivePyPI` – drive.py's ``SimplePIController(0.1, 0.002)`` exactly, in its own units
+  (mph, the integral summed per frame), for the ``udacity-bc`` recipe.
 
 :class:`SpeedControl` wraps either as a part. It takes the pilot's throttle, the measured speed
 (``sim/speed`` or ``enc/speed``, m/s) and the target/limit (``user/speed_limit``, m/s) and returns
@@ -21,8 +24,9 @@ from typing import ClassVar, Literal
 
 logger = logging.getLogger(__name__)
 
-SpeedControlMode = Literal["off", "pi", "limit"]
-SPEED_CONTROL_MODES: tuple[str, ...] = ("off", "pi", "limit")
+SpeedControlMode = Literal["off", "pi", "limit", "drivepy"]
+SPEED_CONTROL_MODES: tuple[str, ...] = ("off", "pi", "limit", "drivepy")
+MS_PER_MPH = 0.44704
 
 
 def _finite(value: float | None) -> bool:
@@ -82,17 +86,43 @@ class PIController:
         return min(self.out_max, max(self.out_min, out))
 
 
-def limit_throttle(speed: float, limit: float, max_throttle: float = 1.0) -> float:
-    """Track Driver AI's rule ``throttle = 1 - speed / limit``, clamped to ``[0, max_throttle]``.
+def limit_throttle(speed: float, limit: float, max_throttle: float = 1.0, headroom: float = 1.0) -> float:
+    """Track Driver AI's rule ``throttle = 1 - speed / (limit * headroom)``, clamped to
+    ``[0, max_throttle]``.
 
     Args:
         speed: measured speed, m/s.
         limit: speed limit, m/s (> 0).
         max_throttle: the throttle at standstill (1.0 in Track Driver AI).
+        headroom: the limit's factor (1.0; 1.25 in the document's later driver, which lets the car
+            settle nearer the limit).
     """
     if limit <= 0:
         raise ValueError(f"limit_throttle: the speed limit must be > 0 m/s, got {limit}")
-    return min(max_throttle, max(0.0, max_throttle * (1.0 - speed / limit)))
+    return min(max_throttle, max(0.0, max_throttle * (1.0 - speed / (limit * headroom))))
+
+
+class DrivePyPI:
+    """drive.py's ``SimplePIController`` as the Udacity behavioural-cloning project has it (seed 001):
+    ``throttle = kp * error + ki * integral`` with the error in mph and the integral summed once per
+    frame (not per second), no output limit. Kept exact so the recipe drives as the document did."""
+
+    def __init__(self, kp: float = 0.1, ki: float = 0.002) -> None:
+        self.kp = float(kp)
+        self.ki = float(ki)
+        self.set_point = 0.0
+        self.integral = 0.0
+
+    def set_desired(self, desired_mph: float) -> None:
+        self.set_point = float(desired_mph)
+
+    def reset(self) -> None:
+        self.integral = 0.0
+
+    def update(self, measurement_mph: float) -> float:
+        error = self.set_point - measurement_mph
+        self.integral += error
+        return self.kp * error + self.ki * self.integral
 
 
 class SpeedControl:
@@ -106,17 +136,20 @@ class SpeedControl:
     the limit.
 
     Args:
-        mode: "pi", "limit" or "off".
+        mode: "pi", "limit", "drivepy" (drive.py's controller in its own units, set point =
+            the limit) or "off".
         dt: seconds between two runs (the drive loop period, 1 / DRIVE_LOOP_HZ).
         kp, ki: PI gains (throttle per m/s, throttle per m/s per s).
         max_throttle: upper bound of the controlled throttle.
         default_limit: the limit (m/s) while the ``speed_limit`` input is None; None = no limit.
+        headroom: factor of the limit in mode "limit" (see :func:`limit_throttle`).
     """
 
     warn_interval_s = 5.0  # at most one warning about a missing speed per this many seconds
 
     def __init__(self, mode: SpeedControlMode = "pi", *, dt: float = 0.05, kp: float = 0.3,
-                 ki: float = 0.6, max_throttle: float = 1.0, default_limit: float | None = None) -> None:
+                 ki: float = 0.6, max_throttle: float = 1.0, default_limit: float | None = None,
+                 headroom: float = 1.0) -> None:
         if mode not in SPEED_CONTROL_MODES:
             raise ValueError(f"SpeedControl: mode must be one of {SPEED_CONTROL_MODES}, got {mode!r}")
         if not _finite(dt) or dt <= 0:
@@ -129,7 +162,11 @@ class SpeedControl:
         self.default_limit = default_limit
         self.dt = float(dt)
         self.max_throttle = float(max_throttle)
+        if not _finite(headroom) or headroom <= 0:
+            raise ValueError(f"SpeedControl: headroom must be > 0, got {headroom!r}")
+        self.headroom = float(headroom)
         self.pi = PIController(kp, ki, 0.0, max_throttle)
+        self.drivepy = DrivePyPI()
         self._last_warning = -math.inf
 
     def run(self, throttle: float | None, speed: float | None, speed_limit: float | None) -> float | None:
@@ -137,20 +174,28 @@ class SpeedControl:
         if speed_limit is None:
             speed_limit = self.default_limit
         if self.mode == "off" or speed_limit is None:
-            self.pi.reset()
+            self._reset()
             return throttle
         if not _finite(speed_limit) or speed_limit <= 0:
-            self.pi.reset()
+            self._reset()
             return 0.0
         if not _finite(speed):
             self._warn(f"no valid speed measurement ({speed!r}): throttle 0 until there is one")
-            self.pi.reset()
+            self._reset()
             return 0.0
         measured = float(speed)  # type: ignore[arg-type]  # _finite() checked it
         if self.mode == "limit":
-            return limit_throttle(measured, float(speed_limit), self.max_throttle)
+            return limit_throttle(measured, float(speed_limit), self.max_throttle, self.headroom)
+        if self.mode == "drivepy":
+            self.drivepy.set_desired(float(speed_limit) / MS_PER_MPH)
+            # unlimited in drive.py; the simulator clamps to [-1, 1], and so do we (max_throttle above)
+            return min(self.max_throttle, max(-1.0, self.drivepy.update(measured / MS_PER_MPH)))
         self.pi.set_desired(float(speed_limit))
         return self.pi.update(measured, self.dt)
+
+    def _reset(self) -> None:
+        self.pi.reset()
+        self.drivepy.reset()
 
     def _warn(self, message: str) -> None:
         now = time.monotonic()
@@ -218,6 +263,10 @@ class SpeedLimit:
             return throttle
         self.limiting = True
         return direction * allowed
+
+    def _reset(self) -> None:
+        self.pi.reset()
+        self.drivepy.reset()
 
     def _warn(self, message: str) -> None:
         now = time.monotonic()

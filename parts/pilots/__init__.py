@@ -1,6 +1,8 @@
-"""Pilots: model types, preprocessing, training, and the part that drives with a trained model.
+"""Pilots: what drives the car with a trained model: the Pilot part, the model types (``models/``),
+the preprocessing shared with training, the runtimes (PyTorch, ONNX Runtime, TorchScript) and the
+model file format. Training them is the separate :mod:`training` package, which no part imports.
 
-Importing this package is light: torch is imported only when a model is loaded or trained.
+Importing this package is light: torch is imported only when a model is loaded.
 """
 
 from __future__ import annotations

@@ -9,9 +9,9 @@ from the metadata stored in the model file (and copied into each export).
 - ``.onnx`` → ONNX Runtime; ``.ts`` → TorchScript; ``.pt`` → eager PyTorch, except that with
   ``backend="auto"`` a sibling ``NAME.onnx`` is preferred when onnxruntime is installed and the
   export was made from the .pt as it is now (same SHA-256, recorded in the export by
-  :mod:`parts.pilots.export`). A stale or foreign .onnx is ignored with a log line, never used.
+  :mod:`training.export`). A stale or foreign .onnx is ignored with a log line, never used.
 - ``backend="torch" | "onnx" | "torchscript"`` forces one (for .pt: the sibling export).
-- ``backend="onnx-int8"`` runs the int8 export ``NAME.int8.onnx`` (:mod:`parts.pilots.quantize`);
+- ``backend="onnx-int8"`` runs the int8 export ``NAME.int8.onnx`` (:mod:`training.quantize`);
   only when asked, never by "auto": whether int8 pays depends on the CPU and the model
   (``bench/int8.py`` measures both speed and steering difference).
 """
@@ -137,7 +137,7 @@ class TorchScriptRunner(Runner):
     backend = "torchscript"
 
     def __init__(self, path: Path) -> None:
-        from parts.pilots.export import META_KEY, SOURCE_KEY, read_torchscript
+        from parts.pilots.export_files import META_KEY, SOURCE_KEY
 
         self.module, props = read_torchscript(path)
         self.source_sha256 = props.get(SOURCE_KEY)
@@ -151,6 +151,35 @@ class TorchScriptRunner(Runner):
                                                                       torch.from_numpy(extra))
             angle, throttle = self.module(*args)[0].tolist()
         return angle, throttle
+
+
+def read_torchscript(path: str | os.PathLike[str]) -> tuple[Any, dict[str, str]]:
+    """Load a TorchScript export; returns ``(scripted module, {META_KEY: ..., SOURCE_KEY: ...})``."""
+    import warnings
+
+    import torch
+
+    from parts.pilots.errors import ModelFileError
+    from parts.pilots.export_files import META_KEY, SOURCE_KEY
+
+    extra = {f"{k}.txt": "" for k in (META_KEY, SOURCE_KEY)}
+    if not Path(path).is_file():
+        raise ModelFileError(f"{path}: no such TorchScript file; export one with "
+                             "`vehicle models export MODEL --format torchscript`")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            module = torch.jit.load(str(path), map_location="cpu", _extra_files=extra)
+        props = {k[:-4]: (v.decode() if isinstance(v, bytes) else v) for k, v in extra.items()}
+    except Exception as exc:  # torch raises RuntimeError (and others) for damaged or foreign files
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ModelFileError(f"{path}: not a readable TorchScript file (corrupt, truncated or another "
+                             f"format: {first[:160]}); export the model again with `vehicle models export "
+                             "MODEL --format torchscript`") from exc
+    if not props.get(META_KEY):
+        raise ModelFileError(f"{path}: not a TorchScript export of a pilot model (no {META_KEY}); "
+                             "export one with `vehicle models export MODEL --format torchscript`")
+    return module.eval(), props
 
 
 def onnxruntime_available() -> bool:
@@ -190,7 +219,7 @@ class OnnxRunner(Runner):
             raise ValueError(f"{path}: not an ONNX export of a pilot model (no {META_KEY} metadata); "
                              "export one with `vehicle models export MODEL --format onnx`")
         self.source_sha256 = props.get(SOURCE_KEY)
-        from parts.pilots.quantize import quant_record
+        from parts.pilots.export_files import quant_record
 
         self.quantization = quant_record(props)
         if self.quantization is not None:

@@ -30,7 +30,11 @@ if TYPE_CHECKING:
     from parts.vision.lanes import LaneExtractor
 
 COLORS = ("rgb", "yuv", "hsv", "gray")
-NORMALIZATIONS = ("unit", "symmetric")
+#: "unit": x / 255; "symmetric": x / 127.5 - 1; "symmetric127": x / 127 - 1 (the Udacity
+#: behavioural-cloning project's Keras Lambda, seed 001: 255 maps to 1.008, not 1)
+NORMALIZATIONS = ("unit", "symmetric", "symmetric127")
+INTERPOLATIONS = ("area", "linear")
+_CV2_INTERPOLATION = {"area": cv2.INTER_AREA, "linear": cv2.INTER_LINEAR}
 _CV2_COLOR = {"yuv": cv2.COLOR_RGB2YUV, "hsv": cv2.COLOR_RGB2HSV, "gray": cv2.COLOR_RGB2GRAY}
 
 
@@ -42,11 +46,18 @@ class Preprocess:
         crop: pixels removed at (top, bottom, left, right) of the camera frame (sky, bonnet).
         resize: (height, width) after cropping, or None to keep the cropped size.
         color: colour space fed to the model: rgb, yuv (DAVE-2), hsv or gray (1 channel).
-        normalize: "unit" maps 0..255 to [0, 1]; "symmetric" to [-1, 1] (x / 127.5 - 1).
+        normalize: "unit" maps 0..255 to [0, 1]; "symmetric" to [-1, 1] (x / 127.5 - 1);
+            "symmetric127" is x / 127 - 1 (seed 001's Keras Lambda).
         image_shape: (height, width, channels) of the camera frames the model was trained on, or
             None to accept any size (checked so a camera of another size fails clearly).
         lanes: lane-extraction settings (:meth:`parts.vision.lanes.LaneSettings.to_dict`) to append
             the lane image as the last channel, or None.
+        color_first: convert the colour space (and blur) before resizing, in Track Driver AI's
+            order (crop, YUV, blur, resize); False: crop, resize, colour.
+        blur: side in pixels of a fixed Gaussian blur kernel (OpenCV's sigma for that size), odd;
+            0 = none. Applied after the colour conversion.
+        interpolation: "area" (averages when shrinking) or "linear" (OpenCV's default, and
+            ``tf.image.resize``'s: what both Udacity-simulator documents use).
     """
 
     crop: tuple[int, int, int, int] = (0, 0, 0, 0)
@@ -55,6 +66,9 @@ class Preprocess:
     normalize: str = "unit"
     image_shape: tuple[int, int, int] | None = field(default=None)
     lanes: dict[str, Any] | None = None
+    color_first: bool = False
+    blur: int = 0
+    interpolation: str = "area"
     _lanes: LaneExtractor | None = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -72,6 +86,13 @@ class Preprocess:
             raise ValueError(f"color must be one of {COLORS}, got {self.color!r}")
         if self.normalize not in NORMALIZATIONS:
             raise ValueError(f"normalize must be one of {NORMALIZATIONS}, got {self.normalize!r}")
+        if self.interpolation not in INTERPOLATIONS:
+            raise ValueError(f"interpolation must be one of {INTERPOLATIONS}, got {self.interpolation!r}")
+        blur = int(self.blur)
+        if blur < 0 or (blur and blur % 2 == 0):
+            raise ValueError(f"blur must be 0 (none) or an odd kernel size in pixels, got {self.blur!r}")
+        object.__setattr__(self, "blur", blur)
+        object.__setattr__(self, "color_first", bool(self.color_first))
         if self.image_shape is not None:
             shape = tuple(int(v) for v in self.image_shape)
             if len(shape) != 3:
@@ -125,11 +146,10 @@ class Preprocess:
         if top + bottom >= h or left + right >= w:
             raise ValueError(f"crop {self.crop} leaves nothing of a {h}x{w} frame; lower ROI_CROP_* settings")
         out = image[top:h - bottom, left:w - right]
-        if self.resize is not None and out.shape[:2] != self.resize:
-            # INTER_AREA averages when shrinking (no aliasing), like a camera at a lower resolution.
-            out = cv2.resize(out, (self.resize[1], self.resize[0]), interpolation=cv2.INTER_AREA)
-        if self.color != "rgb":
-            out = cv2.cvtColor(np.ascontiguousarray(out), _CV2_COLOR[self.color])
+        if self.color_first:
+            out = self._resize(self._blur(self._color(out)))
+        else:
+            out = self._blur(self._color(self._resize(out)))
         if out.ndim == 2:
             out = out[:, :, None]
         if self._lanes is not None:
@@ -137,6 +157,23 @@ class Preprocess:
             lanes = self._lanes.extract(image, (out.shape[1], out.shape[0]))
             return np.concatenate([out, lanes[:, :, None]], axis=2)
         return np.ascontiguousarray(out)
+
+    def _resize(self, image: np.ndarray) -> np.ndarray:
+        if self.resize is None or image.shape[:2] == self.resize:
+            return image
+        # INTER_AREA averages when shrinking (no aliasing), like a camera at a lower resolution.
+        return cv2.resize(image, (self.resize[1], self.resize[0]),
+                          interpolation=_CV2_INTERPOLATION[self.interpolation])
+
+    def _color(self, image: np.ndarray) -> np.ndarray:
+        if self.color == "rgb":
+            return image
+        return cv2.cvtColor(np.ascontiguousarray(image), _CV2_COLOR[self.color])
+
+    def _blur(self, image: np.ndarray) -> np.ndarray:
+        if not self.blur:
+            return image
+        return cv2.GaussianBlur(image, (self.blur, self.blur), 0)
 
     @staticmethod
     def to_chw(frame: np.ndarray) -> torch.Tensor:
@@ -154,7 +191,12 @@ class Preprocess:
         x = x.to(torch.float32, copy=True)
         if self.normalize == "unit":
             return x.mul_(1.0 / 255.0)
-        return x.mul_(1.0 / 127.5).sub_(1.0)
+        return x.mul_(1.0 / self._half_scale).sub_(1.0)
+
+    @property
+    def _half_scale(self) -> float:
+        """The divisor of the symmetric normalisations (x / d - 1)."""
+        return 127.0 if self.normalize == "symmetric127" else 127.5
 
     def array(self, image: np.ndarray) -> np.ndarray:
         """The inference path without torch: one RGB uint8 frame -> float32 array (C, H', W').
@@ -167,7 +209,7 @@ class Preprocess:
         chw = np.ascontiguousarray(self.frame(image).transpose(2, 0, 1))
         if self.normalize == "unit":
             return np.multiply(chw, np.float32(1.0 / 255.0), dtype=np.float32)
-        out = np.multiply(chw, np.float32(1.0 / 127.5), dtype=np.float32)
+        out = np.multiply(chw, np.float32(1.0 / self._half_scale), dtype=np.float32)
         return np.subtract(out, np.float32(1.0), out=out)
 
     def __call__(self, image: np.ndarray) -> torch.Tensor:
@@ -185,12 +227,20 @@ class Preprocess:
                              "image_shape": list(self.image_shape) if self.image_shape else None}
         if self.lanes is not None:
             d["lanes"] = dict(self.lanes)
+        # only when set, so that older readers still load every model that does not need them
+        if self.color_first:
+            d["color_first"] = True
+        if self.blur:
+            d["blur"] = self.blur
+        if self.interpolation != "area":
+            d["interpolation"] = self.interpolation
         return d
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Preprocess:
         """Inverse of :meth:`to_dict`; unknown keys are refused."""
-        unknown = set(d) - {"crop", "resize", "color", "normalize", "image_shape", "lanes"}
+        unknown = set(d) - {"crop", "resize", "color", "normalize", "image_shape", "lanes", "color_first", "blur",
+                            "interpolation"}
         if unknown:
             raise ValueError(f"unknown preprocessing setting(s) {sorted(unknown)}")
         return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
@@ -215,6 +265,9 @@ def preprocess_from_config(cfg: Any, model_type: str,
         normalize=cfg.PREPROCESS_NORMALIZE or defaults["normalize"],
         image_shape=image_shape,
         lanes=_lane_settings(cfg) if defaults.get("lanes") else None,
+        color_first=cfg.PREPROCESS_COLOR_FIRST,
+        blur=cfg.PREPROCESS_BLUR,
+        interpolation=cfg.PREPROCESS_INTERPOLATION,
     )
 
 

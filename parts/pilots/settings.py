@@ -22,10 +22,14 @@ PILOT_BACKEND: Literal["auto", "torch", "onnx", "onnx-int8", "torchscript"] = "a
 # the drive loop's other parts need the other cores.
 PILOT_ONNX_THREADS: Annotated[int, Range(0, 256)] = 1
 # Speed control that replaces the pilot's throttle while PILOT_SPEED_LIMIT is set: "off", "pi"
-# (PI controller with PILOT_SPEED_LIMIT as target speed, as Udacity's drive.py) or "limit"
-# (throttle = 1 - speed / limit, Track Driver AI's driver). The web page's speed limit is another
-# thing: a cap on the car's speed in every mode, whatever this says.
-PILOT_SPEED_CONTROL: Literal["off", "pi", "limit"] = "off"
+# (PI controller with PILOT_SPEED_LIMIT as target speed, as Udacity's drive.py), "limit"
+# (throttle = 1 - speed / (limit * PILOT_SPEED_LIMIT_HEADROOM), Track Driver AI's driver) or
+# "drivepy" (drive.py's SimplePIController(0.1, 0.002) exactly, in mph, integral per frame). The web
+# page's speed limit is another thing: a cap on the car's speed in every mode, whatever this says.
+PILOT_SPEED_CONTROL: Literal["off", "pi", "limit", "drivepy"] = "off"
+# Factor of the limit in PILOT_SPEED_CONTROL = "limit": 1.0 = throttle 0 at the limit (Track Driver
+# AI's first driver); its later driver uses 1.25, which settles the car nearer the limit.
+PILOT_SPEED_LIMIT_HEADROOM: Annotated[float, Range(0.1, 10)] = 1.0
 # Target speed of PILOT_SPEED_CONTROL in m/s; None = no speed control, the model's throttle drives.
 PILOT_SPEED_LIMIT: Annotated[float | None, Range(0, 100, lo_open=True, unit="m/s")] = None
 # Memory key of the measured speed in m/s (speed control and the web page's speed limit); None =

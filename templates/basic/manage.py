@@ -39,6 +39,7 @@ def main(argv=None):
     d = manage.add_command(parser, "drive", drive, "drive the car and record tubs")
     d.add_argument("--model", help="trained pilot to drive with (a models/*.pt file)")
     d.add_argument("--max-loops", type=manage.positive_int, metavar="N", help="stop after N loops")
+    d.add_argument("--js", action="store_true", help="drive with the gamepad too, this run (USE_JOYSTICK_AS_DEFAULT)")
     manage.add_train_command(parser)  # the options of `vehicle train`, on this car's data/
     manage.add_console_command(parser)  # the trainer console: datasets, training, models, leaderboard
     return manage.main(parser, Path(__file__).resolve().parent, argv)

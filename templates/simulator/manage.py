@@ -65,6 +65,7 @@ def main(argv=None):
     d.add_argument("--tracks", type=manage.int_list, metavar="SEEDS", help="track seeds, e.g. 1,2,3")
     d.add_argument("--sim", choices=["builtin", "udacity", "donkey"], help="simulator to drive (default: SIM_TYPE)")
     d.add_argument("--max-loops", type=manage.positive_int, metavar="N", help="stop after N loops")
+    d.add_argument("--js", action="store_true", help="drive with the gamepad too, this run (USE_JOYSTICK_AS_DEFAULT)")
     manage.add_train_command(parser)  # the options of `vehicle train`, on this car's data/
     manage.add_console_command(parser)  # the trainer console: datasets, training, models, leaderboard
     return manage.main(parser, Path(__file__).resolve().parent, argv)

@@ -46,7 +46,7 @@ DEMO_SETTINGS: dict[str, Any] = {
     "SIM_RANDOMIZE_RANGES": {"line_wear": (0.0, 1.0)},
     # the default augmentations plus hue (tape of one colour teaches the others) and blur (thin
     # lines count less against the broad edges of the drivable surface)
-    "AUGMENTATIONS": ["flip", "brightness", "shadow", "shift", "hue", "blur"],
+    "AUGMENTATIONS": ["flip", "shift", "hue", "brightness", "shadow", "blur"],  # applied in this order
     "SHOW_PLOT": True,
 }
 # 12000 records on 64 tracks: with half of each, one unseen indoor track in five failed (docs/pilot.md)
@@ -103,7 +103,7 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
 
     t, c = time.perf_counter(), cpu_seconds()
     say(f"[2/4] training a {model_type} model for up to {epochs} epochs ...")
-    from parts.pilots.training import train
+    from training.trainer import train
 
     metrics = train(cfg, [tub], model_path, model_type_name=model_type, epochs=epochs,
                     comment="vehicle demo")
@@ -197,7 +197,7 @@ def export_onnx(model_path: Path) -> Path | None:
     if not have_onnx:
         say("[3/4] onnx/onnxruntime not installed: the pilot runs in PyTorch")
         return None
-    from parts.pilots.export import export_model
+    from training.export import export_model
 
     path = export_model(model_path, "onnx")
     say(f"[3/4] exporting to ONNX: {path}")

@@ -35,7 +35,7 @@ LANE_SETTINGS: dict[str, Any] = {
     # augmentation (tape of any colour) would change what the white-line mask sees
     "SIM_THEME": "road",
     "SIM_RANDOMIZE": None,
-    "AUGMENTATIONS": ["flip", "brightness", "shadow", "shift"],
+    "AUGMENTATIONS": ["flip", "shift", "brightness", "shadow"],
 }
 DEFAULTS = {"records": 6000, "lane_changes": 40, "epochs": 10, "noise": 0.4,
             "train_tracks": [1, 2, 3, 4, 5, 6, 7, 8], "eval_tracks": [101, 102, 103, 104, 105], "laps": 2,
@@ -61,8 +61,8 @@ def run_lanes_demo(out: Path, *, records: int, lane_changes: int, epochs: int, n
                    types: list[str] | None = None) -> dict[str, Any]:
     """Run the four steps in ``out``; returns ``{"reports": {name: report}, "models": {type: path},
     "metrics": {type: training metrics}, "seconds": {step: s}}``. Raises ValueError on bad arguments."""
-    from parts.pilots.training import train
     from parts.sim.eval_report import format_table, write_json, write_png
+    from training.trainer import train
     from vehicle.app.demo import write_myconfig
     from vehicle.app.evaluate import evaluate
     from vehicle.app.record import record_expert

@@ -27,10 +27,10 @@ def report_picture(report: dict[str, Any], cfg: Any, panel: int = 360) -> bytes:
 def store_report(cfg: Any, model: str | Path, report: dict[str, Any]) -> Any:
     """Store ``report`` as an evaluation of the registered model ``model`` (a name or its file).
 
-    Returns the stored :class:`parts.pilots.model_db.Evaluation`. Raises
-    :class:`parts.pilots.model_db.RegistryError` when the model is not in the car's registry.
+    Returns the stored :class:`training.model_db.Evaluation`. Raises
+    :class:`training.model_db.RegistryError` when the model is not in the car's registry.
     """
-    from parts.pilots.model_db import ModelRegistry
+    from training.model_db import ModelRegistry
 
     registry = ModelRegistry.for_models_dir(cfg.path("MODELS_PATH"))
     entry = registry.get(str(model))

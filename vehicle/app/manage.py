@@ -67,6 +67,8 @@ def main(parser: argparse.ArgumentParser, car_path: str | Path, argv: Sequence[s
     configure_logging(args.verbose)
     try:
         cfg = load_config(args.myconfig, car_path=car_path)
+        if getattr(args, "js", False):  # DonkeyCar's `manage.py drive --js`: the gamepad, this run
+            cfg = cfg.replace(USE_JOYSTICK_AS_DEFAULT=True)
         return int(args.func(cfg, args) or 0)
     except VehicleError as exc:
         print(f"error: {exc}", file=sys.stderr)  # noqa: T201 - the CLI's own output

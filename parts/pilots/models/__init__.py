@@ -12,8 +12,8 @@ from typing import Any
 
 from parts.pilots.models.base import PilotModel
 from parts.pilots.models.cnn import BehaviorModel, CategoricalModel, InferredModel, LinearModel, MemoryModel
-from parts.pilots.models.lanes import LanesModel
-from parts.pilots.models.pilotnet import PilotNetModel
+from parts.pilots.models.lanes import LanesBasicModel, LanesModel
+from parts.pilots.models.pilotnet import NvidiaModel, PilotNetModel
 from parts.pilots.models.sequence import Conv3DModel, RNNModel
 
 __all__ = ["PilotModel", "create_model", "model_type", "model_type_names", "register_model_type"]
@@ -32,7 +32,7 @@ def register_model_type(cls: type[PilotModel]) -> type[PilotModel]:
 
 
 for _cls in (LinearModel, CategoricalModel, InferredModel, PilotNetModel, MemoryModel, BehaviorModel,
-             RNNModel, Conv3DModel, LanesModel):
+             RNNModel, Conv3DModel, LanesModel, LanesBasicModel, NvidiaModel):
     register_model_type(_cls)
 
 

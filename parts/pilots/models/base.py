@@ -122,14 +122,50 @@ class FastDropout(nn.Dropout):
         return _KeepMask.apply(x, r < keep_count - 32768, 65536.0 / keep_count)
 
 
-def donkey_convs(in_channels: int, dropout: float) -> nn.Sequential:
-    """DonkeyCar's core CNN: conv 24-5x5/2, 32-5x5/2, 64-5x5/2, 64-3x3/1, 64-3x3/1, ReLU and dropout."""
+#: DonkeyCar's core CNN: (filters, kernel, stride) of its five convolutions
+DONKEY_CONVS: tuple[tuple[int, int, int], ...] = ((24, 5, 2), (32, 5, 2), (64, 5, 2), (64, 3, 1), (64, 3, 1))
+#: NVIDIA's DAVE-2 (PilotNet) convolutions
+DAVE2_CONVS: tuple[tuple[int, int, int], ...] = ((24, 5, 2), (36, 5, 2), (48, 5, 2), (64, 3, 1), (64, 3, 1))
+ACTIVATIONS = ("relu", "elu")
+
+
+def activation(name: str) -> nn.Module:
+    """The activation layer called ``name`` (relu, or elu as Track Driver AI's DAVE-2 uses)."""
+    if name == "relu":
+        return nn.ReLU(inplace=True)
+    if name == "elu":
+        return nn.ELU(inplace=True)
+    raise ValueError(f"model option activation={name!r} must be one of {ACTIVATIONS}")
+
+
+def conv_stack(in_channels: int, convs: tuple[tuple[int, int, int], ...], *, act: str = "relu",
+               dropout: float | None = None, batch_norm: bool = False,
+               first_activation: bool = True) -> nn.Sequential:
+    """Convolutions ('valid' padding) each followed by [batch norm,] the activation [and dropout].
+
+    ``dropout=None`` adds no dropout layer; a rate (0 included) adds one after each convolution,
+    so that the layer indices, and with them the model files, do not depend on the rate.
+    ``first_activation=False`` leaves the first convolution linear, as the thesis's NVIDIA model
+    (seed 002, §8.5.1) has it. Not flattened.
+    """
     layers: list[nn.Module] = []
-    for out_ch, k, s in ((24, 5, 2), (32, 5, 2), (64, 5, 2), (64, 3, 1), (64, 3, 1)):
-        layers += [nn.Conv2d(in_channels, out_ch, k, stride=s), nn.ReLU(inplace=True), FastDropout(dropout)]
+    for i, (out_ch, k, s) in enumerate(convs):
+        layers.append(nn.Conv2d(in_channels, out_ch, k, stride=s, bias=not batch_norm))
+        if batch_norm:
+            layers.append(nn.BatchNorm2d(out_ch))
+        if i or first_activation:
+            layers.append(activation(act))
+        if dropout is not None:
+            layers.append(FastDropout(dropout))
         in_channels = out_ch
-    layers.append(nn.Flatten())
     return nn.Sequential(*layers)
+
+
+def donkey_convs(in_channels: int, dropout: float, batch_norm: bool = False) -> nn.Sequential:
+    """DonkeyCar's core CNN: conv 24-5x5/2, 32-5x5/2, 64-5x5/2, 64-3x3/1, 64-3x3/1, ReLU and dropout
+    (optionally batch normalisation after each convolution), flattened."""
+    return nn.Sequential(*conv_stack(in_channels, DONKEY_CONVS, dropout=dropout, batch_norm=batch_norm),
+                         nn.Flatten())
 
 
 def flat_size(features: nn.Module, input_shape: tuple[int, ...]) -> int:
@@ -143,11 +179,12 @@ def flat_size(features: nn.Module, input_shape: tuple[int, ...]) -> int:
     return int(out.shape[1])
 
 
-def dense_head(in_features: int, sizes: tuple[int, ...], outputs: int, dropout: float) -> nn.Sequential:
-    """Dense ReLU layers of ``sizes`` (with dropout) then a linear layer of ``outputs``."""
+def dense_head(in_features: int, sizes: tuple[int, ...], outputs: int, dropout: float,
+               act: str = "relu") -> nn.Sequential:
+    """Dense layers of ``sizes`` with the activation (and dropout) then a linear layer of ``outputs``."""
     layers: list[nn.Module] = []
     for size in sizes:
-        layers += [nn.Linear(in_features, size), nn.ReLU(inplace=True), FastDropout(dropout)]
+        layers += [nn.Linear(in_features, size), activation(act), FastDropout(dropout)]
         in_features = size
     layers.append(nn.Linear(in_features, outputs))
     return nn.Sequential(*layers)

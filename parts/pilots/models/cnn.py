@@ -14,12 +14,13 @@ class LinearModel(PilotModel):
     """DonkeyCar's default: core CNN, dense 100, 50, two continuous outputs (angle, throttle); MSE."""
 
     type_name = "linear"
-    defaults: dict[str, Any] = {"dropout": 0.2}
+    defaults: dict[str, Any] = {"dropout": 0.2, "batch_norm": False}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         super().__init__(input_shape, options)
         dropout = check_option(self.options, "dropout", float, 0.0)
-        self.features = donkey_convs(input_shape[0], dropout)
+        batch_norm = check_option(self.options, "batch_norm", bool)
+        self.features = donkey_convs(input_shape[0], dropout, batch_norm)
         self.head = dense_head(flat_size(self.features, input_shape) + self.extra_size, (100, 50),
                                self.n_outputs(), dropout)
 
@@ -41,7 +42,7 @@ class CategoricalModel(LinearModel):
     [0, ``throttle_range``]; cross-entropy with weights 0.5/0.5; drives with the most likely bin."""
 
     type_name = "categorical"
-    defaults = {"dropout": 0.2, "angle_bins": 15, "throttle_bins": 20, "throttle_range": 0.8}
+    defaults = {"dropout": 0.2, "batch_norm": False, "angle_bins": 15, "throttle_bins": 20, "throttle_range": 0.8}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         self.angle_bins = check_option(options, "angle_bins", int, 2)
@@ -75,7 +76,7 @@ class InferredModel(LinearModel):
     (slow down in curves). MSE on the angle."""
 
     type_name = "inferred"
-    defaults = {"dropout": 0.2, "throttle_max": 0.5, "throttle_min": 0.2, "throttle_decay": 3.0}
+    defaults = {"dropout": 0.2, "batch_norm": False, "throttle_max": 0.5, "throttle_min": 0.2, "throttle_decay": 3.0}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         self.throttle_max = check_option(options, "throttle_max", float)
@@ -104,7 +105,7 @@ class MemoryModel(LinearModel):
     (training: the recorded user commands; driving: the pilot's own previous outputs)."""
 
     type_name = "memory"
-    defaults = {"dropout": 0.2, "mem_length": 3}
+    defaults = {"dropout": 0.2, "batch_norm": False, "mem_length": 3}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         self.mem_length = check_option(options, "mem_length", int, 1)
@@ -124,7 +125,7 @@ class BehaviorModel(LinearModel):
 
     type_name = "behavior"
     extra_inputs = ("behavior/one_hot_state_array",)
-    defaults = {"dropout": 0.2, "num_behaviors": 2}
+    defaults = {"dropout": 0.2, "batch_norm": False, "num_behaviors": 2}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         self.num_behaviors = check_option(options, "num_behaviors", int, 1)

@@ -123,3 +123,47 @@ class LanesModel(PilotModel):
         c = self.merge(torch.cat([x, y], dim=1))
         o = self.decide(torch.cat([z, c], dim=1))
         return torch.cat([self.steering_out(o), self.throttle_out(o)], dim=1)
+
+
+class LanesBasicModel(PilotModel):
+    """The thesis's first iteration (seed 002, §9.1-9.2.1: ``oriModel``), without behaviours.
+
+    The same two streams as :class:`LanesModel` (raw image; binary lane image repeated to 3
+    channels), each ending in Dense 100 and Dropout; concatenated -> Dense 100 ReLU -> Dense 50 ReLU
+    -> two linear outputs (steering, throttle), MSE. 6,653,804 parameters on 3x180x320 frames, the
+    thesis's "about 6.5 million".
+
+    Options: ``dropout`` (0.1), ``leaky_slope`` (0.3, Keras's LeakyReLU default).
+    """
+
+    type_name = "lanes_basic"
+    defaults: dict[str, Any] = {"dropout": 0.1, "leaky_slope": 0.3}
+    preprocess_defaults: dict[str, Any] = LanesModel.preprocess_defaults
+
+    def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
+        super().__init__(input_shape, options)
+        dropout = check_option(self.options, "dropout", float, 0.0)
+        if dropout >= 1.0:
+            raise ValueError(f"model option dropout={dropout} must be < 1")
+        slope = check_option(self.options, "leaky_slope", float, 0.0)
+        channels, h, w = input_shape
+        if channels < 2:
+            raise ValueError(f"model type 'lanes_basic' needs the raw channels plus the lane channel, got "
+                             f"{channels} channel(s): train it with the lanes preprocessing (the type's default)")
+        raw_shape = (channels - 1, h, w)
+        lane_shape = (LanesModel.LANE_CHANNELS, h, w)
+        self.image_convs = _stream(raw_shape[0], slope, dropout, last_dropout=True)
+        self.image_dense = nn.Sequential(nn.Linear(flat_size(self.image_convs, raw_shape), 100), nn.Dropout(dropout))
+        self.lane_convs = _stream(LanesModel.LANE_CHANNELS, slope, dropout, last_dropout=False)
+        self.lane_dense = nn.Sequential(nn.Linear(flat_size(self.lane_convs, lane_shape), 100), nn.Dropout(dropout))
+        self.decide = nn.Sequential(nn.Linear(200, 100), nn.ReLU(), nn.Linear(100, 50), nn.ReLU())
+        self.steering_out = nn.Linear(50, 1)
+        self.throttle_out = nn.Linear(50, 1)
+
+    def forward(self, images: torch.Tensor, extra: torch.Tensor | None = None) -> torch.Tensor:
+        raw = images[:, :-1]
+        lane = images[:, -1:].expand(-1, LanesModel.LANE_CHANNELS, -1, -1)
+        x = self.image_dense(self.image_convs(raw))
+        y = self.lane_dense(self.lane_convs(lane))
+        o = self.decide(torch.cat([x, y], dim=1))
+        return torch.cat([self.steering_out(o), self.throttle_out(o)], dim=1)

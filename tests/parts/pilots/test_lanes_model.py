@@ -8,11 +8,11 @@ import pytest
 import torch
 
 from parts.pilots import load_pilot
-from parts.pilots.augment import Augmenter, AugmentSettings
-from parts.pilots.dataset import PilotDataset, behavior_mirror, behavior_names, build_samples, read_drive_data
-from parts.pilots.framecache import FrameCache
 from parts.pilots.models import create_model
 from parts.pilots.preprocess import Preprocess, preprocess_from_config
+from training.augment import Augmenter, AugmentSettings
+from training.dataset import PilotDataset, behavior_mirror, behavior_names, build_samples, read_drive_data
+from training.framecache import FrameCache
 from vehicle.config import Config
 
 

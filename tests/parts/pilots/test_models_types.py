@@ -5,13 +5,14 @@ from __future__ import annotations
 import pytest
 import torch
 
-from parts.pilots.dataset import PilotDataset, build_samples, read_drive_data
-from parts.pilots.framecache import FrameCache
 from parts.pilots.models import create_model, model_type, model_type_names
 from parts.pilots.preprocess import Preprocess
 from parts.vision.lanes import LaneSettings
+from training.dataset import PilotDataset, build_samples, read_drive_data
+from training.framecache import FrameCache
 
-ALL_TYPES = ["linear", "categorical", "inferred", "pilotnet", "memory", "behavior", "rnn", "3d", "lanes"]
+ALL_TYPES = ["linear", "categorical", "inferred", "pilotnet", "memory", "behavior", "rnn", "3d", "lanes", "lanes_basic",
+             "nvidia"]
 
 
 def test_registry_lists_every_type():
@@ -85,7 +86,7 @@ def test_inferred_throttle_slows_in_curves():
 def test_each_type_learns_on_a_tiny_tub(name, tiny_tub, torch_one_thread, fit_steps):
     torch.manual_seed(0)
     data = read_drive_data([tiny_tub])
-    lanes = LaneSettings(color_mask="yellow").to_dict() if name == "lanes" else None  # the bar is yellow
+    lanes = LaneSettings(color_mask="yellow").to_dict() if name.startswith("lanes") else None  # the bar is yellow
     pre = Preprocess(image_shape=(64, 64, 3), lanes=lanes)
     options = {"num_behaviors": 2} if name in ("behavior", "lanes") else {}
     model = create_model(name, pre.output_shape((64, 64, 3)), **options)
@@ -108,6 +109,7 @@ def test_each_type_learns_on_a_tiny_tub(name, tiny_tub, torch_one_thread, fit_st
     before = eval_loss()
     fit_steps(model, x, e, y, 25)
     after = eval_loss()
-    # Cross-entropy over 15 + 20 bins falls more slowly in 25 steps than a regression loss.
-    ratio = 0.85 if name == "categorical" else 0.6
+    # Cross-entropy over 15 + 20 bins falls more slowly in 25 steps than a regression loss, and so does
+    # the thesis's nvidia model through its 5-unit bottleneck with dropout after every convolution.
+    ratio = 0.85 if name in ("categorical", "nvidia") else 0.6
     assert after < ratio * before, (name, before, after)

@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from parts.pilots.model_db import ModelRegistry
+from training.model_db import ModelRegistry
 from vehicle.app.cli import main
 
 

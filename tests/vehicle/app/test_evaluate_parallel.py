@@ -32,7 +32,7 @@ def test_workers_drive_each_track_in_its_theme_and_draw(cfg, make_model_file):
     """Themes are dealt to the tracks and conditions drawn per track the same in the workers; a
     model pilot renders, so the frames (and so its commands) depend on the theme it is given."""
     pytest.importorskip("onnxruntime")
-    from parts.pilots.export import export_model
+    from training.export import export_model
 
     path = make_model_file("linear", seed=5)
     export_model(path, "onnx")
@@ -47,7 +47,7 @@ def test_workers_drive_each_track_in_its_theme_and_draw(cfg, make_model_file):
 
 def test_model_file_pilot_in_workers_equals_serial(cfg, make_model_file, caplog):
     pytest.importorskip("onnxruntime")
-    from parts.pilots.export import export_model
+    from training.export import export_model
 
     path = make_model_file("linear", seed=4)
     export_model(path, "onnx")  # ONNX Runtime at 1 thread in both runs: the same arithmetic

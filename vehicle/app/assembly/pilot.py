@@ -89,7 +89,8 @@ def make_pilot(cfg: Config, model_path: str | Path, measured_speed_key: str = "e
         speed_control = SpeedControl(cfg.PILOT_SPEED_CONTROL, dt=1.0 / cfg.DRIVE_LOOP_HZ,
                                      kp=cfg.PILOT_SPEED_KP, ki=cfg.PILOT_SPEED_KI,
                                      max_throttle=cfg.PILOT_SPEED_MAX_THROTTLE,
-                                     default_limit=cfg.PILOT_SPEED_LIMIT)
+                                     default_limit=cfg.PILOT_SPEED_LIMIT,
+                                     headroom=cfg.PILOT_SPEED_LIMIT_HEADROOM)
         speed_key = cfg.PILOT_SPEED_KEY or measured_speed_key
     try:
         return load_pilot(path, backend=cfg.PILOT_BACKEND, speed_control=speed_control, speed_key=speed_key,

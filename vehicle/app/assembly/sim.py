@@ -74,6 +74,12 @@ def add_simulator(V: Any, cfg: Any, seeds: Sequence[int] | None = None, sim_type
     if seeds:
         logger.warning("--tracks applies to the built-in simulator only; the %s simulator chooses its own "
                        "track%s", kind, " (DONKEY_GYM_ENV_NAME)" if kind == "donkey" else "")
+    if kind == "donkey" and cfg.DONKEY_SIM_PATH not in (None, "remote"):
+        from parts.bridges.sim_process import SimulatorProcess
+
+        # started before the bridge (parts start in order) and ended after it (shutdown in reverse)
+        V.add(SimulatorProcess(cfg.DONKEY_SIM_PATH, cfg.SIM_HOST, cfg.SIM_PORT, timeout_s=cfg.DONKEY_SIM_START_TIMEOUT,
+                               log_file=cfg.path("LOGS_PATH") / "unitylog.txt"), threaded=True)
     sim = make_bridge(cfg, kind)
     V.add(sim, threaded=True)
     add_undistort(V, cfg, *bridge_frame_size(cfg, kind))

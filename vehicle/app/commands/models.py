@@ -97,7 +97,7 @@ def _config(args: argparse.Namespace) -> Any:
 
 
 def _registry(args: argparse.Namespace) -> Any:
-    from parts.pilots.model_db import ModelRegistry
+    from training.model_db import ModelRegistry
 
     return ModelRegistry.for_models_dir(_config(args).path("MODELS_PATH"))
 
@@ -182,7 +182,7 @@ def format_leaderboard(evaluations: list[Any]) -> str:
 
 def _cmd_leaderboard(args: argparse.Namespace) -> int:
     cfg = _config(args)
-    from parts.pilots.model_db import ModelRegistry
+    from training.model_db import ModelRegistry
 
     registry = ModelRegistry.for_models_dir(cfg.path("MODELS_PATH"))
     try:
@@ -219,7 +219,7 @@ def _model_file(args: argparse.Namespace) -> Path:
     path = Path(args.name)
     if path.is_file():
         return path
-    from parts.pilots.model_db import RegistryError
+    from training.model_db import RegistryError
 
     try:
         entry = _registry(args).get(args.name)
@@ -231,7 +231,7 @@ def _model_file(args: argparse.Namespace) -> Path:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
-    from parts.pilots.export import export_model
+    from training.export import export_model
 
     source = _model_file(args)
     try:

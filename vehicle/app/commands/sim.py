@@ -234,7 +234,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     if args.png:
         print(f"wrote {write_png(report, args.png, cfg)}")  # noqa: T201
     if args.store:
-        from parts.pilots.model_db import RegistryError
+        from training.model_db import RegistryError
         from vehicle.app.eval_store import store_report
 
         if args.pilot == "expert":

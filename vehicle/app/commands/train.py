@@ -69,8 +69,8 @@ def write_preview(cfg: Any, tubs: list[str], out: Path, rows: int = 4, variants:
     """Write a PNG grid: ``rows`` frames spread over the tubs, each with ``variants`` augmented copies."""
     import cv2
 
-    from parts.pilots.augment import Augmenter, AugmentSettings, preview_frames, preview_grid
     from parts.tub.errors import TubError
+    from training.augment import Augmenter, AugmentSettings, preview_frames, preview_grid
 
     if rows < 1 or variants < 1:
         raise UserError("--rows and --variants must be >= 1")
@@ -88,15 +88,19 @@ def write_preview(cfg: Any, tubs: list[str], out: Path, rows: int = 4, variants:
 
 def add_train_arguments(parser: argparse.ArgumentParser) -> None:
     """The training options shared by ``manage.py train`` and ``vehicle train``: the data, the
-    model file, and every hyper-parameter of :mod:`parts.pilots.hyperparams` (the trainer
+    model file, and every hyper-parameter of :mod:`training.hyperparams` (the trainer
     console's form shows the same table and checks it with the same function)."""
-    from parts.pilots.hyperparams import HYPERPARAMS
+    from training.hyperparams import HYPERPARAMS
 
-    parser.add_argument("--tubs", nargs="+", metavar="PATH",
+    parser.add_argument("--tubs", "--tub", nargs="+", metavar="PATH",
                         help="tubs or folders of tubs (comma-separated also accepted); default: the car's data/")
     parser.add_argument("--model", metavar="FILE.pt", help="model file to write (default models/pilot_<date>.pt)")
     parser.add_argument("--transfer", metavar="OLD.pt", help="start from the weights of an earlier model")
     parser.add_argument("--comment", help="free text stored with the model in the registry")
+    parser.add_argument("--recipe", metavar="NAME",
+                        help="train as a source document does: track-driver-ai, udacity-bc or donkey-thesis "
+                             "(sets every value the document states; the options here still win; "
+                             "docs/training.md, 'Recipes')")
     parser.add_argument("--no-register", action="store_true", help="do not add the model to the registry")
     groups: dict[str, Any] = {}
     for p in HYPERPARAMS:
@@ -125,8 +129,8 @@ def hyperparams_from_args(args: argparse.Namespace) -> dict[str, Any]:
 
     Raises UserError naming each bad option with the rule and its reason.
     """
-    from parts.pilots.hyperparams import HYPERPARAMS, parse
     from parts.pilots.models import model_type_names
+    from training.hyperparams import HYPERPARAMS, parse
 
     given = {p.name: getattr(args, p.name) for p in HYPERPARAMS if getattr(args, p.name, None) is not None}
     clean, errors = parse(given, model_types=model_type_names())
@@ -154,23 +158,36 @@ def run_from_args(cfg: Any, args: argparse.Namespace) -> int:
     Returns the exit code (0; 130 when Ctrl-C ended it early); bad input raises
     :class:`vehicle.errors.UserError`.
     """
-    from parts.pilots.fit import TrainingDiverged
-    from parts.pilots.hyperparams import settings_for
-    from parts.pilots.train_report import sidecar
-    from parts.pilots.training import default_model_path, train
+    from training.fit import TrainingDiverged
+    from training.hyperparams import settings_for
+    from training.train_report import sidecar
+    from training.trainer import dataset_model_path, default_model_path, train
 
     clean = hyperparams_from_args(args)
     model_type_name = clean.pop("model_type", None)
+    recipe = _recipe(getattr(args, "recipe", None))
     try:
+        if recipe is not None:
+            cfg = cfg.replace(**recipe.settings)
         cfg = cfg.replace(**settings_for(clean))
     except ValueError as exc:
         raise UserError(str(exc)) from exc
     tubs = tub_list(args.tubs) or [str(cfg.path("DATA_PATH"))]
-    model_path = Path(args.model) if args.model else default_model_path(cfg.path("MODELS_PATH"))
+    if args.model:
+        model_path = keras_name_to_pt(Path(args.model))
+    elif recipe is not None and recipe.name_by_dataset:
+        model_path = dataset_model_path(cfg.path("MODELS_PATH"), tubs[0])
+    else:
+        model_path = default_model_path(cfg.path("MODELS_PATH"))
+    if recipe is not None:
+        logger.info("recipe %s (%s): %s", recipe.name, recipe.document, recipe.summary)
+        if recipe.drive_settings:
+            logger.info("to drive as the document does, set %s", ", ".join(
+                f"{k} = {v!r}" for k, v in recipe.drive_settings.items()))
     with _ctrl_c_stops_training() as interrupted:
         try:
             metrics = train(cfg, tubs, model_path, model_type_name=model_type_name, transfer=args.transfer,
-                            comment=args.comment, register=not args.no_register,
+                            comment=args.comment, register=not args.no_register, recipe=recipe,
                             should_stop=interrupted.is_set if interrupted else None)
         except UserError:
             raise
@@ -187,6 +204,32 @@ def run_from_args(cfg: Any, args: argparse.Namespace) -> int:
         print(f"{stopped}saved {model_path} (best epoch {metrics['best_epoch']} of {metrics['epochs']}, "  # noqa: T201
               f"val_loss {loss}); metrics: {sidecar(model_path, '.metrics.json')}")
     return 130 if metrics.get("cancelled") else 0
+
+
+KERAS_SUFFIXES = (".h5", ".keras", ".tflite", ".hdf5")
+
+
+def keras_name_to_pt(path: Path) -> Path:
+    """DonkeyCar's ``--model models/x.h5``: a PyTorch model is written to ``models/x.pt`` instead,
+    with a one-line note (this project never writes Keras files)."""
+    if path.suffix.lower() not in KERAS_SUFFIXES:
+        return path
+    pt = path.with_suffix(".pt")
+    logger.warning("--model %s: %s is a Keras file name; writing the PyTorch model to %s (drive with "
+                   "--model %s)", path, path.suffix, pt, pt)
+    return pt
+
+
+def _recipe(name: str | None) -> Any:
+    """The recipe called ``name`` (None for None); UserError naming the known ones otherwise."""
+    if name is None:
+        return None
+    from training.recipes import recipe
+
+    try:
+        return recipe(name)
+    except ValueError as exc:
+        raise UserError(f"--recipe: {exc}") from exc
 
 
 @contextlib.contextmanager

@@ -43,8 +43,15 @@ def register(subparsers: Any) -> None:
     speed.add_argument("--set-speed", type=float, metavar="MPH", default=9.0,
                        help="PI speed controller to this speed, as drive.py (default 9 mph)")
     speed.add_argument("--speed-limit", type=float, metavar="MPH",
-                       help="throttle = 1 - speed / limit instead (the Track Driver AI's rule, e.g. 20)")
+                       help="throttle = 1 - speed / limit instead (the Track Driver AI's rule, e.g. 20; "
+                            "PILOT_SPEED_LIMIT_HEADROOM = 1.25 for its later 1 - speed / (limit * 1.25))")
+    d.add_argument("--drive-py", action="store_true",
+                       help="drive.py's own SimplePIController(0.1, 0.002) to --set-speed, in its units "
+                            "(mph, integral per frame), as the udacity-bc recipe's document")
     speed.add_argument("--model-throttle", action="store_true", help="use the model's own throttle")
+    d.add_argument("--jpeg-folder", metavar="DIR",
+                   help="also save each driven frame as DIR/<UTC time>.jpg, the folder recreated, as drive.py's "
+                        "image folder did (a folder holding other files is refused)")
     d.add_argument("--port", type=int, help="port the simulator connects to (default UDACITY_PORT, 4567)")
     d.add_argument("--host", help="interface to listen on (default UDACITY_HOST, 127.0.0.1)")
     d.add_argument("--echo", action="store_true",
@@ -92,6 +99,9 @@ class Echo:
 
 def speed_settings(args: argparse.Namespace) -> dict[str, Any]:
     """The PILOT_SPEED_* settings the speed options stand for (limits in m/s)."""
+    if args.drive_py and (args.model_throttle or args.speed_limit is not None):
+        raise UserError("--drive-py is drive.py's PI controller to --set-speed: leave out "
+                        "--speed-limit/--model-throttle")
     if args.model_throttle:
         return {"PILOT_SPEED_CONTROL": "off"}
     if args.speed_limit is not None:
@@ -101,7 +111,8 @@ def speed_settings(args: argparse.Namespace) -> dict[str, Any]:
         return {"PILOT_SPEED_CONTROL": "limit", "PILOT_SPEED_LIMIT": args.speed_limit * MS_PER_MPH}
     if not 0 < args.set_speed <= 35:
         raise UserError(f"--set-speed {args.set_speed}: give a speed in mph in (0, 35]")
-    return {"PILOT_SPEED_CONTROL": "pi", "PILOT_SPEED_LIMIT": args.set_speed * MS_PER_MPH}
+    return {"PILOT_SPEED_CONTROL": "drivepy" if args.drive_py else "pi",
+            "PILOT_SPEED_LIMIT": args.set_speed * MS_PER_MPH}
 
 
 def cmd_drive(args: argparse.Namespace) -> int:
@@ -125,6 +136,15 @@ def cmd_drive(args: argparse.Namespace) -> int:
     V = Vehicle()
     assembly.add_simulator(V, cfg)  # the server the simulator connects to
     V.add(PilotDrives(record=args.image_folder is not None))  # the pilot drives while frames are fresh
+    if args.jpeg_folder is not None:
+        from parts.tub.image_folder import ImageFolderWriter, prepare_folder
+
+        try:
+            jpeg_folder = prepare_folder(Path(args.jpeg_folder).expanduser().resolve())
+        except (ValueError, OSError) as exc:
+            raise UserError(f"--jpeg-folder: {exc}") from exc
+        V.add(ImageFolderWriter(jpeg_folder))
+        logger.info("saving the driven frames as JPEG files in %s", jpeg_folder)
     assembly.add_pilot(V, cfg, model)
     assembly.add_drive_mode(V, cfg)
     if args.echo:

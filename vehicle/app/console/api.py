@@ -16,8 +16,8 @@ from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from parts.pilots import hyperparams
-from parts.pilots.model_db import RegistryError, check_model_name
+from training import hyperparams, recipes
+from training.model_db import RegistryError, check_model_name
 from vehicle.app.console.datasets import DatasetError, augmentation_preview
 from vehicle.app.console.jsonsafe import finite
 from vehicle.errors import VehicleError
@@ -142,6 +142,7 @@ class Api:
             "hyperparams": hyperparams.describe(cfg, [t["name"] for t in types] if types else None),
             "model_types": types, "eval_tracks": list(cfg.SIM_EVAL_TRACK_SEEDS), "eval_laps": cfg.SIM_EVAL_LAPS,
             "train_tracks": list(cfg.SIM_TRACK_SEEDS), "default_model_name": self.app.free_model_name(),
+            "recipes": recipes.describe(),
         }))
 
     # -- datasets ---------------------------------------------------------------------------------
@@ -227,7 +228,7 @@ class Api:
     async def augment_preview(self, request: Any) -> Any:
         from aiohttp import web
 
-        from parts.pilots.augment import AugmentSettings
+        from training.augment import AugmentSettings
 
         q = dict(request.query)
         ids = [_int(x, "dataset id") for x in q.pop("datasets", "").split(",") if x.strip()]
@@ -308,6 +309,14 @@ class Api:
                 clean["model_type"] = entry.type
             except RegistryError as exc:
                 errors["transfer"] = str(exc)
+        recipe_name = body.get("recipe") or None
+        if recipe_name is not None:
+            try:
+                recipe = recipes.recipe(str(recipe_name))
+                if not clean.get("model_type"):
+                    clean["model_type"] = recipe.model_type
+            except ValueError as exc:
+                errors["recipe"] = str(exc)
         comment = body.get("comment")
         if comment is not None and (not isinstance(comment, str) or len(comment) > 2000):
             errors["comment"] = "must be text of at most 2000 characters"
@@ -316,7 +325,7 @@ class Api:
         model_type = clean.pop("model_type", None)
         return {"tubs": tubs, "datasets": [int(i) for i in ids], "model_name": name, "model_type": model_type,
                 "transfer": transfer, "transfer_name": body.get("transfer") or None, "comment": comment or None,
-                "hyper": clean, "settings": hyperparams.settings_for(clean)}
+                "hyper": clean, "settings": hyperparams.settings_for(clean), "recipe": recipe_name}
 
     async def submit_training(self, request: Any) -> Any:
         body = await read_json(request)

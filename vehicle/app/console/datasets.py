@@ -1,7 +1,7 @@
 """The console's datasets: the car's tubs with their statistics, and every change made to them.
 
 Tubs are found in the car's data folder (DATA_PATH) and registered in the car's registry
-(:class:`parts.pilots.model_db.ModelRegistry`); folders elsewhere can be registered by path.
+(:class:`training.model_db.ModelRegistry`); folders elsewhere can be registered by path.
 Statistics (records, duration, sessions, size, steering histogram, thumbnails) are read from the
 catalogs and cached until a tub changes on disk. Deleting a dataset is first a soft delete, the
 tub's own record deletes (``vehicle tub restore`` undoes it too); only a soft-deleted dataset can
@@ -26,9 +26,9 @@ from typing import Any
 
 import numpy as np
 
-from parts.pilots.model_db import DatasetEntry, ModelRegistry, RegistryError
 from parts.tub.errors import TubError
 from parts.tub.format import IMAGE_TYPES, SESSION, TIMESTAMP
+from training.model_db import DatasetEntry, ModelRegistry, RegistryError
 from vehicle.errors import UserError
 
 logger = logging.getLogger(__name__)
@@ -466,7 +466,7 @@ def augmentation_preview(tubs: list[Path], settings: Any, rows: int = 3, variant
     """A PNG grid of augmented frames from ``tubs`` (``settings``: AugmentSettings)."""
     import cv2
 
-    from parts.pilots.augment import Augmenter, preview_frames, preview_grid
+    from training.augment import Augmenter, preview_frames, preview_grid
 
     frames, angles = preview_frames(tubs, rows)
     grid = preview_grid(frames, angles, Augmenter(settings), variants, seed, scale=1)

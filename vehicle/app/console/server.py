@@ -24,7 +24,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from parts.pilots.model_db import ModelRegistry
+from training.model_db import ModelRegistry
 from vehicle.app.console.api import Api, ApiError, json_response
 from vehicle.app.console.datasets import DatasetStore
 from vehicle.app.console.jobs import JobQueue

@@ -145,13 +145,23 @@ def _config(job: dict[str, Any]) -> Any:
     from vehicle.config import load_config
 
     cfg = load_config(job.get("myconfig"), car_path=job["car"])
+    recipe = _recipe(job)
+    if recipe is not None:  # the form's values (settings) were filled from it and win over it
+        cfg = cfg.replace(**recipe.settings)
     settings = job.get("params", {}).get("settings") or {}
     return cfg.replace(**settings) if settings else cfg
 
 
+def _recipe(job: dict[str, Any]) -> Any:
+    from training.recipes import recipe
+
+    name = job.get("params", {}).get("recipe")
+    return recipe(name) if name else None
+
+
 def run_train(job: dict[str, Any], events: Events, watcher: StopWatcher) -> dict[str, Any]:
     """Train as asked by the console; returns the result event."""
-    from parts.pilots.training import train
+    from training.trainer import train
 
     params = job["params"]
     cfg = _config(job)
@@ -169,7 +179,7 @@ def run_train(job: dict[str, Any], events: Events, watcher: StopWatcher) -> dict
 
     metrics = train(cfg, params["tubs"], model_path, model_type_name=params.get("model_type"),
                     transfer=params.get("transfer"), comment=params.get("comment"), register=True,
-                    progress=False, on_event=on_event, should_stop=watcher.stop.is_set)
+                    progress=False, on_event=on_event, should_stop=watcher.stop.is_set, recipe=_recipe(job))
     watcher.interruptible = True
     keys = ("best_epoch", "best_val_loss", "best_train_loss", "epochs", "stopped_early", "cancelled",
             "train_loss", "val_loss", "wall_seconds", "train_samples", "val_samples")
@@ -179,7 +189,7 @@ def run_train(job: dict[str, Any], events: Events, watcher: StopWatcher) -> dict
 
 def run_evaluate(job: dict[str, Any], events: Events, watcher: StopWatcher) -> dict[str, Any]:
     """Evaluate a registered model in the built-in simulator and store the result."""
-    from parts.pilots.model_db import ModelRegistry
+    from training.model_db import ModelRegistry
     from vehicle.app.eval_store import store_report
     from vehicle.app.evaluate import evaluate
 
@@ -333,8 +343,8 @@ def describe_model_types() -> list[dict[str, Any]]:
 
 
 def _export(car: str, name: str, fmt: str) -> int:
-    from parts.pilots.export import export_model
-    from parts.pilots.model_db import ModelRegistry
+    from training.export import export_model
+    from training.model_db import ModelRegistry
     from vehicle.config import load_config
 
     cfg = load_config(car_path=car)

@@ -24,8 +24,8 @@ def free_port() -> int:
 
 def train_road_pilot(tmp_path: Path) -> Path:
     """A tiny pilot trained on the fake simulator's view: steer back to the road centre."""
-    from parts.pilots.training import train
     from parts.tub import Tub
+    from training.trainer import train
     from vehicle.config import Config
 
     rng = np.random.default_rng(0)

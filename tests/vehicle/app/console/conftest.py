@@ -121,10 +121,10 @@ def registered_model(config: Any) -> Callable[..., Path]:
     registered with the car's tubs as its datasets."""
     import torch
 
-    from parts.pilots.model_db import register_model
     from parts.pilots.modelfile import save_model
     from parts.pilots.models import create_model
     from parts.pilots.preprocess import Preprocess
+    from training.model_db import register_model
 
     def make(name: str, val_loss: float = 0.5, seed: int = 0) -> Path:
         torch.manual_seed(seed)

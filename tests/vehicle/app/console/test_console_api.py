@@ -214,3 +214,23 @@ def test_a_console_that_cannot_listen_says_whether_the_port_or_the_address_is_wr
                                           "CONSOLE_PORT"):
             console_factory(port=port)
     assert request(console_factory().port, "/api/jobs")[0] == 200  # the car's lock was let go both times
+
+
+def test_a_training_with_a_recipe_carries_its_settings_to_the_worker(console):
+    from vehicle.app.console.worker import _config
+
+    first = json.loads(request(console.port, "/api/datasets")[2])[0]["id"]  # registers the car's tubs
+    status, _, body = request(console.port, "/api/jobs/train", "POST",
+                              {"datasets": [first], "name": "by_recipe", "recipe": "udacity_bc"})
+    assert status == 400 and "Did you mean 'udacity-bc'" in json.loads(body)["errors"]["recipe"]
+    status, _, body = request(console.port, "/api/jobs/train", "POST",
+                              {"datasets": [first], "name": "by_recipe", "recipe": "udacity-bc",
+                               "hyper": {"epochs": "1"}})
+    assert status == 201, body
+    job = json.loads(body)
+    params = console.jobs.get(job["id"]).params
+    assert params["recipe"] == "udacity-bc" and params["model_type"] == "pilotnet"
+    cfg = _config({"car": str(console.cfg.CAR_PATH), "myconfig": None, "params": params})
+    assert cfg.PREPROCESS_NORMALIZE == "symmetric127" and cfg.TRAIN_FLIP_COPY  # from the recipe
+    assert cfg.MAX_EPOCHS == 1  # the form's value wins
+    request(console.port, f"/api/jobs/{job['id']}/cancel", "POST")

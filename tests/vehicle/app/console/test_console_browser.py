@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from parts.pilots.model_db import ModelRegistry
 from parts.tub.tub import Tub
+from training.model_db import ModelRegistry
 
 pytestmark = pytest.mark.browser
 expect = pytest.importorskip("playwright.sync_api").expect
@@ -436,3 +436,18 @@ def test_the_loss_chart_moves_within_an_epoch(page, url, console):
     req = urllib.request.Request(f"{url}api/jobs/{job['id']}/cancel", method="POST")
     urllib.request.urlopen(req, timeout=30).close()
     expect(page.locator("#run-status")).to_contain_text("cancelled", timeout=60000)
+
+
+def test_a_recipe_preset_fills_the_form_and_none_gives_the_car_back(page, url):
+    _open(page, url, "train")
+    page.select_option("#recipe", "udacity-bc")
+    expect(page.locator("#hp-epochs")).to_have_value("10")  # model.fit(epochs=10)
+    expect(page.locator("#hp-batch_size")).to_have_value("32")  # Keras's default batch
+    expect(page.locator("#hp-flip_copy")).to_have_value("true")  # every image and its mirror
+    expect(page.locator("#hp-split_by")).to_have_value("random")
+    expect(page.locator("input[name=model_type][value=pilotnet]")).to_be_checked()
+    expect(page.locator("#hp-augmentations input:checked")).to_have_count(0)
+    expect(page.locator("#recipe-note")).to_contain_text("320x160")
+    page.select_option("#recipe", "")
+    expect(page.locator("#hp-epochs")).to_have_value("3")  # the car's MAX_EPOCHS again
+    expect(page.locator("input[name=model_type][value=linear]")).to_be_checked()

@@ -8,8 +8,8 @@ import time
 
 import pytest
 
-from parts.pilots.model_db import ModelRegistry
 from parts.tub.tub import Tub
+from training.model_db import ModelRegistry
 from vehicle.app.console.datasets import DatasetError, DatasetStore
 
 

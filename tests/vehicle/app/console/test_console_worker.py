@@ -13,8 +13,8 @@ import time
 
 import pytest
 
-from parts.pilots import hyperparams
-from parts.pilots.model_db import ModelRegistry
+from training import hyperparams
+from training.model_db import ModelRegistry
 from vehicle.app.console.jobs import _TABLE
 from vehicle.app.console.worker import LOCK_NAME
 

@@ -566,7 +566,13 @@ async function pageTrain(query) {
   const previewNote = h("div", { class: "muted small", id: "aug-note" });
   let seed = 0;
   const augFields = (groups.Augmentation || []);
+  const recipeSel = h("select", { name: "recipe", id: "recipe" }, h("option", { value: "" }, "— none: this car's settings —"),
+    (info.recipes || []).map(r => h("option", { value: r.name }, `${r.name}: ${r.summary}`)));
+  const recipeNote = h("div", { class: "muted small", id: "recipe-note" });
   form.append(...nodes([
+    h("fieldset", {}, h("legend", {}, "0 · Recipe of a source document"),
+      field("Recipe", recipeSel, "recipe", "Fills every field with the values a document states; its preprocessing travels with it. Change any field after choosing."),
+      recipeNote),
     h("fieldset", {}, h("legend", {}, "1 · Model type"), typeCards, typeWarn, h("div", { class: "err", "data-err": "model_type" }),
       h("div", { class: "hp-grid" }, (groups.Model || []).filter(p => p.name !== "model_type").map(hpField))),
     h("fieldset", {}, h("legend", {}, "2 · Datasets"), usable.length ? dsList : h("p", {}, "No dataset with records: ", h("a", { href: "#/datasets" }, "add one first"), "."),
@@ -627,6 +633,19 @@ async function pageTrain(query) {
     }, 250);
   }
 
+  recipeSel.onchange = () => {
+    const r = (info.recipes || []).find(x => x.name === recipeSel.value);
+    for (const p of info.hyperparams) {
+      if (p.name === "model_type") continue;
+      const value = r && p.name in r.values ? r.values[p.name] : p.default;
+      if (p.kind === "multi") form.querySelectorAll(`input[name="${p.name}"]`).forEach(c => { c.checked = (value || []).includes(c.value); });
+      else if (form.elements[p.name]) form.elements[p.name].value = value === null || value === undefined ? "" : String(value);
+    }
+    const type = r ? r.model_type : info.hyperparams.find(p => p.name === "model_type").default;
+    form.querySelectorAll('input[name="model_type"]').forEach(x => { x.checked = x.value === type; });
+    recipeNote.textContent = r ? `${r.document}. Written for ${r.frames} frames; it also sets ${r.other_settings.join(", ")}.` : "";
+    checkTypeNeeds(); validateSoon(); refreshPreview();
+  };
   transferSel.onchange = () => {
     const m = models.find(x => x.name === transferSel.value);
     form.querySelectorAll('input[name="model_type"]').forEach(r => { r.disabled = !!m; if (m) r.checked = r.value === m.type; });
@@ -645,7 +664,7 @@ async function pageTrain(query) {
     const fd = new FormData(form);
     const btn = $("#start-training"); btn.disabled = true;
     try {
-      const job = await api("POST", "api/jobs/train", { datasets: selectedDatasets(), hyper, name: fd.get("name"), comment: fd.get("comment"), transfer: fd.get("transfer") || null });
+      const job = await api("POST", "api/jobs/train", { datasets: selectedDatasets(), hyper, name: fd.get("name"), comment: fd.get("comment"), transfer: fd.get("transfer") || null, recipe: fd.get("recipe") || null });
       go(`#/runs/${job.id}`);
     } catch (err) {
       btn.disabled = false; showErrors(form, err);

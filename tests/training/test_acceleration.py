@@ -7,7 +7,7 @@ import logging
 import pytest
 import torch
 
-from parts.pilots.acceleration import DeviceCaps, autocast, choose_plan, grad_scaler, plan_for, to_layout
+from training.acceleration import DeviceCaps, autocast, choose_plan, grad_scaler, plan_for, to_layout
 
 AVX512_BF16 = DeviceCaps("cpu", "AMD EPYC", native_bf16=True, can_compile=True)
 OLD_CPU = DeviceCaps("cpu", "Cortex-A72", native_bf16=False, can_compile=False)

@@ -26,7 +26,7 @@ from typing import Any
 __all__ = ["HYPERPARAMS", "HyperParam", "HyperParamError", "by_name", "check_config", "defaults", "describe",
            "for_setting", "parse", "settings_for"]
 
-AUGMENTATION_CHOICES = ("flip", "brightness", "shadow", "shift", "zoom", "blur", "hue")
+AUGMENTATION_CHOICES = ("flip", "brightness", "multiply", "shadow", "shift", "zoom", "blur", "hue")
 MODE_CHOICES = ("user", "local_angle", "local")
 _DEVICE_RE = re.compile(r"^(auto|cpu|mps|cuda(:\d+)?)$")
 _INT_RE = re.compile(r"^[+-]?\d+$")
@@ -156,14 +156,17 @@ HYPERPARAMS: tuple[HyperParam, ...] = (
                "single frames; at least one block always trains).", "it is a share of the records",
                0.0, 1.0, complement=True),
     HyperParam("split_by", "TRAIN_SPLIT_BY", "Split by", "Data", "choice",
-               "Hold out whole recording sessions, or contiguous blocks of records.",
-               "only these two splits exist", choices=("block", "session")),
+               "Hold out whole recording sessions, contiguous blocks of records, or random records "
+               "(as the source documents' scikit-learn/Keras splits do).",
+               "only these splits exist", choices=("block", "session", "random")),
     HyperParam("split_block", "TRAIN_SPLIT_BLOCK", "Block length", "Data", "int",
                "Records per block of the block split (100 = 5 s at 20 Hz).",
                "a block holds at least one record", 1),
     HyperParam("modes", "TRAIN_MODES", "Drive modes", "Data", "multi",
                "Train only on records driven in these modes (pilot-driven records teach nothing new).",
                "training needs at least one mode to read records from", choices=MODE_CHOICES, min_items=1),
+    HyperParam("flip_copy", "TRAIN_FLIP_COPY", "Mirrored copy", "Data", "bool",
+               "Add a mirrored copy of every frame (steering negated), doubling the data."),
     HyperParam("balance", "TRAIN_BALANCE", "Balance by steering", "Data", "bool",
                "Keep at most 'samples per bin' records per steering bin (straight driving otherwise "
                "dominates)."),
@@ -182,6 +185,7 @@ HYPERPARAMS: tuple[HyperParam, ...] = (
     HyperParam("aug_brightness_range", "AUG_BRIGHTNESS_RANGE", "Brightness range", "Augmentation", "float",
                "Largest brightness change, fraction of full scale (0.2 = ±20 %).",
                "it is a fraction of full scale", 0.0, 1.0),
+    _p("multiply", "its brightness multiplied by one random factor"),
     HyperParam("aug_contrast_range", "AUG_CONTRAST_RANGE", "Contrast range", "Augmentation", "float",
                "Largest contrast change (0.2 = ×0.8 to ×1.2).", "a contrast below 0 inverts the image", 0.0, 1.0),
     _p("shadow", "a shadow"),

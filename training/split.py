@@ -1,8 +1,11 @@
-"""Train/validation split by whole sessions or contiguous blocks, never by random frames.
+"""Train/validation split by whole sessions or contiguous blocks, or (to reproduce a document) by
+random records.
 
 Consecutive frames of a tub are near copies: a random per-frame split puts the neighbours of
 every validation frame in the training set and the validation loss then measures memory, not
-driving. Here the validation set is made of whole recording sessions or of contiguous blocks.
+driving. By default the validation set is therefore made of whole recording sessions or of
+contiguous blocks; "random" exists because the source documents split that way
+(scikit-learn's ``train_test_split``), so their recipes can be reproduced exactly.
 """
 
 from __future__ import annotations
@@ -50,15 +53,16 @@ def split_train_val(segments: Sequence[int], train_fraction: float, by: str = "b
         segments: per record (in tub order), an id of its tub + recording session.
         train_fraction: share of records for training, in [0, 1] (at least one group always
             trains, so 0 holds out all but one session or block).
-        by: "session" (whole sessions when there are at least 2, else falls back to blocks) or "block".
+        by: "session" (whole sessions when there are at least 2, else falls back to blocks), "block",
+            or "random" (single records drawn at random: optimistic validation, see the module).
         block: records per contiguous block; shrunk for small data so there are at least 10 blocks.
         seed: random seed of the choice of validation sessions/blocks.
     """
     n = len(segments)
     if not 0.0 <= train_fraction <= 1.0:
         raise ValueError(f"TRAIN_TEST_SPLIT = {train_fraction} must be in [0, 1]")
-    if by not in ("session", "block"):
-        raise ValueError(f"TRAIN_SPLIT_BY = {by!r} must be 'session' or 'block'")
+    if by not in ("session", "block", "random"):
+        raise ValueError(f"TRAIN_SPLIT_BY = {by!r} must be 'session', 'block' or 'random'")
     if block < 1:
         raise ValueError(f"TRAIN_SPLIT_BLOCK = {block} must be >= 1")
     if n == 0:
@@ -70,6 +74,9 @@ def split_train_val(segments: Sequence[int], train_fraction: float, by: str = "b
         raise ValueError(f"{n} record cannot be split into training and validation; record more data "
                          "or set TRAIN_TEST_SPLIT = 1.0")
     rng = np.random.default_rng(seed)
+    if by == "random":
+        val = rng.choice(n, size=min(n_val, n - 1), replace=False)
+        return np.setdiff1d(np.arange(n), val), np.sort(val)
     runs = _runs(segments)
     if by == "session":
         if len(runs) >= 2:

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import pytest
 
-from parts.pilots.model_db import ModelRegistry
 from parts.pilots.modelfile import load_model
-from parts.pilots.training import train
+from training.model_db import ModelRegistry
+from training.trainer import train
 from vehicle.config import Config
 
 
@@ -59,7 +59,7 @@ def test_a_stop_before_the_first_epoch_saves_nothing(cfg, tiny_tub, tmp_path, to
 
 
 def test_the_config_is_checked_with_the_console_rules(cfg, tiny_tub, tmp_path):
-    # the car's config refuses it with the console's bound (a form is checked by parts.pilots.hyperparams)
+    # the car's config refuses it with the console's bound (a form is checked by training.hyperparams)
     with pytest.raises(ValueError, match=r"TRAIN_BALANCE_BINS = 0 is out of range; valid: at least 1"):
         train(cfg.replace(TRAIN_BALANCE_BINS=0), [tiny_tub], tmp_path / "m.pt", register=False)
 

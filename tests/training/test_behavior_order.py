@@ -7,10 +7,10 @@ import logging
 import numpy as np
 import pytest
 
-from parts.pilots.dataset import behavior_labels, read_drive_data
 from parts.pilots.models import create_model
 from parts.pilots.preprocess import Preprocess
-from parts.pilots.training import model_options, prepare_data
+from training.dataset import behavior_labels, read_drive_data
+from training.trainer import model_options, prepare_data
 from vehicle.config import Config
 
 FIELDS = (["cam/image_array", "user/angle", "user/throttle", "behavior/state", "behavior/label",
@@ -92,9 +92,9 @@ def test_tubs_without_labels_keep_their_one_hot_and_a_mix_is_refused(tmp_path):
 
 def test_the_model_file_records_its_behaviour_order_and_undistortion(two_orders, tmp_path, torch_one_thread):
     from parts.pilots.modelfile import load_model
-    from parts.pilots.training import train
     from parts.sim.camera import Camera
     from parts.vision.calibration import CameraCalibration
+    from training.trainer import train
 
     CameraCalibration((320, 240), Camera(320, 240).intrinsics, np.zeros(5), 0.1).save(
         tmp_path / "camera_calibration.json")

@@ -6,8 +6,8 @@ import threading
 
 import pytest
 
-from parts.pilots.prefetch import Prefetcher
-from parts.pilots.training import train
+from training.prefetch import Prefetcher
+from training.trainer import train
 from vehicle.config import Config
 
 
@@ -44,13 +44,13 @@ def test_workers_see_each_epochs_augmentation_draws(tiny_tub):
     import numpy as np
     import torch
 
-    from parts.pilots.augment import Augmenter, AugmentSettings
-    from parts.pilots.dataset import PilotDataset, build_samples, read_drive_data
-    from parts.pilots.distributed import DistInfo
-    from parts.pilots.fit import plain_plan
-    from parts.pilots.framecache import FrameCache
     from parts.pilots.preprocess import Preprocess
-    from parts.pilots.training import PreparedData, _loaders
+    from training.augment import Augmenter, AugmentSettings
+    from training.dataset import PilotDataset, build_samples, read_drive_data
+    from training.distributed import DistInfo
+    from training.fit import plain_plan
+    from training.framecache import FrameCache
+    from training.trainer import PreparedData, _loaders
 
     data = read_drive_data([tiny_tub])
     cache = FrameCache(data.records, ["cam/image_array"])

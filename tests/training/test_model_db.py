@@ -8,7 +8,7 @@ from datetime import UTC, datetime
 
 import pytest
 
-from parts.pilots.model_db import DB_FILENAME, ModelRegistry, RegistryError, register_model
+from training.model_db import DB_FILENAME, ModelRegistry, RegistryError, register_model
 from vehicle.app.cli import main
 
 

@@ -1,6 +1,6 @@
 """Tub records -> training samples: filters, labels, continuity, side cameras, and the torch Dataset.
 
-Flow (see :func:`parts.pilots.training.prepare_data`)::
+Flow (see :func:`training.trainer.prepare_data`)::
 
     load_records(paths) -> read_drive_data (filter modes + TRAIN_FILTER, labels, continuity)
         -> split_train_val (sessions / blocks) -> balance (train only) -> build_samples
@@ -20,13 +20,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 import torch
 from torch.utils.data import Dataset
 
-from parts.pilots.augment import Augmenter
-from parts.pilots.framecache import FrameCache
 from parts.pilots.preprocess import Preprocess
+from training.augment import Augmenter
+from training.framecache import FrameCache
 
 logger = logging.getLogger(__name__)
 
@@ -126,10 +127,12 @@ def read_drive_data(paths: Sequence[str | os.PathLike[str]], *, modes: Iterable[
 @dataclass
 class Samples:
     """Training samples: record position, camera key index and the chain of earlier positions
-    (``chain[:, 0]`` is the sample's own record, ``chain[:, k]`` the one k steps earlier)."""
+    (``chain[:, 0]`` is the sample's own record, ``chain[:, k]`` the one k steps earlier);
+    ``mirror[i]`` marks a sample shown mirrored (:meth:`with_mirrored_copies`), None = none is."""
 
     chain: np.ndarray
     key_index: np.ndarray
+    mirror: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.chain)
@@ -139,7 +142,13 @@ class Samples:
         return np.unique(self.chain)
 
     def subset(self, mask: np.ndarray) -> Samples:
-        return Samples(self.chain[mask], self.key_index[mask])
+        return Samples(self.chain[mask], self.key_index[mask], None if self.mirror is None else self.mirror[mask])
+
+    def with_mirrored_copies(self) -> Samples:
+        """Every sample twice: as it is, then mirrored (steering negated), in that order."""
+        mirror = np.zeros(len(self), bool) if self.mirror is None else self.mirror
+        return Samples(np.concatenate([self.chain, self.chain]), np.concatenate([self.key_index, self.key_index]),
+                       np.concatenate([mirror, ~mirror]))
 
 
 def build_samples(data: DriveData, positions: np.ndarray, n_keys: int = 1, depth: int = 0) -> Samples:
@@ -333,6 +342,9 @@ class PilotDataset(Dataset):
         pos = int(chain[0])
         angle = float(self.data.angles[pos] + self.key_offsets[key])
         throttle = float(self.data.throttles[pos])
+        mirrored = self.samples.mirror is not None and bool(self.samples.mirror[i])
+        if mirrored:
+            angle = -angle
         ops: list = []
         if self.augmenter is not None:
             rng = np.random.default_rng((self.seed, self.epoch, i))
@@ -343,9 +355,11 @@ class PilotDataset(Dataset):
         images = []
         for k in range(self.frames - 1, -1, -1):  # oldest first
             frame = self.cache.get(int(chain[k]), key)
+            if mirrored:
+                frame = cv2.flip(frame, 1)
             if ops:
                 frame = self.augmenter.apply(frame, ops)
             images.append(Preprocess.to_chw(self.preprocess.frame(frame)))
         x = images[0] if self.frames == 1 else torch.stack(images)
-        extra = torch.from_numpy(self._extra(chain, Augmenter.flipped(ops)))
+        extra = torch.from_numpy(self._extra(chain, mirrored != Augmenter.flipped(ops)))
         return x, extra, torch.tensor([angle, throttle], dtype=torch.float32)

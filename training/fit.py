@@ -1,7 +1,7 @@
 """The training loop: Adam, early stopping on the validation loss, best-model callback, progress bar,
 progress events for a live view (the trainer console) and a clean stop on request.
 
-It runs the device plan of :mod:`parts.pilots.acceleration` (autocast precision, gradient scaler,
+It runs the device plan of :mod:`training.acceleration` (autocast precision, gradient scaler,
 channels_last batches, non-blocking copies, torch.compile) and measures per epoch how long the loop
 waited for its next batch (``History.data_seconds``): the data path's cost to training.
 """
@@ -21,11 +21,11 @@ import torch
 from torch import nn
 from torch.utils.data import DataLoader
 
-from parts.pilots.acceleration import TrainPlan, autocast, grad_scaler, to_layout
-from parts.pilots.distributed import DistInfo, all_sum
 from parts.pilots.models import PilotModel
-from parts.pilots.prefetch import Prefetcher
 from parts.pilots.preprocess import Preprocess
+from training.acceleration import TrainPlan, autocast, grad_scaler, to_layout
+from training.distributed import DistInfo, all_sum
+from training.prefetch import Prefetcher
 from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
@@ -168,9 +168,9 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
         on_event: EventSink | None = None, should_stop: Callable[[], bool] | None = None) -> History:
     """Train ``model`` (a PilotModel, or DDP around one) and return the history.
 
-    ``plan`` (:func:`parts.pilots.acceleration.plan_for`; default fp32 eager) sets the precision,
+    ``plan`` (:func:`training.acceleration.plan_for`; default fp32 eager) sets the precision,
     the batches' layout and compilation; a channels_last plan expects the model already laid out
-    by :func:`parts.pilots.acceleration.apply_layout`.
+    by :func:`training.acceleration.apply_layout`.
 
     Each epoch trains on ``train_loader`` (its first ``steps_per_epoch`` batches when set) then
     measures ``val_loader`` (the training loss stands in when there is no validation data).

@@ -85,7 +85,7 @@ def export_model(source: str | os.PathLike[str], fmt: ExportFormat | str = "onnx
     """Export the model file ``source`` to ``fmt`` ("onnx", "onnx-int8" or "torchscript"); returns
     the file.
 
-    For "onnx-int8": ``int8`` is the method ("static" or "dynamic", :mod:`parts.pilots.quantize`),
+    For "onnx-int8": ``int8`` is the method ("static" or "dynamic", :mod:`training.quantize`),
     ``calibration`` the tubs whose frames set the activation ranges (default: the tubs the model
     was trained on), ``calibration_frames`` how many (default 300).
 
@@ -109,7 +109,8 @@ def export_model(source: str | os.PathLike[str], fmt: ExportFormat | str = "onnx
         if fmt == "onnx":
             _export_onnx(wrapper, inputs, tmp, props)
         elif fmt == "onnx-int8":
-            from parts.pilots.quantize import DEFAULT_CALIBRATION_FRAMES, QUANT_KEY, quantize_onnx
+            from parts.pilots.export_files import QUANT_KEY
+            from training.quantize import DEFAULT_CALIBRATION_FRAMES, quantize_onnx
 
             float_tmp = out_path.with_name(f".{out_path.name}.float{os.getpid()}")
             try:
@@ -160,27 +161,3 @@ def _export_torchscript(wrapper: nn.Module, inputs: tuple[torch.Tensor, ...], ou
         warnings.simplefilter("ignore")  # torch.jit is deprecated in favour of torch.export; still works
         traced = torch.jit.trace(wrapper, inputs, check_trace=False)
         torch.jit.save(traced, str(out), _extra_files={f"{k}.txt": v for k, v in props.items()})
-
-
-def read_torchscript(path: str | os.PathLike[str]) -> tuple[Any, dict[str, str]]:
-    """Load a TorchScript export; returns ``(scripted module, {META_KEY: ..., SOURCE_KEY: ...})``."""
-    from parts.pilots.errors import ModelFileError
-
-    extra = {f"{k}.txt": "" for k in (META_KEY, SOURCE_KEY)}
-    if not Path(path).is_file():
-        raise ModelFileError(f"{path}: no such TorchScript file; export one with "
-                             "`vehicle models export MODEL --format torchscript`")
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            module = torch.jit.load(str(path), map_location="cpu", _extra_files=extra)
-        props = {k[:-4]: (v.decode() if isinstance(v, bytes) else v) for k, v in extra.items()}
-    except Exception as exc:  # torch raises RuntimeError (and others) for damaged or foreign files
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise ModelFileError(f"{path}: not a readable TorchScript file (corrupt, truncated or another "
-                             f"format: {first[:160]}); export the model again with `vehicle models export "
-                             "MODEL --format torchscript`") from exc
-    if not props.get(META_KEY):
-        raise ModelFileError(f"{path}: not a TorchScript export of a pilot model (no {META_KEY}); "
-                             "export one with `vehicle models export MODEL --format torchscript`")
-    return module.eval(), props

@@ -1,7 +1,7 @@
 """Train a pilot from tubs: ``manage.py train`` and ``vehicle train`` both end up in :func:`train`.
 
-Data (:mod:`parts.pilots.dataset`) -> model (:mod:`parts.pilots.models`) -> loop
-(:mod:`parts.pilots.fit`) -> model file (:mod:`parts.pilots.modelfile`) with the loss curve
+Data (:mod:`training.dataset`) -> model (:mod:`parts.pilots.models`) -> loop
+(:mod:`training.fit`) -> model file (:mod:`parts.pilots.modelfile`) with the loss curve
 ``NAME.loss.png`` and ``NAME.metrics.json`` next to it, and an entry in the car's model registry.
 Runs on the GPU when there is one and on several GPUs/machines under torchrun.
 """
@@ -22,11 +22,14 @@ import numpy as np
 import torch
 from torch.utils.data import DataLoader, DistributedSampler
 
-from parts.pilots.acceleration import TrainPlan, apply_layout, plan_for
-from parts.pilots.augment import Augmenter, AugmentSettings
-from parts.pilots.balance import balance_by_steering
 from parts.pilots.compat import camera_meta
-from parts.pilots.dataset import (
+from parts.pilots.modelfile import load_model, save_model
+from parts.pilots.models import PilotModel, create_model, model_type, model_type_names
+from parts.pilots.preprocess import Preprocess, preprocess_from_config
+from training.acceleration import TrainPlan, apply_layout, plan_for
+from training.augment import Augmenter, AugmentSettings
+from training.balance import balance_by_steering
+from training.dataset import (
     IMAGE_KEY,
     DriveData,
     PilotDataset,
@@ -35,15 +38,13 @@ from parts.pilots.dataset import (
     build_samples,
     read_drive_data,
 )
-from parts.pilots.distributed import DistInfo, init_distributed, shutdown_distributed
-from parts.pilots.fit import EventSink, FitSettings, fit
-from parts.pilots.framecache import FrameCache
-from parts.pilots.hyperparams import check_config
-from parts.pilots.modelfile import load_model, save_model
-from parts.pilots.models import PilotModel, create_model, model_type, model_type_names
-from parts.pilots.preprocess import Preprocess, preprocess_from_config
-from parts.pilots.split import split_train_val
-from parts.pilots.train_report import plot_losses, sidecar, write_metrics
+from training.distributed import DistInfo, init_distributed, shutdown_distributed
+from training.fit import EventSink, FitSettings, fit
+from training.framecache import FrameCache
+from training.hyperparams import check_config
+from training.recipes import Recipe
+from training.split import split_train_val
+from training.train_report import plot_losses, sidecar, write_metrics
 
 __all__ = ["default_model_path", "prepare_data", "train"]
 
@@ -59,10 +60,36 @@ def default_model_path(models_dir: Path) -> Path:
     return models_dir / f"pilot_{day}_{n}.pt"
 
 
+def dataset_model_path(models_dir: Path, tub: str | os.PathLike[str]) -> Path:
+    """``models/[dataset]_[N].pt`` with the first free N from 1 (Track Driver AI's naming), the
+    dataset being the folder name of ``tub``."""
+    name = Path(tub).resolve().name or "data"
+    n = 1
+    while (models_dir / f"{name}_{n}.pt").exists():
+        n += 1
+    return models_dir / f"{name}_{n}.pt"
+
+
+def _recipe_side_cameras(cfg: Any, recipe: Recipe, data: DriveData) -> Any:
+    """A recipe's side cameras where the tubs have them: the documents drove Udacity's simulator,
+    which records three cameras; a tub of one camera trains on the centre frames alone."""
+    side = dict(cfg.TRAIN_SIDE_CAMERAS)
+    present = {k: v for k, v in side.items() if data.records[0].data.get(k) is not None}
+    if present != side:
+        logger.warning("recipe %s adds the side cameras %s where a tub has them; these tubs hold only %s",
+                       recipe.name, ", ".join(sorted(side)), ", ".join([IMAGE_KEY, *sorted(present)]))
+        cfg = cfg.replace(TRAIN_SIDE_CAMERAS=present)
+    return cfg
+
+
 def model_options(cfg: Any, type_name: str, data: DriveData) -> dict[str, Any]:
     """Options of ``type_name`` that follow the car's config or the data."""
     cls = model_type(type_name)
-    opts: dict[str, Any] = {}
+    unknown = sorted(set(cfg.MODEL_OPTIONS) - set(cls.defaults))
+    if unknown:
+        raise ValueError(f"MODEL_OPTIONS names {unknown}, which model type {type_name!r} does not take; "
+                         f"it takes {sorted(cls.defaults)}")
+    opts: dict[str, Any] = dict(cfg.MODEL_OPTIONS)
     if "seq_length" in cls.defaults:
         opts["seq_length"] = cfg.SEQUENCE_LENGTH
     if "mem_length" in cls.defaults:
@@ -99,7 +126,7 @@ def prepare_data(cfg: Any, data: DriveData, model: PilotModel, preprocess: Prepr
 
     A behaviour model's one-hot input follows ``behavior_order`` (default BEHAVIOR_LIST; a
     transferred model's own order), each record placed by its behaviour's name
-    (:func:`parts.pilots.dataset.behavior_labels`).
+    (:func:`training.dataset.behavior_labels`).
     """
     train_pos, val_pos = split_train_val(data.segments, cfg.TRAIN_TEST_SPLIT, cfg.TRAIN_SPLIT_BY,
                                          cfg.TRAIN_SPLIT_BLOCK, cfg.TRAIN_SEED)
@@ -127,6 +154,12 @@ def prepare_data(cfg: Any, data: DriveData, model: PilotModel, preprocess: Prepr
     mirror, behaviors, extra_values = _behavior_inputs(data, model, names, order)
     if mirror is None and behaviors is not None and "flip" in names:
         names = [n for n in names if n != "flip"]
+    if cfg.TRAIN_FLIP_COPY:
+        if mirror is None and behaviors is not None:
+            logger.warning("TRAIN_FLIP_COPY left out: the behaviours have no left/right mirror, so a "
+                           "mirrored frame has no correct behaviour")
+        else:
+            train_s, val_s = train_s.with_mirrored_copies(), val_s.with_mirrored_copies()
     aug_settings = AugmentSettings.from_config(cfg, names)
     augmenter = Augmenter(aug_settings) if aug_settings.names else None
     common = {"frames": model.frames, "command_history": model.command_history,
@@ -205,12 +238,15 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
           device: str | None = None, workers: int | None = None, augmentations: Sequence[str] | None = None,
           comment: str | None = None, register: bool = True, progress: bool | None = None,
           precision: str | None = None, on_event: EventSink | None = None,
-          should_stop: Callable[[], bool] | None = None) -> dict[str, Any]:
+          should_stop: Callable[[], bool] | None = None, recipe: Recipe | None = None) -> dict[str, Any]:
     """Train a model on ``tubs`` and write it to ``model_path``; returns the metrics.
+
+    ``recipe``: the document recipe whose settings ``cfg`` holds (checked against the frames,
+    named in the model's metadata).
 
     Arguments left None take the car's settings (MAX_EPOCHS, BATCH_SIZE, LEARNING_RATE,
     TRAIN_DEVICE, TRAIN_NUM_WORKERS, AUGMENTATIONS, DEFAULT_MODEL_TYPE, TRAIN_PRECISION). The car's
-    settings are checked by :func:`parts.pilots.hyperparams.check_config`, the rules the CLI and the
+    settings are checked by :func:`training.hyperparams.check_config`, the rules the CLI and the
     console use.
 
     Raises:
@@ -252,6 +288,9 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
         phase("reading")
         data = read_drive_data(tubs, modes=cfg.TRAIN_MODES, record_filter=cfg.TRAIN_FILTER)
         image_shape = tuple(int(v) for v in data.records[0].image(IMAGE_KEY).shape)
+        if recipe is not None:
+            recipe.check_frames(image_shape)
+            cfg = _recipe_side_cameras(cfg, recipe, data)
         if old_meta is not None:
             preprocess = Preprocess.from_dict(old_meta["preprocess"])
             if preprocess.image_shape is not None and preprocess.image_shape != image_shape:
@@ -286,11 +325,14 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
                     "weight_decay": cfg.TRAIN_WEIGHT_DECAY, "early_stop_patience":
                     cfg.EARLY_STOP_PATIENCE if cfg.USE_EARLY_STOP else None, "min_delta": cfg.MIN_DELTA,
                     "train_test_split": cfg.TRAIN_TEST_SPLIT, "split_by": cfg.TRAIN_SPLIT_BY,
+                    "flip_copy": cfg.TRAIN_FLIP_COPY,
                     "split_block": cfg.TRAIN_SPLIT_BLOCK, "seed": cfg.TRAIN_SEED, "modes": list(cfg.TRAIN_MODES),
                     "filter": getattr(cfg.TRAIN_FILTER, "__name__", None) if cfg.TRAIN_FILTER else None,
                     "balance": {"bins": cfg.TRAIN_BALANCE_BINS, "max_per_bin": cfg.TRAIN_BALANCE_MAX_PER_BIN}
                     if cfg.TRAIN_BALANCE else None,
                     "steps_per_epoch": cfg.TRAIN_STEPS_PER_EPOCH, "val_steps": cfg.TRAIN_VAL_STEPS,
+                    "recipe": recipe.name if recipe is not None else None,
+                    "model_options": dict(cfg.MODEL_OPTIONS),
                     "device": str(dev), **plan.to_dict(), "world_size": dist_info.world_size, "parameters": n_params,
                     **{k: v for k, v in prep.info.items() if k not in ("records",)}}
         # the frames it learns from: undistorted (CAMERA_UNDISTORT) or not; the car must match
@@ -367,7 +409,7 @@ def _finish(model_path: Path, base_meta: dict[str, Any], metrics: dict[str, Any]
             logger.warning("matplotlib is not installed: no loss plot (pip install matplotlib)")
     if register:
         try:
-            from parts.pilots.model_db import register_model
+            from training.model_db import register_model
 
             register_model(model_path, meta, comment=comment)
         except Exception as exc:  # the model is written; a registry problem must not lose it

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from parts.pilots.augment import Augmenter, AugmentSettings, preview_grid
+from training.augment import Augmenter, AugmentSettings, preview_grid
 from vehicle.config import Config
 
 
@@ -114,8 +114,8 @@ def test_preview_aug_command_writes_png(tiny_tub, tmp_path):
 
 
 def test_every_augmentation_is_a_hyperparameter_choice():
-    from parts.pilots.augment import AUGMENTATION_NAMES
-    from parts.pilots.hyperparams import AUGMENTATION_CHOICES, by_name
+    from training.augment import AUGMENTATION_NAMES
+    from training.hyperparams import AUGMENTATION_CHOICES, by_name
 
     assert AUGMENTATION_CHOICES == AUGMENTATION_NAMES  # the console and the CLI offer what training does
     assert by_name("aug_hue_p").setting == "AUG_HUE_P" and by_name("aug_hue_range").high == 180.0

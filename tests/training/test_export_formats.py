@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from parts.pilots import load_pilot
-from parts.pilots.export import export_model
+from training.export import export_model
 from vehicle.app.cli import main
 
 # every kind of input: plain, extra from memory (behaviour), fed-back history, frame sequence,
@@ -71,8 +71,8 @@ def test_onnx_session_uses_one_thread_by_default(make_model_file):
 def test_cli_export(make_model_file, tmp_path, capsys):
     path = make_model_file("linear")
     (tmp_path / "myconfig.py").write_text("")
-    from parts.pilots.model_db import register_model
     from parts.pilots.modelfile import read_meta
+    from training.model_db import register_model
 
     register_model(path, read_meta(path))
     assert main(["models", "export", "linear", "--format", "torchscript", "--car", str(tmp_path)]) == 0
@@ -114,7 +114,7 @@ def _foreign_torchscript(path, meta=None):
 
     """A TorchScript file this framework did not write (optionally with a bogus pilot metadata)."""
     module = torch.jit.script(torch.nn.Linear(2, 2))
-    from parts.pilots.export import META_KEY
+    from training.export import META_KEY
 
     extra = {} if meta is None else {f"{META_KEY}.txt": meta}
     torch.jit.save(module, str(path), _extra_files=extra)

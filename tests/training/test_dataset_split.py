@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from parts.pilots.balance import balance_by_steering
-from parts.pilots.split import split_train_val
+from training.balance import balance_by_steering
+from training.split import split_train_val
 
 
 def _runs(positions: np.ndarray) -> list[int]:
@@ -68,7 +68,7 @@ def test_split_errors_and_all_train():
     with pytest.raises(ValueError, match="TRAIN_TEST_SPLIT"):
         split_train_val([0] * 10, 1.5)
     with pytest.raises(ValueError, match="TRAIN_SPLIT_BY"):
-        split_train_val([0] * 10, 0.8, by="random")
+        split_train_val([0] * 10, 0.8, by="frames")
     with pytest.raises(ValueError, match="no records"):
         split_train_val([], 0.8)
     train, val = split_train_val([0] * 10, 1.0)
@@ -87,3 +87,15 @@ def test_balance_caps_every_bin():
     assert np.array_equal(kept, balance_by_steering(angles, np.arange(1000), 25, 40, seed=0))
     with pytest.raises(ValueError, match="num_bins"):
         balance_by_steering(angles, np.arange(10), num_bins=0)
+
+
+def test_random_split_holds_out_single_records_reproducibly():
+    """The documents' split (scikit-learn's train_test_split): random single records, by seed."""
+    segments = [0] * 50 + [1] * 50
+    train, val = split_train_val(segments, 0.8, by="random", seed=7)
+    assert len(val) == 20 and len(train) == 80
+    assert sorted(np.concatenate([train, val]).tolist()) == list(range(100))
+    assert _runs(val) != [20]  # not one contiguous block
+    again_train, again_val = split_train_val(segments, 0.8, by="random", seed=7)
+    assert again_val.tolist() == val.tolist()
+    assert split_train_val(segments, 0.8, by="random", seed=8)[1].tolist() != val.tolist()

@@ -8,9 +8,9 @@ import json
 import pytest
 import torch
 
-from parts.pilots.distributed import resolve_device
 from parts.pilots.modelfile import ModelFileError, load_model
-from parts.pilots.training import train
+from training.distributed import resolve_device
+from training.trainer import train
 from vehicle.app.commands.train import add_train_arguments
 from vehicle.config import Config
 
@@ -34,7 +34,7 @@ def test_train_writes_model_metrics_plot_and_registry(tiny_tub, tmp_path, torch_
     assert saved["val_loss"] == pytest.approx(metrics["val_loss"]) and saved["type"] == "linear"
     png = (tmp_path / "models" / "pilot.loss.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 5000
-    from parts.pilots.model_db import ModelRegistry
+    from training.model_db import ModelRegistry
 
     entry = ModelRegistry.for_models_dir(tmp_path / "models").get("pilot")
     assert entry.type == "linear" and entry.comment == "first try"
@@ -66,7 +66,7 @@ def test_early_stopping_stops_after_patience(tiny_tub, tmp_path, torch_one_threa
 
 
 def test_the_best_model_is_the_lowest_loss_while_patience_needs_min_delta():
-    from parts.pilots.fit import Patience
+    from training.fit import Patience
 
     # the demo's validation losses (MIN_DELTA 0.0005): epoch 6 is the best model although it beat
     # epoch 2 by less than MIN_DELTA; patience ran out after epoch 7 (5 epochs without a real drop)
@@ -158,7 +158,7 @@ def test_ctrl_c_ends_a_command_line_training_with_its_best_model_registered(tiny
     import threading
     import time
 
-    from parts.pilots.model_db import ModelRegistry
+    from training.model_db import ModelRegistry
     from vehicle.app.cli import main
 
     model = tmp_path / "models" / "p.pt"

@@ -7,11 +7,11 @@ import torch
 from fixtures.pilots import write_tub
 from torch.utils.data import DataLoader
 
-from parts.pilots.dataset import read_drive_data
-from parts.pilots.fit import evaluate
 from parts.pilots.modelfile import load_model
 from parts.pilots.preprocess import Preprocess
-from parts.pilots.training import prepare_data, train
+from training.dataset import read_drive_data
+from training.fit import evaluate
+from training.trainer import prepare_data, train
 from vehicle.config import Config
 
 #: bf16's validation loss, averaged over SEEDS, may exceed fp32's by at most this factor. For scale:
@@ -58,7 +58,7 @@ def test_bf16_validation_loss_is_within_tolerance_of_fp32(bar_tub, tmp_path, tor
 
 def test_training_logs_its_plan_and_how_long_it_waited_for_data(tiny_tub, tmp_path, torch_one_thread, caplog):
     cfg = Config.defaults(BATCH_SIZE=16, MAX_EPOCHS=2, CAR_PATH=str(tmp_path), SHOW_PLOT=False, TRAIN_PRECISION="fp32")
-    with caplog.at_level("INFO", logger="parts.pilots"):
+    with caplog.at_level("INFO", logger="training"):
         metrics = train(cfg, [tiny_tub], tmp_path / "m.pt", register=False)
     assert "training plan on cpu: fp32, channels_last, eager (CPU " in caplog.text
     assert "TRAIN_PRECISION = 'fp32'" in caplog.text

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 import torch
 
-from parts.pilots.augment import Augmenter, AugmentSettings
-from parts.pilots.dataset import PilotDataset, build_samples, read_drive_data
-from parts.pilots.framecache import FrameCache
 from parts.pilots.modelfile import load_model, save_model
 from parts.pilots.models import create_model
 from parts.pilots.preprocess import Preprocess, preprocess_from_config
+from training.augment import Augmenter, AugmentSettings
+from training.dataset import PilotDataset, build_samples, read_drive_data
+from training.framecache import FrameCache
 from vehicle.config import Config
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from parts.pilots import hyperparams as hp
+from training import hyperparams as hp
 from vehicle.config import Config
 
 # Track Driver AI's "Validation Tests" of the training setup: field, normal, extreme, erroneous
@@ -41,14 +41,14 @@ def test_typed_values_and_bools():
                      "augmentations": ["flip", "shift"], "modes": ["user"], "device": "cuda:1",
                      "steps_per_epoch": None}
     _, errors = hp.parse({"epochs": True, "batch_size": 2.5, "learning_rate": float("nan"), "modes": [],
-                          "augmentations": ["mirror"], "device": "tpu", "split_by": "random", "balance": "maybe",
+                          "augmentations": ["mirror"], "device": "tpu", "split_by": "frames", "balance": "maybe",
                           "epoch": 3})
     assert set(errors) == {"epochs", "batch_size", "learning_rate", "modes", "augmentations", "device",
                            "split_by", "balance", "epoch"}
     assert errors["epoch"] == "unknown hyper-parameter; did you mean epochs?"
     assert errors["modes"] == ("choose at least 1 of user, local_angle, local: training needs at least one mode "
                                "to read records from")
-    assert errors["split_by"] == "must be one of block, session (got 'random')"
+    assert errors["split_by"] == "must be one of block, session, random (got 'frames')"
 
 
 def test_model_types_are_checked_against_the_registered_ones():

@@ -1,9 +1,10 @@
 """Training-only image augmentations, each applied with its own probability.
 
-An :class:`Augmenter` draws the operations for one sample (:meth:`Augmenter.draw`), then applies
-the same draw to every frame of that sample (sequence models see one consistent clip) and
-corrects the steering label (flip negates it, a horizontal shift adds a correction). Images are
-uint8 HxWx3 RGB camera frames, before preprocessing. Validation and driving never augment.
+An :class:`Augmenter` draws the operations for one sample (:meth:`Augmenter.draw`), in the order
+the settings list them, then applies the same draw to every frame of that sample (sequence models
+see one consistent clip) and corrects the steering label (flip negates it, a horizontal shift adds
+a correction). Images are uint8 HxWx3 RGB camera frames, before preprocessing. Validation and
+driving never augment.
 """
 
 from __future__ import annotations
@@ -14,18 +15,23 @@ from typing import Any
 import cv2
 import numpy as np
 
-AUGMENTATION_NAMES = ("flip", "brightness", "shadow", "shift", "zoom", "blur", "hue")
+AUGMENTATION_NAMES = ("flip", "brightness", "multiply", "shadow", "shift", "zoom", "blur", "hue")
+BORDERS = ("replicate", "constant")
+_CV2_BORDER = {"replicate": cv2.BORDER_REPLICATE, "constant": cv2.BORDER_CONSTANT}
 
 
 @dataclass(frozen=True)
 class AugmentSettings:
-    """Which augmentations run, their probabilities and ranges (see AUG_* in the config)."""
+    """Which augmentations run (in the order of ``names``), their probabilities and ranges (see
+    AUG_* in the config)."""
 
-    names: tuple[str, ...] = ("flip", "brightness", "shadow", "shift")
+    names: tuple[str, ...] = ("flip", "shift", "brightness", "shadow")
     flip_p: float = 0.5
     brightness_p: float = 0.5
     brightness_range: float = 0.2
     contrast_range: float = 0.2
+    multiply_p: float = 0.5
+    multiply_range: tuple[float, float] = (0.2, 1.2)
     shadow_p: float = 0.3
     shadow_darkness: float = 0.5
     shift_p: float = 0.5
@@ -38,13 +44,23 @@ class AugmentSettings:
     blur_range: tuple[float, float] = (0.5, 1.5)
     hue_p: float = 0.3
     hue_range: float = 180.0
+    border: str = "replicate"
 
     def __post_init__(self) -> None:
         names = tuple(str(n).lower() for n in self.names)
         unknown = [n for n in names if n not in AUGMENTATION_NAMES]
         if unknown:
             raise ValueError(f"unknown augmentation(s) {unknown}; choose from {AUGMENTATION_NAMES}")
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise ValueError(f"augmentation(s) {twice} listed twice in AUGMENTATIONS; list each once")
         object.__setattr__(self, "names", names)
+        if self.border not in BORDERS:
+            raise ValueError(f"AUG_BORDER = {self.border!r} must be one of {BORDERS}")
+        lo, hi = self.multiply_range
+        if not 0.0 <= lo <= hi:
+            raise ValueError(f"AUG_MULTIPLY_RANGE = {self.multiply_range} must be (low, high) factors, "
+                             "0 <= low <= high")
         for name in AUGMENTATION_NAMES:
             p = getattr(self, f"{name}_p")
             if not 0.0 <= p <= 1.0:
@@ -64,11 +80,13 @@ class AugmentSettings:
         return cls(names=tuple(cfg.AUGMENTATIONS if names is None else names),
                    flip_p=cfg.AUG_FLIP_P, brightness_p=cfg.AUG_BRIGHTNESS_P,
                    brightness_range=cfg.AUG_BRIGHTNESS_RANGE, contrast_range=cfg.AUG_CONTRAST_RANGE,
+                   multiply_p=cfg.AUG_MULTIPLY_P, multiply_range=tuple(cfg.AUG_MULTIPLY_RANGE),
                    shadow_p=cfg.AUG_SHADOW_P, shadow_darkness=cfg.AUG_SHADOW_DARKNESS,
                    shift_p=cfg.AUG_SHIFT_P, shift_x=cfg.AUG_SHIFT_X, shift_y=cfg.AUG_SHIFT_Y,
                    shift_steering=cfg.AUG_SHIFT_STEERING, zoom_p=cfg.AUG_ZOOM_P,
                    zoom_range=cfg.AUG_ZOOM_RANGE, blur_p=cfg.AUG_BLUR_P,
-                   blur_range=tuple(cfg.AUG_BLUR_RANGE), hue_p=cfg.AUG_HUE_P, hue_range=cfg.AUG_HUE_RANGE)
+                   blur_range=tuple(cfg.AUG_BLUR_RANGE), hue_p=cfg.AUG_HUE_P, hue_range=cfg.AUG_HUE_RANGE,
+                   border=cfg.AUG_BORDER)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain values (stored in the model file's training config)."""
@@ -76,15 +94,12 @@ class AugmentSettings:
 
 
 Draw = list[tuple[str, dict[str, float]]]
-_SHORT = {"flip": "flip", "brightness": "bright", "shadow": "shadow", "shift": "shift", "zoom": "zoom",
-          "blur": "blur", "hue": "hue"}
+_SHORT = {"flip": "flip", "brightness": "bright", "multiply": "mult", "shadow": "shadow", "shift": "shift",
+          "zoom": "zoom", "blur": "blur", "hue": "hue"}
 
 
 class Augmenter:
     """Random augmentations of training frames with steering correction."""
-
-    # Fixed application order: geometry first, then photometric, blur last.
-    _ORDER = ("flip", "shift", "zoom", "hue", "brightness", "shadow", "blur")
 
     def __init__(self, settings: AugmentSettings) -> None:
         self.settings = settings
@@ -93,8 +108,8 @@ class Augmenter:
         """Choose the operations and their parameters for one sample."""
         s = self.settings
         ops: Draw = []
-        for name in self._ORDER:
-            if name not in s.names or rng.random() >= getattr(s, f"{name}_p"):
+        for name in s.names:
+            if rng.random() >= getattr(s, f"{name}_p"):
                 continue
             if name == "flip":
                 ops.append((name, {}))
@@ -108,6 +123,8 @@ class Augmenter:
             elif name == "brightness":
                 ops.append((name, {"beta": rng.uniform(-s.brightness_range, s.brightness_range) * 255.0,
                                    "alpha": 1.0 + rng.uniform(-s.contrast_range, s.contrast_range)}))
+            elif name == "multiply":
+                ops.append((name, {"factor": rng.uniform(*s.multiply_range)}))
             elif name == "shadow":
                 # A band from the top edge to the bottom edge, darkening one side of it.
                 ops.append((name, {"top": rng.uniform(0, 1), "bottom": rng.uniform(0, 1),
@@ -134,16 +151,17 @@ class Augmenter:
     def apply(self, image: np.ndarray, ops: Draw) -> np.ndarray:
         """Apply a draw to one uint8 HxWx3 frame; returns a new array (the input is never changed)."""
         h, w = image.shape[:2]
+        border = _CV2_BORDER[self.settings.border]
         out = image
         for name, p in ops:
             if name == "flip":
                 out = cv2.flip(out, 1)
             elif name == "shift":
                 m = np.float32([[1, 0, p["dx"] * w], [0, 1, p["dy"] * h]])
-                out = cv2.warpAffine(out, m, (w, h), borderMode=cv2.BORDER_REPLICATE)
+                out = cv2.warpAffine(out, m, (w, h), borderMode=border)
             elif name == "zoom":
                 m = cv2.getRotationMatrix2D((w / 2.0, h / 2.0), 0.0, p["scale"])
-                out = cv2.warpAffine(out, m, (w, h), borderMode=cv2.BORDER_REPLICATE)
+                out = cv2.warpAffine(out, m, (w, h), borderMode=border)
             elif name == "hue":
                 # Turn every colour round the colour wheel (grey, white and black stay): yellow tape
                 # becomes blue, green grass purple; OpenCV's 8-bit hue is 0-179 (2 degrees a step).
@@ -155,6 +173,10 @@ class Augmenter:
             elif name == "brightness":
                 # Contrast around mid-grey, then brightness; a lookup table is exact and fast on uint8.
                 lut = (np.arange(256, dtype=np.float32) - 128.0) * p["alpha"] + 128.0 + p["beta"]
+                out = cv2.LUT(out, np.clip(np.rint(lut), 0, 255).astype(np.uint8))
+            elif name == "multiply":
+                # every value times one factor, rounded and clipped (imgaug's Multiply on uint8)
+                lut = np.arange(256, dtype=np.float32) * np.float32(p["factor"])
                 out = cv2.LUT(out, np.clip(np.rint(lut), 0, 255).astype(np.uint8))
             elif name == "shadow":
                 ys = np.arange(h, dtype=np.float32)[:, None] / max(h - 1, 1)

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from parts.pilots import load_pilot
-from parts.pilots.export import export_model
-from parts.pilots.training import train
+from training.export import export_model
+from training.trainer import train
 from vehicle.app.cli import main
 from vehicle.config import Config
 
@@ -102,8 +102,8 @@ def test_cli_exports_int8_and_removes_it_with_the_model(trained, tiny_tub, tmp_p
     (car / "models").mkdir(parents=True)
     (car / "myconfig.py").write_text("")
     model = shutil.copy(trained, car / "models" / "pilot.pt")
-    from parts.pilots.model_db import register_model
     from parts.pilots.modelfile import read_meta
+    from training.model_db import register_model
 
     register_model(model, read_meta(model))
     assert main(["models", "export", "pilot", "--format", "onnx-int8", "--calibration", str(tiny_tub),

@@ -8,14 +8,13 @@
   data, but its integer convolutions (ConvInteger) are often slower than float on x86.
 
 The exported file (``NAME.int8.onnx`` by default) carries the source model's metadata and hash like
-every export (:mod:`parts.pilots.export`), plus ``quantization`` (method, calibration frames and
+every export (:mod:`training.export`), plus ``quantization`` (method, calibration frames and
 tubs), and runs with ``PILOT_BACKEND = "onnx-int8"``. Accuracy and speed against the float export
 are measured by ``bench/int8.py`` (docs/benchmarks.md): check them for your model before driving.
 """
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import tempfile
@@ -29,7 +28,6 @@ logger = logging.getLogger(__name__)
 
 Method = Literal["static", "dynamic"]
 METHODS: tuple[str, ...] = ("static", "dynamic")
-QUANT_KEY = "quantization"  # JSON: {"method", "calibration_frames", "calibration_tubs"}
 DEFAULT_CALIBRATION_FRAMES = 300
 
 
@@ -40,9 +38,9 @@ def calibration_inputs(meta: dict[str, Any], tubs: Sequence[str | os.PathLike[st
     augmentation; history and extra inputs from the records, as in training)."""
     import torch
 
-    from parts.pilots.dataset import IMAGE_KEY, PilotDataset, build_samples, read_drive_data
-    from parts.pilots.framecache import FrameCache
     from parts.pilots.preprocess import Preprocess
+    from training.dataset import IMAGE_KEY, PilotDataset, build_samples, read_drive_data
+    from training.framecache import FrameCache
 
     desc = meta["model"]
     pre = Preprocess.from_dict(meta["preprocess"])
@@ -130,8 +128,3 @@ def quantize_onnx(float_onnx: str | os.PathLike[str], out: str | os.PathLike[str
                 record["calibration_frames"])
     return record
 
-
-def quant_record(props: dict[str, str]) -> dict[str, Any] | None:
-    """The ``quantization`` record of an export's metadata, None for a float export."""
-    raw = props.get(QUANT_KEY)
-    return json.loads(raw) if raw else None
