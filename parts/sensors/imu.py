@@ -33,6 +33,9 @@ CHIP_IDS: dict[str, tuple[int, ...]] = {"mpu6050": (0x68,), "mpu9250": (0x71, 0x
 #: full-scale ranges: g -> AFS_SEL, °/s -> FS_SEL
 ACCEL_RANGES: dict[int, int] = {2: 0, 4: 1, 8: 2, 16: 3}
 GYRO_RANGES: dict[int, int] = {250: 0, 500: 1, 1000: 2, 2000: 3}
+#: sensitivity by full scale (datasheet): LSB per g, LSB per °/s
+ACCEL_LSB: dict[int, float] = {2: 16384.0, 4: 8192.0, 8: 4096.0, 16: 2048.0}
+GYRO_LSB: dict[int, float] = {250: 131.0, 500: 65.5, 1000: 32.8, 2000: 16.4}
 G = 9.80665  # m/s^2 per g
 
 
@@ -97,8 +100,8 @@ class MPU6050:
         """(ax, ay, az) in m/s^2 and (gx, gy, gz) in rad/s; the temperature goes to :attr:`temperature`."""
         data = bytes(self._bus.read_i2c_block_data(self.address, ACCEL_XOUT_H, 14))
         ax, ay, az, temp, gx, gy, gz = struct.unpack(">7h", data)
-        a_scale = G * self.accel_range / 32768.0
-        g_scale = math.radians(self.gyro_range / 32768.0)
+        a_scale = G / ACCEL_LSB[self.accel_range]
+        g_scale = math.radians(1.0 / GYRO_LSB[self.gyro_range])
         self.temperature = temp / 340.0 + 36.53 if self.sensor == "mpu6050" else (temp - 21) / 333.87 + 21.0
         return ax * a_scale, ay * a_scale, az * a_scale, gx * g_scale, gy * g_scale, gz * g_scale
 

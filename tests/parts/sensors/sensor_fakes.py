@@ -162,11 +162,11 @@ def nmea(body: str) -> bytes:
 
 
 def nmea_latlon(lat: float, lon: float) -> str:
-    """``ddmm.mmmm,N,dddmm.mmmm,E`` fields."""
+    """``ddmm.mmmmm,N,dddmm.mmmmm,E`` fields (5 decimals of minutes, as u-blox receivers send)."""
     def field(v: float, width: int) -> str:
         a = abs(v)
         d = int(a)
-        return f"{d:0{width}d}{(a - d) * 60:07.4f}"
+        return f"{d:0{width}d}{(a - d) * 60:08.5f}"
     return f"{field(lat, 2)},{'N' if lat >= 0 else 'S'},{field(lon, 3)},{'E' if lon >= 0 else 'W'}"
 
 
