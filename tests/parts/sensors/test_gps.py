@@ -42,7 +42,8 @@ def test_gps_part_position_speed_and_lost_fix() -> None:
         assert values[:2] == pytest.approx((0.0, 0.0), abs=0.01)  # origin at the first fix
         assert values[4] == pytest.approx(6.0) and values[-1] is True
         lat, lon = frame.to_latlon(12.0, -5.0)
-        device.queue = [nmea("GPGSV,3,1,11,03,03,111,00,04,15,270,00,06,01,010,00,13,06,292,00"), rmc(lat, lon, knots=3.0)]
+        satellites = nmea("GPGSV,3,1,11,03,03,111,00,04,15,270,00,06,01,010,00,13,06,292,00")
+        device.queue = [satellites, rmc(lat, lon, knots=3.0)]
         values = _next_fix(part, lambda v: v[0] > 1)
         assert values[:2] == pytest.approx((12.0, -5.0), abs=0.02)  # 5 decimals of minutes: 1.9 cm steps
         assert values[5] == pytest.approx(3.0 * 1852 / 3600)
