@@ -129,6 +129,41 @@ class GpioTicks:
             self._device = None
 
 
+class TickGroup:
+    """Several single-channel tick sources read as one (left and right wheel on GPIO pins)."""
+
+    def __init__(self, sources: Sequence[GpioTicks]) -> None:
+        self.sources = list(sources)
+        self.channels = len(self.sources)
+
+    def open(self) -> None:
+        for source in self.sources:
+            source.open()
+
+    def set_throttle(self, throttle: float | None) -> None:
+        for source in self.sources:
+            source.set_throttle(throttle)
+
+    def read(self) -> tuple[int, ...] | None:
+        readings = [source.read() for source in self.sources]
+        if any(r is None for r in readings):
+            return None
+        return tuple(r[0] for r in readings if r is not None)
+
+    def close(self) -> None:
+        for source in self.sources:
+            source.close()
+
+
+def tachometer_mode(value: str | int) -> TachometerMode:
+    """TACHOMETER_MODE as a name: DonkeyCar's config writes the constants 1, 2, 3."""
+    if isinstance(value, int) and not isinstance(value, bool) and 1 <= value <= 3:
+        return TACHOMETER_MODES[value - 1]  # type: ignore[return-value]
+    if value in TACHOMETER_MODES:
+        return value  # type: ignore[return-value]
+    raise EncoderError(f"TACHOMETER_MODE {value!r}: use one of {', '.join(TACHOMETER_MODES)} (or 1, 2, 3)")
+
+
 class SerialTicks:
     """Ticks from a microcontroller speaking DonkeyCar's encoder protocol over serial.
 
@@ -226,6 +261,24 @@ class Encoder(SensorPart):
         self.period = period
         self.OUTPUTS = (("enc/ticks",) if source.channels == 1 else ("enc/left/ticks", "enc/right/ticks")) + \
             ("enc/timestamp", "enc/ok")
+
+    @classmethod
+    def from_config(cls, cfg: Any, clock: Callable[[], float] | None = None) -> Encoder:
+        """The encoder of a car's settings: ENCODER_TYPE "GPIO" (ODOM_PIN[, ODOM_PIN_B], with
+        HAVE_ODOM_2 a second single-channel encoder on ODOM_PIN_2) or "ARDUINO" (ODOM_SERIAL, two
+        channels with HAVE_ODOM_2)."""
+        kind = str(cfg.ENCODER_TYPE).upper()
+        two = bool(cfg.HAVE_ODOM_2)
+        mode = tachometer_mode(cfg.TACHOMETER_MODE)
+        debounce = cfg.ENCODER_DEBOUNCE_NS / 1e9
+        if kind == "GPIO" and two:
+            source: TickSource = TickGroup([GpioTicks(cfg.ODOM_PIN, mode=mode, debounce_s=debounce),
+                                            GpioTicks(cfg.ODOM_PIN_2, mode=mode, debounce_s=debounce)])
+        else:
+            pins = [cfg.ODOM_PIN] + ([cfg.ODOM_PIN_B] if cfg.ODOM_PIN_B is not None else [])
+            source = make_tick_source(kind, pins=pins, port=cfg.ODOM_SERIAL, baudrate=cfg.ODOM_SERIAL_BAUDRATE,
+                                      channels=2 if two else 1, mode=mode, debounce_s=debounce)
+        return cls(source, max_age=cfg.ODOM_MAX_AGE_S, clock=clock or time.monotonic)
 
     def open(self) -> None:
         self.source.open()

@@ -132,6 +132,14 @@ class GPS(SensorPart):
         self.nmea_path = nmea_path
         self._log: Any = None
 
+    @classmethod
+    def from_config(cls, cfg: Any, clock: Callable[[], float] | None = None) -> GPS:
+        """GPS_SERIAL, GPS_SERIAL_BAUDRATE, GPS_ORIGIN, GPS_MAX_AGE_S, GPS_NMEA_PATH."""
+        path = str(cfg.path("GPS_NMEA_PATH")) if cfg.GPS_NMEA_PATH else None
+        origin = tuple(cfg.GPS_ORIGIN) if cfg.GPS_ORIGIN is not None else None
+        return cls(cfg.GPS_SERIAL, cfg.GPS_SERIAL_BAUDRATE, origin=origin,  # type: ignore[arg-type]
+                   max_age=cfg.GPS_MAX_AGE_S, nmea_path=path, clock=clock or time.monotonic)
+
     def open(self) -> None:
         factory = self._factory
         if factory is None:
@@ -180,3 +188,15 @@ class GPS(SensorPart):
         if self._log is not None:
             self._log.close()
             self._log = None
+
+
+class SpeedFromGPS:
+    """Part: ``gps/speed`` -> ``enc/speed`` for a car whose only speed source is its GPS (no encoder,
+    no VESC), so the speed limit and the page use it; None while the fix is lost or stale."""
+
+    INPUTS: ClassVar[tuple[str, ...]] = ("gps/speed", "gps/ok")
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("enc/speed",)
+
+    def run(self, speed: float | None, ok: bool | None) -> float | None:
+        """The GPS's speed over ground while its fix is valid."""
+        return speed if ok else None

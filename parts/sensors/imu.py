@@ -133,6 +133,15 @@ class IMU(SensorPart):
         self.device = device
         self.period = period
 
+    @classmethod
+    def from_config(cls, cfg: Any, clock: Callable[[], float] | None = None) -> IMU:
+        """IMU_SENSOR at IMU_I2C_BUSNUM (None: 1) / IMU_ADDRESS, IMU_ACCEL_RANGE, IMU_GYRO_RANGE,
+        IMU_DLP_CONFIG, IMU_MAX_AGE_S."""
+        bus = 1 if cfg.IMU_I2C_BUSNUM is None else cfg.IMU_I2C_BUSNUM
+        device = MPU6050(bus, cfg.IMU_ADDRESS, sensor=cfg.IMU_SENSOR, accel_range=cfg.IMU_ACCEL_RANGE,
+                         gyro_range=cfg.IMU_GYRO_RANGE, dlpf=cfg.IMU_DLP_CONFIG)
+        return cls(device, max_age=cfg.IMU_MAX_AGE_S, clock=clock or time.monotonic)
+
     def open(self) -> None:
         self.device.open()
 

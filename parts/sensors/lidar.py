@@ -108,6 +108,14 @@ class RPLidar(SensorPart):
         self._turn: list[tuple[float, float]] = []
         self.resyncs = 0  # bytes dropped to find the node framing again
 
+    @classmethod
+    def from_config(cls, cfg: Any, clock: Callable[[], float] | None = None) -> RPLidar:
+        """LIDAR_SERIAL, LIDAR_SERIAL_BAUDRATE, LIDAR_BINS, LIDAR_ANGLE_OFFSET, LIDAR_MAX_RANGE,
+        LIDAR_MAX_AGE_S."""
+        return cls(cfg.LIDAR_SERIAL, cfg.LIDAR_SERIAL_BAUDRATE, bins=cfg.LIDAR_BINS,
+                   offset_deg=cfg.LIDAR_ANGLE_OFFSET, max_range=cfg.LIDAR_MAX_RANGE, max_age=cfg.LIDAR_MAX_AGE_S,
+                   clock=clock or time.monotonic)
+
     def open(self) -> None:
         """Open the port, stop any scan, start the motor and a scan, check the descriptor."""
         factory = self._factory

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import ClassVar
+from typing import Any, ClassVar
 
 from parts.sensors.lidar import front_distance
 
@@ -55,6 +55,12 @@ class ObstacleStop:
         self.decel, self.latency = float(decel), float(latency)
         self.stop_when_blind, self.rolling = bool(stop_when_blind), float(rolling)
         self.stopping = False
+
+    @classmethod
+    def from_config(cls, cfg: Any) -> ObstacleStop:
+        """OBSTACLE_STOP_DISTANCE, _ANGLE, _BRAKE, _DECEL, _WHEN_BLIND."""
+        return cls(cfg.OBSTACLE_STOP_DISTANCE, half_angle_deg=cfg.OBSTACLE_STOP_ANGLE, brake=cfg.OBSTACLE_STOP_BRAKE,
+                   decel=cfg.OBSTACLE_STOP_DECEL, stop_when_blind=cfg.OBSTACLE_STOP_WHEN_BLIND)
 
     def trigger(self, speed: float | None) -> float:
         """Distance ahead (m) below which the stop acts at ``speed`` (m/s; None = unknown)."""

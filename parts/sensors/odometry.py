@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from typing import ClassVar
+from typing import Any, ClassVar
 
 Pose = tuple[float, float, float]
 
@@ -61,6 +61,14 @@ class Odometer:
         self.OUTPUTS = outputs or Odometer.OUTPUTS
         self._history: deque[tuple[float, int]] = deque(maxlen=self.smoothing + 1)
         self.speed = 0.0
+
+    @classmethod
+    def from_config(cls, cfg: Any, side: str | None = None) -> Odometer:
+        """MM_PER_TICK and ODOM_SMOOTHING; ``side`` "left"/"right" reads ``enc/<side>/ticks``."""
+        if side is None:
+            return cls(cfg.MM_PER_TICK / 1000.0, cfg.ODOM_SMOOTHING)
+        return cls(cfg.MM_PER_TICK / 1000.0, cfg.ODOM_SMOOTHING, inputs=(f"enc/{side}/ticks", "enc/timestamp"),
+                   outputs=(f"enc/{side}/distance", f"enc/{side}/speed"))
 
     def run(self, ticks: int | None, timestamp: float | None) -> tuple[float | None, float | None]:
         """(distance, speed) for this reading; (None, None) without one."""
@@ -134,6 +142,11 @@ class BicyclePose(_PoseBase):
         super().__init__(**pose)
         self.wheel_base, self.max_steering_angle = float(wheel_base), float(max_steering_angle)
 
+    @classmethod
+    def from_config(cls, cfg: Any) -> BicyclePose:
+        """WHEEL_BASE and MAX_STEERING_ANGLE."""
+        return cls(cfg.WHEEL_BASE, cfg.MAX_STEERING_ANGLE)
+
     def run(self, distance: float | None, timestamp: float | None, angle: float | None) -> tuple[float | None, ...]:
         """(pos/x, pos/y, pos/angle, vel/x, vel/y, vel/angle); all None while the distance is unknown."""
         if distance is None:
@@ -163,6 +176,11 @@ class UnicyclePose(_PoseBase):
             raise ValueError(f"AXLE_LENGTH must be > 0 m, got {axle_length!r}")
         super().__init__(**pose)
         self.axle_length = float(axle_length)
+
+    @classmethod
+    def from_config(cls, cfg: Any) -> UnicyclePose:
+        """AXLE_LENGTH."""
+        return cls(cfg.AXLE_LENGTH)
 
     def run(self, left: float | None, right: float | None, timestamp: float | None) -> tuple[float | None, ...]:
         """(pos/x, pos/y, pos/angle, vel/x, vel/y, vel/angle); all None while a distance is unknown."""
