@@ -1,4 +1,21 @@
-"""Load a car's settings: package defaults, then the car's ``myconfig.py`` overrides, validated.
+"""Load a car's settings: the declared defaults, then the car's ``myconfig.py`` overrides, validated.
+
+Settings are declared beside what they configure: the kernel's in :mod:`vehicle.settings`, every
+family's in a ``settings.py`` of its own package (``parts/cameras/settings.py``, ...), found under
+:data:`SETTINGS_ROOTS` with no list to keep. Each such module follows the rules below; the loader
+reads it by its syntax tree (for the documentation and the derived values) and imports it (for
+the names its annotations use, and its ``RULES`` across settings):
+
+- one annotated assignment per setting, ``NAME: type = value``, UPPERCASE names;
+- the comment lines right above a setting document it (units and reasons);
+- a value may be an expression of other settings (``CAMERA_FRAMERATE: int = DRIVE_LOOP_HZ``, the
+  name imported from the module that declares it): derived values are recomputed after the
+  user's overrides unless the user set them too;
+- section headers are comment lines of the form ``# == Title ==``;
+- ``RULES``, a tuple of functions ``rule(values) -> Iterator[Problem]``, checks settings that are
+  only valid together (see :mod:`vehicle.config_checks`).
+
+docs/config.md is generated from them (``python -m vehicle.config_docs``) and a test keeps it in sync.
 
 >>> cfg = Config.defaults(DRIVE_LOOP_HZ=50)
 >>> cfg.DRIVE_LOOP_HZ, cfg.CAMERA_FRAMERATE
@@ -9,6 +26,8 @@ from __future__ import annotations
 
 import ast
 import difflib
+import importlib
+import importlib.util
 import logging
 import os
 import types
@@ -20,14 +39,17 @@ from functools import cache
 from pathlib import Path
 from typing import Annotated, Any
 
-from vehicle import config_checks
-from vehicle.config_checks import RULES, Checked, Constraint, Length, Range
+from vehicle.config_checks import Checked, Constraint, Length, OneOf, Range, Rule
 from vehicle.errors import VehicleError
 from vehicle.keys import Mode
 
 logger = logging.getLogger(__name__)
 
-DEFAULTS_MODULE = Path(__file__).with_name("config_defaults.py")
+#: the kernel's own settings (paths and the loop), always first
+KERNEL_SETTINGS = "vehicle.settings"
+#: packages whose every ``settings.py``, at any depth, declares settings; docs/config.md lists
+#: them in this order, each package's modules by path. A new family adds its own settings.py.
+SETTINGS_ROOTS: tuple[str, ...] = ("parts", "training", "vehicle.app")
 
 #: DonkeyCar settings that have another name here, so a copied myconfig.py gets a precise hint
 RENAMED: dict[str, str] = {
@@ -47,7 +69,7 @@ class ConfigError(VehicleError, ValueError):
 
 @dataclass(frozen=True)
 class Setting:
-    """One setting of config_defaults.py: its type, default expression and documentation."""
+    """One declared setting: its type, default expression, documentation and where it is declared."""
 
     name: str
     annotation: str
@@ -55,12 +77,50 @@ class Setting:
     doc: str
     section: str
     line: int
+    module: str = KERNEL_SETTINGS  # the settings module that declares it
+
+    @property
+    def path(self) -> Path:
+        """The file that declares it."""
+        return Path(_module(self.module).__file__ or "")
+
+
+def settings_modules(roots: Sequence[str] = SETTINGS_ROOTS) -> list[str]:
+    """The settings modules: the kernel's, then every ``settings.py`` in a package under ``roots``."""
+    names = [KERNEL_SETTINGS]
+    for root in roots:
+        spec = importlib.util.find_spec(root)
+        for folder in (spec.submodule_search_locations or []) if spec else []:
+            for path in sorted(Path(folder).rglob("settings.py")):
+                rel = path.relative_to(folder)
+                if all((Path(folder) / p / "__init__.py").is_file() for p in rel.parents):
+                    name = ".".join((root, *rel.with_suffix("").parts))
+                    if name not in names:
+                        names.append(name)
+    return names
+
+
+@cache
+def _module(name: str) -> types.ModuleType:
+    return importlib.import_module(name)
 
 
 @cache
 def settings() -> dict[str, Setting]:
-    """Parse config_defaults.py into its settings, in file order."""
-    source = DEFAULTS_MODULE.read_text()
+    """Every declared setting, module by module (:func:`settings_modules`), each in file order."""
+    found: dict[str, Setting] = {}
+    for module in settings_modules():
+        for name, setting in parse_settings(module).items():
+            if name in found:
+                raise RuntimeError(f"{setting.path}, line {setting.line}: setting {name} is already declared "
+                                   f"in {found[name].path}, line {found[name].line}; declare each setting once")
+            found[name] = setting
+    return found
+
+
+def parse_settings(module: str) -> dict[str, Setting]:
+    """The settings one settings module declares, in file order."""
+    source = Path(_module(module).__file__ or "").read_text()
     lines = source.splitlines()
     found: dict[str, Setting] = {}
     section = ""
@@ -69,7 +129,7 @@ def settings() -> dict[str, Setting]:
         if not (isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name)):
             continue
         name = node.target.id
-        if not name.isupper():
+        if not name.isupper() or name == "RULES" or node.value is None:
             continue
         section = next((section_at[i] for i in range(node.lineno, 0, -1) if i in section_at), section)
         doc: list[str] = []
@@ -78,8 +138,38 @@ def settings() -> dict[str, Setting]:
             doc.insert(0, lines[i].strip().lstrip("#").strip())
             i -= 1
         found[name] = Setting(name, ast.unparse(node.annotation), node.value, " ".join(doc), section,
-                              node.lineno)
+                              node.lineno, module)
     return found
+
+
+@cache
+def rules() -> tuple[Rule, ...]:
+    """The rules across settings: each settings module's ``RULES``, in module order."""
+    return tuple(rule for module in settings_modules() for rule in getattr(_module(module), "RULES", ()))
+
+
+@cache
+def _evaluation_order() -> tuple[str, ...]:
+    """Settings ordered so that every derived one comes after the settings its expression names."""
+    known = settings()
+    done: dict[str, None] = {}
+    visiting: set[str] = set()
+
+    def visit(name: str) -> None:
+        if name in done:
+            return
+        if name in visiting:
+            raise RuntimeError(f"setting {name} is derived from itself through {sorted(visiting)}")
+        visiting.add(name)
+        for n in ast.walk(known[name].expression):
+            if isinstance(n, ast.Name) and n.id in known and n.id != name:
+                visit(n.id)
+        visiting.discard(name)
+        done[name] = None
+
+    for name in known:
+        visit(name)
+    return tuple(done)
 
 
 def _is_section(line: str) -> bool:
@@ -87,14 +177,11 @@ def _is_section(line: str) -> bool:
     return s.startswith("# ==") and s.endswith("==")
 
 
-_TYPE_NAMESPACE = {"Literal": typing.Literal, "Callable": Callable, "Any": Any, "Mode": Mode,
-                   "Annotated": Annotated,
-                   **{k: v for k, v in vars(config_checks).items() if not k.startswith("_")}}
-
-
 @cache
-def _type_of(annotation: str) -> Any:
-    return eval(annotation, dict(_TYPE_NAMESPACE))  # noqa: S307 - our own module's annotations
+def _type_of(name: str) -> Any:
+    """The annotation of setting ``name``, evaluated in the namespace of the module declaring it."""
+    setting = settings()[name]
+    return eval(setting.annotation, dict(vars(_module(setting.module))))  # noqa: S307 - our own declarations
 
 
 def _matches(value: Any, tp: Any) -> bool:
@@ -143,10 +230,10 @@ def describe_type(annotation: str) -> str:
 @cache
 def constraints(name: str) -> tuple[Constraint, ...]:
     """The ranges a setting declares in its annotation (``Annotated[int, Range(1, 1000)]``)."""
-    tp = _type_of(settings()[name].annotation)
+    tp = _type_of(name)
     if typing.get_origin(tp) is not Annotated:
         return ()
-    return tuple(m for m in tp.__metadata__ if isinstance(m, Range | Length | Checked))
+    return tuple(m for m in tp.__metadata__ if isinstance(m, Range | Length | Checked | OneOf))
 
 
 def check_range(name: str, value: Any, where: str = "") -> None:
@@ -166,7 +253,7 @@ def check_value(name: str, value: Any, where: str = "") -> None:
         raise ConfigError(f"{where}unknown setting {name}.{hint} "
                           "See docs/config.md for every setting.")
     setting = known[name]
-    if not _matches(value, _type_of(setting.annotation)):
+    if not _matches(value, _type_of(name)):
         raise ConfigError(f"{where}{name} = {value!r} has type {type(value).__name__}, "
                           f"expected {describe_type(setting.annotation)}.")
     check_range(name, value, where)
@@ -215,7 +302,7 @@ def check_config(values: Mapping[str, Any], overridden: frozenset[str],
     for name in settings():
         if name not in overridden:
             check_range(name, values[name], where(name))
-    for rule in RULES:
+    for rule in rules():
         for problem in rule(values):
             raise ConfigError(f"{where(problem.setting, *problem.related)}{problem.message}.")
 
@@ -298,15 +385,19 @@ class Config(Mapping[str, Any]):
 
 
 def _evaluate(overrides: dict[str, Any]) -> dict[str, Any]:
-    """Evaluate the defaults in file order, taking overrides where given, so derived values follow."""
+    """Evaluate the defaults, each after the settings it follows, taking overrides where given, so
+    derived values follow; the result is in declaration order."""
     namespace: dict[str, Any] = {}
-    for name, setting in settings().items():
+    known = settings()
+    for name in _evaluation_order():
         if name in overrides:
             namespace[name] = overrides[name]
         else:
-            code = compile(ast.Expression(setting.expression), str(DEFAULTS_MODULE), "eval")
-            namespace[name] = eval(code, {"__builtins__": __builtins__}, dict(namespace))  # noqa: S307
-    return namespace
+            setting = known[name]
+            code = compile(ast.Expression(setting.expression), str(setting.path), "eval")
+            module_globals = dict(vars(_module(setting.module)))
+            namespace[name] = eval(code, module_globals, dict(namespace))  # noqa: S307 - our own declarations
+    return {name: namespace[name] for name in known}
 
 
 def read_overrides(path: Path) -> dict[str, Any]:

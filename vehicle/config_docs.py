@@ -1,4 +1,4 @@
-"""Generate docs/config.md from config_defaults.py: ``python -m vehicle.config_docs [--check]``."""
+"""Generate docs/config.md from the settings modules: ``python -m vehicle.config_docs [--check]``."""
 
 from __future__ import annotations
 
@@ -13,10 +13,11 @@ DOC_PATH = Path(__file__).resolve().parent.parent / "docs" / "config.md"
 
 
 def render() -> str:
-    """The config reference as Markdown, one table per section, in file order."""
+    """The config reference as Markdown, one table per section, module by module in file order."""
     out = ["# Configuration reference", "",
            "Every setting a car can override in its `myconfig.py`, with its type and default. Generated "
-           "from `vehicle/config_defaults.py` by `python -m vehicle.config_docs`; do not edit by hand.",
+           "by `python -m vehicle.config_docs` from the `settings.py` beside each part family (each "
+           "section names its file); do not edit by hand.",
            "",
            "A value shown as an expression (for example `DRIVE_LOOP_HZ`) is derived: it follows the "
            "settings it names, after your overrides, unless you set it yourself. Loading rejects an "
@@ -28,8 +29,9 @@ def render() -> str:
     for s in settings().values():
         if s.section != section:
             section = s.section
-            out += ["", f"## {section}", "", "| Setting | Type | Default | Valid | Meaning |",
-                    "|---|---|---|---|---|"]
+            where = f"{s.module.replace('.', '/')}.py"
+            out += ["", f"## {section}", "", f"Declared in `{where}`.", "",
+                    "| Setting | Type | Default | Valid | Meaning |", "|---|---|---|---|---|"]
         default = ast.unparse(s.expression).replace("|", "\\|")
         kind = describe_type(s.annotation).replace("|", "&#124;")
         valid = "; ".join(c.describe() for c in constraints(s.name)).replace("|", "\\|")

@@ -350,3 +350,18 @@ class FakeI2C:
         bus = FakeSMBus(self, busnum)
         self.opened.append(bus)
         return bus
+
+
+def mock_board(cfg: Any) -> tuple[Callable[[int], FakeSMBus], PCA9685Model]:
+    """A simulated PCA9685 at the car's bus and address (DRIVE_TRAIN_TYPE = "MOCK", ``vehicle
+    calibrate --mock``): (bus factory, register model), tracing to PCA9685_MOCK_TRACE when set.
+
+    The model keeps real (monotonic) time, also under a simulated vehicle clock: it checks the
+    driver's real delays (oscillator start-up) against the datasheet.
+    """
+    from parts.actuators.pca9685 import busnum
+
+    trace = str(cfg.path("PCA9685_MOCK_TRACE")) if cfg.PCA9685_MOCK_TRACE else None
+    i2c = FakeI2C()
+    model = i2c.add_board(busnum(cfg), cfg.PCA9685_I2C_ADDR, trace_path=trace)
+    return i2c.smbus, model

@@ -19,6 +19,7 @@ from __future__ import annotations
 import errno
 import glob
 import logging
+import math
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -47,8 +48,14 @@ MODE2_DEFAULT = 0x04
 FULL_BIT = 0x10
 
 OSC_HZ = 25_000_000  # internal oscillator, nominal (boards differ by a few %)
-PRESCALE_MIN, PRESCALE_MAX = 3, 255
+PRESCALE_MIN, PRESCALE_MAX = 3, 255  # PRE_SCALE register limits (datasheet 7.3.5)
+MAX_TICK = 4095  # the 12-bit counter: a pulse is 0-4095 ticks of 1/4096 period
+#: pulse widths servos and ESCs can be sent, µs (the RC standard is 1000-2000; some servos need a
+#: little more travel). `vehicle calibrate`, the drivetrain part and the config refuse others.
+PULSE_MIN_US, PULSE_MAX_US = 500.0, 2500.0
 CHANNELS = 16
+#: bus when PCA9685_I2C_BUSNUM is None: header pins 3/5 on a Raspberry Pi and a Jetson Nano
+DEFAULT_BUS = 1
 WAKE_DELAY_S = 0.005  # datasheet: >= 500 µs for the oscillator; Adafruit waits 5 ms
 GENERAL_CALL = 0x00
 SWRST_BYTE = 0x06
@@ -94,11 +101,29 @@ def smbus2_factory(busnum: int) -> SMBusLike:
     return smbus2.SMBus(busnum)
 
 
+def pwm_timing(freq_hz: float, osc_hz: float = OSC_HZ) -> tuple[int, float, float]:
+    """``(prescale, real frequency in Hz, µs per tick)`` of a PCA9685 asked for ``freq_hz``, the
+    prescale unchecked (rounded like both Adafruit libraries: 60 Hz -> 101, 59.84 Hz, 4.08 µs)."""
+    prescale = int(osc_hz / (4096.0 * freq_hz) + 0.5) - 1
+    real = actual_frequency(prescale, osc_hz)
+    return prescale, real, 1e6 / real / 4096.0
+
+
+def pulse_tick_range(tick_us: float) -> tuple[int, int]:
+    """The ticks that make a pulse of PULSE_MIN_US to PULSE_MAX_US at ``tick_us`` µs per tick."""
+    return math.ceil(PULSE_MIN_US / tick_us), min(MAX_TICK, math.floor(PULSE_MAX_US / tick_us))
+
+
+def busnum(cfg: Any) -> int:
+    """PCA9685_I2C_BUSNUM, with None meaning :data:`DEFAULT_BUS`."""
+    return DEFAULT_BUS if cfg.PCA9685_I2C_BUSNUM is None else cfg.PCA9685_I2C_BUSNUM
+
+
 def prescale_for(frequency: float, osc_hz: float = OSC_HZ) -> int:
     """PRE_SCALE for ``frequency`` Hz, rounded like both Adafruit libraries (60 Hz -> 101)."""
     if not frequency > 0:
         raise ValueError(f"PWM frequency must be > 0 Hz, got {frequency!r}")
-    prescale = int(osc_hz / (4096.0 * frequency) + 0.5) - 1
+    prescale = pwm_timing(frequency, osc_hz)[0]
     if not PRESCALE_MIN <= prescale <= PRESCALE_MAX:
         lo = osc_hz / 4096 / (PRESCALE_MAX + 1)
         hi = osc_hz / 4096 / (PRESCALE_MIN + 1)
@@ -185,6 +210,13 @@ class PCA9685:
         self._sleep = sleep
         self._bus: SMBusLike | None = None
         self._lock = threading.RLock()
+
+    @classmethod
+    def from_config(cls, cfg: Any, bus_factory: BusFactory | None = None) -> PCA9685:
+        """The board of the car's settings (PCA9685_I2C_BUSNUM, _ADDR, PWM_FREQ, PCA9685_OSC_HZ),
+        not opened yet."""
+        return cls(busnum(cfg), cfg.PCA9685_I2C_ADDR, cfg.PWM_FREQ, osc_hz=cfg.PCA9685_OSC_HZ,
+                   bus_factory=bus_factory)
 
     # -- life cycle ---------------------------------------------------------------------------
     @property

@@ -19,18 +19,16 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 from parts.actuators.esc import ReverseStateMachine, SlewLimiter
+from parts.actuators.pca9685 import MAX_TICK, PULSE_MAX_US, PULSE_MIN_US, pulse_tick_range
 from parts.actuators.watchdog import CommandWatchdog
-from vehicle.config_checks import PULSE_MAX_US, PULSE_MIN_US, pulse_tick_range
 
 if TYPE_CHECKING:
-    from parts.actuators.pca9685 import PCA9685
+    from parts.actuators.pca9685 import PCA9685, BusFactory
 
 logger = logging.getLogger(__name__)
-
-MAX_TICK = 4095
 
 
 def clamp(x: float, lo: float, hi: float) -> float:
@@ -210,6 +208,26 @@ class PWMSteeringThrottle:
         self.watchdog = CommandWatchdog(watchdog_s, self._on_watchdog, clock) if watchdog_s else None
         self.last_ticks: tuple[int, int] | None = None  # (steering, throttle) of the last run
 
+    @classmethod
+    def from_config(cls, cfg: Any, *, bus_factory: BusFactory | None = None,
+                    clock: Callable[[], float] | None = None) -> PWMSteeringThrottle:
+        """DRIVE_TRAIN_TYPE = "PWM_STEERING_THROTTLE": servo and ESC on the car's PCA9685, not opened
+        yet (no hardware touched). ``bus_factory`` replaces smbus2; ``clock`` the monotonic clock."""
+        from parts.actuators.esc import ReverseStateMachine
+        from parts.actuators.pca9685 import PCA9685
+
+        steering = SteeringCalibration(cfg.STEERING_LEFT_PWM, cfg.STEERING_RIGHT_PWM, cfg.STEERING_TRIM,
+                                       cfg.STEERING_INVERT)
+        throttle = ThrottleCalibration(cfg.THROTTLE_FORWARD_PWM, cfg.THROTTLE_STOPPED_PWM,
+                                       cfg.THROTTLE_REVERSE_PWM, cfg.THROTTLE_FORWARD_LIMIT,
+                                       cfg.THROTTLE_REVERSE_LIMIT, cfg.THROTTLE_INVERT)
+        reverse = ReverseStateMachine(cfg.ESC_REVERSE_MODE, cfg.ESC_REVERSE_BRAKE_S, cfg.ESC_REVERSE_NEUTRAL_S)
+        return cls(
+            PCA9685.from_config(cfg, bus_factory), cfg.STEERING_CHANNEL, cfg.THROTTLE_CHANNEL, steering, throttle,
+            slew_rate=cfg.THROTTLE_SLEW_RATE, reverse=reverse, arm_s=cfg.ESC_ARM_TIME_S,
+            watchdog_s=cfg.ACTUATOR_WATCHDOG_S, hold_s=cfg.PWM_SHUTDOWN_HOLD_S,
+            full_off_on_shutdown=cfg.PWM_FULL_OFF_ON_SHUTDOWN, clock=clock or time.monotonic)
+
     # -- life cycle ---------------------------------------------------------------------------
     def open(self) -> PWMSteeringThrottle:
         """Probe and initialise the board, write neutral, start the arming time and the watchdog."""
@@ -305,6 +323,21 @@ class PWMSteeringThrottle:
         if force or self._written.get(channel) != ticks:
             self.driver.set_ticks(channel, ticks)
             self._written[channel] = ticks
+
+
+class MockPWMSteeringThrottle(PWMSteeringThrottle):
+    """DRIVE_TRAIN_TYPE = "MOCK": the same part and driver on a simulated PCA9685
+    (:func:`parts.actuators.fake_pca9685.mock_board`), for bench tests without a car."""
+
+    @classmethod
+    def from_config(cls, cfg: Any, *, bus_factory: BusFactory | None = None,
+                    clock: Callable[[], float] | None = None) -> PWMSteeringThrottle:
+        """The simulated board at the car's bus and address, unless ``bus_factory`` is given."""
+        if bus_factory is None:
+            from parts.actuators.fake_pca9685 import mock_board
+
+            bus_factory = mock_board(cfg)[0]
+        return super().from_config(cfg, bus_factory=bus_factory, clock=clock)
 
 
 def _check_pulse_widths(driver: PCA9685, steering: SteeringCalibration, throttle: ThrottleCalibration) -> None:

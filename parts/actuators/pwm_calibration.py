@@ -14,7 +14,7 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from vehicle.config_checks import PULSE_MAX_US, PULSE_MIN_US
+from parts.actuators.pca9685 import PULSE_MAX_US, PULSE_MIN_US
 
 if TYPE_CHECKING:
     from parts.actuators.pca9685 import PCA9685

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 
@@ -25,6 +27,11 @@ class MockSource:
         self._base = np.stack([np.broadcast_to(x, (height, width)),
                                np.broadcast_to(y, (height, width)),
                                np.full((height, width), 64, np.float32)], axis=2).astype(np.uint8)
+
+    @classmethod
+    def from_config(cls, cfg: Any) -> MockSource:
+        """CAMERA_TYPE = "MOCK": frames of IMAGE_W x IMAGE_H."""
+        return cls(cfg.IMAGE_W, cfg.IMAGE_H)
 
     def open(self) -> None:
         """Nothing to open."""

@@ -55,6 +55,11 @@ class OpenCVSource:
         self.failed_reads = 0
         self.name = f"/dev/video{device}" if isinstance(device, int) else str(device)[:40]
 
+    @classmethod
+    def from_config(cls, cfg: Any) -> OpenCVSource:
+        """CAMERA_TYPE = "CVCAM" or "WEBCAM": /dev/video<CAMERA_INDEX> at IMAGE_W x IMAGE_H."""
+        return cls(cfg.CAMERA_INDEX, cfg.IMAGE_W, cfg.IMAGE_H, cfg.CAMERA_FRAMERATE, fourcc=cfg.CAMERA_FOURCC)
+
     def _set(self, prop: int, value: float, what: str) -> None:
         if not self._cap.set(prop, value):
             logger.info("camera %s: the driver refused %s = %s", self.name, what, value)
@@ -146,6 +151,15 @@ class CSISource(OpenCVSource):
                                      flip_method)
         super().__init__(self.pipeline, width, height, fps, CAP_GSTREAMER, None, capture_factory)
         self.name = f"CSI camera {sensor_id}"
+
+    #: the GStreamer pipeline flips (on the GPU): the Camera part must not flip again
+    flips_itself = True
+
+    @classmethod
+    def from_config(cls, cfg: Any) -> CSISource:
+        """CAMERA_TYPE = "CSIC": sensor CAMERA_INDEX captured at CSIC_CAPTURE_*, flipped on the GPU."""
+        return cls(cfg.IMAGE_W, cfg.IMAGE_H, cfg.CSIC_CAPTURE_FPS, cfg.CAMERA_INDEX, cfg.CSIC_CAPTURE_WIDTH,
+                   cfg.CSIC_CAPTURE_HEIGHT, flip_method_for(cfg.CAMERA_VFLIP, cfg.CAMERA_HFLIP))
 
     def open(self) -> None:
         """Open the pipeline; the error explains the GStreamer requirement."""

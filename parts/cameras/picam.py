@@ -31,6 +31,11 @@ class PiCamera2Source:
         self._cam: Any = None
         self.name = f"picamera2 {camera_num}"
 
+    @classmethod
+    def from_config(cls, cfg: Any) -> PiCamera2Source:
+        """CAMERA_TYPE = "PICAM": camera CAMERA_INDEX at IMAGE_W x IMAGE_H, CAMERA_FRAMERATE."""
+        return cls(cfg.IMAGE_W, cfg.IMAGE_H, cfg.CAMERA_FRAMERATE, cfg.CAMERA_INDEX)
+
     def open(self) -> None:
         """Configure and start the camera."""
         cls = self._cls

@@ -10,10 +10,18 @@ from typing import Any
 import numpy as np
 
 from parts.cameras.base import CameraError
+from vehicle.config import ConfigError
 
 logger = logging.getLogger(__name__)
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp")
+
+
+def _required_path(cfg: Any, kind: str, setting: str, example: str) -> Path:
+    """``cfg.path(setting)``; a ConfigError saying what to set when it is empty."""
+    if not cfg[setting]:
+        raise ConfigError(f'CAMERA_TYPE = "{kind}" needs {setting} = "{example}" in myconfig.py')
+    return cfg.path(setting)
 
 
 class VideoFileSource:
@@ -29,6 +37,11 @@ class VideoFileSource:
         self._cv2: Any = None
         self.frame_count = 0
         self.ended = False
+
+    @classmethod
+    def from_config(cls, cfg: Any) -> VideoFileSource:
+        """CAMERA_TYPE = "VIDEO": CAMERA_VIDEO_PATH (relative to the car), CAMERA_REPLAY_LOOP."""
+        return cls(_required_path(cfg, "VIDEO", "CAMERA_VIDEO_PATH", "path/to/video.mp4"), loop=cfg.CAMERA_REPLAY_LOOP)
 
     def open(self) -> None:
         """Open the file. CameraError if it is missing or not a video."""
@@ -95,6 +108,11 @@ class ImageFolderSource:
         self.name = self.folder.name or str(self.folder)
         self.files: list[Path] = []
         self.index = 0
+
+    @classmethod
+    def from_config(cls, cfg: Any) -> ImageFolderSource:
+        """CAMERA_TYPE = "IMAGE_LIST": CAMERA_IMAGE_PATH (a folder of images or a tub), CAMERA_REPLAY_LOOP."""
+        return cls(_required_path(cfg, "IMAGE_LIST", "CAMERA_IMAGE_PATH", "folder/or/tub"), loop=cfg.CAMERA_REPLAY_LOOP)
 
     def open(self) -> None:
         """List the images. CameraError if there are none."""

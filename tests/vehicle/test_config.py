@@ -89,6 +89,40 @@ def test_config_reference_is_in_sync():
     assert DOC_PATH.read_text() == render(), "run: python -m vehicle.config_docs"
 
 
+def test_settings_are_found_beside_their_families_with_no_list_to_keep():
+    from vehicle.config import settings, settings_modules
+
+    modules = settings_modules()
+    assert modules[0] == "vehicle.settings"
+    assert {"parts.cameras.settings", "parts.actuators.settings", "training.settings",
+            "vehicle.app.console.settings"} <= set(modules)
+    # the kernel declares only where files go and the loop; each family its own
+    kernel = {s.section for s in settings().values() if s.module == "vehicle.settings"}
+    assert kernel == {"Paths", "Vehicle loop"}
+    assert settings()["CAMERA_TYPE"].module == "parts.cameras.settings"
+    assert settings()["PWM_FREQ"].path.name == "settings.py"
+
+
+def test_a_new_family_settings_module_is_collected(tmp_path, monkeypatch):
+    """A package's settings.py is found at any depth; folders that are not packages are not."""
+    from vehicle.config import parse_settings, settings_modules
+
+    family = tmp_path / "probe_root" / "sensors" / "imu"
+    family.mkdir(parents=True)
+    for folder in (family.parent.parent, family.parent, family):
+        (folder / "__init__.py").write_text("")
+    (family / "settings.py").write_text("from typing import Annotated\nfrom vehicle.config_checks import Range\n"
+                                        "# == IMU ==\n# Read rate of the IMU in Hz.\n"
+                                        "IMU_HZ: Annotated[int, Range(1, 1000, unit='Hz')] = 100\n")
+    (tmp_path / "probe_root" / "static").mkdir()
+    (tmp_path / "probe_root" / "static" / "settings.py").write_text("X: int = 1\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    assert settings_modules(("probe_root",))[1:] == ["probe_root.sensors.imu.settings"]
+    imu = parse_settings("probe_root.sensors.imu.settings")["IMU_HZ"]
+    assert (imu.section, imu.doc, imu.line, imu.annotation) == (
+        "IMU", "Read rate of the IMU in Hz.", 5, "Annotated[int, Range(1, 1000, unit='Hz')]")
+
+
 def test_every_setting_is_documented():
     from vehicle.config import settings
 

@@ -1,4 +1,4 @@
-"""Dependencies point one way: kernel (vehicle/*.py) <- parts/ <- application (vehicle/app/).
+"""Dependencies point one way: kernel (vehicle/*.py) <- parts/ <- training/ <- application (vehicle/app/).
 
 Every import counts, including the ones inside functions (they only hide a cycle), so the rules are
 checked on the syntax tree of every module, not by importing it.
@@ -81,8 +81,10 @@ def test_the_checker_resolves_relative_and_dynamic_imports():
 
 
 @pytest.mark.parametrize(("folder", "pattern", "forbidden"), [
-    ("vehicle", "*.py", ("parts", "vehicle.app")),  # the kernel
-    ("parts", "**/*.py", ("vehicle.app",)),
+    ("vehicle", "*.py", ("parts", "vehicle.app", "training")),  # the kernel
+    ("parts", "**/*.py", ("vehicle.app", "training")),
+    # training uses parts and is used by the application
+    ("training", "**/*.py", ("vehicle.app",)),
     # library code raises its own VehicleError subclasses; UserError is the application's
     ("parts", "**/*.py", ("vehicle.errors.UserError",)),
     ("parts/sim", "**/*.py", ("parts.pilots",)),

@@ -31,7 +31,7 @@ from typing import Any
 logger = logging.getLogger(__name__)
 
 #: settings the demo runs with (tuned so the pilot completes its laps within the time budget);
-#: each is a normal setting of vehicle/config_defaults.py
+#: each is a normal setting (docs/config.md)
 DEMO_SETTINGS: dict[str, Any] = {
     "ROI_CROP_TOP": 40,  # the top third of the frame is sky: less to learn and 1/3 less compute
     "BATCH_SIZE": 64,

@@ -24,7 +24,7 @@ from typing import Any
 
 from vehicle.app.demo import DEMO_SETTINGS, say
 
-#: the lane demo's settings on top of the demo's; each a normal setting (config_defaults.py)
+#: the lane demo's settings on top of the demo's; each a normal setting (docs/config.md)
 LANE_SETTINGS: dict[str, Any] = {
     "SIM_LANES": 2,
     "TRAIN_BEHAVIORS": True,  # BEHAVIOR_LIST: Left_Lane, Right_Lane

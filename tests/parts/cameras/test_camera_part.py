@@ -106,8 +106,7 @@ def test_bad_arguments():
 def test_add_camera_per_type(tmp_path, red_blue_video, image_folder):
     from vehicle import Vehicle
     from vehicle.app.assembly.camera import add_camera, make_frame_source
-    from vehicle.config import Config
-    from vehicle.errors import UserError
+    from vehicle.config import Config, ConfigError
 
     V = Vehicle()
     cam = add_camera(V, Config.defaults(CAMERA_TYPE="MOCK", IMAGE_W=80, IMAGE_H=60))
@@ -121,7 +120,7 @@ def test_add_camera_per_type(tmp_path, red_blue_video, image_folder):
     assert "flip-method=2" in make_frame_source(Config.defaults(CAMERA_TYPE="CSIC", CAMERA_VFLIP=True,
                                                                 CAMERA_HFLIP=True)).pipeline
     assert type(make_frame_source(Config.defaults(CAMERA_TYPE="PICAM"))).__name__ == "PiCamera2Source"
-    with pytest.raises(UserError, match="CAMERA_VIDEO_PATH"):
+    with pytest.raises(ConfigError, match='CAMERA_TYPE = "VIDEO" needs CAMERA_VIDEO_PATH'):
         make_frame_source(Config.defaults(CAMERA_TYPE="VIDEO"))
-    with pytest.raises(UserError, match="CAMERA_IMAGE_PATH"):
+    with pytest.raises(ConfigError, match="CAMERA_IMAGE_PATH"):
         make_frame_source(Config.defaults(CAMERA_TYPE="IMAGE_LIST"))

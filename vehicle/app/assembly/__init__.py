@@ -29,6 +29,7 @@ HELPERS: dict[str, str] = {
     "add_throttle_filter": "drive",
     "add_controller": "controller",
     "add_drivetrain": "drivetrain",
+    "add_sensors": "sensors",
     "add_pilot": "pilot",
     "add_tub_writer": "tub",
 }

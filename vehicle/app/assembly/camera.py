@@ -1,4 +1,5 @@
-"""Assembly of the camera: the frame source chosen by CAMERA_TYPE, wrapped in the threaded Camera."""
+"""Assembly of the camera: the frame source CAMERA_TYPE picks in the camera table, wrapped in the threaded
+Camera."""
 
 from __future__ import annotations
 
@@ -12,39 +13,10 @@ logger = logging.getLogger(__name__)
 
 
 def make_frame_source(cfg: Config) -> Any:
-    """The frame source for ``cfg.CAMERA_TYPE`` (not opened yet)."""
-    kind = cfg.CAMERA_TYPE
-    w, h, fps = cfg.IMAGE_W, cfg.IMAGE_H, cfg.CAMERA_FRAMERATE
-    if kind in ("CVCAM", "WEBCAM"):
-        from parts.cameras.opencv import OpenCVSource
+    """The frame source for ``cfg.CAMERA_TYPE`` (not opened yet): its row of the camera table."""
+    from parts.cameras.registry import CAMERAS
 
-        return OpenCVSource(cfg.CAMERA_INDEX, w, h, fps, fourcc=cfg.CAMERA_FOURCC)
-    if kind == "CSIC":
-        from parts.cameras.opencv import CSISource, flip_method_for
-
-        return CSISource(w, h, cfg.CSIC_CAPTURE_FPS, cfg.CAMERA_INDEX, cfg.CSIC_CAPTURE_WIDTH,
-                         cfg.CSIC_CAPTURE_HEIGHT, flip_method_for(cfg.CAMERA_VFLIP, cfg.CAMERA_HFLIP))
-    if kind == "PICAM":
-        from parts.cameras.picam import PiCamera2Source
-
-        return PiCamera2Source(w, h, fps, cfg.CAMERA_INDEX)
-    if kind == "VIDEO":
-        from parts.cameras.replay import VideoFileSource
-
-        if not cfg.CAMERA_VIDEO_PATH:
-            raise UserError('CAMERA_TYPE = "VIDEO" needs CAMERA_VIDEO_PATH = "path/to/video.mp4" in myconfig.py')
-        return VideoFileSource(cfg.path("CAMERA_VIDEO_PATH"), loop=cfg.CAMERA_REPLAY_LOOP)
-    if kind == "IMAGE_LIST":
-        from parts.cameras.replay import ImageFolderSource
-
-        if not cfg.CAMERA_IMAGE_PATH:
-            raise UserError('CAMERA_TYPE = "IMAGE_LIST" needs CAMERA_IMAGE_PATH = "folder/or/tub" in myconfig.py')
-        return ImageFolderSource(cfg.path("CAMERA_IMAGE_PATH"), loop=cfg.CAMERA_REPLAY_LOOP)
-    if kind == "MOCK":
-        from parts.cameras.mock import MockSource
-
-        return MockSource(w, h)
-    raise UserError(f"unknown CAMERA_TYPE {kind!r}; use PICAM, CVCAM, WEBCAM, CSIC, VIDEO, IMAGE_LIST or MOCK")
+    return CAMERAS.from_config(cfg)
 
 
 def add_camera(V: Any, cfg: Config) -> Any:
@@ -57,7 +29,7 @@ def add_camera(V: Any, cfg: Config) -> Any:
     from parts.cameras.base import Camera
 
     source = make_frame_source(cfg)
-    gpu_flips = cfg.CAMERA_TYPE == "CSIC"
+    gpu_flips = getattr(source, "flips_itself", False)
     camera = Camera(source, cfg.IMAGE_W, cfg.IMAGE_H, fps=cfg.CAMERA_FRAMERATE,
                     vflip=cfg.CAMERA_VFLIP and not gpu_flips, hflip=cfg.CAMERA_HFLIP and not gpu_flips,
                     timeout_s=cfg.CAMERA_TIMEOUT_S)

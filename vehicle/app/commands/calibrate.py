@@ -80,9 +80,9 @@ def _reader() -> Any:
 
 
 def _calibrate(args: argparse.Namespace) -> int:
-    from parts.actuators.pca9685 import PCA9685, PCA9685Error
+    from parts.actuators.fake_pca9685 import mock_board
+    from parts.actuators.pca9685 import PCA9685, PCA9685Error, busnum
     from parts.actuators.pwm_calibration import CalibrationSession
-    from vehicle.app.assembly.drivetrain import busnum, mock_board
 
     if not 0 <= args.channel <= 15:
         raise UserError(f"--channel {args.channel}: a PCA9685 has channels 0-15")

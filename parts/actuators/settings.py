@@ -1,0 +1,150 @@
+"""Settings of the drivetrain family (DRIVE_TRAIN_TYPE picks a row of :data:`parts.actuators.registry.DRIVETRAINS`).
+
+Declared as the config loader reads them (see :mod:`vehicle.config`): ``NAME: type = value``, the
+comment lines above a setting document it, ``# == Title ==`` starts a section of docs/config.md.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Mapping
+from typing import Annotated, Any, Literal
+
+from parts.actuators.pca9685 import PRESCALE_MAX, PRESCALE_MIN, PULSE_MAX_US, PULSE_MIN_US, pulse_tick_range, pwm_timing
+from parts.actuators.registry import DRIVETRAINS
+from vehicle.config_checks import Checked, Problem, Range, Rule, number_text
+
+#: what a pulse setting must be (:func:`_pwm_pulses` checks it against PWM_FREQ)
+PULSE_VALID = ("a pulse of 500 to 2500 µs at PWM_FREQ (123 to 612 ticks at 60 Hz), found with "
+               "`vehicle calibrate`")
+#: what None means for ACTUATOR_WATCHDOG_S
+WATCHDOG_OFF = "None switches it off (not recommended: a stalled loop then keeps the last throttle)"
+#: the pulse settings, each in ticks at PWM_FREQ
+PULSE_SETTINGS = ("STEERING_LEFT_PWM", "STEERING_RIGHT_PWM", "THROTTLE_FORWARD_PWM",
+                  "THROTTLE_STOPPED_PWM", "THROTTLE_REVERSE_PWM")
+
+# == Drivetrain (PCA9685) ==
+
+# What drives the wheels: "PWM_STEERING_THROTTLE" = steering servo and ESC on a PCA9685 board;
+# "MOCK" = the same driver code on a simulated PCA9685 (bench tests without a car).
+DRIVE_TRAIN_TYPE: Annotated[str, DRIVETRAINS.choice()] = "PWM_STEERING_THROTTLE"
+# 7-bit I2C address of the PCA9685 (0x40 with no address jumpers bridged; `i2cdetect -y 1`).
+PCA9685_I2C_ADDR: Annotated[int, Range(0x03, 0x77, note="a 7-bit address, 0x03 to 0x77; 0x40 unless A0-A5 "
+                                                      "are bridged")] = 0x40
+# I2C bus number (/dev/i2c-N). None = bus 1, the header pins 3/5 on a Raspberry Pi and a Jetson Nano.
+PCA9685_I2C_BUSNUM: Annotated[int | None, Range(0, 255)] = None
+# Oscillator of the PCA9685 in Hz. Boards run a few % off 25 MHz; set a measured value to get exact
+# pulse widths (calibrated tick values stay valid only at the same setting).
+PCA9685_OSC_HZ: Annotated[int, Range(1_000_000, 50_000_000, unit="Hz")] = 25_000_000
+# PWM frequency in Hz. The *_PWM values below are ticks (1/4096 of a period) at this frequency;
+# DonkeyCar calibrations assume 60 Hz (prescale 101, 59.84 Hz, 4.08 µs per tick).
+PWM_FREQ: Annotated[int, Checked("what the PCA9685 makes at PCA9685_OSC_HZ (24 to 1525 Hz at 25 MHz); "
+                                  "servos and ESCs: 50 to 60")] = 60
+# PCA9685 channel of the steering servo (DonkeyCar: 1).
+STEERING_CHANNEL: Annotated[int, Range(0, 15)] = 1
+# PCA9685 channel of the ESC (DonkeyCar: 0).
+THROTTLE_CHANNEL: Annotated[int, Range(0, 15, note="not STEERING_CHANNEL")] = 0
+# Steering pulse in ticks at full left (angle -1); the centre is the midpoint of LEFT and RIGHT.
+STEERING_LEFT_PWM: Annotated[int, Checked(PULSE_VALID)] = 460
+# Steering pulse in ticks at full right (angle +1).
+STEERING_RIGHT_PWM: Annotated[int, Checked(PULSE_VALID)] = 290
+# Throttle pulse in ticks at full forward (+1).
+THROTTLE_FORWARD_PWM: Annotated[int, Checked(PULSE_VALID)] = 500
+# Throttle pulse in ticks that stops the motor (0, the ESC's neutral; it beeps when armed).
+THROTTLE_STOPPED_PWM: Annotated[int, Checked(PULSE_VALID)] = 370
+# Throttle pulse in ticks at full reverse (-1).
+THROTTLE_REVERSE_PWM: Annotated[int, Checked(PULSE_VALID)] = 220
+# Added to every steering command (steering units, -0.5..0.5) to make the car run straight without
+# recalibrating; positive moves the centre to the right.
+STEERING_TRIM: Annotated[float, Range(-0.5, 0.5)] = 0.0
+# Swap left and right (a servo mounted the other way round).
+STEERING_INVERT: bool = False
+# Swap forward and reverse (a motor wired the other way round).
+THROTTLE_INVERT: bool = False
+# Largest forward throttle the drivetrain passes on (fraction of full, 0..1), for every driver,
+# human or pilot.
+THROTTLE_FORWARD_LIMIT: Annotated[float, Range(0, 1)] = 1.0
+# Largest reverse throttle the drivetrain passes on (fraction of full, 0..1).
+THROTTLE_REVERSE_LIMIT: Annotated[float, Range(0, 1)] = 1.0
+# Fastest growth of the throttle in full-scale units per second (None = no limit). Releasing the
+# throttle is never delayed. 4.0 = full throttle reached in 0.25 s.
+THROTTLE_SLEW_RATE: Annotated[float | None, Range(0, lo_open=True, unit="per second")] = None
+# Seconds of neutral sent to the ESC at start so it arms (beeps); throttle commands pass only after
+# this and after the throttle has been at neutral once.
+ESC_ARM_TIME_S: Annotated[float, Range(0, 10, unit="s")] = 1.5
+# How a negative throttle reaches the ESC: "direct" passes it on (crawler ESCs, or when the drive
+# logic's throttle filter already does the double-tap); "double_tap" sends brake, neutral, then
+# reverse, as forward/brake/reverse car ESCs need to back up.
+ESC_REVERSE_MODE: Literal["direct", "double_tap"] = "direct"
+# double_tap: seconds of the first (braking) reverse pulse.
+ESC_REVERSE_BRAKE_S: Annotated[float, Range(0, 5, unit="s")] = 0.1
+# double_tap: seconds of neutral after braking, before the reverse pulses that back the car up.
+ESC_REVERSE_NEUTRAL_S: Annotated[float, Range(0, 5, unit="s")] = 0.1
+# Command watchdog: no fresh drive command for this many seconds -> neutral (None = off). Throttle
+# then stays neutral until a command at neutral arrives.
+ACTUATOR_WATCHDOG_S: Annotated[float | None, Range(0, 1, lo_open=True, unit="s", note=WATCHDOG_OFF)] = 0.5
+# Seconds neutral is held on shutdown before the bus is released (at least two PWM periods).
+PWM_SHUTDOWN_HOLD_S: Annotated[float, Range(0, 5, unit="s")] = 0.1
+# After that hold, switch both channels off (no pulses: most ESCs stop, the servo goes limp).
+PWM_FULL_OFF_ON_SHUTDOWN: bool = False
+# MOCK drivetrain: append every output change of the simulated board to this file
+# ("<time> <channel> <ticks|off|on>" per line; relative to CAR_PATH). None = keep it in memory.
+PCA9685_MOCK_TRACE: str | None = None
+
+
+def _pwm_pulses(v: Mapping[str, Any]) -> Iterator[Problem]:
+    freq, osc = v["PWM_FREQ"], v["PCA9685_OSC_HZ"]
+    prescale, real, tick_us = pwm_timing(freq, osc)
+    if not PRESCALE_MIN <= prescale <= PRESCALE_MAX:
+        low = osc / 4096.0 / (PRESCALE_MAX + 1)
+        high = osc / 4096.0 / (PRESCALE_MIN + 1)
+        yield Problem("PWM_FREQ", f"PWM_FREQ = {number_text(freq)} is outside what the PCA9685 can "
+                      f"make with PCA9685_OSC_HZ = {number_text(osc)}; valid: {math.ceil(low)} to "
+                      f"{math.floor(high)} Hz (servos and ESCs: 50 to 60)", ("PCA9685_OSC_HZ",))
+        return
+    lo, hi = pulse_tick_range(tick_us)
+    valid = (f"{lo} to {hi} ticks ({number_text(PULSE_MIN_US)} to {number_text(PULSE_MAX_US)} µs, "
+             "what servos and ESCs take; find yours with `vehicle calibrate`)")
+    if lo > hi:
+        yield Problem("PWM_FREQ", f"PWM_FREQ = {number_text(freq)} makes a period of {1e6 / real:.0f} µs, "
+                      f"too short for servo pulses of {number_text(PULSE_MIN_US)} µs and more; "
+                      "valid: 50 to 60 Hz for servos and ESCs", ("PCA9685_OSC_HZ",))
+        return
+    for name in PULSE_SETTINGS:
+        ticks = v[name]
+        if not lo <= ticks <= hi:
+            yield Problem(name, f"{name} = {ticks} is a {ticks * tick_us:.0f} µs pulse at PWM_FREQ = "
+                          f"{number_text(freq)} ({real:.2f} Hz); valid: {valid}",
+                          ("PWM_FREQ", "PCA9685_OSC_HZ"))
+            return
+    left, right = v["STEERING_LEFT_PWM"], v["STEERING_RIGHT_PWM"]
+    if left == right:
+        yield Problem("STEERING_LEFT_PWM", f"STEERING_LEFT_PWM and STEERING_RIGHT_PWM are both {left}: "
+                      "the wheels could not turn; valid: two pulses that differ (full left and full "
+                      "right, found with `vehicle calibrate`)", ("STEERING_RIGHT_PWM",))
+    fwd, stop, rev = v["THROTTLE_FORWARD_PWM"], v["THROTTLE_STOPPED_PWM"], v["THROTTLE_REVERSE_PWM"]
+    if not (rev < stop < fwd or rev > stop > fwd):
+        yield Problem("THROTTLE_STOPPED_PWM", f"THROTTLE_STOPPED_PWM = {stop} must be the ESC's neutral; "
+                      f"valid: a pulse strictly between THROTTLE_REVERSE_PWM ({rev}) and "
+                      f"THROTTLE_FORWARD_PWM ({fwd}) (recalibrate with `vehicle calibrate`)",
+                      ("THROTTLE_FORWARD_PWM", "THROTTLE_REVERSE_PWM"))
+
+
+def _channels(v: Mapping[str, Any]) -> Iterator[Problem]:
+    if v["STEERING_CHANNEL"] == v["THROTTLE_CHANNEL"]:
+        yield Problem("THROTTLE_CHANNEL", f"STEERING_CHANNEL and THROTTLE_CHANNEL are both "
+                      f"{v['THROTTLE_CHANNEL']}; valid: two different channels 0 to 15 (the servo and "
+                      "the ESC each need their own)", ("STEERING_CHANNEL",))
+
+
+def _watchdog(v: Mapping[str, Any]) -> Iterator[Problem]:
+    watchdog, hz = v["ACTUATOR_WATCHDOG_S"], v["DRIVE_LOOP_HZ"]
+    if watchdog is not None and watchdog < 2.0 / hz:
+        yield Problem("ACTUATOR_WATCHDOG_S", f"ACTUATOR_WATCHDOG_S = {watchdog!r} is shorter than two "
+                      f"loops at DRIVE_LOOP_HZ = {hz} ({number_text(2.0 / hz)} s): the drivetrain "
+                      f"would go to neutral between commands; valid: {number_text(2.0 / hz)} to 1 s "
+                      "(or a faster loop)", ("DRIVE_LOOP_HZ",))
+
+
+#: rules across this module's settings, run after every setting passed its own range
+RULES: tuple[Rule, ...] = (_pwm_pulses, _channels, _watchdog)

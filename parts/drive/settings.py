@@ -1,0 +1,56 @@
+"""Settings of the drive logic: modes, automatic recording, throttle filter and behaviours.
+
+Declared as the config loader reads them (see :mod:`vehicle.config`): ``NAME: type = value``, the
+comment lines above a setting document it, ``# == Title ==`` starts a section of docs/config.md.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping
+from typing import Annotated, Any
+
+from vehicle.config_checks import Length, Problem, Range, Rule
+from vehicle.keys import Mode
+
+# == Drive modes ==
+
+# Mode at start: "user" (human drives), "local_angle" (pilot steers), "local" (pilot drives).
+# The web page, the gamepad and the drive-mode part all start from it (DonkeyCar: WEB_INIT_MODE).
+DEFAULT_MODE: Mode = "user"
+# Pilot throttle is multiplied by this in "local" mode (1.0 = as predicted).
+AI_THROTTLE_MULT: Annotated[float, Range(0, 2)] = 1.0
+
+# == Drive logic ==
+
+# Record while the throttle is off zero (beyond JOYSTICK_DEADZONE) and stop when it is released, so
+# tubs hold no standing still; the record button is then ignored.
+AUTO_RECORD_ON_THROTTLE: bool = True
+# Keep recording while a pilot drives (local_angle, local). Off by default: a pilot's own driving
+# teaches the next pilot its mistakes.
+RECORD_DURING_AI: bool = False
+# DonkeyCar's ThrottleFilter on the final throttle: a held reverse becomes reverse, 0, reverse so a
+# car ESC brakes, then backs up. Off for crawler ESCs; skipped when the drivetrain's
+# ESC_REVERSE_MODE = "double_tap" does the same.
+USE_THROTTLE_FILTER: bool = True
+
+# == Behaviour ==
+
+# Drive with behaviour states (e.g. which lane to keep): adds behavior/state, behavior/label and
+# behavior/one_hot_state_array to the memory, and every tub records them (as DonkeyCar does); the
+# gamepad's behaviour buttons and the web page's "change lane" button step through BEHAVIOR_LIST.
+TRAIN_BEHAVIORS: bool = False
+# Names of the behaviours in order; the one-hot array has one entry per name.
+BEHAVIOR_LIST: Annotated[list[str], Length(min=1)] = ["Left_Lane", "Right_Lane"]
+# Behaviour active at start (index into BEHAVIOR_LIST).
+BEHAVIOR_INITIAL: Annotated[int, Range(0, note="an index of BEHAVIOR_LIST")] = 0
+
+
+def _behaviors(v: Mapping[str, Any]) -> Iterator[Problem]:
+    n, initial = len(v["BEHAVIOR_LIST"]), v["BEHAVIOR_INITIAL"]
+    if n and not 0 <= initial < n:
+        yield Problem("BEHAVIOR_INITIAL", f"BEHAVIOR_INITIAL = {initial} is not an index of "
+                      f"BEHAVIOR_LIST ({n} behaviours); valid: 0 to {n - 1}", ("BEHAVIOR_LIST",))
+
+
+#: rules across this module's settings, run after every setting passed its own range
+RULES: tuple[Rule, ...] = (_behaviors,)

@@ -1,0 +1,31 @@
+"""Assembly of the sensors: for each kind the car enables, the part its type setting picks."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from typing import Any
+
+from vehicle.config import Config
+
+logger = logging.getLogger(__name__)
+
+
+def add_sensors(V: Any, cfg: Config, tables: Sequence[Any] | None = None) -> list[Any]:
+    """Add one part per enabled sensor kind (:data:`parts.sensors.registry.SENSOR_TABLES`, or
+    ``tables``), each built by its class's ``from_config(cfg, clock=...)``; threaded when the part
+    has ``run_threaded``. Returns the parts added, in table order."""
+    if tables is None:
+        from parts.sensors.registry import SENSOR_TABLES
+
+        tables = SENSOR_TABLES
+    clock = getattr(getattr(V, "clock", None), "now", None)
+    added = []
+    for table in tables:
+        if not table.enabled(cfg):
+            continue
+        part = table.from_config(cfg, clock=clock)
+        V.add(part, threaded=hasattr(part, "run_threaded"))
+        logger.info("sensor: %s = %s", table.setting, cfg[table.setting])
+        added.append(part)
+    return added
