@@ -192,3 +192,27 @@ class UnicyclePose(_PoseBase):
             return self._advance(0.0, 0.0, timestamp)
         dl, dr = float(left) - last[0], float(right) - last[1]
         return self._advance(0.5 * (dl + dr), (dr - dl) / self.axle_length, timestamp)
+
+
+class DifferentialOdometer:
+    """Part: left and right ticks of a differential drive -> each wheel's distance, and the car's
+    distance and speed (their means). ``run(left, right, timestamp)``; None in gives None out."""
+
+    INPUTS: ClassVar[tuple[str, ...]] = ("enc/left/ticks", "enc/right/ticks", "enc/timestamp")
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("enc/left/distance", "enc/right/distance", "enc/distance", "enc/speed")
+
+    def __init__(self, m_per_tick: float, smoothing: int = 1) -> None:
+        self.left, self.right = Odometer(m_per_tick, smoothing), Odometer(m_per_tick, smoothing)
+
+    @classmethod
+    def from_config(cls, cfg: Any) -> DifferentialOdometer:
+        """MM_PER_TICK and ODOM_SMOOTHING."""
+        return cls(cfg.MM_PER_TICK / 1000.0, cfg.ODOM_SMOOTHING)
+
+    def run(self, left: int | None, right: int | None, timestamp: float | None) -> tuple[float | None, ...]:
+        """(left distance, right distance, distance, speed)."""
+        dl, vl = self.left.run(left, timestamp)
+        dr, vr = self.right.run(right, timestamp)
+        if dl is None or dr is None or vl is None or vr is None:
+            return None, None, None, None
+        return dl, dr, 0.5 * (dl + dr), 0.5 * (vl + vr)

@@ -120,6 +120,20 @@ class SimSensors:
         self._walls = np.zeros((0, 4))
         self._circles = np.zeros((0, 3))
 
+    @classmethod
+    def from_config(cls, cfg: Any, sim: Any) -> SimSensors | None:
+        """The simulated sensors a simulator car's settings switch on (HAVE_ODOM, HAVE_IMU,
+        HAVE_GPS, USE_LIDAR, with MM_PER_TICK, LIDAR_BINS, LIDAR_MAX_RANGE and the SIM_*_NOISE
+        settings); None when none is."""
+        if not (cfg.HAVE_ODOM or cfg.HAVE_IMU or cfg.HAVE_GPS or cfg.USE_LIDAR):
+            return None
+        origin = tuple(cfg.GPS_ORIGIN) if cfg.GPS_ORIGIN is not None else (48.1351, 11.5820)
+        return cls(sim, encoder=cfg.HAVE_ODOM, m_per_tick=cfg.MM_PER_TICK / 1000.0, imu=cfg.HAVE_IMU,
+                   imu_accel_noise=cfg.SIM_IMU_ACCEL_NOISE, imu_gyro_noise=cfg.SIM_IMU_GYRO_NOISE, gps=cfg.HAVE_GPS,
+                   gps_hz=cfg.SIM_GPS_HZ, gps_noise=cfg.SIM_GPS_NOISE, gps_origin=origin,  # type: ignore[arg-type]
+                   lidar=cfg.USE_LIDAR, lidar_bins=cfg.LIDAR_BINS, lidar_range=cfg.LIDAR_MAX_RANGE,
+                   lidar_noise=cfg.SIM_LIDAR_NOISE, seed=cfg.SIM_SEED)
+
     # -- ground truth -----------------------------------------------------------------------------
     def _motion(self) -> tuple[float, float, float]:
         """(distance this step, yaw rate, acceleration) from the car's state; a reset is no motion."""

@@ -140,7 +140,12 @@ class ArduinoEncoder(PtyDevice):
         self.millis = 0
         self._line = b""
         self.silent = False  # a hung microcontroller
+        self.step = 0  # ticks added to every encoder about every 20 ms (a turning wheel)
         super().__init__()
+
+    def tick(self) -> None:
+        if self.step:
+            self.ticks = [t + self.step for t in self.ticks]
 
     def on_bytes(self, data: bytes) -> None:
         self._line += data
@@ -179,15 +184,20 @@ def rmc(lat: float, lon: float, status: str = "A", knots: float = 0.0) -> bytes:
 
 
 class NmeaSource(PtyDevice):
-    """A GPS receiver: writes whatever sentences the test queues."""
+    """A GPS receiver: sends its current ``sentences`` about every 100 ms (10 Hz), as a receiver
+    streams them whether anyone listens or not."""
 
     def __init__(self) -> None:
-        self.queue: list[bytes] = []
+        self.sentences: list[bytes] = []
+        self._ticks = 0
         super().__init__()
 
     def tick(self) -> None:
+        self._ticks += 1
+        if self._ticks % 5:
+            return
         with self._lock:
-            out, self.queue = b"".join(self.queue), []
+            out = b"".join(self.sentences)
         if out:
             self.send(out)
 

@@ -37,22 +37,25 @@ def test_gps_part_position_speed_and_lost_fix() -> None:
         part.open()
         part._opened = True
         frame = LocalFrame(LAT, LON)
-        device.queue = [gga(LAT, LON, hdop=1.2)]
+        device.sentences = [gga(LAT, LON, hdop=1.2)]
         values = _next_fix(part)
         assert values[:2] == pytest.approx((0.0, 0.0), abs=0.01)  # origin at the first fix
         assert values[4] == pytest.approx(6.0) and values[-1] is True
         lat, lon = frame.to_latlon(12.0, -5.0)
         satellites = nmea("GPGSV,3,1,11,03,03,111,00,04,15,270,00,06,01,010,00,13,06,292,00")
-        device.queue = [satellites, rmc(lat, lon, knots=3.0)]
+        device.sentences = [satellites, rmc(lat, lon, knots=3.0)]
         values = _next_fix(part, lambda v: v[0] > 1)
         assert values[:2] == pytest.approx((12.0, -5.0), abs=0.02)  # 5 decimals of minutes: 1.9 cm steps
         assert values[5] == pytest.approx(3.0 * 1852 / 3600)
-        device.queue = [rmc(lat, lon, status="V")]  # the receiver loses its fix
+        device.sentences = [rmc(lat, lon, status="V")]  # the receiver loses its fix
         wait_for(lambda: part.run()[-1] is False)
         assert part.run() == (None,) * 6 + (False,)
-        device.queue = [gga(lat, lon, quality=1)]
+        device.sentences = [gga(lat, lon, quality=1)]
         assert _next_fix(part)[:2] == pytest.approx((12.0, -5.0), abs=0.02)
-        clock[0] = 5.0  # the receiver goes silent
+        device.sentences = []  # the receiver goes silent
+        part._serial.timeout = 0.05
+        wait_for(lambda: part.read() is None)  # what it sent before is read: a read times out
+        clock[0] = 5.0
         assert part.run() == (None,) * 6 + (False,)
     finally:
         part.shutdown()

@@ -28,4 +28,25 @@ def add_sensors(V: Any, cfg: Config, tables: Sequence[Any] | None = None) -> lis
         V.add(part, threaded=hasattr(part, "run_threaded"))
         logger.info("sensor: %s = %s", table.setting, cfg[table.setting])
         added.append(part)
+    added += add_odometry(V, cfg)
     return added
+
+
+def add_odometry(V: Any, cfg: Config) -> list[Any]:
+    """Add the odometry after the encoder (real or simulated): ticks -> ``enc/distance``,
+    ``enc/speed`` and the pose ``pos/*``, ``vel/*`` (bicycle model, or the unicycle model with
+    HAVE_ODOM_2). Without an encoder but with a GPS, the GPS's speed over ground becomes
+    ``enc/speed``. Returns the parts added (none when the car has neither)."""
+    from parts.sensors.gps import SpeedFromGPS
+    from parts.sensors.odometry import BicyclePose, DifferentialOdometer, Odometer, UnicyclePose
+
+    parts: list[Any] = []
+    if V.produces("enc/left/ticks") and V.produces("enc/right/ticks"):
+        parts = [DifferentialOdometer.from_config(cfg), UnicyclePose.from_config(cfg)]
+    elif V.produces("enc/ticks"):
+        parts = [Odometer.from_config(cfg), BicyclePose.from_config(cfg)]
+    elif V.produces("gps/speed") and not V.produces("enc/speed"):
+        parts = [SpeedFromGPS()]
+    for part in parts:
+        V.add(part)
+    return parts
