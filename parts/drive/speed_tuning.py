@@ -45,9 +45,11 @@ class TuningError(ValueError):
 def fit_step(times: Sequence[float], speeds: Sequence[float], throttle: float) -> StepModel:
     """Fit the FOPDT model to a step of ``throttle`` applied at t = 0 (``times`` in s from the step).
 
+    The final speed is the mean of the last fifth of the samples; when they still vary (a step cut
+    short by the distance), it is extrapolated from the exponential approach.
+
     Raises:
-        TuningError: too few samples, the car did not move, or it had not settled (the final
-            speed is taken as the mean of the last fifth of the samples, which must vary little).
+        TuningError: too few samples, the car did not move, or the speed approached no final value.
     """
     pts = [(float(t), float(v)) for t, v in zip(times, speeds, strict=True) if t >= 0 and v is not None
            and math.isfinite(v)]
@@ -55,14 +57,22 @@ def fit_step(times: Sequence[float], speeds: Sequence[float], throttle: float) -
         raise TuningError(f"only {len(pts)} speed readings after the step: is the speed sensor working?")
     if throttle <= 0:
         raise TuningError(f"the step throttle must be > 0, got {throttle}")
-    tail = [v for _, v in pts[-max(3, len(pts) // 5):]]
+    tail_pts = pts[-max(3, len(pts) // 5):]
+    tail = [v for _, v in tail_pts]
     final = sum(tail) / len(tail)
     if final <= 0.05:
         raise TuningError(f"the car did not move (final speed {final:.2f} m/s): raise the step throttle")
-    spread = max(tail) - min(tail)
-    if spread > 0.15 * final:
-        raise TuningError(f"the speed had not settled by the end of the step ({min(tail):.2f}-{max(tail):.2f} "
-                          "m/s): make the step longer (more distance) or the throttle smaller")
+    # a trend over the tail (least squares) tells a rise that goes on from measurement noise
+    tm = sum(t for t, _ in tail_pts) / len(tail_pts)
+    den = sum((t - tm) ** 2 for t, _ in tail_pts)
+    slope = sum((t - tm) * (v - final) for t, v in tail_pts) / den if den > 0 else 0.0
+    rise = slope * (tail_pts[-1][0] - tail_pts[0][0])
+    ahead = _extrapolated_final(pts)  # where a still rising first-order approach ends
+    if ahead is not None and ahead > 1.02 * final and rise > 0.02 * final:
+        final = ahead
+    elif rise > 0.1 * final:
+        raise TuningError(f"the speed was still rising by {rise:.2f} m/s over the end of the step and does not "
+                          "approach a final speed: make the step longer (more distance) or the throttle smaller")
 
     def crossing(fraction: float) -> float:
         level = fraction * final
@@ -77,8 +87,37 @@ def fit_step(times: Sequence[float], speeds: Sequence[float], throttle: float) -
     return StepModel(final / throttle, tau, dead, final)
 
 
-def simc_gains(model: StepModel, tau_c: float | None = None) -> PIGains:
-    """SIMC PI gains for ``model`` (see the module docstring)."""
+def _speed_at(pts: list[tuple[float, float]], t: float, half_width: float) -> float:
+    """Mean speed of the samples within ``half_width`` seconds of ``t`` (noise averaged)."""
+    near = [v for ti, v in pts if abs(ti - t) <= half_width]
+    if near:
+        return sum(near) / len(near)
+    return min(pts, key=lambda p: abs(p[0] - t))[1]
+
+
+def _extrapolated_final(pts: list[tuple[float, float]]) -> float | None:
+    """The final speed of a first-order approach not yet settled: Aitken's extrapolation from
+    three equally spaced speeds of its second half (exact for an exponential); None when the
+    speeds do not approach a limit (still accelerating linearly, or noise)."""
+    t_end = pts[-1][0]
+    w = 0.08 * t_end
+    last, step = t_end - w, 0.3 * t_end  # centres last - 2 step, last - step, last: equally spaced
+    va, vb, vc = (_speed_at(pts, last - k * step, w) for k in (2, 1, 0))
+    denom = va + vc - 2.0 * vb
+    if not denom < -1e-6 * max(abs(vc), 1e-9):  # not decelerating towards a limit
+        return None
+    final = (va * vc - vb * vb) / denom
+    if not vc <= final <= 2.0 * vc:
+        return None
+    return final
+
+
+def simc_gains(model: StepModel, tau_c: float | None = None, min_dead_time: float = 0.0) -> PIGains:
+    """SIMC PI gains for ``model`` (see the module docstring). ``min_dead_time`` (s) is the delay
+    the control loop itself adds (a command acts a loop later, the speed is measured over a loop):
+    a fit that finds less uses this."""
+    if min_dead_time > model.dead_time:
+        model = StepModel(model.gain, model.tau, min_dead_time, model.final_speed)
     if tau_c is None:
         tau_c = max(model.dead_time, 0.1 * model.tau)
     if not tau_c > 0:
@@ -136,4 +175,4 @@ class StepTest:
     def result(self, tau_c: float | None = None) -> tuple[StepModel, PIGains]:
         """The fitted model and suggested gains (raises TuningError)."""
         model = fit_step(self.times, self.speeds, self.throttle)
-        return model, simc_gains(model, tau_c)
+        return model, simc_gains(model, tau_c, min_dead_time=1.5 * self.dt)  # one loop + a half-loop hold

@@ -68,7 +68,8 @@ class NmeaPosition:
         self.longitude: float | None = None
         self.hdop: float | None = None
         self.speed: float | None = None  # m/s over ground (RMC)
-        self.bad = 0
+        self.bad = 0  # sentences with a bad or missing checksum, or unparsable
+        self.sentences = 0  # sentences parsed
 
     def feed(self, sentence: str | bytes) -> bool:
         """Parse one sentence; True when it was a valid GGA or RMC."""
@@ -84,6 +85,7 @@ class NmeaPosition:
         except (pynmea2.ParseError, ValueError, AttributeError):  # bad checksum, truncated line, noise
             self.bad += 1
             return False
+        self.sentences += 1
         kind = getattr(msg, "sentence_type", "")
         try:
             if kind == "GGA":
