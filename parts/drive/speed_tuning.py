@@ -3,8 +3,8 @@ with dead time to the measured speed, and suggest PI gains (PILOT_SPEED_KP, PILO
 
 The model (FOPDT) is ``v(t) = K u (1 - exp(-(t - theta) / tau))`` after a step of throttle ``u``
 at t = 0: K in m/s per unit throttle, tau the time constant and theta the dead time, seconds.
-The fit uses the classic two-point method (times at 28.3 % and 63.2 % of the final speed), and
-the gains Skogestad's SIMC rules (2003): ``kp = tau / (K (tau_c + theta))``,
+The fit is least squares over (tau, theta), and the gains follow Skogestad's SIMC rules (2003):
+``kp = tau / (K (tau_c + theta))``,
 ``Ti = min(tau, 4 (tau_c + theta))``, ``ki = kp / Ti``, with the closed-loop time constant
 ``tau_c`` (default: the larger of theta and a tenth of tau, a fast but robust choice).
 
@@ -45,71 +45,43 @@ class TuningError(ValueError):
 def fit_step(times: Sequence[float], speeds: Sequence[float], throttle: float) -> StepModel:
     """Fit the FOPDT model to a step of ``throttle`` applied at t = 0 (``times`` in s from the step).
 
-    The final speed is the mean of the last fifth of the samples; when they still vary (a step cut
-    short by the distance), it is extrapolated from the exponential approach.
+    Least squares over a grid of time constants and dead times (the final speed, for each pair,
+    in closed form), so noisy speeds (a coarse encoder) and a step cut short by the distance both
+    fit; the step must have lasted at least one time constant beyond the dead time.
 
     Raises:
-        TuningError: too few samples, the car did not move, or the speed approached no final value.
+        TuningError: too few samples, the car did not move, or the speed was still rising steeply.
     """
+    import numpy as np
+
     pts = [(float(t), float(v)) for t, v in zip(times, speeds, strict=True) if t >= 0 and v is not None
            and math.isfinite(v)]
     if len(pts) < 10:
         raise TuningError(f"only {len(pts)} speed readings after the step: is the speed sensor working?")
     if throttle <= 0:
         raise TuningError(f"the step throttle must be > 0, got {throttle}")
-    tail_pts = pts[-max(3, len(pts) // 5):]
-    tail = [v for _, v in tail_pts]
-    final = sum(tail) / len(tail)
-    if final <= 0.05:
-        raise TuningError(f"the car did not move (final speed {final:.2f} m/s): raise the step throttle")
-    # a trend over the tail (least squares) tells a rise that goes on from measurement noise
-    tm = sum(t for t, _ in tail_pts) / len(tail_pts)
-    den = sum((t - tm) ** 2 for t, _ in tail_pts)
-    slope = sum((t - tm) * (v - final) for t, v in tail_pts) / den if den > 0 else 0.0
-    rise = slope * (tail_pts[-1][0] - tail_pts[0][0])
-    ahead = _extrapolated_final(pts)  # where a still rising first-order approach ends
-    if ahead is not None and ahead > 1.02 * final and rise > 0.02 * final:
-        final = ahead
-    elif rise > 0.1 * final:
-        raise TuningError(f"the speed was still rising by {rise:.2f} m/s over the end of the step and does not "
-                          "approach a final speed: make the step longer (more distance) or the throttle smaller")
-
-    def crossing(fraction: float) -> float:
-        level = fraction * final
-        for (t0, v0), (t1, v1) in zip(pts, pts[1:], strict=False):
-            if v0 < level <= v1:
-                return t0 + (t1 - t0) * (level - v0) / (v1 - v0)
-        return pts[0][0] if pts[0][1] >= level else pts[-1][0]
-
-    t28, t63 = crossing(0.283), crossing(0.632)
-    tau = max(1.5 * (t63 - t28), 1e-3)
-    dead = max(0.0, t63 - tau)
+    t = np.array([p[0] for p in pts])
+    v = np.array([p[1] for p in pts])
+    t_end = float(t[-1])
+    if float(np.mean(v[-max(3, len(v) // 5):])) <= 0.05:
+        raise TuningError("the car did not move (final speed under 0.05 m/s): raise the step throttle")
+    taus = np.geomspace(0.02, 20.0, 240)
+    deads = np.linspace(0.0, min(1.0, 0.5 * t_end), 41)
+    best = (math.inf, 0.0, 1.0, 0.0)
+    for dead in deads:
+        shifted = np.clip(t - dead, 0.0, None)[None, :]
+        g = 1.0 - np.exp(-shifted / taus[:, None])  # (taus, samples)
+        gg = (g * g).sum(axis=1)
+        final = np.where(gg > 0, (g * v).sum(axis=1) / np.maximum(gg, 1e-12), 0.0)
+        sse = ((v[None, :] - final[:, None] * g) ** 2).sum(axis=1)
+        k = int(np.argmin(sse))
+        if sse[k] < best[0]:
+            best = (float(sse[k]), float(final[k]), float(taus[k]), float(dead))
+    _, final, tau, dead = best
+    if tau > t_end - dead:
+        raise TuningError(f"the speed was still rising at the end of the step (time constant {tau:.1f} s, step "
+                          f"{t_end:.1f} s): make the step longer (more distance or duration) or the throttle smaller")
     return StepModel(final / throttle, tau, dead, final)
-
-
-def _speed_at(pts: list[tuple[float, float]], t: float, half_width: float) -> float:
-    """Mean speed of the samples within ``half_width`` seconds of ``t`` (noise averaged)."""
-    near = [v for ti, v in pts if abs(ti - t) <= half_width]
-    if near:
-        return sum(near) / len(near)
-    return min(pts, key=lambda p: abs(p[0] - t))[1]
-
-
-def _extrapolated_final(pts: list[tuple[float, float]]) -> float | None:
-    """The final speed of a first-order approach not yet settled: Aitken's extrapolation from
-    three equally spaced speeds of its second half (exact for an exponential); None when the
-    speeds do not approach a limit (still accelerating linearly, or noise)."""
-    t_end = pts[-1][0]
-    w = 0.08 * t_end
-    last, step = t_end - w, 0.3 * t_end  # centres last - 2 step, last - step, last: equally spaced
-    va, vb, vc = (_speed_at(pts, last - k * step, w) for k in (2, 1, 0))
-    denom = va + vc - 2.0 * vb
-    if not denom < -1e-6 * max(abs(vc), 1e-9):  # not decelerating towards a limit
-        return None
-    final = (va * vc - vb * vb) / denom
-    if not vc <= final <= 2.0 * vc:
-        return None
-    return final
 
 
 def simc_gains(model: StepModel, tau_c: float | None = None, min_dead_time: float = 0.0) -> PIGains:
