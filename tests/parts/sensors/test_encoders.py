@@ -162,3 +162,38 @@ def test_unicycle_pose_turns_on_the_spot_and_drives_straight() -> None:
     x, y, heading, vx, vy, _ = pose.run(-quarter + 1.0, quarter + 1.0, 0.6)
     assert (x, y) == pytest.approx((0.0, 1.0), abs=1e-12)
     assert (vx, vy) == pytest.approx((0.0, 2.0), abs=1e-9)
+
+
+def test_a_stale_encoder_takes_the_speed_away_from_the_speed_limit() -> None:
+    from parts.drive.speed import SpeedLimit
+
+    class Ticks:  # a tick source that stops answering after a while
+        channels = 1
+
+        def __init__(self) -> None:
+            self.count, self.alive = 0, True
+
+        def open(self) -> None: ...
+        def close(self) -> None: ...
+
+        def read(self):
+            if not self.alive:
+                return None
+            self.count += 10
+            return (self.count,)
+
+    clock = Clock()
+    source = Ticks()
+    encoder, odo = Encoder(source, max_age=0.2, clock=clock), Odometer(0.01)
+    limit = SpeedLimit("enc/speed", dt=0.05)
+    throttles = []
+    for step in range(20):
+        clock.t = step * 0.05
+        source.alive = step < 10
+        ticks, stamp, ok = encoder.run(0.5)
+        speed = odo.run(ticks, stamp)[1]
+        throttles.append(limit.run(0.5, speed, 10.0))
+    assert throttles[5] == 0.5  # 2 m/s, far under a 10 m/s limit: the throttle asked for
+    assert throttles[12] == 0.5  # silent for 0.15 s < max_age: the last reading still counts
+    assert throttles[-1] == 0.0 and ok is False  # stale: no speed, the limit cannot be held, throttle 0
+    encoder.shutdown()
