@@ -59,6 +59,12 @@ class SensorPart(ThreadedPart):
         self.freshness = Freshness(max_age, clock)
         self._was_ok = False
 
+    def probe(self) -> SensorPart:
+        """Open the device now (in the caller's thread), so that a missing device stops the car's
+        assembly with a message naming it, before the loop starts; the thread then reads it."""
+        self._ensure_open()
+        return self
+
     def read(self) -> tuple[object, ...] | None:
         """One reading: the values of ``OUTPUTS`` but the last (block at most briefly)."""
         raise NotImplementedError(f"{type(self).__name__} must implement read()")
@@ -80,8 +86,9 @@ class SensorPart(ThreadedPart):
             if ok:
                 logger.info("%s: reporting", type(self).__name__)
             else:
-                logger.warning("%s: stale (no reading for %s): its values read None",
-                               type(self).__name__, "ever" if age is None else f"{age:.2f} s")
+                logger.warning("%s: stale (no reading for %s%s): its values read None",
+                               type(self).__name__, "ever" if age is None else f"{age:.2f} s",
+                               f"; its thread failed: {self.error}" if self.error is not None else "")
         if not ok:
             return (None,) * (len(self.OUTPUTS) - 1) + (False,)
         return (*value, True)  # type: ignore[misc]

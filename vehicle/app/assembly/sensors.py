@@ -13,8 +13,14 @@ logger = logging.getLogger(__name__)
 
 def add_sensors(V: Any, cfg: Config, tables: Sequence[Any] | None = None) -> list[Any]:
     """Add one part per enabled sensor kind (:data:`parts.sensors.registry.SENSOR_TABLES`, or
-    ``tables``), each built by its class's ``from_config(cfg, clock=...)``; threaded when the part
-    has ``run_threaded``. Returns the parts added, in table order."""
+    ``tables``), each built by its class's ``from_config(cfg, clock=...)`` and opened now (a part's
+    ``probe()``: a missing device stops the assembly with its one-line reason); threaded when the
+    part has ``run_threaded``; then the odometry (:func:`add_odometry`). Returns the parts added.
+
+    Raises:
+        VehicleError: a sensor's device is missing or answers another protocol (EncoderError,
+            IMUError, GPSError, LidarError: one line naming the device and what to check).
+    """
     if tables is None:
         from parts.sensors.registry import SENSOR_TABLES
 
@@ -25,6 +31,9 @@ def add_sensors(V: Any, cfg: Config, tables: Sequence[Any] | None = None) -> lis
         if not table.enabled(cfg):
             continue
         part = table.from_config(cfg, clock=clock)
+        probe = getattr(part, "probe", None)
+        if probe is not None:  # open the device now: a missing one is an error before the loop starts
+            probe()
         V.add(part, threaded=hasattr(part, "run_threaded"))
         logger.info("sensor: %s = %s", table.setting, cfg[table.setting])
         added.append(part)

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from parts.sensors.encoder import Encoder
+from parts.sensors.encoder import Encoder, EncoderError
 from parts.sensors.gps import GPS
 from parts.sensors.obstacle import ObstacleStop
 from vehicle.app.assembly.drive import add_drive_mode, add_obstacle_stop
@@ -82,3 +82,9 @@ def test_real_car_sensors_from_settings_against_fake_devices(cfg):
         receiver.close()
     assert any(d is not None and d > 0 and ok for d, ok, _, _ in seen)  # the device's ticks arrived
     assert any(gok and abs(x) < 0.05 for _, _, x, gok in seen)
+
+
+def test_a_missing_sensor_stops_the_assembly_with_its_reason(cfg):
+    cfg = cfg.replace(HAVE_ODOM=True, ENCODER_TYPE="ARDUINO", ODOM_SERIAL="/dev/ttyNOPE7")
+    with pytest.raises(EncoderError, match="/dev/ttyNOPE7.*ODOM_SERIAL"):
+        add_sensors(Vehicle(), cfg)
