@@ -50,3 +50,18 @@ def test_tune_speed_in_the_simulator_prints_and_saves_gains(tmp_path, capsys):
     assert "K 3.7" in out  # the simulated car: (4 x 0.3 - 0.3) / 0.8 / 0.3 = 3.75 m/s per throttle
     text = (tmp_path / "myconfig.py").read_text()
     assert "PILOT_SPEED_KP = " in text and "PILOT_SPEED_KI = " in text
+
+
+def test_hw_check_reads_the_imu(tmp_path, capsys, monkeypatch):
+    import smbus2
+    from sensor_fakes import FakeSMBus, MPU6050Model
+
+    model = MPU6050Model(0x71)
+    model.accel_g, model.gyro_dps, model.temp_raw = (0.0, 0.0, 1.0), (0.0, 0.0, 5.73), 0
+    monkeypatch.setattr(smbus2, "SMBus", lambda bus: FakeSMBus({0x69: model}))  # the chip on the I2C bus
+    (tmp_path / "myconfig.py").write_text("HAVE_IMU = True\nIMU_SENSOR = 'mpu9250'\nIMU_ADDRESS = 0x69\n")
+    assert main(["hw", "check", "--car", str(tmp_path)]) == 0
+    line = capsys.readouterr().out.strip()
+    assert line.startswith("imu    mpu9250 at bus 1 0x69: acc (0.00, 0.00, 9.81) m/s^2 |a| 9.81, "
+                           "gyro (0.000, 0.000, 0.100)")  # 5.73 degrees/s
+    assert line.endswith("20.9 °C")  # MPU9250: (0 - 21) / 333.87 + 21
