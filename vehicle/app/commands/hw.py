@@ -155,7 +155,9 @@ def _tune(args: argparse.Namespace) -> int:
     if not 0 < args.throttle <= 1 or args.distance <= 0 or args.duration <= 0:
         raise UserError("--throttle must be in (0, 1], --distance and --duration > 0")
     dt = 1.0 / cfg.DRIVE_LOOP_HZ
-    test = StepTest(args.throttle, dt=dt, duration=args.duration, distance=args.distance)
+    # neutral first, longer than the ESC's arming time (the drivetrain holds neutral while it arms)
+    settle = 0.5 if args.sim else max(0.5, float(cfg.ESC_ARM_TIME_S or 0.0) + 0.3)
+    test = StepTest(args.throttle, dt=dt, settle=settle, duration=args.duration, distance=args.distance)
     if args.sim:
         from vehicle.app.assembly.sim import add_simulator
         from vehicle.clock import SimulatedClock
@@ -177,7 +179,7 @@ def _tune(args: argparse.Namespace) -> int:
 
         add_drivetrain(V, cfg)
     V.add(lambda done: V.stop() if done else None, inputs=["tune/done"])
-    V.start(rate_hz=cfg.DRIVE_LOOP_HZ, max_loop_count=int((test.settle + args.duration) / dt) + 20)
+    V.start(rate_hz=cfg.DRIVE_LOOP_HZ, max_loop_count=int((settle + args.duration) / dt) + 20)
     try:
         model, gains = test.result()
     except TuningError as exc:

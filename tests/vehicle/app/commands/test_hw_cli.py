@@ -65,3 +65,18 @@ def test_hw_check_reads_the_imu(tmp_path, capsys, monkeypatch):
     assert line.startswith("imu    mpu9250 at bus 1 0x69: acc (0.00, 0.00, 9.81) m/s^2 |a| 9.81, "
                            "gyro (0.000, 0.000, 0.100)")  # 5.73 degrees/s
     assert line.endswith("20.9 °C")  # MPU9250: (0 - 21) / 333.87 + 21
+
+
+def test_tune_speed_on_a_real_car_path_mock_drivetrain_and_a_serial_encoder(tmp_path, capsys):
+    encoder = ArduinoEncoder()
+    try:
+        encoder.step = 3  # the wheel turns: about 150 ticks/s
+        (tmp_path / "myconfig.py").write_text(
+            f"DRIVE_TRAIN_TYPE = 'MOCK'\nESC_ARM_TIME_S = 0.0\nHAVE_ODOM = True\nENCODER_TYPE = 'ARDUINO'\n"
+            f"ODOM_SERIAL = {encoder.path!r}\nMM_PER_TICK = 10.0\nODOM_SMOOTHING = 5\n")
+        assert main(["hw", "tune-speed", "--car", str(tmp_path), "--duration", "1.5"]) == 0
+    finally:
+        encoder.close()
+    out = capsys.readouterr().out
+    assert "(time reached)" in out and "PILOT_SPEED_KP = " in out
+    assert b"p\n" in encoder.received  # the speed came from the encoder's answers
