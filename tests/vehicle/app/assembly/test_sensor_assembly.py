@@ -88,3 +88,14 @@ def test_a_missing_sensor_stops_the_assembly_with_its_reason(cfg):
     cfg = cfg.replace(HAVE_ODOM=True, ENCODER_TYPE="ARDUINO", ODOM_SERIAL="/dev/ttyNOPE7")
     with pytest.raises(EncoderError, match="/dev/ttyNOPE7.*ODOM_SERIAL"):
         add_sensors(Vehicle(), cfg)
+
+
+def test_a_gps_only_car_measures_its_speed_with_the_gps(cfg):
+    from parts.sensors.gps import SpeedFromGPS
+    from vehicle.app.assembly.sensors import add_odometry
+
+    V = Vehicle(clock=SimulatedClock())
+    V.add(lambda: (2.5, True), outputs=["gps/speed", "gps/ok"])
+    (part,) = add_odometry(V, cfg)
+    assert isinstance(part, SpeedFromGPS) and speed_key_of(V, cfg) == "enc/speed"
+    assert part.run(2.5, True) == 2.5 and part.run(2.5, False) is None  # a lost fix: no speed
