@@ -155,10 +155,9 @@ VESC_STEERING_OFFSET: Annotated[float, Range(0, 1)] = 0.5
 # VESC: magnet poles of the motor (not pole pairs), for the measured speed.
 VESC_MOTOR_POLES: Annotated[int, Range(2, 100)] = 4
 # VESC: motor turns per wheel turn (spur / pinion x any other reduction). None = no measured speed;
-# set it to publish enc/speed (m/s) from the VESC's RPM.
+# set it to publish enc/speed (m/s) from the VESC's RPM (with WHEEL_RADIUS, the car's geometry in
+# parts/sensors/settings.py).
 VESC_GEAR_RATIO: Annotated[float | None, Range(0, 1000, lo_open=True)] = None
-# Wheel radius in metres (DonkeyCar's name), for speed from motor or wheel RPM.
-WHEEL_RADIUS: Annotated[float, Range(0.005, 1, unit="m")] = 0.0315
 # MM1: serial port of the Robo HAT MM1 (Pi: /dev/ttyS0; Jetson Nano: /dev/ttyTHS1).
 MM1_SERIAL_PORT: str = "/dev/ttyS0"
 # MM1: steering pulse in µs that drives straight (DonkeyCar's name; -1 -> 2000, +1 -> 1000 µs).

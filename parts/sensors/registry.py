@@ -4,15 +4,28 @@ A car has any number of sensors, so every kind's table names the bool setting th
 (``enabled_by``, DonkeyCar's ``HAVE_IMU``) and the setting that picks its type (``IMU_SENSOR``);
 :func:`vehicle.app.assembly.sensors.add_sensors` adds, for every table the car enables, the part
 its type setting picks, built by ``Class.from_config(cfg, clock=...)``. A new kind of sensor is
-one ``Registry`` in :data:`SENSOR_TABLES`; a new type of a kind, one row of its table::
-
-    IMUS = Registry("IMU_SENSOR", {"mpu6050": "parts.sensors.imu:MPU6050"}, enabled_by="HAVE_IMU")
-    SENSOR_TABLES = (IMUS,)
+one ``Registry`` in :data:`SENSOR_TABLES`; a new type of a kind, one row of its table.
 """
 
 from __future__ import annotations
 
 from vehicle.registry import Registry
 
+#: wheel encoders (ENCODER_TYPE): ticks -> enc/ticks; the odometer is added after them
+ENCODERS = Registry("ENCODER_TYPE", {
+    "GPIO": "parts.sensors.encoder:Encoder",
+    "ARDUINO": "parts.sensors.encoder:Encoder",
+    "arduino": "parts.sensors.encoder:Encoder",  # DonkeyCar's spelling
+}, enabled_by="HAVE_ODOM")
+#: inertial measurement units (IMU_SENSOR)
+IMUS = Registry("IMU_SENSOR", {
+    "mpu6050": "parts.sensors.imu:IMU",
+    "mpu9250": "parts.sensors.imu:IMU",
+}, enabled_by="HAVE_IMU")
+#: GPS receivers (GPS_TYPE)
+GPSES = Registry("GPS_TYPE", {"NMEA": "parts.sensors.gps:GPS"}, enabled_by="HAVE_GPS")
+#: 2-D LiDARs (LIDAR_TYPE)
+LIDARS = Registry("LIDAR_TYPE", {"RP": "parts.sensors.lidar:RPLidar"}, enabled_by="USE_LIDAR")
+
 #: every kind of sensor, in the order their parts join the loop (before the pilot and drive logic)
-SENSOR_TABLES: tuple[Registry, ...] = ()
+SENSOR_TABLES: tuple[Registry, ...] = (ENCODERS, IMUS, GPSES, LIDARS)

@@ -94,6 +94,18 @@ SIM_IMAGE_BLUR: Annotated[int, Range(0, 99, unit="pixels")] = 0
 SIM_BRIGHTNESS_JITTER: Annotated[float, Range(0, 1, hi_open=True)] = 0.0
 # Seed of the simulator's random parts (per-frame image effects, expert noise).
 SIM_SEED: Annotated[int, Range(0, 2**32 - 1)] = 0
+# Simulated sensors (with HAVE_ODOM, HAVE_IMU, HAVE_GPS, USE_LIDAR in a simulator car): standard
+# deviation of the simulated GPS's position error, metres (a consumer receiver ~1-3 m, RTK 0.02);
+# the error wanders, correlated over 10 s, as a real receiver's does.
+SIM_GPS_NOISE: Annotated[float, Range(0, 100, unit="m")] = 1.0
+# Fixes per second of the simulated GPS.
+SIM_GPS_HZ: Annotated[float, Range(0.1, 100, unit="Hz")] = 5.0
+# White noise of the simulated IMU's accelerometer, m/s^2 (standard deviation per reading).
+SIM_IMU_ACCEL_NOISE: Annotated[float, Range(0, 10, unit="m/s^2")] = 0.05
+# White noise of the simulated IMU's gyroscope, rad/s.
+SIM_IMU_GYRO_NOISE: Annotated[float, Range(0, 1, unit="rad/s")] = 0.005
+# Range noise of the simulated LiDAR, metres.
+SIM_LIDAR_NOISE: Annotated[float, Range(0, 1, unit="m")] = 0.01
 # Car model (kinematic bicycle, 1:10 RC scale). Distance between the axles in metres.
 SIM_WHEELBASE: Annotated[float, Range(0, 10, lo_open=True, unit="m")] = 0.26
 # Front wheel angle at full steering (angle = +-1), degrees.

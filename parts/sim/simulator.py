@@ -68,6 +68,8 @@ class SimCar:
         render: draw camera frames (False: cam/image_array is None and no texture is drawn, for
             drivers that do not look, like the expert).
         seed: seed of the per-frame random draws (SIM_SEED).
+        measured_speed: also write the true speed as ``enc/speed`` (False when simulated encoders
+            and the odometer measure it, as on a real car).
     """
 
     INPUTS: ClassVar[tuple[str, ...]] = ("angle", "throttle", "sim/reset")
@@ -76,14 +78,14 @@ class SimCar:
     FEEDBACK: ClassVar[tuple[str, ...]] = ("angle", "throttle")
     #: a car may have no reset button
     OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("sim/reset",)
-    OUTPUTS: ClassVar[tuple[str, ...]] = OUTPUTS
+    OUTPUTS: tuple[str, ...] = OUTPUTS  # without enc/speed when measured_speed is False
 
     def __init__(self, seeds: Sequence[int] = (1,), *, dt: float = 0.05, camera: Camera | None = None,
                  car_params: CarParams | None = None, world: dict[str, Any] | None = None,
                  themes: Sequence[str] | str = ("road",), reset_off_track: bool = True, reset_to: str = "start",
                  off_track_cte: float | None = None, sensor: dict[str, Any] | None = None, realtime: bool = True,
                  start_offset: float = 0.0, switch_every: int | None = None, render: bool = True,
-                 seed: int = 0) -> None:
+                 seed: int = 0, measured_speed: bool = True) -> None:
         seeds = [seeds] if isinstance(seeds, int) else list(seeds)
         if not seeds or not all(isinstance(s, int | np.integer) and not isinstance(s, bool) for s in seeds):
             raise ValueError(f"track seeds must be a non-empty list of ints, got {seeds!r}")
@@ -116,6 +118,9 @@ class SimCar:
             raise ValueError(f"switch_every must be >= 1 step or None, got {switch_every}")
         self.switch_every = switch_every
         self.render_images = bool(render)
+        self.measured_speed = bool(measured_speed)
+        if not self.measured_speed:  # the odometer writes enc/speed from simulated encoder ticks
+            self.OUTPUTS = OUTPUTS[:-1]
         self.frame_seed = int(seed)
         self.time = 0.0  # simulated seconds since the part was made
         self.steps = 0
@@ -302,8 +307,9 @@ class SimCar:
         """Values for :data:`OUTPUTS` at the current state, without stepping (a new frame)."""
         f = self.frame
         assert f is not None  # set by select_track()
-        return (self.render(), self.timestamp(), f.cte, f.heading_error, f.speed, f.progress, f.lap,
-                f.lap_time, f.off_track, f.pos, self.seed, f.speed)
+        values = (self.render(), self.timestamp(), f.cte, f.heading_error, f.speed, f.progress, f.lap,
+                  f.lap_time, f.off_track, f.pos, self.seed)
+        return (*values, f.speed) if self.measured_speed else values
 
     def shutdown(self) -> None:
         """Log a short summary of the run."""

@@ -73,7 +73,8 @@ class WebController(ThreadedPart):
     INPUTS: Final = ("cam/image_array", "user/mode", "recording", "estop", "tub/num_records",
                      "angle", "throttle", "pilot/angle", "pilot/throttle", "pilot/model",
                      "sim/speed", "enc/speed", "loop/rate_hz", "loop/overruns", "behavior/label",
-                     "run_pilot", "pilot/load_error", "sim/cte", "sim/lap", "sim/off_track", "js/status")
+                     "run_pilot", "pilot/load_error", "sim/cte", "sim/lap", "sim/off_track", "js/status",
+                     "enc/ok", "imu/ok", "gps/ok", "lidar/ok", "obstacle/stop", "obstacle/distance")
     #: every input is telemetry for the page: it may be absent (None) and is the last loop's value
     #: when a part added after the controller produces it (drive mode, pilot, tub writer ...)
     OPTIONAL_INPUTS: Final = INPUTS
@@ -222,7 +223,11 @@ class WebController(ThreadedPart):
             sim_cte=_num(values.get("sim/cte")),
             sim_laps=int(lap) if isinstance(lap, int | np.integer) else None,
             sim_off_track=bool(off_track) if isinstance(off_track, bool | np.bool_) else None,
-            car_gamepad=pad if pad in ("connected", "silent", "lost") else None))
+            car_gamepad=pad if pad in ("connected", "silent", "lost") else None,
+            sensors={name: bool(ok) for name in ("enc", "imu", "gps", "lidar")
+                     if isinstance(ok := values.get(f"{name}/ok"), bool | np.bool_)},
+            obstacle_stop=bool(stop) if isinstance(stop := values.get("obstacle/stop"), bool | np.bool_) else None,
+            obstacle_distance=_num(values.get("obstacle/distance"))))
         cmd = self.state.outputs()
         return (cmd.angle, cmd.user_throttle(), cmd.mode, cmd.recording, cmd.estop,
                 cmd.speed_limit, cmd.model_request, cmd.behavior_step)

@@ -70,6 +70,9 @@ class Telemetry:
     sim_laps: int | None = None  # laps completed (simulator)
     sim_off_track: bool | None = None  # off the road now (simulator)
     car_gamepad: str | None = None  # the car's own gamepad: connected | silent | lost (None: none)
+    sensors: dict[str, bool] = field(default_factory=dict)  # sensor family (enc, imu ...) -> fresh
+    obstacle_stop: bool | None = None  # the obstacle stop cuts the throttle now (None: no obstacle stop)
+    obstacle_distance: float | None = None  # m, nearest LiDAR return ahead
     off_track_events: int = 0  # times the car left the road since the controller started
     loops: int = 0  # loops seen by the controller
 
@@ -187,8 +190,8 @@ class ControlState:
                 return ("set: this car drives without a pilot, so it cannot load a model: start it "
                         "with `manage.py drive --model models/NAME.pt`")
             if tel.loops and settings.get("speed_limit") is not None and tel.speed is None:
-                return ("set: this car measures no speed (no simulator, no encoder writing enc/speed), "
-                        "so a speed limit cannot be held")
+                return ("set: this car measures no speed (no simulator, and no wheel encoder, GPS or VESC "
+                        "writing enc/speed, or its sensor is stale), so a speed limit cannot be held")
             return None
 
     def apply(self, settings: dict[str, Any], model_path: str | None = None) -> None:

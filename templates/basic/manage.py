@@ -21,6 +21,7 @@ def drive(cfg, args):
     """Assemble the car and drive it until Ctrl-C (or --max-loops)."""
     V = Vehicle()
     assembly.add_camera(V, cfg)  # -> cam/image_array, cam/timestamp, cam/ok
+    assembly.add_sensors(V, cfg)  # HAVE_ODOM, HAVE_IMU, HAVE_GPS, USE_LIDAR -> enc/*, pos/*, imu/*, gps/*, lidar/*
     assembly.add_controller(V, cfg)  # web page (and gamepad) -> user/angle, user/throttle, user/mode
     assembly.add_camera_watchdog(V, cfg)  # camera stalled -> user mode, throttle 0: no pilot without frames
     assembly.add_behavior(V, cfg)  # -> behavior/state, behavior/label, behavior/one_hot_state_array

@@ -21,6 +21,15 @@ values found on your car into this file.
 # THROTTLE_STOPPED_PWM = 370
 # THROTTLE_REVERSE_PWM = 220
 
+# -- sensors (docs/sensors.md; check them with `vehicle hw check`)
+# HAVE_ODOM = True               # wheel encoder: enc/speed for the speed limit, pose pos/x, pos/y
+# ENCODER_TYPE = "GPIO"          # or "ARDUINO" (DonkeyCar's encoder sketch on ODOM_SERIAL)
+# ODOM_PIN = 13                  # header pin; ODOM_PIN_B = 15 for a quadrature encoder
+# MM_PER_TICK = 9.9              # roll 1 m, divide 1000 by the ticks counted
+# HAVE_IMU = True                # MPU6050 / MPU9250 on I2C (IMU_SENSOR, IMU_ADDRESS)
+# HAVE_GPS = True                # NMEA receiver on GPS_SERIAL
+# USE_LIDAR = True               # RPLidar on LIDAR_SERIAL; OBSTACLE_STOP = True brakes before obstacles
+
 # -- controllers
 # CONTROLLER_TYPE = "ps4"        # ps3, ps4, xbox, f710, generic or custom (see `vehicle createjs`)
 # USE_JOYSTICK_AS_DEFAULT = False

@@ -146,14 +146,14 @@ def test_a_donkeycar_myconfig_gets_every_unknown_setting_in_one_message(tmp_path
     # a myconfig.py copied from a DonkeyCar car failed on its first unknown setting, then on the
     # next one at the next run, and so on
     (tmp_path / "myconfig.py").write_text("import os\nDRIVE_LOOP_HZ = 20\nDONKEY_GYM = True\n"
-                                          "WEB_INIT_MODE = 'user'\nHAVE_ODOM = False\nMAX_LOOPS = 100\n")
+                                          "WEB_INIT_MODE = 'user'\nHAVE_SOMBRERO = False\nMAX_LOOPS = 100\n")
     with pytest.raises(ConfigError) as info:
         load_config(car_path=tmp_path)
     msg = str(info.value)
     assert "\n" not in msg
     assert msg.startswith(f"{tmp_path.resolve() / 'myconfig.py'}: 3 unknown settings: DONKEY_GYM (line 3; did you "
                           'mean SIM_TYPE = "donkey"?), WEB_INIT_MODE (line 4; did you mean DEFAULT_MODE?), '
-                          "HAVE_ODOM (line 5")
+                          "HAVE_SOMBRERO (line 5")
     assert msg.endswith("Rename or delete them; docs/config.md lists every setting.")
 
 # -- ranges and rules across settings (issue 21: items 2, 3, 10) ------------------------------------

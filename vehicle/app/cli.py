@@ -20,6 +20,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "vehicle.app.commands.train",
     "vehicle.app.commands.calibrate",
     "vehicle.app.commands.drivetrain",
+    "vehicle.app.commands.hw",
     "vehicle.app.commands.camera",
     "vehicle.app.commands.lanes",
     "vehicle.app.commands.createjs",

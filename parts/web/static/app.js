@@ -248,6 +248,11 @@ function onState(s) {
   bar.style.top = throttle >= 0 ? (50 - h) + "%" : "50%";
   bar.classList.toggle("reverse", throttle < 0);
   $("speed").textContent = fmt(t.speed, 1);
+  // sensors: a stale one is shown as such (its values read None); the obstacle stop when it acts
+  const sensors = Object.entries(t.sensors || {});
+  $("sensors").hidden = sensors.length === 0 && t.obstacle_stop === null;
+  $("sensors").textContent = sensors.map(([k, ok]) => k + (ok ? " ok" : " STALE")).join(" · ")
+    + (t.obstacle_stop ? ` · OBSTACLE ${t.obstacle_distance === null ? "(blind)" : fmt(t.obstacle_distance, 2) + " m"}: braking` : "");
   $("rate").textContent = fmt(t.loop_rate_hz, 1);
   $("overruns").textContent = t.loop_overruns === null ? "–" : t.loop_overruns;
   $("records").textContent = t.num_records === null ? "–" : t.num_records;
@@ -283,7 +288,7 @@ function onState(s) {
   if (c.speed_limit !== null && document.activeElement !== $("speedlimit")) $("speedlimit").value = c.speed_limit;
   $("speedlimit-v").textContent = c.speed_limit === null ? "none" : fmt(c.speed_limit, 1) + " m/s";
   $("speedlimit-note").textContent = t.speed === null && t.loops > 0
-    ? "needs a measured speed (the simulator's or a wheel encoder's): not available on this car"
+    ? "needs a measured speed (simulator, wheel encoder, GPS or VESC): none on this car, or its sensor is stale"
     : "caps the car's speed in every mode, human or pilot; a slower car is not sped up";
   syncModel(t);
   updateControls();

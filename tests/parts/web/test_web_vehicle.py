@@ -113,3 +113,20 @@ def test_page_drives_a_real_vehicle(tmp_path, client_cls, arun, with_gamepad):
         thread.join(10)
     assert not errors, errors
     assert not web.running
+
+
+def test_sensor_freshness_and_obstacle_stop_reach_the_page(tmp_path):
+    from parts.web.controller import WebController
+
+    web = WebController(port=0)
+    try:
+        values = dict.fromkeys(WebController.INPUTS)
+        values.update({"enc/ok": True, "lidar/ok": False, "obstacle/stop": True, "obstacle/distance": 0.42,
+                       "enc/speed": None})
+        web.run(*[values[k] for k in WebController.INPUTS])
+        tel = web.state.snapshot()["telemetry"]
+        assert tel["sensors"] == {"enc": True, "lidar": False}  # no IMU or GPS on this car: not listed
+        assert tel["obstacle_stop"] is True and tel["obstacle_distance"] == 0.42
+        assert tel["speed"] is None  # a stale encoder: no speed, the page refuses a speed limit
+    finally:
+        web.shutdown()

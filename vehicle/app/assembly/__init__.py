@@ -30,6 +30,9 @@ HELPERS: dict[str, str] = {
     "add_controller": "controller",
     "add_drivetrain": "drivetrain",
     "add_sensors": "sensors",
+    "add_odometry": "sensors",
+    "add_obstacle_stop": "drive",
+    "add_sim_sensors": "sim",
     "add_pilot": "pilot",
     "add_tub_writer": "tub",
 }

@@ -23,6 +23,7 @@ def add_drive_mode(V: Any, cfg: Config) -> Any:
     part = DriveMode(ai_throttle_mult=cfg.AI_THROTTLE_MULT)
     V.add(part)
     add_speed_limit(V, cfg)
+    add_obstacle_stop(V, cfg)
     return part
 
 
@@ -38,6 +39,26 @@ def add_speed_limit(V: Any, cfg: Config) -> Any:
     if not V.produces("user/speed_limit") or not V.produces(speed_key) or V.find(SpeedLimit):
         return None
     part = SpeedLimit(speed_key, dt=1.0 / cfg.DRIVE_LOOP_HZ, kp=cfg.PILOT_SPEED_KP, ki=cfg.PILOT_SPEED_KI)
+    V.add(part)
+    return part
+
+
+def add_obstacle_stop(V: Any, cfg: Config) -> Any:
+    """Add ObstacleStop after the drive mode and speed limit (OBSTACLE_STOP): the final
+    ``throttle`` is cut to a brake while the LiDAR sees something too close ahead, in every mode.
+    Returns None (adds nothing) when OBSTACLE_STOP is off or the car has one already.
+
+    Raises:
+        UserError: OBSTACLE_STOP is on but no part writes ``lidar/dist_array`` (no USE_LIDAR).
+    """
+    from parts.sensors.obstacle import ObstacleStop
+
+    if not cfg.OBSTACLE_STOP or V.find(ObstacleStop):
+        return None
+    if not V.produces("lidar/dist_array"):
+        raise UserError(f"{cfg.where('OBSTACLE_STOP')}OBSTACLE_STOP needs a LiDAR: set USE_LIDAR = True "
+                        "(in a simulator car the simulated LiDAR is used), or OBSTACLE_STOP = False")
+    part = ObstacleStop.from_config(cfg)
     V.add(part)
     return part
 

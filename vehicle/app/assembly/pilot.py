@@ -103,9 +103,14 @@ def make_pilot(cfg: Config, model_path: str | Path, measured_speed_key: str = "e
 
 
 def speed_key_of(V: Any, cfg: Config) -> str:
-    """PILOT_SPEED_KEY, else sim/speed when the simulator is in ``V``, else enc/speed (a real car
-    needs an encoder part writing it)."""
-    return cfg.PILOT_SPEED_KEY or ("sim/speed" if V.produces("sim/speed") else "enc/speed")
+    """PILOT_SPEED_KEY, else enc/speed when a part measures it (an odometer, a VESC, the GPS's
+    speed, a simulator's reported speed), else sim/speed when a simulator is in ``V``, else
+    enc/speed (a real car needs a speed source writing it)."""
+    if cfg.PILOT_SPEED_KEY:
+        return cfg.PILOT_SPEED_KEY
+    if V.produces("enc/speed"):
+        return "enc/speed"
+    return "sim/speed" if V.produces("sim/speed") else "enc/speed"
 
 
 def camera_frames(V: Any) -> tuple[tuple[int, int, int] | None, str]:

@@ -43,7 +43,9 @@ def add_simulator(V: Any, cfg: Any, seeds: Sequence[int] | None = None, sim_type
     """Add the simulated car, chosen by SIM_TYPE (or ``sim_type``, the ``--sim`` option).
 
     In: ``angle``, ``throttle`` (the previous loop's commands), ``sim/reset``; out:
-    ``cam/image_array``, ``cam/timestamp``, ``sim/*`` telemetry and ``enc/speed``.
+    ``cam/image_array``, ``cam/timestamp``, ``sim/*`` telemetry and ``enc/speed`` (the true speed;
+    with HAVE_ODOM the odometer's, from simulated encoder ticks), and the simulated sensors the
+    car's settings switch on (see :func:`add_sim_sensors`).
 
     - "builtin": our simulator in this process, on the tracks of SIM_TRACK_SEEDS unless ``seeds``.
     - "udacity": :class:`parts.bridges.udacity.UdacitySim`, the server the Udacity simulator
@@ -66,8 +68,10 @@ def add_simulator(V: Any, cfg: Any, seeds: Sequence[int] | None = None, sim_type
     if kind == "builtin":
         from parts.sim.simulator import SimCar
 
-        sim = SimCar.from_config(cfg, seeds=seeds)
+        # with a (simulated) encoder the odometer measures enc/speed, as on a real car
+        sim = SimCar.from_config(cfg, seeds=seeds, measured_speed=not cfg.HAVE_ODOM)
         V.add(sim)
+        add_sim_sensors(V, cfg, sim)
         # a simulated lens (SIM_CAMERA_DISTORTION) is undistorted like a real one
         add_undistort(V, cfg, (cfg.SIM_CAMERA_W, cfg.SIM_CAMERA_H), "SIM_CAMERA_W x SIM_CAMERA_H")
         return sim
@@ -84,6 +88,23 @@ def add_simulator(V: Any, cfg: Any, seeds: Sequence[int] | None = None, sim_type
     V.add(sim, threaded=True)
     add_undistort(V, cfg, *bridge_frame_size(cfg, kind))
     return sim
+
+
+def add_sim_sensors(V: Any, cfg: Any, sim: Any) -> Any:
+    """Add the simulated car's sensors right after it (HAVE_ODOM, HAVE_IMU, HAVE_GPS, USE_LIDAR:
+    the keys a real car's sensors write, see :mod:`parts.sim.sensors`) and the odometry on its
+    encoder ticks. Returns the SimSensors part, or None when no sensor is switched on."""
+    from parts.sim.sensors import SimSensors
+    from vehicle.app.assembly.sensors import add_odometry
+
+    if cfg.HAVE_ODOM_2:
+        logger.warning("HAVE_ODOM_2: the simulated car has one encoder (a car, not a differential drive)")
+    part = SimSensors.from_config(cfg, sim)
+    if part is None:
+        return None
+    V.add(part)
+    add_odometry(V, cfg)
+    return part
 
 
 def bridge_frame_size(cfg: Any, sim_type: str) -> tuple[tuple[int, int], str]:

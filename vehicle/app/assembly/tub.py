@@ -13,6 +13,17 @@ TIMESTAMP_KEY = "cam/timestamp"
 ERASE_KEY = "tub/erase"
 #: what a drive with TRAIN_BEHAVIORS records besides TUB_INPUTS (DonkeyCar's keys and tub types)
 BEHAVIOR_FIELDS = (("behavior/state", "int"), ("behavior/label", "str"), ("behavior/one_hot_state_array", "vector"))
+#: what a car with sensors records besides TUB_INPUTS, per switch (as DonkeyCar's complete.py does)
+_F = "float"
+SENSOR_FIELDS: dict[str, tuple[tuple[str, str], ...]] = {
+    "HAVE_ODOM": (("enc/speed", _F), ("enc/distance", _F), ("pos/x", _F), ("pos/y", _F), ("pos/angle", _F),
+                  ("vel/x", _F), ("vel/y", _F), ("vel/angle", _F)),
+    "HAVE_IMU": (("imu/acl_x", _F), ("imu/acl_y", _F), ("imu/acl_z", _F), ("imu/gyr_x", _F), ("imu/gyr_y", _F),
+                 ("imu/gyr_z", _F)),
+    "HAVE_GPS": (("gps/x", _F), ("gps/y", _F), ("gps/latitude", _F), ("gps/longitude", _F), ("gps/accuracy", _F),
+                 ("gps/ok", "boolean")),
+    "USE_LIDAR": (("lidar/dist_array", "vector"),),
+}
 
 
 def new_tub_path(data_path: Path) -> Path:
@@ -38,7 +49,8 @@ def add_tub_writer(V: Any, cfg: Any, inputs: list[str] | None = None, types: lis
     """Add a TubWriter (run_condition ``recording``, output ``tub/num_records``) and return it.
 
     ``inputs``/``types`` default to TUB_INPUTS/TUB_TYPES (plus pilot/angle and pilot/throttle with
-    RECORD_DURING_AI, when a pilot part was added, and the behaviour keys with TRAIN_BEHAVIORS).
+    RECORD_DURING_AI, when a pilot part was added, the behaviour keys with TRAIN_BEHAVIORS, and the
+    keys of the sensors HAVE_ODOM, HAVE_IMU, HAVE_GPS, USE_LIDAR switch on: :data:`SENSOR_FIELDS`).
     When a part produces ``cam/timestamp`` it is recorded as ``_timestamp_ms``. When a part
     produces ``tub/erase``, a TubWiper deletes the last ERASE_LAST_N_RECORDS records on each press.
     """
@@ -54,6 +66,11 @@ def add_tub_writer(V: Any, cfg: Any, inputs: list[str] | None = None, types: lis
                 if key not in inputs and _produced(V, key):  # a drive without a model has no pilot
                     inputs.append(key)
                     types.append("float")
+        for switch, fields in SENSOR_FIELDS.items():  # a sensor's keys, while its part writes them
+            for key, tp in fields:
+                if getattr(cfg, switch, False) and key not in inputs and _produced(V, key):
+                    inputs.append(key)
+                    types.append(tp)
         if getattr(cfg, "TRAIN_BEHAVIORS", False):  # as DonkeyCar: behaviour drives record it
             for key, tp in BEHAVIOR_FIELDS:
                 if key not in inputs and _produced(V, key):

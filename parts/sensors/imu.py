@@ -1,0 +1,155 @@
+"""InvenSense MPU6050 / MPU9250 accelerometer + gyroscope over I2C (smbus2).
+
+Register facts from the datasheets (MPU-6000/6050 register map rev 4.2; MPU-9250 register map
+rev 1.6): WHO_AM_I 0x75 reads 0x68 (MPU6050), 0x71 (MPU9250) or 0x73 (MPU9255); PWR_MGMT_1
+0x6B powers up with SLEEP (bit 6) set, the driver writes 0x01 (awake, clock from the X gyro's
+PLL); CONFIG 0x1A bits 2:0 = DLPF_CFG; GYRO_CONFIG 0x1B bits 4:3 = FS_SEL (±250/500/1000/2000
+°/s: 131/65.5/32.8/16.4 LSB per °/s); ACCEL_CONFIG 0x1C bits 4:3 = AFS_SEL (±2/4/8/16 g:
+16384/8192/4096/2048 LSB per g); ACCEL_XOUT_H 0x3B starts 14 bytes, big-endian signed 16-bit:
+accel X, Y, Z, temperature, gyro X, Y, Z. Temperature: raw/340 + 36.53 °C (MPU6050),
+(raw - 21)/333.87 + 21 °C (MPU9250).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import struct
+import time
+from collections.abc import Callable
+from typing import Any, ClassVar
+
+from parts.sensors.freshness import SensorPart
+from vehicle.errors import VehicleError
+
+WHO_AM_I = 0x75
+PWR_MGMT_1 = 0x6B
+CONFIG = 0x1A
+GYRO_CONFIG = 0x1B
+ACCEL_CONFIG = 0x1C
+ACCEL_XOUT_H = 0x3B
+#: WHO_AM_I value per IMU_SENSOR
+CHIP_IDS: dict[str, tuple[int, ...]] = {"mpu6050": (0x68,), "mpu9250": (0x71, 0x73)}
+#: full-scale ranges: g -> AFS_SEL, °/s -> FS_SEL
+ACCEL_RANGES: dict[int, int] = {2: 0, 4: 1, 8: 2, 16: 3}
+GYRO_RANGES: dict[int, int] = {250: 0, 500: 1, 1000: 2, 2000: 3}
+#: sensitivity by full scale (datasheet): LSB per g, LSB per °/s
+ACCEL_LSB: dict[int, float] = {2: 16384.0, 4: 8192.0, 8: 4096.0, 16: 2048.0}
+GYRO_LSB: dict[int, float] = {250: 131.0, 500: 65.5, 1000: 32.8, 2000: 16.4}
+G = 9.80665  # m/s^2 per g
+
+
+class IMUError(VehicleError):
+    """The IMU is missing or is another chip (the message names bus, address and what to check)."""
+
+
+class MPU6050:
+    """Driver of an MPU6050 or MPU9250 (accelerometer and gyroscope; the MPU9250's magnetometer is
+    a separate chip behind it and not read).
+
+    Args:
+        busnum: I2C bus (1 on a Raspberry Pi's header).
+        address: 0x68 (AD0 low) or 0x69 (AD0 high) (IMU_ADDRESS).
+        sensor: "mpu6050" or "mpu9250" (IMU_SENSOR).
+        accel_range: ±g full scale (2, 4, 8, 16).
+        gyro_range: ±°/s full scale (250, 500, 1000, 2000).
+        dlpf: digital low-pass filter setting 0-6 (IMU_DLP_CONFIG).
+        bus_factory: ``factory(busnum)`` -> an smbus2.SMBus-like object (tests: a register fake).
+    """
+
+    def __init__(self, busnum: int = 1, address: int = 0x68, *, sensor: str = "mpu6050", accel_range: int = 2,
+                 gyro_range: int = 250, dlpf: int = 0, bus_factory: Callable[[int], Any] | None = None) -> None:
+        sensor = sensor.lower()
+        if sensor not in CHIP_IDS:
+            raise IMUError(f"IMU_SENSOR {sensor!r}: use 'mpu6050' or 'mpu9250'")
+        if accel_range not in ACCEL_RANGES or gyro_range not in GYRO_RANGES or not 0 <= dlpf <= 6:
+            raise IMUError(f"IMU ranges: accel one of {list(ACCEL_RANGES)} g, gyro one of {list(GYRO_RANGES)} °/s, "
+                           f"IMU_DLP_CONFIG 0-6; got {accel_range}, {gyro_range}, {dlpf}")
+        self.busnum, self.address, self.sensor = busnum, address, sensor
+        self.accel_range, self.gyro_range, self.dlpf = accel_range, gyro_range, dlpf
+        self._factory = bus_factory
+        self._bus: Any = None
+        self.temperature: float | None = None  # °C at the latest read
+
+    def _where(self) -> str:
+        return f"{self.sensor.upper()} at I2C bus {self.busnum} address 0x{self.address:02X}"
+
+    def open(self) -> None:
+        """Check WHO_AM_I, wake the chip and set the ranges and filter."""
+        factory = self._factory
+        if factory is None:
+            import smbus2  # noqa: PLC0415 - hardware library, imported only when a part starts
+
+            factory = smbus2.SMBus
+        try:
+            self._bus = factory(self.busnum)
+            who = self._bus.read_byte_data(self.address, WHO_AM_I)
+        except OSError as exc:
+            raise IMUError(f"{self._where()}: no answer ({exc}); check the wiring (SDA, SCL, 3.3 V, GND), "
+                           "IMU_ADDRESS (0x68, or 0x69 with AD0 high) and `i2cdetect -y 1`") from exc
+        if who not in CHIP_IDS[self.sensor]:
+            raise IMUError(f"{self._where()}: WHO_AM_I reads 0x{who:02X}, expected "
+                           f"{'/'.join(f'0x{v:02X}' for v in CHIP_IDS[self.sensor])}: check IMU_SENSOR")
+        self._bus.write_byte_data(self.address, PWR_MGMT_1, 0x01)
+        time.sleep(0.01)  # the PLL settles (datasheet: gyro start-up 30 ms typical; first reads may lag)
+        self._bus.write_byte_data(self.address, CONFIG, self.dlpf)
+        self._bus.write_byte_data(self.address, GYRO_CONFIG, GYRO_RANGES[self.gyro_range] << 3)
+        self._bus.write_byte_data(self.address, ACCEL_CONFIG, ACCEL_RANGES[self.accel_range] << 3)
+
+    def read(self) -> tuple[float, float, float, float, float, float]:
+        """(ax, ay, az) in m/s^2 and (gx, gy, gz) in rad/s; the temperature goes to :attr:`temperature`."""
+        data = bytes(self._bus.read_i2c_block_data(self.address, ACCEL_XOUT_H, 14))
+        ax, ay, az, temp, gx, gy, gz = struct.unpack(">7h", data)
+        a_scale = G / ACCEL_LSB[self.accel_range]
+        g_scale = math.radians(1.0 / GYRO_LSB[self.gyro_range])
+        self.temperature = temp / 340.0 + 36.53 if self.sensor == "mpu6050" else (temp - 21) / 333.87 + 21.0
+        return ax * a_scale, ay * a_scale, az * a_scale, gx * g_scale, gy * g_scale, gz * g_scale
+
+    def close(self) -> None:
+        """Put the chip to sleep and release the bus."""
+        if self._bus is not None:
+            with contextlib.suppress(OSError):
+                self._bus.write_byte_data(self.address, PWR_MGMT_1, 0x40)
+            self._bus.close()
+            self._bus = None
+
+
+class IMU(SensorPart):
+    """Part: ``imu/acl_x, imu/acl_y, imu/acl_z`` (m/s^2), ``imu/gyr_x, imu/gyr_y, imu/gyr_z`` (rad/s)
+    and ``imu/ok``, DonkeyCar's keys. Add it threaded (an I2C read takes about a millisecond).
+
+    Args:
+        device: an :class:`MPU6050` (or anything with open/read/close giving six floats).
+        max_age: seconds without a reading after which the values read None.
+        period: seconds between readings when threaded.
+    """
+
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("imu/acl_x", "imu/acl_y", "imu/acl_z", "imu/gyr_x", "imu/gyr_y",
+                                          "imu/gyr_z", "imu/ok")
+
+    def __init__(self, device: Any, *, max_age: float = 0.5, period: float = 0.01,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        super().__init__(max_age, clock)
+        self.device = device
+        self.period = period
+
+    @classmethod
+    def from_config(cls, cfg: Any, clock: Callable[[], float] | None = None) -> IMU:
+        """IMU_SENSOR at IMU_I2C_BUSNUM (None: 1) / IMU_ADDRESS, IMU_ACCEL_RANGE, IMU_GYRO_RANGE,
+        IMU_DLP_CONFIG, IMU_MAX_AGE_S."""
+        bus = 1 if cfg.IMU_I2C_BUSNUM is None else cfg.IMU_I2C_BUSNUM
+        device = MPU6050(bus, cfg.IMU_ADDRESS, sensor=cfg.IMU_SENSOR, accel_range=cfg.IMU_ACCEL_RANGE,
+                         gyro_range=cfg.IMU_GYRO_RANGE, dlpf=cfg.IMU_DLP_CONFIG)
+        return cls(device, max_age=cfg.IMU_MAX_AGE_S, clock=clock or time.monotonic)
+
+    def open(self) -> None:
+        self.device.open()
+
+    def read(self) -> tuple[object, ...] | None:
+        try:
+            return tuple(self.device.read())
+        except OSError:  # a glitch on the bus: no reading this time (staleness shows a lasting fault)
+            return None
+
+    def close(self) -> None:
+        self.device.close()

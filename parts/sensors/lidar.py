@@ -1,0 +1,186 @@
+"""A 2-D LiDAR of the Slamtec RPLidar A1/A2 class over serial -> a distance array by angle.
+
+Protocol (Slamtec "RPLIDAR Interface Protocol and Application Notes"): a request is ``0xA5 cmd``
+(STOP 0x25, RESET 0x40, SCAN 0x20, GET_HEALTH 0x52). A response starts with a 7-byte descriptor
+``0xA5 0x5A`` + 32-bit little-endian word (length: low 30 bits, send mode: top 2 bits) + data type.
+SCAN answers ``A5 5A 05 00 00 40 81`` and then streams 5-byte nodes:
+
+    byte 0: quality (bits 7:2) | !S (bit 1) | S (bit 0)   S = 1 on the first node of a new turn
+    byte 1: angle_q6 bits 6:0 (bits 7:1) | C (bit 0)        C is always 1
+    byte 2: angle_q6 bits 14:7                              angle = angle_q6 / 64 degrees, clockwise
+    bytes 3-4: distance_q2, little-endian                   distance = distance_q2 / 4 mm, 0 = no return
+
+A node whose check bits are wrong means the stream lost its framing: the driver drops one byte
+and looks again. The A1's motor runs while DTR is low (pyserial ``dtr = False``).
+
+:func:`bin_scan` turns a turn's (angle, distance) points into ``lidar/dist_array``: the nearest
+return per angle bin, bins counter-clockwise from straight ahead (the car's frame, as ``pos/angle``),
+metres, 0.0 where nothing returned.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import time
+from collections.abc import Callable, Iterable
+from typing import Any, ClassVar
+
+import numpy as np
+
+from parts.sensors.freshness import SensorPart
+from vehicle.errors import VehicleError
+
+logger = logging.getLogger(__name__)
+
+SYNC, SYNC2 = 0xA5, 0x5A
+STOP, RESET, SCAN, GET_HEALTH = 0x25, 0x40, 0x20, 0x52
+SCAN_DESCRIPTOR = bytes((SYNC, SYNC2, 0x05, 0x00, 0x00, 0x40, 0x81))
+NODE_SIZE = 5
+
+
+class LidarError(VehicleError):
+    """The LiDAR does not answer or answers another protocol."""
+
+
+def decode_node(node: bytes) -> tuple[bool, int, float, float] | None:
+    """(new turn, quality, angle in degrees clockwise, distance in metres) of a 5-byte node, or None
+    when its check bits are wrong."""
+    b0, b1 = node[0], node[1]
+    start, inverse = b0 & 1, (b0 >> 1) & 1
+    if start == inverse or not b1 & 1:
+        return None
+    angle = ((node[2] << 7) | (b1 >> 1)) / 64.0
+    distance = (node[3] | (node[4] << 8)) / 4000.0
+    return bool(start), b0 >> 2, angle, distance
+
+
+def bin_scan(points: Iterable[tuple[float, float]], bins: int = 360, *, offset_deg: float = 0.0,
+             clockwise: bool = True, max_range: float = 12.0) -> list[float]:
+    """Nearest return per angle bin: ``out[i]`` covers [i, i+1) x 360/bins degrees counter-clockwise
+    from the car's front, metres, 0.0 for no return.
+
+    Args:
+        points: (angle in degrees, distance in metres) in the sensor's frame.
+        offset_deg: the sensor angle that points to the car's front (LIDAR_ANGLE_OFFSET).
+        clockwise: the sensor's angles turn clockwise (RPLidar: yes).
+        max_range: returns beyond this many metres are ignored.
+    """
+    out = np.full(bins, np.inf)
+    for angle, dist in points:
+        if not 0.0 < dist <= max_range:
+            continue
+        a = (angle - offset_deg) % 360.0
+        ccw = (360.0 - a) % 360.0 if clockwise else a
+        i = int(ccw * bins / 360.0) % bins
+        if dist < out[i]:
+            out[i] = dist
+    out[np.isinf(out)] = 0.0
+    return out.tolist()
+
+
+class RPLidar(SensorPart):
+    """Part: one full turn of an RPLidar -> ``lidar/dist_array`` (see :func:`bin_scan`) and
+    ``lidar/ok``. Add it threaded: it reads the serial stream continuously.
+
+    Args:
+        port: serial device (LIDAR_SERIAL) or pyserial URL; baudrate 115200 (A1/A2) or 256000 (A3).
+        bins: length of the distance array (LIDAR_BINS).
+        offset_deg, max_range: see :func:`bin_scan`.
+        max_age: seconds without a full turn after which the array reads None.
+        serial_factory: ``factory(port, baudrate, timeout)`` -> pyserial-like (tests: a pty).
+    """
+
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("lidar/dist_array", "lidar/ok")
+
+    def __init__(self, port: str, baudrate: int = 115200, *, bins: int = 360, offset_deg: float = 0.0,
+                 max_range: float = 12.0, max_age: float = 0.5, serial_factory: Callable[..., Any] | None = None,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        super().__init__(max_age, clock)
+        if bins < 4:
+            raise LidarError(f"LIDAR_BINS must be >= 4, got {bins}")
+        self.port, self.baudrate, self.bins = port, int(baudrate), int(bins)
+        self.offset_deg, self.max_range = float(offset_deg), float(max_range)
+        self._factory = serial_factory
+        self._serial: Any = None
+        self._buffer = bytearray()
+        self._turn: list[tuple[float, float]] = []
+        self.resyncs = 0  # bytes dropped to find the node framing again
+
+    @classmethod
+    def from_config(cls, cfg: Any, clock: Callable[[], float] | None = None) -> RPLidar:
+        """LIDAR_SERIAL, LIDAR_SERIAL_BAUDRATE, LIDAR_BINS, LIDAR_ANGLE_OFFSET, LIDAR_MAX_RANGE,
+        LIDAR_MAX_AGE_S."""
+        return cls(cfg.LIDAR_SERIAL, cfg.LIDAR_SERIAL_BAUDRATE, bins=cfg.LIDAR_BINS,
+                   offset_deg=cfg.LIDAR_ANGLE_OFFSET, max_range=cfg.LIDAR_MAX_RANGE, max_age=cfg.LIDAR_MAX_AGE_S,
+                   clock=clock or time.monotonic)
+
+    def open(self) -> None:
+        """Open the port, stop any scan, start the motor and a scan, check the descriptor."""
+        factory = self._factory
+        if factory is None:
+            import serial  # noqa: PLC0415 - hardware library, imported only when a part starts
+
+            def factory(port: str, baudrate: int, timeout: float) -> Any:
+                return serial.serial_for_url(port, baudrate=baudrate, timeout=timeout)
+        try:
+            self._serial = factory(self.port, self.baudrate, 0.5)
+        except (OSError, ValueError) as exc:
+            raise LidarError(f"LiDAR serial port {self.port}: {exc} (check LIDAR_SERIAL and the 'dialout' "
+                             "group)") from exc
+        s = self._serial
+        s.write(bytes((SYNC, STOP)))
+        time.sleep(0.002)  # the protocol asks the host to wait 1 ms after STOP
+        s.reset_input_buffer()
+        with contextlib.suppress(AttributeError, OSError, ValueError):  # a port without modem lines
+            s.dtr = False  # A1: motor on
+        s.write(bytes((SYNC, SCAN)))
+        descriptor = s.read(len(SCAN_DESCRIPTOR))
+        if bytes(descriptor) != SCAN_DESCRIPTOR:
+            raise LidarError(f"LiDAR at {self.port}: SCAN answered {bytes(descriptor).hex(' ') or 'nothing'}, "
+                             f"expected {SCAN_DESCRIPTOR.hex(' ')}: is it an RPLidar, at LIDAR_SERIAL_BAUDRATE?")
+
+    def read(self) -> tuple[object, ...] | None:
+        """Read what has arrived; the binned turn when one completed, else None."""
+        s = self._serial
+        if s is None:
+            return None
+        self._buffer += s.read(max(NODE_SIZE, getattr(s, "in_waiting", 0) or 0))
+        result = None
+        buf = self._buffer
+        i = 0
+        while len(buf) - i >= NODE_SIZE:
+            node = decode_node(bytes(buf[i:i + NODE_SIZE]))
+            if node is None:
+                i += 1
+                self.resyncs += 1
+                continue
+            i += NODE_SIZE
+            start, _quality, angle, distance = node
+            if start and self._turn:
+                result = (bin_scan(self._turn, self.bins, offset_deg=self.offset_deg, max_range=self.max_range),)
+                self._turn = []
+            self._turn.append((angle, distance))
+        del buf[:i]
+        return result
+
+    def close(self) -> None:
+        """Stop the scan and the motor, close the port."""
+        if self._serial is not None:
+            with contextlib.suppress(AttributeError, OSError, ValueError):
+                self._serial.write(bytes((SYNC, STOP)))
+                self._serial.dtr = True
+            self._serial.close()
+            self._serial = None
+
+
+def front_distance(dist_array: list[float] | np.ndarray, half_angle_deg: float) -> float:
+    """The nearest return within ``half_angle_deg`` either side of straight ahead (inf: none)."""
+    d = np.asarray(dist_array, dtype=float)
+    n = len(d)
+    k = int(math.ceil(half_angle_deg * n / 360.0))
+    idx = np.r_[0:k, n - k:n] if k > 0 else np.array([0])
+    ahead = d[idx]
+    ahead = ahead[ahead > 0]
+    return float(ahead.min()) if ahead.size else math.inf

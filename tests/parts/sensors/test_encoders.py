@@ -1,0 +1,199 @@
+"""Wheel encoders against their fakes: gpiozero's MockFactory pins and DonkeyCar's Arduino encoder
+protocol on a pty; the odometer and the pose models on exact arcs."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from gpiozero.pins.mock import MockFactory
+from sensor_fakes import ArduinoEncoder
+
+from parts.sensors.encoder import Encoder, EncoderError, GpioTicks, SerialTicks, gpio_pin_name
+from parts.sensors.odometry import BicyclePose, Odometer, UnicyclePose
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+@pytest.fixture
+def factory():
+    f = MockFactory()
+    yield f
+    f.reset()
+
+
+def _quadrature(a, b, cycles: int) -> None:
+    """Drive A and B through ``cycles`` full quadrature cycles (A leads B: forward; negative: back)."""
+    states = [(0, 1), (0, 0), (1, 0), (1, 1)]  # from the pulled-up rest state (1, 1)
+    if cycles < 0:
+        states = [(1, 0), (0, 0), (0, 1), (1, 1)]
+    for _ in range(abs(cycles)):
+        for sa, sb in states:
+            a.drive_high() if sa else a.drive_low()
+            b.drive_high() if sb else b.drive_low()
+
+
+def test_pin_names_follow_donkeycar_specifiers() -> None:
+    assert gpio_pin_name(13) == "BOARD13"
+    assert gpio_pin_name("RPI_GPIO.BCM.17") == "GPIO17"
+    assert gpio_pin_name("PIGPIO.BCM.27") == "GPIO27"
+    assert gpio_pin_name("RPI_GPIO.BOARD.33") == "BOARD33"
+    assert gpio_pin_name("GPIO5") == "GPIO5"
+    with pytest.raises(EncoderError, match="header pin number"):
+        gpio_pin_name("")
+
+
+def test_quadrature_counts_both_ways(factory) -> None:
+    ticks = GpioTicks("GPIO17", "GPIO18", pin_factory=factory)
+    ticks.open()
+    a, b = factory.pin(17), factory.pin(18)
+    _quadrature(a, b, 7)
+    assert ticks.read() == (7,)
+    _quadrature(a, b, -3)
+    assert ticks.read() == (4,)
+    ticks.close()
+
+
+@pytest.mark.parametrize(("mode", "expected"), [("FORWARD_ONLY", 5 + 3 + 2), ("FORWARD_REVERSE", 5 - 3 - 2),
+                                                ("FORWARD_REVERSE_STOP", 5 - 3)])
+def test_single_channel_direction_follows_the_throttle(factory, mode, expected) -> None:
+    ticks = GpioTicks(13, mode=mode, pin_factory=factory)
+    ticks.open()
+    pin = factory.pin(27)  # header pin 13 is BCM 27
+
+    def pulses(n: int) -> None:
+        for _ in range(n):
+            pin.drive_low()
+            pin.drive_high()
+
+    ticks.set_throttle(0.4)
+    pulses(5)
+    ticks.set_throttle(-0.3)
+    pulses(3)
+    ticks.set_throttle(0.0)  # coasting: the last direction, or nothing counted (STOP)
+    pulses(2)
+    assert ticks.read() == (expected,)
+    ticks.close()
+
+
+def test_serial_encoder_protocol_and_staleness() -> None:
+    device = ArduinoEncoder(channels=2)
+    clock = Clock()
+    try:
+        part = Encoder(SerialTicks(device.path, channels=2), max_age=0.2, clock=clock)
+        assert part.OUTPUTS == ("enc/left/ticks", "enc/right/ticks", "enc/timestamp", "enc/ok")
+        device.ticks = [55, 55]
+        assert part.run(None) == (0, 0, 0.0, True)  # opening reset the counts ("r"), then "p"
+        assert device.received.startswith(b"r\n")
+        device.ticks, device.millis = [120, -7], 5000
+        clock.t = 1.0
+        assert part.run(None) == (120, -7, 1.0, True)
+        assert device.received.count(b"p\n") == 2
+        device.silent = True  # the microcontroller stops answering
+        part.source.timeout = 0.05
+        part.source._serial.timeout = 0.05
+        clock.t = 1.1
+        assert part.run(None) == (120, -7, 1.0, True)  # within max_age: the last reading
+        clock.t = 1.3
+        assert part.run(None) == (None, None, None, False)
+        device.silent = False
+        device.ticks = [130, -7]
+        assert part.run(None) == (130, -7, 1.3, True)
+    finally:
+        part.shutdown()
+        device.close()
+
+
+def test_serial_encoder_ignores_garbage() -> None:
+    source = SerialTicks("unused", channels=1)
+    assert source.parse(b"42,1000\r\n") == (42,)
+    assert source.parse(b"-5,10;7,10\n") == (-5,)
+    assert source.parse(b"\x00garbage\n") is None
+    assert source.parse(b"42\n") is None
+
+
+def test_missing_serial_port_says_what_to_check() -> None:
+    with pytest.raises(EncoderError, match="ODOM_SERIAL"):
+        SerialTicks("/dev/ttyNOPE").open()
+
+
+def test_odometer_distance_and_smoothed_speed() -> None:
+    odo = Odometer(0.01, smoothing=3)  # 1 cm per tick
+    assert odo.run(0, 0.0) == (0.0, 0.0)
+    assert odo.run(10, 0.1) == pytest.approx((0.1, 1.0))
+    assert odo.run(30, 0.2) == pytest.approx((0.3, 1.5))
+    assert odo.run(60, 0.3) == pytest.approx((0.6, 2.0))  # over 3 readings: 0.6 m / 0.3 s
+    assert odo.run(80, 0.4) == pytest.approx((0.8, 7 * 0.1 / 0.3))
+    assert odo.run(None, None) == (None, None)  # stale encoder: no speed, history restarts
+    assert odo.run(90, 1.0) == pytest.approx((0.9, 0.0))
+
+
+def test_bicycle_pose_follows_a_circle() -> None:
+    wheel_base, max_angle = 0.26, math.radians(25)
+    pose = BicyclePose(wheel_base, max_angle)
+    radius = wheel_base / math.tan(max_angle * 0.5)  # angle -0.5: half left
+    pose.run(0.0, 0.0, -0.5)
+    circumference = 2 * math.pi * radius
+    n = 100
+    for i in range(1, n + 1):
+        out = pose.run(circumference * i / n, i * 0.05, -0.5)
+        x, y, heading = out[:3]
+        phi = 2 * math.pi * i / n
+        assert x == pytest.approx(radius * math.sin(phi), abs=1e-9)
+        assert y == pytest.approx(radius * (1 - math.cos(phi)), abs=1e-9)
+    assert heading == pytest.approx(0.0, abs=1e-9)
+    assert out[5] == pytest.approx(2 * math.pi / n / 0.05)  # vel/angle, rad/s
+    assert pose.run(None, None, 0.0) == (None,) * 6
+
+
+def test_unicycle_pose_turns_on_the_spot_and_drives_straight() -> None:
+    pose = UnicyclePose(0.2)
+    pose.run(0.0, 0.0, 0.0)
+    quarter = math.pi / 2 * 0.1  # each wheel's arc for a quarter turn about the axle's middle
+    x, y, heading = pose.run(-quarter, quarter, 0.1)[:3]
+    assert (x, y) == pytest.approx((0.0, 0.0), abs=1e-12)
+    assert heading == pytest.approx(math.pi / 2)
+    x, y, heading, vx, vy, _ = pose.run(-quarter + 1.0, quarter + 1.0, 0.6)
+    assert (x, y) == pytest.approx((0.0, 1.0), abs=1e-12)
+    assert (vx, vy) == pytest.approx((0.0, 2.0), abs=1e-9)
+
+
+def test_a_stale_encoder_takes_the_speed_away_from_the_speed_limit() -> None:
+    from parts.drive.speed import SpeedLimit
+
+    class Ticks:  # a tick source that stops answering after a while
+        channels = 1
+
+        def __init__(self) -> None:
+            self.count, self.alive = 0, True
+
+        def open(self) -> None: ...
+        def close(self) -> None: ...
+
+        def read(self):
+            if not self.alive:
+                return None
+            self.count += 10
+            return (self.count,)
+
+    clock = Clock()
+    source = Ticks()
+    encoder, odo = Encoder(source, max_age=0.2, clock=clock), Odometer(0.01)
+    limit = SpeedLimit("enc/speed", dt=0.05)
+    throttles = []
+    for step in range(20):
+        clock.t = step * 0.05
+        source.alive = step < 10
+        ticks, stamp, ok = encoder.run(0.5)
+        speed = odo.run(ticks, stamp)[1]
+        throttles.append(limit.run(0.5, speed, 10.0))
+    assert throttles[5] == 0.5  # 2 m/s, far under a 10 m/s limit: the throttle asked for
+    assert throttles[12] == 0.5  # silent for 0.15 s < max_age: the last reading still counts
+    assert throttles[-1] == 0.0 and ok is False  # stale: no speed, the limit cannot be held, throttle 0
+    encoder.shutdown()

@@ -1,0 +1,111 @@
+"""The RPLidar driver against a fake that speaks Slamtec's scan protocol on a pty; binning; the
+obstacle stop part."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from sensor_fakes import RPLidarDevice, lidar_node, wait_for
+
+from parts.sensors.lidar import RPLidar, bin_scan, decode_node, front_distance
+from parts.sensors.obstacle import ObstacleStop
+
+
+def test_node_decoding_matches_the_protocol() -> None:
+    assert decode_node(lidar_node(123.5, 2.25, start=True)) == (True, 47, 123.5, 2.25)
+    assert decode_node(lidar_node(359.984375, 0.0, start=False))[1:] == (47, 359.984375, 0.0)
+    bad = bytearray(lidar_node(10.0, 1.0, start=True))
+    bad[0] |= 2  # S and !S both set
+    assert decode_node(bytes(bad)) is None
+    bad = bytearray(lidar_node(10.0, 1.0, start=True))
+    bad[1] &= 0xFE  # C bit clear
+    assert decode_node(bytes(bad)) is None
+
+
+def test_binning_is_counter_clockwise_from_the_front() -> None:
+    # a sensor angle of 90 degrees clockwise is the car's right = 270 counter-clockwise
+    # and 0.5 degrees clockwise is 359.5 counter-clockwise, in the last bin
+    out = bin_scan([(90.0, 1.0), (270.0, 2.0), (0.0, 3.0), (0.5, 0.7), (180.0, 0.0), (200.0, 13.0)], bins=4)
+    assert out == [3.0, 2.0, 0.0, 0.7]
+    # mounted backwards: sensor angle 180 is the car's front
+    assert bin_scan([(180.0, 1.5)], bins=4, offset_deg=180.0) == [1.5, 0.0, 0.0, 0.0]
+    assert front_distance([0.0, 3.0, 0.0, 0.9], 90.0) == 0.9
+    assert front_distance([0.0, 0.0, 0.0, 0.0], 30.0) == math.inf
+
+
+def _scene(angle: float) -> float:
+    """A wall 1.2 m in front (sensor angles 350-10), an object 0.6 m at the car's left, else nothing."""
+    if angle >= 350 or angle < 10:
+        return 1.2
+    if 265 <= angle < 275:  # clockwise 270 = left
+        return 0.6
+    return 0.0
+
+
+def test_rplidar_scan_session_and_resync() -> None:
+    device = RPLidarDevice(_scene, points_per_turn=360)
+    clock = [0.0]
+    part = RPLidar(device.path, bins=36, max_age=0.5, clock=lambda: clock[0])
+    try:
+        out: list = []
+        wait_for(lambda: out.append(part.run()) or out[-1][-1])
+        assert device.commands[:2] == [0x25, 0x20]  # STOP, then SCAN
+        dist = out[-1][0]
+        assert len(dist) == 36 and dist[0] == pytest.approx(1.2) and dist[35] == pytest.approx(1.2)
+        assert dist[9] == pytest.approx(0.6)  # bin 9 = 90-100 degrees counter-clockwise: left
+        assert dist[18] == 0.0
+        device.garbage = b"\x00\x17\x42"  # a framing error: the driver finds the nodes again
+        before = part.resyncs
+        wait_for(lambda: part.run() and part.resyncs > before)
+        turns = part._version
+        wait_for(lambda: part.run() and part._version > turns)  # a whole turn after the garbage
+        assert part.run()[0][9] == pytest.approx(0.6) and part.resyncs - before <= len(device.garbage) + 5
+        device.scanning = False  # the motor stalls
+        part._serial.timeout = 0.05
+        clock[0] = 1.0
+        assert part.run() == (None, False)
+    finally:
+        part.shutdown()
+        device.close()
+    assert device.commands[-1] == 0x25  # stopped on shutdown
+
+
+def test_rplidar_that_does_not_answer_is_named() -> None:
+    from parts.sensors.lidar import LidarError
+
+    device = RPLidarDevice(_scene)
+    device.on_bytes = lambda data: None  # deaf
+    part = RPLidar(device.path)
+    part._factory = None
+    try:
+        import serial
+
+        part._factory = lambda p, b, t: serial.serial_for_url(p, baudrate=b, timeout=0.1)
+        with pytest.raises(LidarError, match="SCAN answered nothing"):
+            part.open()
+    finally:
+        part.close()
+        device.close()
+
+
+def test_obstacle_stop_brakes_then_holds_neutral() -> None:
+    stop = ObstacleStop(0.5, half_angle_deg=20, brake=0.6, decel=2.0, latency=0.1, rolling=0.05)
+    assert stop.trigger(None) == 0.5 and stop.trigger(2.0) == pytest.approx(0.5 + 0.2 + 1.0)
+    clear = [0.0] * 36
+    near = [0.0] * 36
+    near[35] = 0.4  # 350-360 degrees: just right of straight ahead
+    assert stop.run(0.7, clear, True, 1.0) == (0.7, False, None)
+    assert stop.run(0.7, near, True, 1.0) == (-0.6, True, 0.4)  # rolling: brake
+    far = [0.0] * 36
+    far[0] = 1.5
+    assert stop.run(0.7, far, True, 0.5)[:2] == (0.7, False)  # 1.5 m is room enough at 0.5 m/s
+    assert stop.run(0.7, far, True, 2.0)[:2] == (-0.6, True)  # ... not at 2 m/s
+    assert stop.run(0.7, near, True, 0.0) == (0.0, True, 0.4)  # standing: neutral, never reverse
+    assert stop.run(0.7, near, True, None) == (0.0, True, 0.4)  # speed unknown: neutral
+    assert stop.run(-0.5, near, True, 0.0) == (-0.5, False, 0.4)  # backing away is allowed
+    side = [0.0] * 36
+    side[9] = 0.2  # at the left: not in the way
+    assert stop.run(0.7, side, True, 1.0) == (0.7, False, None)
+    assert stop.run(0.7, None, False, 1.0) == (-0.6, True, None)  # blind: stop
+    assert ObstacleStop(0.5, stop_when_blind=False).run(0.7, None, False, 1.0)[0] == 0.7
