@@ -151,12 +151,12 @@ def test_every_part_of_the_basic_car_keeps_the_contract(tmp_path, make_model_fil
 
 
 def test_every_drivetrain_and_hardware_free_camera_row_keeps_the_contract():
+    from fixtures.drivetrain_rigs import ALL, Rig
+
     from parts.actuators.fake_pca9685 import FakeI2C
     from parts.actuators.registry import DRIVETRAINS
     from parts.cameras.base import Camera
     from parts.cameras.registry import CAMERAS
-
-    from fixtures.drivetrain_rigs import ALL, Rig
 
     for name in DRIVETRAINS:
         if name in ALL:  # GPIO and serial drivetrains: each with a fake of its hardware
