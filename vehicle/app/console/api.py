@@ -59,6 +59,8 @@ async def read_json(request: Any) -> dict[str, Any]:
         data = json.loads(await request.text())
     except ValueError as exc:
         raise ApiError(400, f"the body is not valid JSON: {exc}") from exc
+    except RecursionError:  # json's decoder recurses once per [ or {: a hostile body exhausts the stack
+        raise ApiError(400, "the body is nested too deeply: send a flat JSON object") from None
     if not isinstance(data, dict):
         raise ApiError(400, "the body must be a JSON object")
     return data
