@@ -22,11 +22,12 @@ close. A power cut then loses at most the window whose lines await the next comm
 being committed and the one being written.
 
 A new catalog file (DonkeyCar: every max_len records) appears with its first lines: the job
-that asks for it closes the current catalog, and the next job's lines create the new file
-atomically (written to a temporary file, synced, renamed), then its ``.catalog_manifest``; the
-manifest.json that lists it is written only then. A kill at any instant therefore never leaves an
-empty catalog behind, which DonkeyCar cannot open (``cannot mmap an empty file``), nor a listed
-catalog without its file.
+that asks for it closes the current catalog, and the next job's lines are written to a hidden
+staged file (synced), then the new catalog's ``.catalog_manifest``, then the manifest.json that
+lists it, and only then is the staged file renamed into place (:mod:`parts.tub.births`). A kill at
+any instant therefore never leaves an empty catalog behind, which DonkeyCar cannot open (``cannot
+mmap an empty file``), nor records in a catalog manifest.json does not list (DonkeyCar would
+silently read fewer); a listed catalog still staged is put in place by the next writable open.
 
 A job that fails is kept: records submitted later are merged into it (one sync, one append) and
 it is tried again at the next submission (inline) or after ``RETRY_S`` (background), so nothing
@@ -45,9 +46,10 @@ from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 
-from parts.tub.catalog import CatalogFile
+from parts.tub.births import staged_catalog
+from parts.tub.catalog import CatalogFile, write_catalog_manifest
 from parts.tub.errors import TubError
-from parts.tub.format import atomic_write
+from parts.tub.format import O_BINARY, atomic_write, fsync_dir, write_all
 from parts.tub.image_files import ImageFiles
 
 logger = logging.getLogger(__name__)
@@ -308,21 +310,34 @@ class Committer:
             job.manifest = None
 
     def _start_catalog(self, job: _Job) -> None:
-        """Create the next catalog holding ``job``'s lines (after their images), then its
-        ``.catalog_manifest``, then the manifest.json held back for it."""
+        """Create the next catalog holding ``job``'s lines (after their images): staged in a hidden
+        file, then its ``.catalog_manifest``, then the manifest.json held back for it (which lists
+        it), then renamed into place (parts.tub.births: DonkeyCar never silently reads fewer)."""
         assert self._next is not None  # noqa: S101 - a rollover job ran before
         path, start = self._next
         if self.durable:
             self.images.sync()  # the images before their catalog lines
-        atomic_write(path, "".join(job.lines), durable=self.durable)  # a retry rewrites it whole
+        data = "".join(job.lines).encode()
+        staged = staged_catalog(path)
+        fd = os.open(staged, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | O_BINARY, 0o644)  # a retry rewrites it whole
+        try:
+            write_all(fd, data)
+            if self.durable:
+                os.fsync(fd)
+        finally:
+            os.close(fd)
+        write_catalog_manifest(path, start, [len(line) for line in job.lines],
+                               durable=self.durable)
+        if self._held_manifest is not None:
+            atomic_write(self.tub_path / "manifest.json", self._held_manifest, durable=self.durable)
+            self._held_manifest = None
+        os.replace(staged, path)
+        if self.durable:
+            fsync_dir(path.parent)
         self.catalog = CatalogFile.open_append(path, start, durable=self.durable)
         self._next = None
         self._unsynced, self._durable_size = [], self.catalog.size
         job.lines = []
-        if self._held_manifest is not None:
-            if job.manifest is None:
-                job.manifest = self._held_manifest
-            self._held_manifest = None
 
     def _sync_lines(self) -> None:
         """fsync the catalog lines that were appended without one."""

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from parts.tub.births import absent_or_empty, complete_staged, create_whole
 from parts.tub.catalog import CatalogFile, parse_line, record_index, scan_catalog
 from parts.tub.codec import encode_image
 from parts.tub.committer import Committer
@@ -30,6 +31,7 @@ from parts.tub.format import (
     IMAGE_TYPES,
     IMAGES,
     INDEX,
+    MANIFEST,
     SESSION,
     TIMESTAMP,
     catalog_manifest_name,
@@ -40,7 +42,7 @@ from parts.tub.format import (
     image_file_name,
 )
 from parts.tub.image_files import ImageFiles
-from parts.tub.manifest import Manifest, parse_metadata
+from parts.tub.manifest import Manifest, parse_manifest, parse_metadata
 from parts.tub.recovery import inspect_tub
 
 logger = logging.getLogger(__name__)
@@ -97,7 +99,7 @@ class Tub:
                  types: list[str] | None = None, metadata: Mapping[str, Any] | Iterable[str] | None = None,
                  max_catalog_len: int = 1000, read_only: bool = False, *, fsync: bool = True,
                  fsync_records: int = 20, fsync_ms: float = 500.0, jpeg_quality: int = 75,
-                 commit_thread: bool = False) -> None:
+                 commit_thread: bool = False, _skeleton: bool = False) -> None:
         if not isinstance(max_catalog_len, int) or max_catalog_len < 1:
             raise ValueError(f"max_catalog_len must be a positive int, got {max_catalog_len!r}")
         if fsync_records < 0 or fsync_ms < 0:
@@ -123,6 +125,13 @@ class Tub:
         if inputs is not None or types is not None:
             check_schema(list(inputs or []), list(types or []))
         user_meta = parse_metadata(metadata)
+        if not read_only and inputs is not None and not _skeleton and absent_or_empty(self.path):
+            # built whole in a hidden folder, then renamed: a kill leaves no tub or a complete one
+            create_whole(self.path, lambda tmp: Tub(tmp, inputs, types, metadata=user_meta,
+                                                    max_catalog_len=max_catalog_len, fsync=fsync,
+                                                    _skeleton=True).close(), durable=fsync)
+        completed = [] if read_only or not self.path.is_dir() else \
+            complete_staged(self.path, parse_manifest(self.path / MANIFEST).manifest.paths)
         if not self.path.exists():
             if read_only:
                 raise TubError(f"{self.path}: no such tub folder")
@@ -132,7 +141,7 @@ class Tub:
         elif not self.path.is_dir():
             raise TubError(f"{self.path} is a file, not a tub folder")
         state = inspect_tub(self.path, max_catalog_len)
-        self.problems = list(state.problems)
+        self.problems = completed + list(state.problems)
         self.torn = dict(state.torn)  # catalog name -> bytes of its torn last line (cut when writable)
         self._dropped = list(state.dropped)  # empty trailing catalogs, removed when writable
         if read_only and not state.is_tub:
