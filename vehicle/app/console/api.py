@@ -447,7 +447,9 @@ class Api:
                 entry = self.registry.set_comment(entry.name, (c or "").strip() or None)
             if body.get("name") is not None and str(body["name"]).strip() != entry.name:
                 try:
+                    old = entry.name
                     entry = self.registry.rename(entry.name, str(body["name"]))
+                    self.app.jobs.model_renamed(old, entry.name)
                 except RegistryError as exc:
                     raise ApiError(409 if "exists" in str(exc) or "already" in str(exc) else 400,
                                    str(exc), "name") from exc
