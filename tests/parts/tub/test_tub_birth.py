@@ -64,13 +64,23 @@ def _listed_and_on_disk(path):
 
 
 def test_a_tub_killed_while_it_is_created_is_complete_or_absent(tmp_path, donkeycar_opens):
-    n, windows = 0, 0
+    from parts.tub.errors import TubError
+    from parts.tub.reader import find_tubs
+
+    n, windows, hidden_seen = 0, 0, False
     while True:
         n += 1
         path = tmp_path / f"tub_{n}"
         if not _killed_at(n, lambda p=path: Tub(p, INPUTS, TYPES, max_catalog_len=5).close()):
             break
         windows += 1
+        if any(p.name.startswith(".") for p in tmp_path.iterdir()):  # a half-built tub is no tub yet
+            hidden_seen = True
+            try:
+                tubs = find_tubs([tmp_path])
+            except TubError:  # none yet
+                tubs = []
+            assert not [t for t in tubs if t.name.startswith(".")]
         visible = sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith("."))
         if path.name not in visible:
             continue  # absent (a hidden half-built folder is removed by the next creation)
@@ -82,7 +92,7 @@ def test_a_tub_killed_while_it_is_created_is_complete_or_absent(tmp_path, donkey
                 w.write_record({"cam/image_array": _frame(i), "user/angle": 0.1 * i})
         assert donkeycar_opens(path) == [], f"call {n}"
         assert check_tub(path).ok, f"call {n}"
-    assert windows > 5
+    assert windows > 5 and hidden_seen
     # the next creation removes the hidden folders the killed ones left
     Tub(tmp_path / "last", INPUTS, TYPES).close()
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []

@@ -24,9 +24,8 @@ def _open(page, url, route=""):
 
 def _finished_jobs(config, model):
     """A finished training of ``model`` and a finished evaluation of it, as a console stored them."""
-    from vehicle.app.console.jobs import _TABLE
-
     from parts.pilots.model_db import DB_FILENAME
+    from vehicle.app.console.jobs import _TABLE
 
     db = config.path("MODELS_PATH") / DB_FILENAME
     overall = {"autonomy": 100.0, "laps_completed": 1, "mean_abs_cte": 0.1, "mean_speed": 1.0, "interventions": 0}
@@ -101,9 +100,8 @@ def test_training_setup_preview_and_name_error(page_factory, url, registered_mod
 
 
 def test_a_training_cancelled_before_its_first_epoch_says_no_model_was_saved(page, config, console_factory):
-    from vehicle.app.console.jobs import _TABLE
-
     from parts.pilots.model_db import DB_FILENAME
+    from vehicle.app.console.jobs import _TABLE
 
     db = config.path("MODELS_PATH") / DB_FILENAME
     with sqlite3.connect(db) as conn:
