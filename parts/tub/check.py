@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import json
 import logging
 import os
+import zlib
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -12,7 +14,15 @@ from typing import Any
 from parts.tub.births import remove_stillborn, stillborn
 from parts.tub.catalog import parse_line, read_catalog_manifest, scan_catalog, write_catalog_manifest
 from parts.tub.codec import image_problem
-from parts.tub.format import IMAGE_TYPES, INDEX, atomic_write, catalog_manifest_name, dumps_record
+from parts.tub.format import (
+    IMAGE_CRCS,
+    IMAGE_TYPES,
+    INDEX,
+    SESSION,
+    atomic_write,
+    catalog_manifest_name,
+    dumps_record,
+)
 from parts.tub.tub import Tub
 
 logger = logging.getLogger(__name__)
@@ -94,6 +104,7 @@ def check_tub(path: str | os.PathLike[str], repair: bool = False, decode: bool =
         ro.close()
     tub = Tub(path) if repair else ro
     image_keys = [k for k, t in zip(tub.inputs, tub.types, strict=True) if t in IMAGE_TYPES]
+    crcs = read_image_crcs(tub.path)
     seen: Counter[int] = Counter()
     referenced: set[str] = set()
     deleted = tub.manifest.deleted_indexes
@@ -111,7 +122,9 @@ def check_tub(path: str | os.PathLike[str], repair: bool = False, decode: bool =
         if index in deleted:
             continue
         report.records += 1
-        why = _image_problem(tub.images_path, rec, image_keys, decode)
+        crc = crcs.get(index)
+        expected = crc[1] if crc is not None and crc[0] == rec.get(SESSION) else None
+        why = _image_problem(tub.images_path, rec, image_keys, decode, expected)
         if why:
             report.bad_records[index] = why
     bar.close()
@@ -187,7 +200,25 @@ def _torn(catalog: Path) -> int:
     return len(data) - (data.rfind(b"\n") + 1)
 
 
-def _image_problem(images: Path, rec: dict, keys: list[str], decode: bool) -> str | None:
+def read_image_crcs(tub: Path) -> dict[int, tuple[Any, dict[str, int]]]:
+    """The image checksums the writer recorded (IMAGE_CRCS): index -> (session id, key -> CRC-32).
+    Unreadable lines (a torn last one) are skipped; a record without a line is not verified."""
+    out: dict[int, tuple[Any, dict[str, int]]] = {}
+    try:
+        data = (tub / IMAGE_CRCS).read_bytes()
+    except OSError:
+        return out
+    for line in data.splitlines():
+        try:
+            entry = json.loads(line)
+            out[int(entry[INDEX])] = (entry.get(SESSION), {str(k): int(v) for k, v in entry["crc32"].items()})
+        except (ValueError, KeyError, TypeError, AttributeError):
+            continue
+    return out
+
+
+def _image_problem(images: Path, rec: dict, keys: list[str], decode: bool,
+                   crcs: dict[str, int] | None = None) -> str | None:
     for key in keys:
         name = rec.get(key)
         if not isinstance(name, str):
@@ -200,6 +231,8 @@ def _image_problem(images: Path, rec: dict, keys: list[str], decode: bool) -> st
         why = image_problem(data, name, decode)
         if why:
             return f"{path.name}: {why}"
+        if crcs is not None and key in crcs and zlib.crc32(data) != crcs[key]:
+            return f"{path.name}: changed since it was recorded (its CRC-32 differs from {IMAGE_CRCS})"
     return None
 
 

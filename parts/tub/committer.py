@@ -43,13 +43,13 @@ import os
 import threading
 import time
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from parts.tub.births import staged_catalog
 from parts.tub.catalog import CatalogFile, write_catalog_manifest
 from parts.tub.errors import TubError
-from parts.tub.format import O_BINARY, atomic_write, fsync_dir, write_all
+from parts.tub.format import IMAGE_CRCS, O_BINARY, atomic_write, fsync_dir, write_all
 from parts.tub.image_files import ImageFiles
 
 logger = logging.getLogger(__name__)
@@ -64,10 +64,12 @@ class _Job:
     next_catalog: tuple[Path, int] | None = None    # then start this catalog (path, start index)
     manifest: str | None = None                     # then write this manifest.json text
     durable: bool = False                           # make every line durable now (flush, close)
+    crcs: list[str] = field(default_factory=list)   # IMAGE_CRCS lines of these records (after them)
 
     def absorb(self, later: _Job) -> None:
         """Take a later job's work (only while this one starts no catalog: lines must stay in it)."""
         self.lines.extend(later.lines)
+        self.crcs.extend(later.crcs)
         self.next_catalog = later.next_catalog
         if later.manifest is not None:
             self.manifest = later.manifest
@@ -88,6 +90,7 @@ class Committer:
         self.catalog: CatalogFile | None = catalog  # None between a rollover and its first lines
         self._next: tuple[Path, int] | None = None  # the catalog to create with the next lines
         self._held_manifest: str | None = None      # manifest.json text that lists it
+        self._crc_failed = False                     # IMAGE_CRCS could not be written (said once)
         self.durable = durable
         # Catalog lines made durable by the next commit's syncfs (see the module docstring): the
         # lines appended since the last sync that covered them, and the catalog's size before.
@@ -116,12 +119,12 @@ class Committer:
 
     # -- submitting ------------------------------------------------------------------------------
     def submit(self, lines: list[str], next_catalog: tuple[Path, int] | None = None,
-               manifest: str | None = None, durable: bool = False) -> None:
+               manifest: str | None = None, durable: bool = False, crcs: list[str] | None = None) -> None:
         """Queue a commit (inline: run it now, raising on failure; the job is kept for a retry).
 
         ``durable``: every catalog line is made durable by this job, none waits for a later one.
         """
-        job = _Job(lines, next_catalog, manifest, durable)
+        job = _Job(lines, next_catalog, manifest, durable, list(crcs or []))
         with self._cond:
             if self._thread is not None:
                 # one window ahead at most: wait while a job is being committed
@@ -288,6 +291,9 @@ class Committer:
             elif self.durable:
                 self._unsynced = []  # the fsync covered earlier lines too
             job.lines = []
+        if job.crcs:  # their records' lines are in the catalog now
+            self._append_crcs(job.crcs)
+            job.crcs = []
         if job.durable or job.manifest is not None or job.next_catalog is not None:
             try:  # before a manifest lists them, their catalog closes, or flush() returns
                 self._sync_lines()
@@ -338,6 +344,22 @@ class Committer:
         self._next = None
         self._unsynced, self._durable_size = [], self.catalog.size
         job.lines = []
+
+    def _append_crcs(self, lines: list[str]) -> None:
+        """Append the records' image checksums to IMAGE_CRCS. Never fails a commit: a line lost
+        (a crash, a full disk) leaves its images unchecked; a line whose record a crash lost names
+        a session no later record has (sessions are never reused), so it is never applied."""
+        try:
+            fd = os.open(self.tub_path / IMAGE_CRCS, os.O_WRONLY | os.O_CREAT | os.O_APPEND | O_BINARY, 0o644)
+            try:
+                write_all(fd, "".join(lines).encode())
+            finally:
+                os.close(fd)
+        except OSError as exc:
+            if not self._crc_failed:
+                self._crc_failed = True
+                logger.warning("%s: cannot record image checksums (%s): tub check will not verify them",
+                               self.tub_path, exc)
 
     def _sync_lines(self) -> None:
         """fsync the catalog lines that were appended without one."""

@@ -27,6 +27,9 @@ from parts.tub.errors import TubSchemaError
 
 MANIFEST = "manifest.json"
 IMAGES = "images"
+#: our side file (DonkeyCar ignores it): one JSON line per committed record with images, its
+#: ``_index``, ``_session_id`` and the CRC-32 of each image file, which ``tub check`` verifies
+IMAGE_CRCS = "image_crc32.jsonl"
 CATALOG_RE = re.compile(r"^catalog_(\d+)\.catalog$")
 
 # Declared types DonkeyCar writes; "gray16_array" is stored as a 16-bit PNG (broken in DonkeyCar).

@@ -13,10 +13,12 @@ last completed commit, and a catalog line never reaches the disk before its imag
 from __future__ import annotations
 
 import atexit
+import json
 import logging
 import os
 import time
 import weakref
+import zlib
 from collections.abc import Callable, Iterable, Iterator, Mapping, MutableMapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -58,6 +60,7 @@ class StoredImage:
 
     name: str
     index: int
+    crc: int | None = None  # CRC-32 of the file's bytes (checked by `tub check`)
 
 
 def _close_at_exit(tub: Tub) -> Callable[[], None]:
@@ -116,6 +119,7 @@ class Tub:
         self._committer: Committer | None = None  # None: read-only
         self._images = ImageFiles(self.path / IMAGES, fsync)
         self._pending_lines: list[str] = []
+        self._pending_crcs: list[str] = []  # lines of IMAGE_CRCS for the pending records
         self._pending_since: float | None = None
         self._atexit: Callable[[], None] | None = None
         self._session_registered = False
@@ -254,7 +258,7 @@ class Tub:
                 data, ext = encode_image(value, tp, self.jpeg_quality)
                 name = image_file_name(index, key, ext)
                 self._images.write(name, data)
-                record[key] = StoredImage(name, index)
+                record[key] = StoredImage(name, index, zlib.crc32(data))
 
     def write_record(self, record: Mapping[str, Any], *, timestamp_ms: int | None = None,
                      index: int | None = None) -> int:
@@ -288,6 +292,10 @@ class Tub:
         if index > m.current_index:
             self._keep_skipped(index)
         self._append_line(contents, timestamp_ms)
+        crcs = {k: v.crc for k, v in values.items() if isinstance(v, StoredImage) and v.crc is not None}
+        if crcs:  # committed after the record's catalog line (parts.tub.committer)
+            self._pending_crcs.append(json.dumps({INDEX: index, SESSION: self.session_id, "crc32": crcs},
+                                                 sort_keys=True) + "\n")
         self.written += 1
         if self.commit_due():
             self.commit()
@@ -361,12 +369,13 @@ class Tub:
                 durable: bool = False) -> None:
         """Hand the pending catalog lines (and the manifest when due) to the committer."""
         assert self._committer is not None
-        lines, since = self._pending_lines, self._pending_since
-        self._pending_lines, self._pending_since = [], None
+        lines, since, crcs = self._pending_lines, self._pending_since, self._pending_crcs
+        self._pending_lines, self._pending_since, self._pending_crcs = [], None, []
         try:
-            self._committer.submit(lines, next_catalog, self._manifest_text(force_manifest), durable)
+            self._committer.submit(lines, next_catalog, self._manifest_text(force_manifest), durable, crcs)
         except TubError:  # refused (the commit thread failed): the lines stay pending
             self._pending_lines[:0] = lines
+            self._pending_crcs[:0] = crcs
             self._pending_since = since
             raise
 

@@ -184,3 +184,42 @@ def test_repair_removes_a_tub_an_older_version_left_at_its_birth(tmp_path, files
     out = capsys.readouterr().out
     assert "removed" in out and not born.exists() and good.is_dir()
     assert main(["tub", "check", str(data)]) == 0
+
+
+def test_check_finds_an_image_damaged_in_its_middle_by_its_crc(tmp_path, donkeycar_opens):
+    """Item 12: the writer records each image's CRC-32 in a side file DonkeyCar ignores; check
+    finds a 1-byte change in the middle of a JPEG that still decodes cleanly."""
+    from parts.tub.writer import TubWriter
+
+    path = tmp_path / "tub"
+    writer = TubWriter(path, INPUTS, TYPES, max_catalog_len=4)
+    rng = np.random.default_rng(0)
+    for i in range(10):
+        writer.run(rng.integers(0, 255, (24, 32, 3), dtype=np.uint8), 0.1 * i)
+    writer.shutdown()
+    assert check_tub(path).ok
+    assert donkeycar_opens(path) == []
+    images = sorted((path / "images").iterdir())
+    victim = images[5]
+    data = bytearray(victim.read_bytes())
+    data[len(data) // 2] ^= 0x01  # one bit, mid-scan: the JPEG still decodes
+    victim.write_bytes(bytes(data))
+    report = check_tub(path)
+    assert list(report.bad_records.values()) == [f"{victim.name}: changed since it was recorded (its CRC-32 "
+                                                 "differs from image_crc32.jsonl)"]
+    check_tub(path, repair=True)
+    assert check_tub(path).ok and len(Tub(path, read_only=True)) == 9
+
+
+def test_a_crc_of_a_record_a_crash_lost_is_never_applied(tmp_path):
+    """A checksum line whose record never reached the catalog names a session no later record has."""
+    path = tmp_path / "tub"
+    with Tub(path, INPUTS, TYPES) as tub:
+        tub.write_record({"cam/image_array": _frame(1), "user/angle": 0.1})
+    with Tub(path) as tub:  # index 1 in a run that lost it to a crash: its checksum line outlived it
+        tub.write_record({"cam/image_array": _frame(2), "user/angle": 0.2}, timestamp_ms=1)
+    crcs = path / "image_crc32.jsonl"
+    stale = crcs.read_text().splitlines()[-1].replace('"_session_id": "', '"_session_id": "lost_')
+    with crcs.open("a") as f:  # the last word on index 1: a session no record has
+        f.write(stale.replace('"crc32": {"cam/image_array": ', '"crc32": {"cam/image_array": 1') + "\n{torn")
+    assert check_tub(path).ok
