@@ -42,19 +42,32 @@ def absent_or_empty(path: Path) -> bool:
 
 def create_whole(path: Path, build: Callable[[Path], None], durable: bool = True) -> None:
     """Create the folder ``path`` (absent or empty) all at once: ``build(tmp)`` fills a hidden
-    folder beside it, which is then renamed to ``path``. A kill leaves ``path`` as it was."""
+    folder beside it, which is then renamed to ``path``. A kill leaves ``path`` as it was.
+
+    Where that cannot be done (``path`` is an empty mount point, such as a USB stick's root, or its
+    parent is read-only) the folder is built in place, as before."""
     path.parent.mkdir(parents=True, exist_ok=True)
     remove_stale_partials(path.parent)
     tmp = path.parent / f".{path.name}.partial-{os.getpid()}"
     shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir()
+    try:
+        tmp.mkdir()
+    except OSError:  # a read-only parent
+        build(path)
+        return
     try:
         build(tmp)
         if durable:
             fsync_dir(tmp)
         if os.name == "nt" and path.is_dir():
             path.rmdir()  # Windows renames onto no folder, even an empty one
-        os.replace(tmp, path)  # POSIX: replaces an empty folder atomically
+        try:
+            os.replace(tmp, path)  # POSIX: replaces an empty folder atomically
+        except OSError as exc:  # EBUSY (a mount point), EXDEV
+            logger.debug("%s: built in place (%s)", path, exc)
+            shutil.rmtree(tmp, ignore_errors=True)
+            build(path)
+            return
         if durable:
             fsync_dir(path.parent)
     except BaseException:

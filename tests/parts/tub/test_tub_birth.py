@@ -223,3 +223,23 @@ def test_a_crc_of_a_record_a_crash_lost_is_never_applied(tmp_path):
     with crcs.open("a") as f:  # the last word on index 1: a session no record has
         f.write(stale.replace('"crc32": {"cam/image_array": ', '"crc32": {"cam/image_array": 1') + "\n{torn")
     assert check_tub(path).ok
+
+
+def test_a_tub_is_built_in_place_where_it_cannot_be_renamed_into_place(tmp_path, monkeypatch):
+    """An empty mount point (a USB stick's root) cannot be replaced by a rename: built in place."""
+    import errno
+
+    real = os.replace
+
+    def busy(src, dst):
+        if str(src).endswith(f".partial-{os.getpid()}"):
+            raise OSError(errno.EBUSY, "Device or resource busy")
+        return real(src, dst)
+
+    monkeypatch.setattr(os, "replace", busy)
+    stick = tmp_path / "stick"
+    stick.mkdir()
+    with Tub(stick, INPUTS, TYPES) as tub:
+        tub.write_record({"cam/image_array": _frame(1), "user/angle": 0.1})
+    assert len(Tub(stick, read_only=True)) == 1 and check_tub(stick).ok
+    assert [p.name for p in tmp_path.iterdir()] == ["stick"]
