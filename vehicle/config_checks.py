@@ -16,6 +16,7 @@ beyond the standard library.
 from __future__ import annotations
 
 import math
+import string
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -95,14 +96,28 @@ class Range:
         return f"{name} = {value!r}"
 
 
+def secret_bits(text: str) -> float:
+    """A rough guess of a secret's strength in bits: its length (at most twice its distinct
+    characters, so ``aaaa...`` counts little) times log2 of the alphabets it draws from (digits,
+    lower case, upper case, anything else)."""
+    pools = ((string.digits, 10), (string.ascii_lowercase, 26), (string.ascii_uppercase, 26))
+    size = sum(n for chars, n in pools if any(c in chars for c in text))
+    if any(not any(c in chars for chars, _n in pools) for c in text):
+        size += 32
+    length = min(len(text), 2 * len(set(text)))
+    return length * math.log2(size) if size else 0.0
+
+
 @dataclass(frozen=True)
 class Length:
-    """A string or list of ``min`` to ``max`` items; ``secret`` values are never printed."""
+    """A string or list of ``min`` to ``max`` items; ``secret`` values are never printed and, with
+    ``min_bits``, must be that hard to guess (:func:`secret_bits`)."""
 
     min: int | None = None
     max: int | None = None
     secret: bool = False
     note: str = ""
+    min_bits: int | None = None
 
     def problem(self, value: Any) -> str | None:
         """Why ``value`` is invalid, or None."""
@@ -113,6 +128,8 @@ class Length:
             return "is empty" if n == 0 else "is too short"
         if self.max is not None and n > self.max:
             return "is too long"
+        if self.min_bits is not None and isinstance(value, str) and (bits := secret_bits(value)) < self.min_bits:
+            return f"is too weak (about {bits:.0f} bits of guessing)"
         return None
 
     def describe(self) -> str:
@@ -125,6 +142,9 @@ class Length:
                 else "at least one item"
         else:
             text = f"at most {self.max} {what}"
+        if self.min_bits is not None:
+            text += (f" and about {self.min_bits} bits (e.g. 16 random letters and digits; repeated characters "
+                     "and a single kind of character count little)")
         return f"{text}; {self.note}" if self.note else text
 
     def show(self, name: str, value: Any) -> str:

@@ -113,7 +113,8 @@ class JsonStream:
 
     ``feed(chunk)`` returns the objects completed by the chunk, in order. Newlines between objects
     are optional; an object may be split across any number of chunks, and one chunk may hold
-    several objects. Text outside objects is skipped; an object that does not parse, even after
+    several objects. Text outside objects is skipped (and counted in :attr:`junk_bytes`); an
+    object that does not parse, even after
     :func:`repair_float_commas`, is counted in :attr:`errors` and skipped.
     """
 
@@ -121,6 +122,7 @@ class JsonStream:
         self.max_message = max_message
         self.errors = 0  # objects that did not parse, and messages over max_message
         self.overflows = 0  # messages over max_message (also counted in errors)
+        self.junk_bytes = 0  # characters outside any object, whitespace aside (skipped)
         self._decoder = codecs.getincrementaldecoder("utf-8")(errors="replace")
         self._buf = ""
         self._pos = 0  # where scanning goes on
@@ -137,6 +139,7 @@ class JsonStream:
         while True:
             if self._start < 0:
                 start = buf.find("{", pos)
+                self._count_junk(buf[pos:start] if start >= 0 else buf[pos:])
                 if start < 0:
                     buf, pos = "", 0
                     break
@@ -170,6 +173,10 @@ class JsonStream:
             buf, pos, self._start = "", 0, -1
         self._buf, self._pos = buf, pos
         return out
+
+    def _count_junk(self, text: str) -> None:
+        if text:
+            self.junk_bytes += len(text) - sum(text.count(c) for c in " \t\r\n")
 
     def _emit(self, text: str, out: list[dict[str, Any]]) -> None:
         try:

@@ -13,9 +13,13 @@ messages are read as a stream (split, packed, with or without newline). ``protoc
 ``"2"`` like the simulator, plus ``"server": "vehicle-rc"`` and ``"capabilities": ["step_mode"]``
 (fields other clients ignore), so a client knows that step mode steps here.
 
-A client's messages are small: one over 64 KiB, or more than ``max_errors`` unreadable ones, ends
-its session with one log line, as does staying in the menu for ``idle_timeout_s`` without loading a
-scene (a connection that holds one of ``max_clients`` and does nothing). A camera asked with
+A client's messages are small: one over 64 KiB, more than ``max_errors`` unreadable ones, or more
+than 64 KiB of text outside any message ends its session with one log line, as does sending no
+message for ``hello_timeout_s`` after connecting (a Donkey client asks for the scenes at once) or
+staying in the menu for ``idle_timeout_s`` without loading a scene (a connection that holds one of
+``max_clients`` and does nothing). When every slot is taken, a new client takes the slot of the
+peer that has sent nothing for the longest (at least ``SILENT_EVICT_AGE_S``), which is told why in
+the log; refusals are logged once per ``REFUSED_LOG_S``. A camera asked with
 ``cam_config`` is clamped to 4096 pixels a side and 4 Mpx. A session that fails for any other
 reason logs one line and ends; the others go on.
 
@@ -55,6 +59,13 @@ logger = logging.getLogger(__name__)
 _TRACK_SCENE = re.compile(r"^track_(-?\d+)$")
 #: longest client message a session reads (client messages are a few hundred bytes)
 MAX_CLIENT_MESSAGE_BYTES: Final = 64 * 1024
+#: text outside any message a session skips before it ends (whitespace aside)
+MAX_JUNK_BYTES: Final = 64 * 1024
+#: seconds a peer must have been silent before a new client may take its slot (a real client
+#: speaks within milliseconds of connecting)
+SILENT_EVICT_AGE_S = 0.5
+#: seconds between two log lines about refused connections
+REFUSED_LOG_S: Final = 10.0
 #: simulated seconds a synchronous step may last (a client's ``time_step`` is clamped to them)
 MIN_TIME_STEP: Final = 0.001
 MAX_TIME_STEP: Final = 0.2
@@ -90,13 +101,15 @@ class DonkeyServer:
         max_clients: connections served at once; more are refused with a log line.
         idle_timeout_s: a client that loads no scene for this long after connecting (or after
             ``exit_scene``) is disconnected, so that idle connections do not hold the slots.
+        hello_timeout_s: a peer that sends no message for this long after connecting is
+            disconnected (5 s: a Donkey client asks for the scenes at once).
         max_errors: unreadable messages a session accepts before it ends.
     """
 
     def __init__(self, host: str = "127.0.0.1", port: int = proto.DEFAULT_PORT, *, seeds: Sequence[int] = (1,),
                  cfg: Any = None, telemetry_hz: float = float(proto.TELEMETRY_HZ), off_track_hit: bool = True,
                  jpeg_quality: int = 75, max_clients: int = 16, idle_timeout_s: float = 30.0,
-                 max_errors: int = 10) -> None:
+                 max_errors: int = 10, hello_timeout_s: float = 5.0) -> None:
         seeds = [seeds] if isinstance(seeds, int) else list(seeds)
         if not seeds or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds):
             raise ValueError(f"track seeds must be a non-empty list of ints, got {seeds!r}")
@@ -104,8 +117,9 @@ class DonkeyServer:
             raise ValueError(f"telemetry_hz must be > 0, got {telemetry_hz!r}")
         if not 1 <= jpeg_quality <= 100:
             raise ValueError(f"jpeg_quality must be 1..100, got {jpeg_quality!r}")
-        if not idle_timeout_s > 0:
-            raise ValueError(f"idle_timeout_s must be > 0, got {idle_timeout_s!r}")
+        if not idle_timeout_s > 0 or not hello_timeout_s > 0:
+            raise ValueError(f"idle_timeout_s and hello_timeout_s must be > 0, got {idle_timeout_s!r}, "
+                             f"{hello_timeout_s!r}")
         if max_errors < 0:
             raise ValueError(f"max_errors must be >= 0, got {max_errors!r}")
         if cfg is None:
@@ -120,6 +134,10 @@ class DonkeyServer:
         self.jpeg_quality = jpeg_quality
         self.max_clients = max_clients
         self.idle_timeout_s = float(idle_timeout_s)
+        self.hello_timeout_s = float(hello_timeout_s)
+        self.refused = 0  # connections refused because every slot was taken
+        self._refused_logged_at = -REFUSED_LOG_S
+        self._refused_unlogged = 0
         self.max_errors = max_errors
         self.sessions: list[Session] = []
         self._listener: socket.socket | None = None
@@ -193,14 +211,34 @@ class DonkeyServer:
             with self._lock:
                 self.sessions = [s for s in self.sessions if s.alive]
                 full = len(self.sessions) >= self.max_clients
+                if full:  # the slot of the peer silent the longest, if any
+                    now = time.monotonic()
+                    silent = [s for s in self.sessions if not s.spoke and now - s.connected_at >= SILENT_EVICT_AGE_S]
+                    if silent:
+                        oldest = min(silent, key=lambda s: s.connected_at)
+                        oldest.end("sent no message since it connected, and its slot was needed by a new client")
+                        self.sessions.remove(oldest)
+                        full = False
                 if not full:
                     session = Session(self, conn, address)
                     self.sessions.append(session)
             if full:
-                logger.warning("Donkey server: refused %s:%d, already %d clients (max)", *address[:2], self.max_clients)
-                conn.close()
+                self._refuse(conn, address)
                 continue
             session.start()
+
+
+    def _refuse(self, conn: socket.socket, address: Any) -> None:
+        """Close a connection no slot is free for; one log line per REFUSED_LOG_S at most."""
+        conn.close()
+        self.refused += 1
+        self._refused_unlogged += 1
+        now = time.monotonic()
+        if now - self._refused_logged_at >= REFUSED_LOG_S:
+            logger.warning("Donkey server: refused %d connection%s (the last from %s:%d): already %d clients "
+                           "(max; --max-clients)", self._refused_unlogged, "" if self._refused_unlogged == 1 else "s",
+                           *address[:2], self.max_clients)
+            self._refused_logged_at, self._refused_unlogged = now, 0
 
 
 class Session:
@@ -225,6 +263,9 @@ class Session:
         self._was_off = False
         self._prev: tuple[float, float, float, float] | None = None  # heading, vx, vz, time
         self._menu_since = time.monotonic()  # when the session last had no scene (idle timeout)
+        self.connected_at = self._menu_since
+        self.spoke = False  # it sent a readable message (a peer that never does is dropped soon)
+        self._end_reason: str | None = None  # why the server ended the session (said once, by the thread)
         self._clamp_reported = False
         self._closing = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"DonkeySession {self.address}", daemon=True)
@@ -239,6 +280,11 @@ class Session:
         self._closing.set()
         with contextlib.suppress(OSError):
             self.sock.shutdown(socket.SHUT_RDWR)
+
+    def end(self, reason: str) -> None:
+        """End the session for ``reason``, which its thread logs (thread-safe)."""
+        self._end_reason = reason
+        self.close()
 
     def join(self, timeout: float) -> None:
         """Wait for the session's thread."""
@@ -262,8 +308,12 @@ class Session:
                         if not data:
                             break
                         for msg in self.stream.feed(data):
+                            self.spoke = True
                             self._handle(msg)
                         self._check_errors()
+                    if not self.spoke and time.monotonic() - self.connected_at > self.server.hello_timeout_s:
+                        raise _SessionEnd(f"sent no message in {self.server.hello_timeout_s:.0f} s: disconnected "
+                                          "(a Donkey client asks for the scenes at once)")
                     if self.sim is None and time.monotonic() - self._menu_since > self.server.idle_timeout_s:
                         raise _SessionEnd(f"loaded no scene for {self.server.idle_timeout_s:.0f} s: disconnected "
                                           "(a Donkey client sends load_scene after scene_names)")
@@ -285,6 +335,8 @@ class Session:
                          type(exc).__name__, exc, exc_info=logger.isEnabledFor(logging.DEBUG))
         finally:
             self.alive = False
+            if self._end_reason is not None:  # ended by the server (its slot was needed)
+                logger.warning("Donkey server: client %s %s: disconnected", self.address, self._end_reason)
             with contextlib.suppress(OSError):
                 self.sock.close()
             logger.info("Donkey server: client %s left after %d steps, %d telemetry messages",
@@ -295,6 +347,9 @@ class Session:
         if self.stream.overflows:
             raise _SessionEnd(f"sent a message longer than {MAX_CLIENT_MESSAGE_BYTES // 1024} KiB (Donkey client "
                               "messages are a few hundred bytes): disconnected")
+        if self.stream.junk_bytes > MAX_JUNK_BYTES:
+            raise _SessionEnd(f"sent {self.stream.junk_bytes} bytes that are not Donkey JSON messages: disconnected "
+                              "(is it a Donkey simulator client?)")
         if self.stream.errors > self.server.max_errors:
             raise _SessionEnd(f"sent {self.stream.errors} unreadable messages: disconnected (is it a Donkey "
                               "simulator client?)")

@@ -151,6 +151,34 @@ def legacy_server_class() -> type:
     return _server_class
 
 
+def report_unreadable_frames(sio: Any, report: Any) -> bool:
+    """Have ``report(why)`` called when a peer's websocket frame cannot be read (over
+    ``max_http_buffer_size``, a protocol error): python-engineio closes the connection then without
+    a word. Wraps the aiohttp driver's websocket (a private part of python-engineio, checked here:
+    False and nothing done when it changed)."""
+    drivers = getattr(getattr(sio, "eio", None), "_async", None)
+    base = drivers.get("websocket") if isinstance(drivers, dict) else None
+    if base is None or not inspect.iscoroutinefunction(getattr(base, "wait", None)):
+        return False
+    limit = getattr(sio.eio, "max_http_buffer_size", None)
+
+    class ReportingWebSocket(base):  # type: ignore[misc, valid-type]  # untyped base
+        async def wait(self) -> Any:
+            msg = await self._sock.receive()
+            if not isinstance(msg.data, bytes | str):
+                code = getattr(msg.data, "code", None)
+                too_big = code == 1009 or "too big" in str(msg.data).lower()
+                if too_big:
+                    report(f"a message was too large (over {limit} bytes)")
+                elif msg.data is not None:
+                    report(f"an unreadable websocket frame ({type(msg.data).__name__})")
+                raise OSError()
+            return msg.data
+
+    sio.eio._async = dict(drivers, websocket=ReportingWebSocket)
+    return True
+
+
 def legacy_server(**kwargs: Any) -> Any:
     """A python-socketio ``AsyncServer`` (same keyword arguments) that serves Socket.IO v2 clients.
 

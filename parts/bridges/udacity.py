@@ -53,7 +53,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from parts.bridges.errors import BridgeError
+from parts.bridges.errors import BridgeError, OncePerKind
 from parts.bridges.udacity_protocol import (
     DECIMALS,
     FORK_KEYS,
@@ -66,6 +66,10 @@ from parts.bridges.udacity_protocol import (
     uses_decimal_comma,
 )
 from vehicle.part import ThreadedPart, run_event_loop
+
+#: largest websocket message accepted, bytes (a 320x160 JPEG telemetry is ~20 KB): a larger one
+#: closes the connection, said once
+MAX_MESSAGE_BYTES = 4_000_000
 
 logger = logging.getLogger(__name__)
 
@@ -163,7 +167,7 @@ class UdacitySim(ThreadedPart):
         self._stale_reported = False
         self._waiting_reported = False
         self._stall_reported = False
-        self._bad_reported: set[str] = set()
+        self._bad_reported = OncePerKind(logger)  # bounded: one line per kind of bad telemetry
 
     # -- lifecycle --------------------------------------------------------------------------------
     def start(self) -> UdacitySim:
@@ -320,13 +324,15 @@ class UdacitySim(ThreadedPart):
     async def _serve(self) -> Any:
         from aiohttp import web
 
-        from parts.bridges.engineio3 import legacy_server
+        from parts.bridges.engineio3 import legacy_server, report_unreadable_frames
 
         self._stop_server = asyncio.Event()
         # websocket only: the simulator never polls; the default origin check keeps browser pages
         # of other sites from posing as the simulator
         sio = legacy_server(async_mode="aiohttp", transports=["websocket"], logger=False,
-                            engineio_logger=False, max_http_buffer_size=4_000_000)
+                            engineio_logger=False, max_http_buffer_size=MAX_MESSAGE_BYTES)
+        report_unreadable_frames(sio, lambda why: self._bad_reported.report(
+            logging.ERROR, f"Udacity bridge: closed a connection: {why} (each kind of problem is said once)"))
         self._sio = sio
         sio.on("connect", self._on_connect)
         sio.on("disconnect", self._on_disconnect)
@@ -433,9 +439,8 @@ class UdacitySim(ThreadedPart):
         try:
             tel = self._parse(sid, data)
         except ValueError as exc:
-            if str(exc) not in self._bad_reported:
-                self._bad_reported.add(str(exc))
-                logger.error("Udacity bridge: unusable telemetry (%s): answered with a neutral steer", exc)
+            self._bad_reported.report(logging.ERROR, f"Udacity bridge: unusable telemetry ({exc}): answered with a "
+                                      "neutral steer (each kind of problem is said once)")
             await self._emit_steers([(sid, 0.0, 0.0)], neutral=True)
             return
         self.telemetry_count += 1

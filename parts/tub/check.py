@@ -2,16 +2,27 @@
 
 from __future__ import annotations
 
+import json
 import logging
 import os
+import zlib
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from parts.tub.catalog import read_catalog_manifest, scan_catalog, write_catalog_manifest
+from parts.tub.births import remove_stillborn, stillborn
+from parts.tub.catalog import parse_line, read_catalog_manifest, scan_catalog, write_catalog_manifest
 from parts.tub.codec import image_problem
-from parts.tub.format import IMAGE_TYPES, catalog_manifest_name
+from parts.tub.format import (
+    IMAGE_CRCS,
+    IMAGE_TYPES,
+    INDEX,
+    SESSION,
+    atomic_write,
+    catalog_manifest_name,
+    dumps_record,
+)
 from parts.tub.tub import Tub
 
 logger = logging.getLogger(__name__)
@@ -30,14 +41,19 @@ class CheckReport:
     bad_records: dict[int, str] = field(default_factory=dict)
     duplicate_indexes: list[int] = field(default_factory=list)
     orphan_images: int = 0
+    stillborn: bool = False  # a tub an older version was killed while creating (parts.tub.births)
     repaired: bool = False
 
     @property
     def ok(self) -> bool:
-        return not (self.recovered or self.catalog_manifests or self.torn_bytes or self.unparsable
+        return not (self.stillborn or self.recovered or self.catalog_manifests or self.torn_bytes or self.unparsable
                     or self.bad_records or self.duplicate_indexes)
 
     def lines(self) -> list[str]:
+        if self.stillborn:
+            return [f"{self.path}: a tub killed while it was created (by an older version): it holds no records "
+                    "and DonkeyCar cannot open it",
+                    "  removed" if self.repaired else "  run with --repair to remove it (nothing is lost)"]
         out = [f"{self.path}: {self.records} records checked"]
         out += [f"  manifest: {p}" for p in self.recovered]
         out += [f"  {p}" for p in self.catalog_manifests]
@@ -70,6 +86,12 @@ def check_tub(path: str | os.PathLike[str], repair: bool = False, decode: bool =
     drops empty trailing catalogs), bad records are soft-deleted and the catalog manifests are
     rewritten from the catalogs.
     """
+    if stillborn(Path(path)):
+        report = CheckReport(Path(path).absolute(), stillborn=True)
+        if repair:
+            remove_stillborn(Path(path))
+            report.repaired = True
+        return report
     ro = Tub(path, read_only=True)
     report = CheckReport(ro.path, recovered=list(ro.problems))
     report.catalog_manifests = _catalog_manifest_problems(ro)
@@ -82,6 +104,7 @@ def check_tub(path: str | os.PathLike[str], repair: bool = False, decode: bool =
         ro.close()
     tub = Tub(path) if repair else ro
     image_keys = [k for k, t in zip(tub.inputs, tub.types, strict=True) if t in IMAGE_TYPES]
+    crcs = read_image_crcs(tub.path)
     seen: Counter[int] = Counter()
     referenced: set[str] = set()
     deleted = tub.manifest.deleted_indexes
@@ -99,7 +122,9 @@ def check_tub(path: str | os.PathLike[str], repair: bool = False, decode: bool =
         if index in deleted:
             continue
         report.records += 1
-        why = _image_problem(tub.images_path, rec, image_keys, decode)
+        crc = crcs.get(index)
+        expected = crc[1] if crc is not None and crc[0] == rec.get(SESSION) else None
+        why = _image_problem(tub.images_path, rec, image_keys, decode, expected)
         if why:
             report.bad_records[index] = why
     bar.close()
@@ -113,6 +138,7 @@ def check_tub(path: str | os.PathLike[str], repair: bool = False, decode: bool =
         if to_delete:
             tub.delete_records(sorted(to_delete))
         tub.close()
+        _replace_unparsable(tub, report.unparsable)
         _rewrite_catalog_manifests(Tub(path, read_only=True))
         report.repaired = True
     return report
@@ -147,6 +173,25 @@ def _rewrite_catalog_manifests(tub: Tub) -> None:
             write_catalog_manifest(catalog, start, lengths, created, durable=True)
 
 
+def _replace_unparsable(tub: Tub, unparsable: list[tuple[str, int]]) -> None:
+    """Replace each unparsable line (damaged in its middle) by a bare record of its index, which
+    repair has marked deleted: DonkeyCar, which parses every line, can read the tub again, and the
+    next check finds nothing left to repair."""
+    by_catalog: dict[str, list[int]] = {}
+    for name, index in unparsable:
+        by_catalog.setdefault(name, []).append(index)
+    for catalog in tub.catalog_paths:
+        indexes = by_catalog.get(catalog.name)
+        if not indexes:
+            continue
+        lines = list(scan_catalog(catalog).lines)
+        bad = [i for i, line in enumerate(lines) if parse_line(line)[0] is None]
+        for i, index in zip(bad, indexes, strict=False):
+            lines[i] = dumps_record({INDEX: index}).encode()
+        atomic_write(catalog, b"".join(line + b"\n" for line in lines))
+        logger.info("%s: %d damaged line(s) replaced by deleted records %s", catalog, len(bad), indexes)
+
+
 def _torn(catalog: Path) -> int:
     try:
         data = catalog.read_bytes()
@@ -155,7 +200,25 @@ def _torn(catalog: Path) -> int:
     return len(data) - (data.rfind(b"\n") + 1)
 
 
-def _image_problem(images: Path, rec: dict, keys: list[str], decode: bool) -> str | None:
+def read_image_crcs(tub: Path) -> dict[int, tuple[Any, dict[str, int]]]:
+    """The image checksums the writer recorded (IMAGE_CRCS): index -> (session id, key -> CRC-32).
+    Unreadable lines (a torn last one) are skipped; a record without a line is not verified."""
+    out: dict[int, tuple[Any, dict[str, int]]] = {}
+    try:
+        data = (tub / IMAGE_CRCS).read_bytes()
+    except OSError:
+        return out
+    for line in data.splitlines():
+        try:
+            entry = json.loads(line)
+            out[int(entry[INDEX])] = (entry.get(SESSION), {str(k): int(v) for k, v in entry["crc32"].items()})
+        except (ValueError, KeyError, TypeError, AttributeError):
+            continue
+    return out
+
+
+def _image_problem(images: Path, rec: dict, keys: list[str], decode: bool,
+                   crcs: dict[str, int] | None = None) -> str | None:
     for key in keys:
         name = rec.get(key)
         if not isinstance(name, str):
@@ -168,6 +231,8 @@ def _image_problem(images: Path, rec: dict, keys: list[str], decode: bool) -> st
         why = image_problem(data, name, decode)
         if why:
             return f"{path.name}: {why}"
+        if crcs is not None and key in crcs and zlib.crc32(data) != crcs[key]:
+            return f"{path.name}: changed since it was recorded (its CRC-32 differs from {IMAGE_CRCS})"
     return None
 
 

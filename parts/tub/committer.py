@@ -22,11 +22,12 @@ close. A power cut then loses at most the window whose lines await the next comm
 being committed and the one being written.
 
 A new catalog file (DonkeyCar: every max_len records) appears with its first lines: the job
-that asks for it closes the current catalog, and the next job's lines create the new file
-atomically (written to a temporary file, synced, renamed), then its ``.catalog_manifest``; the
-manifest.json that lists it is written only then. A kill at any instant therefore never leaves an
-empty catalog behind, which DonkeyCar cannot open (``cannot mmap an empty file``), nor a listed
-catalog without its file.
+that asks for it closes the current catalog, and the next job's lines are written to a hidden
+staged file (synced), then the new catalog's ``.catalog_manifest``, then the manifest.json that
+lists it, and only then is the staged file renamed into place (:mod:`parts.tub.births`). A kill at
+any instant therefore never leaves an empty catalog behind, which DonkeyCar cannot open (``cannot
+mmap an empty file``), nor records in a catalog manifest.json does not list (DonkeyCar would
+silently read fewer); a listed catalog still staged is put in place by the next writable open.
 
 A job that fails is kept: records submitted later are merged into it (one sync, one append) and
 it is tried again at the next submission (inline) or after ``RETRY_S`` (background), so nothing
@@ -42,12 +43,13 @@ import os
 import threading
 import time
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
-from parts.tub.catalog import CatalogFile
+from parts.tub.births import staged_catalog
+from parts.tub.catalog import CatalogFile, write_catalog_manifest
 from parts.tub.errors import TubError
-from parts.tub.format import atomic_write
+from parts.tub.format import IMAGE_CRCS, O_BINARY, atomic_write, fsync_dir, write_all
 from parts.tub.image_files import ImageFiles
 
 logger = logging.getLogger(__name__)
@@ -62,10 +64,12 @@ class _Job:
     next_catalog: tuple[Path, int] | None = None    # then start this catalog (path, start index)
     manifest: str | None = None                     # then write this manifest.json text
     durable: bool = False                           # make every line durable now (flush, close)
+    crcs: list[str] = field(default_factory=list)   # IMAGE_CRCS lines of these records (after them)
 
     def absorb(self, later: _Job) -> None:
         """Take a later job's work (only while this one starts no catalog: lines must stay in it)."""
         self.lines.extend(later.lines)
+        self.crcs.extend(later.crcs)
         self.next_catalog = later.next_catalog
         if later.manifest is not None:
             self.manifest = later.manifest
@@ -86,6 +90,7 @@ class Committer:
         self.catalog: CatalogFile | None = catalog  # None between a rollover and its first lines
         self._next: tuple[Path, int] | None = None  # the catalog to create with the next lines
         self._held_manifest: str | None = None      # manifest.json text that lists it
+        self._crc_failed = False                     # IMAGE_CRCS could not be written (said once)
         self.durable = durable
         # Catalog lines made durable by the next commit's syncfs (see the module docstring): the
         # lines appended since the last sync that covered them, and the catalog's size before.
@@ -114,12 +119,12 @@ class Committer:
 
     # -- submitting ------------------------------------------------------------------------------
     def submit(self, lines: list[str], next_catalog: tuple[Path, int] | None = None,
-               manifest: str | None = None, durable: bool = False) -> None:
+               manifest: str | None = None, durable: bool = False, crcs: list[str] | None = None) -> None:
         """Queue a commit (inline: run it now, raising on failure; the job is kept for a retry).
 
         ``durable``: every catalog line is made durable by this job, none waits for a later one.
         """
-        job = _Job(lines, next_catalog, manifest, durable)
+        job = _Job(lines, next_catalog, manifest, durable, list(crcs or []))
         with self._cond:
             if self._thread is not None:
                 # one window ahead at most: wait while a job is being committed
@@ -286,6 +291,9 @@ class Committer:
             elif self.durable:
                 self._unsynced = []  # the fsync covered earlier lines too
             job.lines = []
+        if job.crcs:  # their records' lines are in the catalog now
+            self._append_crcs(job.crcs)
+            job.crcs = []
         if job.durable or job.manifest is not None or job.next_catalog is not None:
             try:  # before a manifest lists them, their catalog closes, or flush() returns
                 self._sync_lines()
@@ -308,21 +316,50 @@ class Committer:
             job.manifest = None
 
     def _start_catalog(self, job: _Job) -> None:
-        """Create the next catalog holding ``job``'s lines (after their images), then its
-        ``.catalog_manifest``, then the manifest.json held back for it."""
+        """Create the next catalog holding ``job``'s lines (after their images): staged in a hidden
+        file, then its ``.catalog_manifest``, then the manifest.json held back for it (which lists
+        it), then renamed into place (parts.tub.births: DonkeyCar never silently reads fewer)."""
         assert self._next is not None  # noqa: S101 - a rollover job ran before
         path, start = self._next
         if self.durable:
             self.images.sync()  # the images before their catalog lines
-        atomic_write(path, "".join(job.lines), durable=self.durable)  # a retry rewrites it whole
+        data = "".join(job.lines).encode()
+        staged = staged_catalog(path)
+        fd = os.open(staged, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | O_BINARY, 0o644)  # a retry rewrites it whole
+        try:
+            write_all(fd, data)
+            if self.durable:
+                os.fsync(fd)
+        finally:
+            os.close(fd)
+        write_catalog_manifest(path, start, [len(line) for line in job.lines],
+                               durable=self.durable)
+        if self._held_manifest is not None:
+            atomic_write(self.tub_path / "manifest.json", self._held_manifest, durable=self.durable)
+            self._held_manifest = None
+        os.replace(staged, path)
+        if self.durable:
+            fsync_dir(path.parent)
         self.catalog = CatalogFile.open_append(path, start, durable=self.durable)
         self._next = None
         self._unsynced, self._durable_size = [], self.catalog.size
         job.lines = []
-        if self._held_manifest is not None:
-            if job.manifest is None:
-                job.manifest = self._held_manifest
-            self._held_manifest = None
+
+    def _append_crcs(self, lines: list[str]) -> None:
+        """Append the records' image checksums to IMAGE_CRCS. Never fails a commit: a line lost
+        (a crash, a full disk) leaves its images unchecked; a line whose record a crash lost names
+        a session no later record has (sessions are never reused), so it is never applied."""
+        try:
+            fd = os.open(self.tub_path / IMAGE_CRCS, os.O_WRONLY | os.O_CREAT | os.O_APPEND | O_BINARY, 0o644)
+            try:
+                write_all(fd, "".join(lines).encode())
+            finally:
+                os.close(fd)
+        except OSError as exc:
+            if not self._crc_failed:
+                self._crc_failed = True
+                logger.warning("%s: cannot record image checksums (%s): tub check will not verify them",
+                               self.tub_path, exc)
 
     def _sync_lines(self) -> None:
         """fsync the catalog lines that were appended without one."""

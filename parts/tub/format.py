@@ -27,6 +27,9 @@ from parts.tub.errors import TubSchemaError
 
 MANIFEST = "manifest.json"
 IMAGES = "images"
+#: our side file (DonkeyCar ignores it): one JSON line per committed record with images, its
+#: ``_index``, ``_session_id`` and the CRC-32 of each image file, which ``tub check`` verifies
+IMAGE_CRCS = "image_crc32.jsonl"
 CATALOG_RE = re.compile(r"^catalog_(\d+)\.catalog$")
 
 # Declared types DonkeyCar writes; "gray16_array" is stored as a 16-bit PNG (broken in DonkeyCar).
@@ -166,6 +169,39 @@ def write_all(fd: int, data: bytes) -> None:
         view = view[os.write(fd, view):]
 
 
+def inside(tub: Path, path: Path) -> bool:
+    """Whether ``path`` is a regular file of ``tub`` once every link is followed: a link that
+    leaves the tub (to ``~/.ssh/id_rsa``, say) is not the tub's file and must not be served."""
+    try:
+        real = path.resolve(strict=True)
+    except (OSError, RuntimeError):  # missing, or a link loop
+        return False
+    return real.is_relative_to(tub.resolve()) and real.is_file()
+
+
+def links_leaving(tub: Path) -> list[str]:
+    """The tub's own files (manifest, catalogs, their manifests, the images folder) that are links
+    to somewhere outside the tub, by name."""
+    names = [MANIFEST, IMAGES]
+    try:
+        names += sorted(n for n in os.listdir(tub) if n.startswith("catalog_"))
+    except OSError:
+        return []
+    root = tub.resolve()
+    out = []
+    for name in names:
+        path = tub / name
+        if path.is_symlink():
+            try:
+                real = path.resolve(strict=True)
+            except (OSError, RuntimeError):
+                out.append(name)
+                continue
+            if not real.is_relative_to(root):
+                out.append(name)
+    return out
+
+
 def check_new_folder(out: Path) -> None:
     """``out`` must not exist or be an empty folder (exports and imports never overwrite)."""
     from parts.tub.errors import TubError
@@ -177,10 +213,48 @@ def check_new_folder(out: Path) -> None:
             raise TubError(f"{out} exists and is not empty; give a new folder (nothing was written)")
 
 
+_PARTIAL_RE = re.compile(r"^\..+\.partial-(\d+)$")
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True  # another user's process (or a number no process can have: kept, to be safe)
+    return True
+
+
+def remove_stale_partials(parent: Path) -> list[Path]:
+    """Remove the ``.NAME.partial-PID`` folders in ``parent`` whose process is gone (an export or
+    import killed before it finished); returns what was removed. A live process's folder stays."""
+    removed = []
+    try:
+        entries = list(os.scandir(parent))
+    except OSError:
+        return removed
+    for entry in entries:
+        m = _PARTIAL_RE.match(entry.name)
+        if m and entry.is_dir(follow_symlinks=False) and int(m.group(1)) != os.getpid() \
+                and not _alive(int(m.group(1))):
+            shutil.rmtree(entry.path, ignore_errors=True)
+            removed.append(Path(entry.path))
+    if removed:
+        import logging
+
+        logging.getLogger(__name__).info("removed %d unfinished folder%s left by a killed export or import: %s",
+                                         len(removed), "" if len(removed) == 1 else "s",
+                                         ", ".join(p.name for p in removed))
+    return removed
+
+
 def new_folder_tmp(out: Path) -> Path:
     """A fresh hidden folder beside ``out`` to build it in; :func:`replace_folder` puts it in place,
-    so an interrupted export or import never leaves a half-written ``out``."""
+    so an interrupted export or import never leaves a half-written ``out``. Folders that killed
+    runs left beside it are removed first (:func:`remove_stale_partials`)."""
     out.parent.mkdir(parents=True, exist_ok=True)
+    remove_stale_partials(out.parent)
     tmp = out.parent / f".{out.name}.partial-{os.getpid()}"
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir()

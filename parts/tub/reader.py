@@ -148,7 +148,8 @@ def find_tubs(paths: str | os.PathLike[str] | Iterable[str | os.PathLike[str]]) 
             continue
         inside = []
         for root, dirs, _files in os.walk(path):
-            dirs.sort()
+            # hidden folders are tubs and datasets being built (parts.tub.births): not yet tubs
+            dirs[:] = sorted(d for d in dirs if not d.startswith("."))
             here = Path(root)
             if here != path and is_tub(here):
                 inside.append(here)

@@ -113,6 +113,10 @@ def inspect_tub(tub: Path, default_max_len: int = 1000) -> TubState:
     while len(m.paths) > 1 and not scan_catalog(tub / m.paths[-1]).lines:
         name = m.paths.pop()
         state.dropped.append(name)
+        if not (tub / name).exists() and (tub / f".{name}.new").exists():  # parts.tub.births
+            state.problems.append(f"{name} waits in .{name}.new (the writer was killed while putting it in "
+                                  "place; DonkeyCar cannot open the tub): `vehicle tub check --repair` completes it")
+            continue
         gone = "is missing" if not (tub / name).exists() else "is empty"
         state.problems.append(f"{name} {gone} (a kill right after it was started; DonkeyCar cannot open "
                               "such a tub): dropped")

@@ -13,15 +13,18 @@ last completed commit, and a catalog line never reaches the disk before its imag
 from __future__ import annotations
 
 import atexit
+import json
 import logging
 import os
 import time
 import weakref
+import zlib
 from collections.abc import Callable, Iterable, Iterator, Mapping, MutableMapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from parts.tub.births import absent_or_empty, complete_staged, create_whole
 from parts.tub.catalog import CatalogFile, parse_line, record_index, scan_catalog
 from parts.tub.codec import encode_image
 from parts.tub.committer import Committer
@@ -30,6 +33,7 @@ from parts.tub.format import (
     IMAGE_TYPES,
     IMAGES,
     INDEX,
+    MANIFEST,
     SESSION,
     TIMESTAMP,
     catalog_manifest_name,
@@ -40,7 +44,7 @@ from parts.tub.format import (
     image_file_name,
 )
 from parts.tub.image_files import ImageFiles
-from parts.tub.manifest import Manifest, parse_metadata
+from parts.tub.manifest import Manifest, parse_manifest, parse_metadata
 from parts.tub.recovery import inspect_tub
 
 logger = logging.getLogger(__name__)
@@ -56,6 +60,7 @@ class StoredImage:
 
     name: str
     index: int
+    crc: int | None = None  # CRC-32 of the file's bytes (checked by `tub check`)
 
 
 def _close_at_exit(tub: Tub) -> Callable[[], None]:
@@ -97,7 +102,7 @@ class Tub:
                  types: list[str] | None = None, metadata: Mapping[str, Any] | Iterable[str] | None = None,
                  max_catalog_len: int = 1000, read_only: bool = False, *, fsync: bool = True,
                  fsync_records: int = 20, fsync_ms: float = 500.0, jpeg_quality: int = 75,
-                 commit_thread: bool = False) -> None:
+                 commit_thread: bool = False, _skeleton: bool = False) -> None:
         if not isinstance(max_catalog_len, int) or max_catalog_len < 1:
             raise ValueError(f"max_catalog_len must be a positive int, got {max_catalog_len!r}")
         if fsync_records < 0 or fsync_ms < 0:
@@ -114,6 +119,7 @@ class Tub:
         self._committer: Committer | None = None  # None: read-only
         self._images = ImageFiles(self.path / IMAGES, fsync)
         self._pending_lines: list[str] = []
+        self._pending_crcs: list[str] = []  # lines of IMAGE_CRCS for the pending records
         self._pending_since: float | None = None
         self._atexit: Callable[[], None] | None = None
         self._session_registered = False
@@ -123,6 +129,13 @@ class Tub:
         if inputs is not None or types is not None:
             check_schema(list(inputs or []), list(types or []))
         user_meta = parse_metadata(metadata)
+        if not read_only and inputs is not None and not _skeleton and absent_or_empty(self.path):
+            # built whole in a hidden folder, then renamed: a kill leaves no tub or a complete one
+            create_whole(self.path, lambda tmp: Tub(tmp, inputs, types, metadata=user_meta,
+                                                    max_catalog_len=max_catalog_len, fsync=fsync,
+                                                    _skeleton=True).close(), durable=fsync)
+        completed = [] if read_only or not self.path.is_dir() else \
+            complete_staged(self.path, parse_manifest(self.path / MANIFEST).manifest.paths)
         if not self.path.exists():
             if read_only:
                 raise TubError(f"{self.path}: no such tub folder")
@@ -132,7 +145,7 @@ class Tub:
         elif not self.path.is_dir():
             raise TubError(f"{self.path} is a file, not a tub folder")
         state = inspect_tub(self.path, max_catalog_len)
-        self.problems = list(state.problems)
+        self.problems = completed + list(state.problems)
         self.torn = dict(state.torn)  # catalog name -> bytes of its torn last line (cut when writable)
         self._dropped = list(state.dropped)  # empty trailing catalogs, removed when writable
         if read_only and not state.is_tub:
@@ -245,7 +258,7 @@ class Tub:
                 data, ext = encode_image(value, tp, self.jpeg_quality)
                 name = image_file_name(index, key, ext)
                 self._images.write(name, data)
-                record[key] = StoredImage(name, index)
+                record[key] = StoredImage(name, index, zlib.crc32(data))
 
     def write_record(self, record: Mapping[str, Any], *, timestamp_ms: int | None = None,
                      index: int | None = None) -> int:
@@ -279,6 +292,10 @@ class Tub:
         if index > m.current_index:
             self._keep_skipped(index)
         self._append_line(contents, timestamp_ms)
+        crcs = {k: v.crc for k, v in values.items() if isinstance(v, StoredImage) and v.crc is not None}
+        if crcs:  # committed after the record's catalog line (parts.tub.committer)
+            self._pending_crcs.append(json.dumps({INDEX: index, SESSION: self.session_id, "crc32": crcs},
+                                                 sort_keys=True) + "\n")
         self.written += 1
         if self.commit_due():
             self.commit()
@@ -352,12 +369,13 @@ class Tub:
                 durable: bool = False) -> None:
         """Hand the pending catalog lines (and the manifest when due) to the committer."""
         assert self._committer is not None
-        lines, since = self._pending_lines, self._pending_since
-        self._pending_lines, self._pending_since = [], None
+        lines, since, crcs = self._pending_lines, self._pending_since, self._pending_crcs
+        self._pending_lines, self._pending_since, self._pending_crcs = [], None, []
         try:
-            self._committer.submit(lines, next_catalog, self._manifest_text(force_manifest), durable)
+            self._committer.submit(lines, next_catalog, self._manifest_text(force_manifest), durable, crcs)
         except TubError:  # refused (the commit thread failed): the lines stay pending
             self._pending_lines[:0] = lines
+            self._pending_crcs[:0] = crcs
             self._pending_since = since
             raise
 

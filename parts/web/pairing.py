@@ -18,9 +18,14 @@ from __future__ import annotations
 import hmac
 import ipaddress
 import logging
+import math
 import secrets
 import socket
-from collections.abc import Iterable
+import time
+from collections import OrderedDict
+from collections.abc import Callable, Iterable
+
+from vehicle.config_checks import secret_bits
 
 logger = logging.getLogger(__name__)
 
@@ -81,17 +86,92 @@ def _is_ip(text: str) -> bool:
     return True
 
 
+#: estimated bits a user's WEB_TOKEN must reach (a random one has 96; WEB_TOKEN's declaration says the same)
+MIN_TOKEN_BITS = 64
+#: wrong tokens a client may send before it must wait
+FREE_FAILURES = 5
+#: the first wait after the free failures, seconds; it doubles with each further failure
+FIRST_LOCKOUT_S = 1.0
+#: the longest wait, seconds (a guesser gets at most one try a minute)
+MAX_LOCKOUT_S = 60.0
+#: clients remembered (the oldest is forgotten first): memory stays bounded under a flood
+MAX_CLIENTS = 1024
+#: seconds between two log lines about the same client's failures
+LOG_EVERY_S = 60.0
+
+
+def token_weakness(token: str) -> str | None:
+    """Why ``token`` is too weak to guard a car on a network (None when it is strong enough)."""
+    bits = secret_bits(token)
+    if bits >= MIN_TOKEN_BITS:
+        return None
+    return (f"is too weak: about {bits:.0f} bits, at least {MIN_TOKEN_BITS} needed (e.g. 16 random letters "
+            "and digits; repeated characters and a single kind of character count little)")
+
+
 def resolve_token(host: str, token: str | None) -> str | None:
     """The token connections must present: the configured one, else a fresh random one when
-    ``host`` is not loopback, else None (no token needed on localhost)."""
+    ``host`` is not loopback, else None (no token needed on localhost). ValueError for a token
+    too short or too weak to be guessed slowly."""
     if token is not None:
         if len(token) < 8:
             raise ValueError("WEB_TOKEN must be at least 8 characters (or None for a random one "
                              "when the page is reachable from the network)")
+        weak = token_weakness(token)
+        if weak is not None:
+            raise ValueError(f"WEB_TOKEN ({len(token)} characters) {weak}; or None for a random one")
         return token
     if is_loopback(host):
         return None
     return secrets.token_urlsafe(12)
+
+
+class FailureGuard:
+    """Slows a client that sends wrong pairing tokens: after :data:`FREE_FAILURES` it must wait
+    (1 s, then twice as long after each further failure, up to :data:`MAX_LOCKOUT_S`) before any
+    token of its is checked again. Failures are logged once per client per :data:`LOG_EVERY_S`.
+
+    Args:
+        server: the name logs give the server (``console``, ``web``).
+        clock: monotonic seconds (tests pass their own).
+    """
+
+    def __init__(self, server: str, clock: Callable[[], float] = time.monotonic) -> None:
+        self.server = server
+        self._clock = clock
+        # client -> [failures, locked until, last logged, failures since the last log line]
+        self._clients: OrderedDict[str, list[float]] = OrderedDict()
+
+    def __len__(self) -> int:
+        return len(self._clients)
+
+    def wait_s(self, client: str) -> float:
+        """Seconds ``client`` must wait before its token is checked again (0: check it now)."""
+        entry = self._clients.get(client)
+        return 0.0 if entry is None else max(0.0, entry[1] - self._clock())
+
+    def failed(self, client: str) -> None:
+        """Count a wrong token from ``client``."""
+        now = self._clock()
+        entry = self._clients.pop(client, None) or [0, 0.0, -math.inf, 0]
+        self._clients[client] = entry  # most recent last: the oldest is forgotten first
+        while len(self._clients) > MAX_CLIENTS:
+            self._clients.popitem(last=False)
+        entry[0] += 1
+        entry[3] += 1
+        over = entry[0] - FREE_FAILURES
+        if over >= 0:
+            entry[1] = now + min(MAX_LOCKOUT_S, FIRST_LOCKOUT_S * 2.0 ** min(over, 16))
+        if now - entry[2] >= LOG_EVERY_S:
+            logger.warning("%s: %d wrong pairing token%s from %s (%d in all); %s", self.server, entry[3],
+                           "" if entry[3] == 1 else "s", client, entry[0],
+                           f"it waits {entry[1] - now:.0f} s before its next try" if over >= 0
+                           else "a guesser is slowed after a few")
+            entry[2], entry[3] = now, 0
+
+    def succeeded(self, client: str) -> None:
+        """Forget ``client``'s failures (it paired)."""
+        self._clients.pop(client, None)
 
 
 def token_ok(expected: str | None, auth: object) -> bool:

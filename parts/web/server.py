@@ -20,7 +20,7 @@ import numpy as np
 
 from parts.web import protocol
 from parts.web.limits import HARD_LIMIT_BYTES, REFUSED_EVENT, BoundedLog, make_bounded_packet
-from parts.web.pairing import allowed_hosts, host_allowed, token_ok
+from parts.web.pairing import FailureGuard, allowed_hosts, host_allowed, token_ok
 from parts.web.state import ControlState
 from vehicle.errors import VehicleError
 
@@ -175,6 +175,7 @@ class WebServer:
         self._refused_hosts: set[str] = set()  # each logged once
         # what clients can make the server log: rejections, refused connections, library errors
         self.log = BoundedLog(logger, "rejected messages and refused connections")
+        self._guard = FailureGuard("web")  # slows and logs wrong pairing tokens, per client address
         self._library_log = BoundedLog(logging.getLogger(f"{__name__}.socketio"), "Socket.IO lines",
                                        demote_info=True)
         self.loop: asyncio.AbstractEventLoop | None = None
@@ -332,11 +333,17 @@ class WebServer:
 
         @sio.event
         async def connect(sid: str, environ: dict[str, Any], auth: Any = None) -> None:
+            client = environ.get("REMOTE_ADDR", "?")
+            wait = self._guard.wait_s(client) if self.token is not None else 0.0
+            if wait > 0:
+                raise socketio.exceptions.ConnectionRefusedError(
+                    f"too many wrong pairing tokens from this address: wait {max(1, int(wait + 0.999))} s")
             if not token_ok(self.token, auth):
-                self.log.warning("web: refused a connection from %s: missing or wrong pairing token",
-                               environ.get("REMOTE_ADDR", "?"))
+                if isinstance(auth, dict) and auth.get("token"):
+                    self._guard.failed(client)  # a wrong token (a missing one is no guess): slowed, logged
                 raise socketio.exceptions.ConnectionRefusedError(
                     "pairing token missing or wrong: open the URL printed when the car started")
+            self._guard.succeeded(client)
             role = self.state.connect(sid)
             self._senders[sid] = asyncio.create_task(self._send_frames(sid))
             await sio.emit("hello", self._hello(sid, role), to=sid)

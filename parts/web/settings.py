@@ -22,8 +22,9 @@ WEB_CONTROL_PORT: Annotated[int, Range(0, 65535, note="0 picks a free port")] = 
 WEB_HOST: str = "127.0.0.1"
 # Pairing token browsers must present (in the page URL, ?token=...). None: none on localhost, a
 # random one per start when WEB_HOST is a network interface (printed with the URL at start).
-# At least 8 characters; when set it is required even on localhost.
-WEB_TOKEN: Annotated[str | None, Length(min=8, secret=True,
+# At least 8 characters and hard to guess (about 64 bits: 16 random letters and digits; 8 digits
+# are refused); when set it is required even on localhost. Wrong tokens are slowed per client.
+WEB_TOKEN: Annotated[str | None, Length(min=8, secret=True, min_bits=64,
                                         note="or None: a random token when the page is on the network")] = None
 # More host names the page may be opened by, e.g. ["mycar.example.org"] for a DNS name of the car
 # or a reverse proxy. IP addresses, localhost, this machine's name (and NAME.local) and WEB_HOST

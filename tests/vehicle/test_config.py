@@ -167,6 +167,7 @@ OUT_OF_RANGE = [
     ("ACTUATOR_WATCHDOG_S = 1e9", "ACTUATOR_WATCHDOG_S = 1000000000.0", "None switches it off"),
     ("ACTUATOR_WATCHDOG_S = 0", "ACTUATOR_WATCHDOG_S = 0", "None switches it off"),
     ('WEB_TOKEN = "short"', "WEB_TOKEN (5 characters)", "at least 8 characters"),
+    ('WEB_TOKEN = "12345678"', "WEB_TOKEN (8 characters) is too weak (about 27 bits", "about 64 bits"),
     ("WEB_MAX_THROTTLE = 2.0", "WEB_MAX_THROTTLE = 2.0", "0 to 1"),
     ("AI_THROTTLE_MULT = -1.0", "AI_THROTTLE_MULT = -1.0", "0 to 2"),
     ("THROTTLE_STOPPED_PWM = 600", "THROTTLE_STOPPED_PWM = 600", "between THROTTLE_REVERSE_PWM"),
@@ -214,7 +215,7 @@ def test_the_watchdog_must_outlast_two_loops(tmp_path):
 
 def test_valid_edges_load_and_code_overrides_are_checked_too(tmp_path):
     write(tmp_path, "THROTTLE_FORWARD_PWM = 612\nTHROTTLE_REVERSE_PWM = 123\nWEB_DEADMAN_S = 2.0\n"
-                    "ACTUATOR_WATCHDOG_S = None\nWEB_TOKEN = '12345678'\n")
+                    "ACTUATOR_WATCHDOG_S = None\nWEB_TOKEN = 'Ab3$efGh9!'\n")
     cfg = load_config(car_path=tmp_path)
     assert (cfg.THROTTLE_FORWARD_PWM, cfg.ACTUATOR_WATCHDOG_S) == (612, None)
     with pytest.raises(ConfigError, match=r"^DRIVE_LOOP_HZ = 0 is out of range; valid: 1 to 1000 Hz"):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import contextlib
 import io
 import json
 import math
@@ -494,3 +495,56 @@ def test_step_time_is_clamped_to_what_the_car_model_integrates(server: DonkeySer
             assert c.expect("telemetry")["time"] - first == pytest.approx(applied, abs=1e-9)
     finally:
         c.close()
+
+
+def test_silent_peers_do_not_lock_a_real_client_out(caplog: pytest.LogCaptureFixture, monkeypatch) -> None:
+    """Issue 27 item 16: peers that connect and never send a message hold no slot a real client
+    needs (the oldest silent one gives its slot up at once), and are dropped soon anyway; each
+    drop says why, once."""
+    from parts.bridges import donkey_server
+
+    monkeypatch.setattr(donkey_server, "SILENT_EVICT_AGE_S", 0.0)  # not only peers silent for a while
+    caplog.set_level("INFO", logger="parts.bridges")
+    with DonkeyServer(port=0, seeds=[5], max_clients=4, hello_timeout_s=60) as srv:
+        silent = [socket.create_connection(("127.0.0.1", srv.port), timeout=5) for _ in range(4)]
+        try:
+            ok = RawClient(srv.port)  # a real client, at once: not refused
+            ok.expect("scene_selection_ready")
+            ok.send("load_scene", scene_name="track_5")
+            ok.expect("car_loaded")
+            ok.close()
+        finally:
+            for s in silent:
+                s.close()
+    drops = [r.getMessage() for r in caplog.records if "sent no message" in r.getMessage()]
+    assert 1 <= len(drops) <= 4 and "slot" in drops[0], drops
+
+
+def test_silent_peers_are_dropped_after_the_hello_timeout() -> None:
+    with DonkeyServer(port=0, seeds=[5], hello_timeout_s=0.3, idle_timeout_s=60) as srv:
+        c = RawClient(srv.port)
+        c.expect("scene_selection_ready")
+        assert c.closed_within(5.0)  # it never said anything: no 60 s wait
+        c.close()
+
+
+def test_non_json_bytes_end_the_session_with_one_line(caplog: pytest.LogCaptureFixture) -> None:
+    caplog.set_level("DEBUG", logger="parts.bridges")
+    with DonkeyServer(port=0, seeds=[5]) as srv:
+        c = RawClient(srv.port)
+        c.expect("scene_selection_ready")
+        c.send("get_protocol_version")
+        c.expect("protocol_version")
+        with contextlib.suppress(OSError):
+            for _ in range(200):  # 12.8 MB of text that holds no message
+                c.sendraw(b"x" * 64 * 1024)
+        assert c.closed_within(5.0)
+        c.close()
+    junk = [r for r in caplog.records if "not Donkey" in r.getMessage()]
+    assert len(junk) == 1 and junk[0].levelname in ("WARNING", "ERROR"), [r.getMessage() for r in caplog.records]
+
+
+def test_stream_counts_junk_outside_messages() -> None:
+    stream = proto.JsonStream()
+    assert stream.feed(b'  \n{"msg_type":"a"}\n\r\t  xyz{"msg_type":"b"}') == [{"msg_type": "a"}, {"msg_type": "b"}]
+    assert stream.junk_bytes == 3

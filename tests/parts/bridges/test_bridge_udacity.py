@@ -330,3 +330,57 @@ def test_shutdown_alone_also_leaves_the_car_at_steer_zero() -> None:
         assert sim.wait_for(lambda c: c.steers[-1:] == [(-0.5, 1.0)], 5)
         part.shutdown()  # no neutral() first: a caller outside a Vehicle
         assert sim.wait_for(lambda c: c.steers[-1:] == [(0.0, 0.0)], 5)
+
+
+def test_bad_telemetry_is_one_log_line_per_kind_and_bounded(caplog: pytest.LogCaptureFixture) -> None:
+    """Issue 27 item 15: 300 bad images whose error text carries the sender's numbers give one
+    line per kind of problem, and the memory of what was reported stays bounded."""
+    import base64
+    import json
+
+    import cv2
+
+    from parts.bridges.fake_udacity_client import URL_QUERY, WebSocketClient
+
+    with caplog.at_level("INFO", logger="parts.bridges"), udacity() as part:
+        ws = WebSocketClient("127.0.0.1", part.port, f"/socket.io/?{URL_QUERY}")
+        try:
+            assert (ws.receive(5) or "").startswith("0")
+            for i in range(300):  # base64 error texts carry the sender's length: each a new text
+                ok, png = cv2.imencode(".png", np.zeros((1, i + 1, 3), np.uint8))
+                image = base64.b64encode(png.tobytes()).decode() if i % 3 == 0 else "A" * (4 * i + 1)
+                ws.send("42" + json.dumps(["telemetry", {"image": image, "steering_angle": "0", "throttle": "0",
+                                                         "speed": "0"}]))
+            deadline = time.monotonic() + 20
+            steers = 0
+            while steers < 300 and time.monotonic() < deadline:
+                frame = ws.receive(0.5)
+                steers += bool(frame and frame.startswith('42["steer"'))
+            assert steers == 300
+        finally:
+            ws.close()
+        bad = [r.getMessage() for r in caplog.records if "unusable telemetry" in r.getMessage()]
+        assert 1 <= len(bad) <= 4, bad
+        assert len(part._bad_reported) <= 16
+
+
+def test_an_over_size_message_is_said_once(caplog: pytest.LogCaptureFixture) -> None:
+    from parts.bridges.fake_udacity_client import URL_QUERY, WebSocketClient, WebSocketClosed
+
+    with caplog.at_level("INFO", logger="parts.bridges"), udacity() as part:
+        for _ in range(2):
+            ws = WebSocketClient("127.0.0.1", part.port, f"/socket.io/?{URL_QUERY}")
+            try:
+                assert (ws.receive(5) or "").startswith("0")
+                with pytest.raises((WebSocketClosed, OSError)):
+                    ws.send('42["telemetry",{"image":"' + "A" * 5_000_000 + '"}]')
+                    deadline = time.monotonic() + 10
+                    while time.monotonic() < deadline:
+                        ws.receive(0.2)
+            finally:
+                ws.close()
+        deadline = time.monotonic() + 5
+        while not [r for r in caplog.records if "too large" in r.getMessage()] and time.monotonic() < deadline:
+            time.sleep(0.05)
+    lines = [r.getMessage() for r in caplog.records if "too large" in r.getMessage()]
+    assert len(lines) == 1 and "4000000" in lines[0].replace(" ", "").replace(",", ""), lines

@@ -243,3 +243,28 @@ def test_building_folder_is_all_or_nothing(tmp_path):
     with pytest.raises(TubError, match="exists and is not empty"), building_folder(out):
         pass
     assert (out / "done.txt").read_text() == "done"
+
+
+def test_folders_left_by_killed_exports_are_removed_on_the_next_run(tmp_path):
+    """Issue 27 item 13: a SIGKILLed export or import leaves .NAME.partial-PID; the next run removes
+    it (its process is gone) and leaves a running one's alone."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    from parts.tub.format import building_folder
+
+    child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    child.send_signal(signal.SIGKILL)
+    child.wait()
+    dead = tmp_path / f".lerobot_out.partial-{child.pid}"
+    (dead / "data").mkdir(parents=True)
+    (dead / "data" / "chunk.parquet").write_bytes(b"half")
+    live = tmp_path / f".other.partial-{os.getppid()}"  # a run still going (our parent is alive)
+    live.mkdir()
+    keep = tmp_path / ".hidden.partial-notapid"
+    keep.mkdir()
+    with building_folder(tmp_path / "next") as tmp:
+        (tmp / "x").write_text("x")
+    assert not dead.exists() and live.is_dir() and keep.is_dir() and (tmp_path / "next" / "x").is_file()

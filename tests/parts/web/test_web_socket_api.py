@@ -160,6 +160,29 @@ def test_token_refused_and_accepted(web_factory, client_cls, arun):
     assert "?token=correct-horse-battery" in web.url
 
 
+def test_wrong_tokens_make_the_client_wait(web_factory, client_cls, arun, caplog):
+    """Issue 27 item 14: a guesser is slowed (even its right token waits), and logged, not per try."""
+    caplog.set_level(logging.INFO)
+    web = web_factory(token="correct-horse-battery")
+
+    async def main():
+        errors = []
+        for i in range(12):
+            c = client_cls()
+            with pytest.raises(socketio.exceptions.ConnectionError):
+                await c.connect(web.port, token=f"guess-{i:08d}")
+            errors.append(str(c.connect_errors))
+        assert "pairing token missing or wrong" in errors[0] and "wait" in errors[-1]
+        c = client_cls()
+        with pytest.raises(socketio.exceptions.ConnectionError):
+            await c.connect(web.port, token="correct-horse-battery")
+        assert "too many wrong pairing tokens" in str(c.connect_errors)
+
+    arun(main())
+    lines = [r.getMessage() for r in caplog.records if "wrong pairing token" in r.getMessage()]
+    assert 1 <= len(lines) <= 2, lines
+
+
 def test_pages_of_other_sites_cannot_connect(web, client_cls, arun):
     async def main():
         c = client_cls()

@@ -207,7 +207,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     from parts.tub.check import check_tub
 
     bad = 0
-    for path in _tubs(args.tubs):
+    for path in _check_paths(args.tubs):
         try:
             report = check_tub(path, repair=args.repair, decode=not args.quick, progress=_tty())
         except _errors() as exc:
@@ -215,6 +215,33 @@ def cmd_check(args: argparse.Namespace) -> int:
         _out("\n".join(report.lines()))
         bad += 0 if report.ok or report.repaired else 1
     return 1 if bad else 0
+
+
+def _check_paths(paths: list[str]) -> list[Path]:
+    """The tubs ``tub check`` looks at: those :func:`_tubs` finds, and the folders (given, or in a
+    given folder) that an older version was killed while creating as a tub (parts.tub.births)."""
+    from parts.tub.births import stillborn
+
+    found: list[Path] = []
+    rest = []
+    for text in paths:
+        path = Path(text)
+        if path.is_dir() and stillborn(path):
+            found.append(path)
+            continue
+        rest.append(text)
+        if path.is_dir():
+            found += [c for c in sorted(path.iterdir()) if c.is_dir() and not c.name.startswith(".")
+                      and any(c.iterdir()) and stillborn(c)]
+    if rest:
+        try:
+            tubs = _tubs(rest)
+        except UserError:
+            if not found:
+                raise
+            tubs = []
+        found += [t for t in tubs if t not in found]
+    return found
 
 
 def cmd_hist(args: argparse.Namespace) -> int:

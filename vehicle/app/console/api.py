@@ -59,6 +59,8 @@ async def read_json(request: Any) -> dict[str, Any]:
         data = json.loads(await request.text())
     except ValueError as exc:
         raise ApiError(400, f"the body is not valid JSON: {exc}") from exc
+    except RecursionError:  # json's decoder recurses once per [ or {: a hostile body exhausts the stack
+        raise ApiError(400, "the body is nested too deeply: send a flat JSON object") from None
     if not isinstance(data, dict):
         raise ApiError(400, "the body must be a JSON object")
     return data
@@ -454,7 +456,9 @@ class Api:
                 entry = self.registry.set_comment(entry.name, (c or "").strip() or None)
             if body.get("name") is not None and str(body["name"]).strip() != entry.name:
                 try:
+                    old = entry.name
                     entry = self.registry.rename(entry.name, str(body["name"]))
+                    self.app.jobs.model_renamed(old, entry.name)
                 except RegistryError as exc:
                     raise ApiError(409 if "exists" in str(exc) or "already" in str(exc) else 400,
                                    str(exc), "name") from exc

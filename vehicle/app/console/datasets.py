@@ -12,6 +12,7 @@ Nothing here imports torch or aiohttp: the web layer calls these functions in a 
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
@@ -27,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from parts.tub.errors import TubError
-from parts.tub.format import IMAGE_TYPES, SESSION, TIMESTAMP
+from parts.tub.format import IMAGE_TYPES, IMAGES, SESSION, TIMESTAMP, inside, links_leaving
 from training.model_db import DatasetEntry, ModelRegistry, RegistryError
 from vehicle.errors import UserError
 
@@ -172,6 +173,7 @@ class DatasetStore:
             cached = self._cache.get(path)
             if cached is not None and cached.signature == sig:
                 return cached
+        contained(path)
         tub = Tub(path, read_only=True)
         deleted_set = tub.manifest.deleted_indexes
         image_key = next((k for k, t in zip(tub.inputs, tub.types, strict=True) if t in IMAGE_TYPES), None)
@@ -231,6 +233,9 @@ class DatasetStore:
             return out
         try:
             out["stats"] = self._stats(entry.path).summary
+        except DatasetError as exc:
+            out["stats"] = None
+            out["error"] = str(exc)
         except (TubError, OSError, ValueError) as exc:
             out["stats"] = None
             out["error"] = f"cannot read the tub: {exc}"
@@ -259,13 +264,17 @@ class DatasetStore:
         file = path / "images" / name
         if not file.is_file():
             raise DatasetError(f"the image of record {index} is missing ({file})", status=404)
+        if not inside(path, file):
+            raise DatasetError(f"the image of record {index} ({file}) is a link to a file outside the tub: the "
+                               "console serves no file from outside a tub; replace the link with the image",
+                               status=403)
         return file
 
     def record(self, entry: DatasetEntry, index: int) -> dict[str, Any]:
         """One record's catalog fields (images as file names)."""
         from parts.tub.tub import Tub
 
-        tub = Tub(self._existing(entry), read_only=True)
+        tub = Tub(contained(self._existing(entry)), read_only=True)
         for i, rec in tub.records(include_deleted=True):
             if i == int(index):
                 return {"index": i, "deleted": i in tub.manifest.deleted_indexes, "fields": rec}
@@ -461,6 +470,21 @@ class DatasetStore:
         return entry
 
 
+def contained(tub: Path, images: bool = False) -> Path:
+    """``tub``, after checking that none of its files the console reads is a link leaving it
+    (``images``: every image too); DatasetError (403) naming the link otherwise."""
+    leaving = links_leaving(tub)
+    if images and IMAGES not in leaving:
+        with contextlib.suppress(OSError), os.scandir(tub / IMAGES) as it:
+            leaving += [f"{IMAGES}/{e.name}" for e in it if e.is_symlink() and not inside(tub, Path(e.path))]
+    if leaving:
+        shown = ", ".join(leaving[:3]) + (f" and {len(leaving) - 3} more" if len(leaving) > 3 else "")
+        raise DatasetError(f"{tub}: {shown} {'is a link' if len(leaving) == 1 else 'are links'} to files outside "
+                           "the tub; the console reads no file outside a tub: replace the links with the files",
+                           status=403)
+    return tub
+
+
 def augmentation_preview(tubs: list[Path], settings: Any, rows: int = 3, variants: int = 5,
                          seed: int = 0) -> bytes:
     """A PNG grid of augmented frames from ``tubs`` (``settings``: AugmentSettings)."""
@@ -468,6 +492,8 @@ def augmentation_preview(tubs: list[Path], settings: Any, rows: int = 3, variant
 
     from training.augment import Augmenter, preview_frames, preview_grid
 
+    for tub in tubs:
+        contained(tub, images=True)
     frames, angles = preview_frames(tubs, rows)
     grid = preview_grid(frames, angles, Augmenter(settings), variants, seed, scale=1)
     ok, buf = cv2.imencode(".png", cv2.cvtColor(grid, cv2.COLOR_RGB2BGR))

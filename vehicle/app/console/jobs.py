@@ -198,12 +198,15 @@ class JobQueue:
             return job
         path = self._events_file(job.id)
         status = (job.status, job.message, job.started, job.finished)
+        stored_result = job.result
         if path.is_file():
             with path.open(encoding="utf-8") as f:
                 for line in f:
                     with contextlib.suppress(ValueError):
                         job.apply(json.loads(line))
         job.status, job.message, job.started, job.finished = status  # the table is authoritative
+        if stored_result is not None:
+            job.result = stored_result  # ... and its result follows renames of the model
         job.loaded = True
         return job
 
@@ -307,6 +310,24 @@ class JobQueue:
         """A job with its epochs and log (None if unknown)."""
         job = self._jobs.get(int(job_id))
         return self._load(job) if job is not None else None
+
+    def model_renamed(self, old: str, new: str) -> None:
+        """A model was renamed: the jobs that made or evaluated it name it ``new`` from now on (their
+        pages link to the model)."""
+        with contextlib.closing(self._db()) as conn, conn:
+            for job in self._jobs.values():
+                self._load(job)
+                changed = False
+                if job.result and job.result.get("model") == old:
+                    job.result["model"] = new
+                    changed = True
+                if job.params.get("model") == old:
+                    job.params["model"] = new
+                    changed = True
+                if changed:
+                    conn.execute("UPDATE console_jobs SET params = ?, result = ? WHERE id = ?",
+                                 (json.dumps(job.params), json.dumps(job.result) if job.result is not None else None,
+                                  job.id))
 
     def running(self) -> Job | None:
         """The job whose worker runs now."""

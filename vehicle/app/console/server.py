@@ -85,6 +85,9 @@ class ConsoleApp:
         self._error: BaseException | None = None
         self._hosts: frozenset[str] | None = None  # Host header names served without a token
         self._car_lock: int | None = None  # fd holding the car's console lock while serving
+        from parts.web.pairing import FailureGuard
+
+        self._guard = FailureGuard("console")  # slows and logs wrong tokens, per client address
 
     # -- helpers used by the API --------------------------------------------------------------------
     async def model_types(self) -> list[dict[str, Any]]:
@@ -139,11 +142,32 @@ class ConsoleApp:
 
     def _token_ok(self, request: Any) -> bool:
         """The driver page's rule (parts.web.pairing.token_ok), the token carried by the cookie, a
-        header or the URL."""
+        header or the URL. A wrong token (not a missing one) counts against the client."""
         from parts.web.pairing import token_ok
 
         given = request.cookies.get(COOKIE) or request.headers.get("X-Vehicle-Token") or request.query.get("token")
-        return token_ok(self.token, {"token": given})
+        ok = token_ok(self.token, {"token": given})
+        if self.token is not None and given:
+            client = request.remote or "?"
+            if ok:
+                self._guard.succeeded(client)
+            else:
+                self._guard.failed(client)
+        return ok
+
+    def _locked_out(self, request: Any) -> Any:
+        """A 429 answer while this client must wait after wrong tokens, else None."""
+        from aiohttp import web
+
+        if self.token is None:
+            return None
+        wait = self._guard.wait_s(request.remote or "?")
+        if wait <= 0:
+            return None
+        seconds = max(1, int(wait + 0.999))
+        return web.json_response({"error": f"too many wrong pairing tokens from this address: wait {seconds} s, "
+                                           "then open the URL printed when the console started"},
+                                 status=429, headers={"Retry-After": str(seconds), "Cache-Control": "no-store"})
 
     def _same_origin(self, request: Any) -> bool:
         origin = request.headers.get("Origin")
@@ -160,6 +184,10 @@ class ConsoleApp:
                 return web.Response(status=421, text="unexpected Host header: open the console at "
                                     f"http://localhost:{self.port}/")
             path = request.path
+            if path.startswith("/api/") or path == "/":
+                refused = self._locked_out(request)
+                if refused is not None:
+                    return refused
             if path.startswith("/api/"):
                 if not self._token_ok(request):
                     return json_response({"error": "pairing token missing or wrong: open the URL printed when "

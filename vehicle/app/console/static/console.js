@@ -77,6 +77,8 @@ const fmt = {
     return hr ? `${hr} h ${m} min` : m ? `${m} min ${r} s` : `${r} s`; },
   when(iso) { if (!iso) return "–"; const d = new Date(iso); return d.toLocaleString(); },
   pct(v) { return v === null || v === undefined ? "–" : `${Number(v).toFixed(1)} %`; },
+  /** "1 lap", "2 laps", "1,200 records" */
+  n(count, word) { return `${fmt.int(count)} ${word}${Number(count) === 1 ? "" : "s"}`; },
 };
 
 /** On a phone, table rows read as cards: every cell gets its column's name as a label. */
@@ -97,6 +99,10 @@ function fieldError(form, name, message) {
 }
 
 function showErrors(form, e) {
+  if (!form._clearsErrors) {  // a field's error goes as soon as the user changes the field
+    form._clearsErrors = true;
+    form.addEventListener("input", ev => { if (ev.target.name) fieldError(form, ev.target.name, ""); });
+  }
   form.querySelectorAll("[data-err]").forEach(x => { x.textContent = ""; });
   form.querySelectorAll(".invalid").forEach(x => x.classList.remove("invalid"));
   const errors = Object.assign({}, e.errors || {});
@@ -267,11 +273,11 @@ async function pageHome() {
     h("h1", {}, `Trainer console · ${info.car_name}`),
     h("div", { class: "cards" },
       h("a", { class: "card", href: "#/datasets", id: "home-datasets" }, h("h2", {}, "Datasets"),
-        h("p", {}, `${live_.length} datasets, ${fmt.int(records)} records`), h("p", { class: "muted small" }, "Browse, label, clean and import recordings.")),
+        h("p", {}, `${fmt.n(live_.length, "dataset")}, ${fmt.n(records, "record")}`), h("p", { class: "muted small" }, "Browse, label, clean and import recordings.")),
       h("a", { class: "card", href: "#/train", id: "home-train" }, h("h2", {}, "Train"),
         h("p", { class: "muted small" }, "The training wizard: model type, data, every hyper-parameter, augmentations.")),
       h("a", { class: "card", href: "#/models", id: "home-models" }, h("h2", {}, "Models"),
-        h("p", {}, `${models.length} models`), h("p", { class: "muted small" }, "Comments, curves, export, evaluation in the simulator.")),
+        h("p", {}, fmt.n(models.length, "model")), h("p", { class: "muted small" }, "Comments, curves, export, evaluation in the simulator.")),
       h("a", { class: "card", href: "#/leaderboard", id: "home-leaderboard" }, h("h2", {}, "Leaderboard"),
         h("p", { class: "muted small" }, "Your models ranked by how they drive on the same tracks."))),
     running ? h("div", { class: "card" }, h("div", { class: "spread" }, h("div", {}, "Running: ", h("a", { href: `#/runs/${running.id}` }, running.title)), statusPill(running.status))) : null,
@@ -562,7 +568,7 @@ async function pageTrain(query) {
       `${d.name}`, h("span", { class: "muted small" }, ` (${fmt.int(d.stats.records)} rec${d.label ? ", " + d.label : ""})`))));
   const transferSel = h("select", { name: "transfer", id: "transfer" }, h("option", { value: "" }, "— none: start from random weights —"),
     models.filter(m => m.exists).map(m => h("option", { value: m.name }, `${m.name} (${m.type})`)));
-  const preview = h("img", { id: "aug-preview", alt: "augmented frames" });
+  const preview = h("img", { id: "aug-preview", alt: "augmented frames", hidden: true });
   const previewNote = h("div", { class: "muted small", id: "aug-note" });
   let seed = 0;
   const augFields = (groups.Augmentation || []);
@@ -609,15 +615,15 @@ async function pageTrain(query) {
 
   function refreshPreview() {
     const ids = selectedDatasets();
-    if (!ids.length) { preview.removeAttribute("src"); previewNote.textContent = "Choose a dataset to see augmented frames."; return; }
+    if (!ids.length) { preview.hidden = true; preview.removeAttribute("src"); previewNote.textContent = "Choose a dataset to see augmented frames."; return; }
     const v = hpValues(form), q = new URLSearchParams({ datasets: ids.join(","), seed });
     q.set("augmentations", v.augmentations.join(","));
     for (const p of augFields) if (p.name !== "augmentations") q.set(p.name, v[p.name]);
     previewNote.textContent = v.augmentations.length ? "" : "No augmentation chosen: training uses the frames as recorded.";
     const src = `api/augment-preview?${q}`;
     fetch(src).then(async r => {
-      if (!r.ok) { const b = await r.json().catch(() => ({})); previewNote.textContent = b.error || "no preview"; return; }
-      const blob = await r.blob(); if (preview.src.startsWith("blob:")) URL.revokeObjectURL(preview.src); preview.src = URL.createObjectURL(blob);
+      if (!r.ok) { const b = await r.json().catch(() => ({})); preview.hidden = true; previewNote.textContent = b.error || "no preview"; return; }
+      const blob = await r.blob(); if (preview.src.startsWith("blob:")) URL.revokeObjectURL(preview.src); preview.src = URL.createObjectURL(blob); preview.hidden = false;
     });
   }
 
@@ -702,7 +708,7 @@ function progressText(j) {
 
 async function cancelJob(j) {
   const running = j.status === "running";
-  if (!await confirmDialog(`Cancel ${j.title}?`, running ? ["The training stops after the current step. The best model so far is kept and lands in the model manager."] : ["It leaves the queue without running."], "Cancel the job")) return;
+  if (!await confirmDialog(`Cancel ${j.title}?`, running ? ["The training stops after the current step. If an epoch has finished, the best model so far is kept and lands in the model manager; before that, no model is saved."] : ["It leaves the queue without running."], "Cancel the job")) return;
   try { await api("POST", `api/jobs/${j.id}/cancel`); toast("Cancelling…"); } catch (e) { toast(e.message, true); }
 }
 
@@ -730,7 +736,8 @@ async function pageRun(id) {
     h("dt", {}, "model type"), h("dd", {}, params.model_type || "car default"),
     params.transfer_name ? [h("dt", {}, "transfer from"), h("dd", {}, params.transfer_name)] : null,
     Object.entries(params.hyper).flatMap(([k, v]) => [h("dt", {}, k), h("dd", {}, Array.isArray(v) ? v.join(", ") || "none" : String(v))])))
-    : h("p", { class: "muted" }, `Tracks ${params.tracks.join(", ")}, ${params.laps} laps each.`);
+    : h("p", { class: "muted" }, `Tracks ${params.tracks.join(", ")}, ${fmt.n(params.laps, "lap")} each.`);
+  const heading = h("h1", {}, isTrain ? "Training" : "Evaluation");
 
   function render() {
     statusEl.replaceChildren(statusPill(job.status), job.phase && job.status === "running" ? h("span", { class: "muted small" }, ` ${job.phase}`) : "");
@@ -738,6 +745,8 @@ async function pageRun(id) {
     const p = job.progress, done = ["done", "failed", "cancelled", "interrupted"].includes(job.status);
     cancelBtn.hidden = !(job.status === "running" || job.status === "queued");
     finishBtn.hidden = !done;
+    heading.textContent = isTrain ? (done ? "Training result" : "Training") : (done ? "Evaluation result" : "Evaluation");
+    const r = job.result;
     if (isTrain) {
       const epochs = (p && p.epochs) || job.info.epochs || (params.hyper.epochs ?? "?");
       const epochNow = p && p.event === "batch" ? p.epoch : job.epochs.length;
@@ -751,21 +760,28 @@ async function pageRun(id) {
       epochBar.style.width = `${Math.min(100, 100 * job.epochs.length / (Number(epochs) || 1))}%`;
       batchBar.style.width = p && p.event === "batch" ? `${100 * p.batch / p.batches}%` : done ? "100%" : "0";
       if (chart) chart.setData(lossData(job.epochs, job.batches));
+    } else if (r && r.overall) {  // finished: the result's figures, not the last progress event's
+      const tracks = params.tracks.length;
+      statEls.track.textContent = `${tracks} / ${tracks}`;
+      statEls.laps.textContent = `${r.overall.laps_completed ?? "–"} / ${params.laps * tracks}`;
+      statEls.simtime.textContent = p && p.sim_time != null ? `${p.sim_time.toFixed(0)} s` : "–";
+      epochBar.style.width = "100%";
     } else {
       statEls.track.textContent = p && p.tracks ? `${Math.min(p.index + 1, p.tracks)} / ${p.tracks}` : "–";
       statEls.laps.textContent = p && p.laps_target ? `${p.laps} / ${p.laps_target}` : "–";
       statEls.simtime.textContent = p && p.sim_time != null ? `${p.sim_time.toFixed(0)} s` : "–";
       epochBar.style.width = p && p.tracks ? `${100 * (p.index + (p.laps || 0) / (p.laps_target || 1)) / p.tracks}%` : done ? "100%" : "0";
     }
-    const r = job.result;
     resultEl.replaceChildren();
-    if (r && isTrain) resultEl.append(h("div", { class: "card" }, h("h2", {}, job.status === "cancelled" ? "Cancelled: best model so far kept" : "Result"),
+    if (r && isTrain) resultEl.append(h("div", { class: "card" }, h("h2", {}, job.status === "cancelled" ? "Cancelled: the best model so far was kept" : "Result"),
       h("p", {}, "Model ", h("a", { href: `#/models/${encodeURIComponent(r.model)}` }, r.model), ` saved (best epoch ${r.metrics.best_epoch} of ${r.metrics.epochs}, val_loss ${fmt.num(r.metrics.best_val_loss, 5)}).`)));
+    if (!r && isTrain && job.status === "cancelled") resultEl.append(h("div", { class: "card" }, h("h2", {}, "Cancelled before the first epoch ended"),
+      h("p", {}, "No model was saved.")));
     if (r && !isTrain) resultEl.append(evaluationCard({ id: r.evaluation_id, overall: r.overall, per_track: r.per_track, tracks: params.tracks, laps: params.laps, has_picture: true, created: job.finished }));
   }
 
   show(
-    h("div", { class: "spread" }, h("h1", {}, isTrain ? "Training result" : "Evaluation"), h("div", { class: "row" }, cancelBtn, finishBtn)),
+    h("div", { class: "spread" }, heading, h("div", { class: "row" }, cancelBtn, finishBtn)),
     h("p", {}, h("b", {}, job.title), " ", statusEl), msgEl,
     h("div", { class: "card" },
       isTrain ? h("div", { class: "stats" }, stat("epoch", "epoch"), stat("batch", "batch"), stat("sps", "samples/s"), stat("eta", "time left (at most)"), stat("loss", "running loss"), stat("best", "best val_loss"))
@@ -858,7 +874,7 @@ async function pageModels() {
 }
 
 async function deleteModel(m) {
-  const box = h("input", { type: "checkbox", id: "delete-files", checked: true });
+  const box = h("input", { type: "checkbox", id: "delete-files" });  // files go only when the user says so
   if (!await confirmDialog(`Delete ${m.name}?`, [`${m.name} leaves the registry.`, h("label", {}, box, ` also delete ${m.name}.pt and its exports, loss plot and metrics from the disk`)], "Delete")) return;
   try { await api("DELETE", `api/models/${encodeURIComponent(m.name)}?files=${box.checked ? 1 : 0}`); toast(`${m.name} deleted`); } catch (e) { toast(e.message, true); }
   go("#/models");
@@ -867,7 +883,7 @@ async function deleteModel(m) {
 function evaluationCard(ev) {
   const o = ev.overall || {};
   return h("div", { class: "card evaluation", "data-evaluation": ev.id },
-    h("div", { class: "spread" }, h("h3", {}, `Tracks ${ev.tracks.join(", ")} · ${ev.laps} laps`), h("span", { class: "muted small" }, fmt.when(ev.created))),
+    h("div", { class: "spread" }, h("h3", {}, `Tracks ${ev.tracks.join(", ")} · ${fmt.n(ev.laps, "lap")}`), h("span", { class: "muted small" }, fmt.when(ev.created))),
     h("div", { class: "stats" }, [["autonomy", fmt.pct(o.autonomy)], ["laps completed", o.laps_completed ?? "–"], ["mean |CTE|", o.mean_abs_cte != null ? `${fmt.num(o.mean_abs_cte, 3)} m` : "–"],
       ["mean speed", o.mean_speed != null ? `${fmt.num(o.mean_speed, 2)} m/s` : "–"], ["off-track", o.interventions ?? "–"], ["best lap", o.best_lap_s != null ? `${fmt.num(o.best_lap_s, 1)} s` : "–"]]
       .map(([k, v]) => h("div", { class: "stat" }, h("b", {}, v), h("span", {}, k)))),
@@ -943,7 +959,7 @@ async function pageLeaderboard(query) {
   const lb = await api("GET", `api/leaderboard?${q}`);
   const sel = h("select", { id: "track-set", onchange: e => go(`#/leaderboard?${e.target.value}`) },
     lb.track_sets.map(s => h("option", { value: `tracks=${s.tracks.join(",")}&laps=${s.laps}`, selected: s.tracks.join(",") === lb.tracks.join(",") && (lb.laps == null || lb.laps === s.laps) },
-      `tracks ${s.tracks.join(", ")} · ${s.laps} laps (${s.models} model${s.models > 1 ? "s" : ""})`)));
+      `tracks ${s.tracks.join(", ")} · ${fmt.n(s.laps, "lap")} (${fmt.n(s.models, "model")})`)));
   show(
     h("h1", {}, "Leaderboard"),
     h("p", { class: "muted" }, "Models ranked by their latest evaluation on the same tracks: autonomy first, then laps completed, then mean |cross-track error|, then speed."),
