@@ -126,10 +126,11 @@ let stateAt = 0;              // performance.now() when it came
 let role = "none";
 let refused = null;           // why the car refused this page (pairing token), or null
 let lastTick = performance.now();
-let pickedAt = 0;             // when the user last chose in the model list (not synced meanwhile)
+let pickedAt = -Infinity;     // when the user last chose in the model list (not synced meanwhile)
 let modelError = "";          // the last refusal of a model choice
 let modeError = "";           // the last refusal of a mode choice
-let shownModelError = "";     // the model error on screen (brought into view when it changes)
+let shownModelError = "";     // the model error on screen
+let loadPressed = false;      // Load pressed here, its answer not yet shown: bring it into view
 const NO_PILOT = "Auto steer and Full auto need a pilot, and this car has no pilot: start it with a model "
   + "(manage.py drive --model models/NAME.pt).";
 
@@ -197,7 +198,7 @@ sock.on("connect_error", (msg) => {
   stats.lastError = msg;
   setConn("refused", "bad");
   setOnline(false);
-  notice("Not connected: " + msg + ", or enter the pairing token above");
+  notice(msg.charAt(0).toUpperCase() + msg.slice(1) + ", or enter the token above");
 });
 // a refused page is given a field for the token: the page opens again with it in its address
 $("token").value = params.get("token") || "";
@@ -306,7 +307,6 @@ function onState(s) {
   if (!pending.has("constant_throttle")) $("constant").checked = c.constant_throttle;
   if (!pending.has("speed_limit")) $("nolimit").checked = c.speed_limit === null;
   if (c.speed_limit !== null && document.activeElement !== $("speedlimit")) $("speedlimit").value = c.speed_limit;
-  $("speedlimit").classList.toggle("unset", $("nolimit").checked);  // no limit: no position shown
   $("speedlimit").setAttribute("aria-valuetext", $("nolimit").checked ? "no limit" : $("speedlimit").value + " m/s");
   $("speedlimit-v").textContent = c.speed_limit === null ? "none" : fmt(c.speed_limit, 1) + " m/s";
   $("speedlimit-note").textContent = t.speed === null && t.loops > 0
@@ -331,6 +331,19 @@ let trips = null;
 let deadmanS = 0.5;
 const VIEWER_LATCHED = "Emergency stop latched: only the driving browser can release it (press Take control to drive)";
 
+// a message on the page; a command in it ("manage.py drive --model ...") is kept on one line
+function showText(el, text) {
+  if (el.textContent === text) return;
+  el.textContent = "";
+  const parts = text.split(/(manage\.py [^)]*)/);
+  parts.forEach((part, i) => {
+    if (i % 2 === 0) { el.append(part); return; }
+    const cmd = document.createElement("code");
+    cmd.textContent = part;
+    el.append(cmd);
+  });
+}
+
 // whether the car has no pilot (a pilot reports its model, or has written its angle)
 function noPilot(t) { return !!t && t.loops > 0 && t.pilot_model === null && t.pilot_angle === null; }
 
@@ -344,12 +357,13 @@ function updateControls() {
   for (const b of document.querySelectorAll("[data-mode]")) {
     b.disabled = !driver || (b.dataset.mode !== "user" && (latched || pilotless));
   }
-  $("mode-note").textContent = modeError || (pilotless ? NO_PILOT : "");
+  showText($("mode-note"), modeError || (pilotless ? NO_PILOT : ""));
   $("record").disabled = !driver || latched;
   $("constant").disabled = !driver || latched;
   $("maxthrottle").disabled = !driver;
   const speed = !t || t.speed !== null || t.loops === 0;
   $("speedlimit").disabled = !driver || !speed || $("nolimit").checked;
+  $("speedlimit").classList.toggle("unset", $("nolimit").checked);  // no limit: no position shown
   $("nolimit").disabled = !driver || !speed;
   $("model").disabled = !driver;
   $("load").disabled = !driver || !$("model").value;
@@ -376,8 +390,13 @@ function syncModel(t) {
     sel.value = running;
   }
   const error = modelError || (t.pilot_error ? loadError(t.pilot_error) : "");
-  $("model-error").textContent = error;
-  if (error && error !== shownModelError) $("model-error").scrollIntoView({ block: "nearest" });
+  showText($("model-error"), error);
+  // the answer to this page's Load where the eye is (never a scroll on opening the page: the
+  // joystick and STOP come first)
+  if (loadPressed && error && error !== shownModelError) {
+    $("model-error").scrollIntoView({ block: "nearest" });
+    loadPressed = false;
+  }
   shownModelError = error;
 }
 
@@ -420,8 +439,9 @@ $("load").onclick = () => {
   const name = $("model").value;
   if (!name) return;
   modelError = "";
-  pickedAt = 0;  // from now on the list follows the model driving again
-  setSetting({ model: name }, (e) => { modelError = e; $("model-error").textContent = e; });
+  loadPressed = true;
+  pickedAt = -Infinity;  // from now on the list follows the model driving again
+  setSetting({ model: name }, (e) => { modelError = e; if (state) syncModel(state.telemetry); });
 };
 $("model").onfocus = () => sock.emit("models", undefined, (res) => { if (res && res.ok) fillModels(res.models); });
 $("behaviornext").onclick = () => { if (role === "driver") send("behavior", { step: 1 }); };
@@ -602,4 +622,5 @@ function tick() {
   }
 }
 setInterval(tick, TICK_MS);
+setRole("none");  // nothing may be touched until the car says who drives
 sock.open();

@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 pytestmark = pytest.mark.browser  # chromium missing: the browser fixture skips, with the reason
@@ -157,6 +158,17 @@ def test_a_model_load_error_is_plain_and_on_screen(make_car, open_page, make_mod
     assert text.startswith("Could not load broken.pt:"), text
     assert text.count("broken.pt") == 1 and str(tmp_path) not in text, text
     assert "set:" not in text
+    # a page opened later shows the error too, and opens at its top: joystick and STOP first
+    phone = open_page(car.web.url, IPHONE13, touch=True, role="viewer")
+    phone.wait_for_function("document.getElementById('model-error').textContent.includes('broken.pt')")
+    assert phone.evaluate("scrollY") == 0 and phone.evaluate(ON_SCREEN, "#estop")
+
+
+def test_the_model_list_shows_the_running_model_at_once(make_car, open_page, make_model_file):
+    car = make_car(model=make_model_file("linear", name="pilot"))
+    page = open_page(car.web.url)
+    page.wait_for_function("webStats.state && webStats.state.telemetry.pilot_model === 'pilot.pt'")
+    assert page.eval_on_selector("#model", "s => s.value") == "pilot.pt"
 
 
 def test_loading_a_model_without_a_pilot_says_it_in_plain_words(make_car, open_page, make_model_file):
@@ -187,9 +199,9 @@ def thumb_pixels(page: Any) -> int:
     """Pixels of the accent colour (the slider's thumb) in a picture of the speed-limit slider."""
     from PIL import Image
 
-    image = Image.open(io.BytesIO(page.locator("#speedlimit").screenshot())).convert("RGB")
-    accent = (0x3d, 0x8b, 0xfd)
-    return sum(1 for p in image.getdata() if sum(abs(a - b) for a, b in zip(p, accent, strict=True)) < 60)
+    image = np.asarray(Image.open(io.BytesIO(page.locator("#speedlimit").screenshot())).convert("RGB"), int)
+    accent = np.array([0x3d, 0x8b, 0xfd])
+    return int((np.abs(image - accent).sum(axis=2) < 60).sum())
 
 
 def test_speed_limit_none_shows_no_slider_position(make_car, open_page):
