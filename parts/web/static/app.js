@@ -358,6 +358,7 @@ function updateControls() {
     b.disabled = !driver || (b.dataset.mode !== "user" && (latched || pilotless));
   }
   showText($("mode-note"), modeError || (pilotless ? NO_PILOT : ""));
+  document.body.classList.toggle("modenote", !!$("mode-note").textContent);  // a phone held sideways makes room
   $("record").disabled = !driver || latched;
   $("constant").disabled = !driver || latched;
   $("maxthrottle").disabled = !driver;

@@ -54,9 +54,10 @@ def opacity(page: Any, selector: str) -> float:
 
 
 # -- 2: Auto steer and Full auto need a pilot --------------------------------------------------
-def test_pilot_modes_are_refused_with_a_visible_reason_in_a_car_without_a_pilot(make_car, open_page):
+@pytest.mark.parametrize("viewport", [DESKTOP, IPHONE13, IPHONE13_LANDSCAPE], ids=["desktop", "portrait", "landscape"])
+def test_pilot_modes_are_refused_with_a_visible_reason_in_a_car_without_a_pilot(make_car, open_page, viewport):
     car = make_car()
-    page = open_page(car.web.url)
+    page = open_page(car.web.url, viewport, touch=viewport is not DESKTOP)
     page.wait_for_function("webStats.state && webStats.state.telemetry.loops > 2")
     page.evaluate("document.querySelector('[data-mode=local_angle]').click()")
     page.keyboard.press("m")
