@@ -468,8 +468,10 @@ function emergencyStop() {
   if (state) state.command.estop = true;
 }
 
-// Space: throttle to neutral, user mode, constant throttle off (the car's own state, not the page's)
+// Space: throttle to neutral, user mode, constant throttle off (the car's own state, not the page's);
+// in a watching browser, whose only stop is STOP, it latches the emergency stop
 function spaceStop() {
+  if (role !== "driver") { emergencyStop(); return; }
   stats.stops++;
   stopNow(); input.source = "keyboard";
   setSetting({ mode: "user", constant_throttle: false });

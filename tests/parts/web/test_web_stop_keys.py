@@ -139,6 +139,18 @@ def test_arrows_drive_without_moving_a_focused_slider_or_list(driving):
     assert server_command(car)["max_throttle"] == 1.0  # the car's scale did not move either
 
 
+def test_space_in_a_watching_browser_latches_the_stop(driving, open_page):
+    car, driver = driving
+    watcher = open_page(car.web.url, role="viewer")
+    driver.keyboard.down("ArrowUp")
+    car.until(lambda m: m["user/throttle"] > 0.5, what="the driver drives")
+    watcher.focus("#take")  # Space would press it
+    watcher.keyboard.press("Space")
+    car.until(lambda m: m["estop"] is True and neutral(m), what="a watcher's Space stops the car")
+    assert watcher.evaluate("webStats.role") == "viewer"
+    driver.keyboard.up("ArrowUp")
+
+
 def test_stop_keys_in_the_token_field_stop_and_type_nothing(make_car, open_page):
     car = make_car(WEB_TOKEN="pairing-token-42")
     page = open_page(car.web.url.split("?")[0], role=None)
