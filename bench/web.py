@@ -77,7 +77,18 @@ class Probe:
 CARS: list[str] = []  # temporary car folders, removed at exit
 
 
-def build_car(args: argparse.Namespace, sim: bool = False) -> tuple[Vehicle, object, Probe]:
+def write_pilot(path: Path) -> Path:
+    """An untrained linear model file for the car's frames (the pictures show a car with a pilot)."""
+    from parts.pilots.modelfile import save_model
+    from parts.pilots.models import create_model
+    from parts.pilots.preprocess import Preprocess
+
+    shape = (120, 160, 3)
+    pre = Preprocess(crop=(40, 0, 0, 0), image_shape=shape)
+    return save_model(path, create_model("linear", pre.output_shape(shape)), {"preprocess": pre.to_dict()})
+
+
+def build_car(args: argparse.Namespace, sim: bool = False, pilot: bool = False) -> tuple[Vehicle, object, Probe]:
     car = tempfile.mkdtemp(prefix="bench-web-")
     CARS.append(car)
     cfg = Config.defaults(CAR_PATH=car, WEB_CONTROL_PORT=0, WEB_MAX_THROTTLE=1.0 if not sim else 0.6)
@@ -91,6 +102,8 @@ def build_car(args: argparse.Namespace, sim: bool = False) -> tuple[Vehicle, obj
         w, h = args.size
         V.add(FakeCamera(w, h), outputs=["cam/image_array"])
     web = assembly.add_controller(V, cfg)
+    if pilot:
+        assembly.add_pilot(V, cfg, write_pilot(Path(car) / "models" / "pilot.pt"))
     probe = Probe()
     V.add(probe, inputs=["user/throttle"])
     assembly.add_drive_mode(V, cfg)
@@ -230,7 +243,7 @@ def frame_rates(args: argparse.Namespace, browser, viewers: int) -> tuple[float,
 def screenshots(args: argparse.Namespace, browser, folder: Path) -> None:
     """The docs' pictures of the page: desktop 1280x800 (driving, recording), phone upright 390x844
     (watching) and phone sideways 844x390 (driving)."""
-    V, web, probe = build_car(args, sim=True)
+    V, web, probe = build_car(args, sim=True, pilot=True)
     thread = start(V, 20)
     folder.mkdir(parents=True, exist_ok=True)
     try:

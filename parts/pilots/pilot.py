@@ -305,7 +305,8 @@ class Pilot:
         old.runner.close()
 
     def _refuse(self, path: Path, why: str) -> None:
-        self.load_error = f"{path}: {why}"
+        # the loaders' own messages usually start with the path already: name it once
+        self.load_error = why if why.startswith(f"{path}: ") else f"{path}: {why}"
         logger.error("pilot: cannot switch to %s, keeping %s: %s", path, self.model_name, why)
 
     def wait_loaded(self, timeout: float | None = None) -> bool:

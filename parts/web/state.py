@@ -15,7 +15,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from parts.web.protocol import MODES
+from parts.web.protocol import MODE_LABELS, MODES
 
 logger = logging.getLogger(__name__)
 
@@ -175,23 +175,29 @@ class ControlState:
             self._armed = True
 
     def refusal(self, settings: dict[str, Any]) -> str | None:
-        """Why validated ``settings`` cannot be applied now, or None: while the emergency stop is
-        latched nothing that moves the car or records may be chosen; a model needs a pilot in the
-        car and a speed limit a measured speed (known once the loop has reported)."""
+        """Why validated ``settings`` cannot be applied now, in words for the page, or None: while
+        the emergency stop is latched nothing that moves the car or records may be chosen; a pilot
+        mode and a model need a pilot in the car, a speed limit a measured speed (known once the
+        loop has reported)."""
         with self._lock:
             cmd, tel = self._cmd, self._tel
             if cmd.estop:
                 moving = [k for k in ("mode", "recording", "constant_throttle")
                           if k in settings and settings[k] not in ("user", False)]
                 if moving:
-                    return (f"set: the emergency stop is latched: release it (STOP) before setting "
-                            f"{', '.join(moving)}")
-            if tel.loops and "model" in settings and tel.pilot_model is None:
-                return ("set: this car drives without a pilot, so it cannot load a model: start it "
-                        "with `manage.py drive --model models/NAME.pt`")
+                    return (f"The emergency stop is latched: release it (STOP) before setting "
+                            f"{', '.join(moving)}.")
+            # a pilot part reports pilot/model (ours) or has written pilot/angle (one of the user's)
+            no_pilot = tel.loops > 0 and tel.pilot_model is None and tel.pilot_angle is None
+            if no_pilot and settings.get("mode", "user") != "user":
+                return (f"{MODE_LABELS[settings['mode']]} needs a pilot and this car has no pilot: "
+                        f"start it with a model (manage.py drive --model models/NAME.pt).")
+            if tel.loops and "model" in settings and tel.pilot_model is None:  # no ModelSwitch
+                return ("This car has no pilot, so it cannot load a model: start it with one "
+                        "(manage.py drive --model models/NAME.pt).")
             if tel.loops and settings.get("speed_limit") is not None and tel.speed is None:
-                return ("set: this car measures no speed (no simulator, and no wheel encoder, GPS or VESC "
-                        "writing enc/speed, or its sensor is stale), so a speed limit cannot be held")
+                return ("This car measures no speed (no simulator, and no wheel encoder, GPS or VESC writing "
+                        "enc/speed, or its sensor is stale), so a speed limit cannot be held.")
             return None
 
     def apply(self, settings: dict[str, Any], model_path: str | None = None) -> None:

@@ -1,102 +1,8 @@
 // Car controller page. Plain JavaScript, no build step, no external files.
 //
 // Talks to the car over Socket.IO (protocol v5 on Engine.IO v4, WebSocket transport only) with the
-// small client below. The protocol is described in parts/web/protocol.py.
+// small client in sio.js (loaded first). The protocol is described in parts/web/protocol.py.
 "use strict";
-
-// ---------------------------------------------------------------------------------------------
-// Minimal Socket.IO client: connect with auth, events, acknowledgements, binary attachments.
-class SioClient {
-  constructor(auth) {
-    this.auth = auth;
-    this.handlers = {};
-    this.acks = new Map();
-    this.nextAck = 1;
-    this.ws = null;
-    this.connected = false;
-    this.id = null;
-    this.pending = null;  // a binary event waiting for its attachments
-  }
-  on(event, fn) { this.handlers[event] = fn; return this; }
-  _fire(event, ...args) { const fn = this.handlers[event]; if (fn) fn(...args); }
-  open() {
-    const proto = location.protocol === "https:" ? "wss" : "ws";
-    const ws = new WebSocket(`${proto}://${location.host}/socket.io/?EIO=4&transport=websocket`);
-    ws.binaryType = "arraybuffer";
-    ws.onmessage = (ev) => this._onMessage(ev.data);
-    ws.onclose = () => {
-      const was = this.connected;
-      this.connected = false;
-      this.ws = null;
-      this.acks.clear();
-      this._fire("disconnect", was);
-    };
-    this.ws = ws;
-  }
-  close() { if (this.ws) this.ws.close(); }
-  _send(text) { if (this.ws && this.ws.readyState === 1) this.ws.send(text); }
-  _onMessage(data) {
-    if (typeof data !== "string") {  // binary attachment of the pending event
-      const p = this.pending;
-      if (!p) return;
-      p.buffers.push(data);
-      if (p.buffers.length === p.count) { this.pending = null; this._dispatch(p.packet, p.buffers); }
-      return;
-    }
-    const eio = data[0];
-    if (eio === "0") { this._send("40" + JSON.stringify(this.auth)); }   // engine.io open
-    else if (eio === "2") { this._send("3"); }                           // ping → pong
-    else if (eio === "4") { this._onPacket(data.slice(1)); }
-    else if (eio === "1") { this.close(); }
-  }
-  _onPacket(s) {
-    const type = Number(s[0]);
-    let i = 1, count = 0, id = null;
-    if (type === 5 || type === 6) {
-      const dash = s.indexOf("-", i);
-      count = Number(s.slice(i, dash));
-      i = dash + 1;
-    }
-    if (s[i] === "/") { const comma = s.indexOf(",", i); i = comma < 0 ? s.length : comma + 1; }
-    let j = i;
-    while (j < s.length && s[j] >= "0" && s[j] <= "9") j++;
-    if (j > i) id = Number(s.slice(i, j));
-    const data = j < s.length ? JSON.parse(s.slice(j)) : undefined;
-    const packet = { type, id, data };
-    if (count > 0) { this.pending = { packet, count, buffers: [] }; return; }
-    this._dispatch(packet, []);
-  }
-  _dispatch(p, buffers) {
-    const fill = (v) => {
-      if (v && typeof v === "object") {
-        if (v._placeholder === true && typeof v.num === "number") return buffers[v.num];
-        for (const k of Object.keys(v)) v[k] = fill(v[k]);
-      }
-      return v;
-    };
-    if (p.type === 0) { this.connected = true; this.id = p.data && p.data.sid; this._fire("connect"); }
-    else if (p.type === 4) { this._fire("connect_error", (p.data && p.data.message) || "refused"); }
-    else if (p.type === 1) { this.close(); }
-    else if (p.type === 2 || p.type === 5) {
-      const [event, ...args] = fill(p.data);
-      const fn = this.handlers[event];
-      const ack = p.id === null ? null : (...res) => this._send("43" + p.id + JSON.stringify(res));
-      if (fn) fn(...args, ack); else if (ack) ack();
-    } else if (p.type === 3 || p.type === 6) {
-      const cb = this.acks.get(p.id);
-      this.acks.delete(p.id);
-      if (cb) cb(...fill(p.data || []));
-    }
-  }
-  emit(event, data, cb) {
-    if (!this.connected) return false;
-    let id = "";
-    if (cb) { id = String(this.nextAck++); this.acks.set(Number(id), cb); }
-    const args = data === undefined ? [event] : [event, data];
-    this._send("42" + id + JSON.stringify(args));
-    return true;
-  }
-}
 
 // ---------------------------------------------------------------------------------------------
 const $ = (id) => document.getElementById(id);
@@ -111,7 +17,7 @@ const STALE_S = 1.0;           // no news from the car's loop for this long: wha
 
 const params = new URLSearchParams(location.search);
 const stats = { frames: 0, sent: 0, rejected: 0, role: "none", connected: false, state: null,
-  lastError: null, angle: 0, throttle: 0, stale: true };
+  lastError: null, angle: 0, throttle: 0, stale: true, stops: 0 };
 window.webStats = stats;  // read by the tests and the benchmark
 
 const input = {
@@ -126,8 +32,13 @@ let stateAt = 0;              // performance.now() when it came
 let role = "none";
 let refused = null;           // why the car refused this page (pairing token), or null
 let lastTick = performance.now();
-let pickedAt = 0;             // when the user last chose in the model list (not synced meanwhile)
+let pickedAt = -Infinity;     // when the user last chose in the model list (not synced meanwhile)
 let modelError = "";          // the last refusal of a model choice
+let modeError = "";           // the last refusal of a mode choice
+let shownModelError = "";     // the model error on screen
+let loadPressed = false;      // Load pressed here, its answer not yet shown: bring it into view
+const NO_PILOT = "Auto steer and Full auto need a pilot, and this car has no pilot: start it with a model "
+  + "(manage.py drive --model models/NAME.pt).";
 
 const sock = new SioClient(params.get("token") ? { token: params.get("token") } : {});
 
@@ -140,6 +51,7 @@ function setRole(r) {
   $("take").classList.toggle("reserved", r === "driver" || !sock.connected);
   document.body.classList.toggle("viewer", r !== "driver");
   $("watching").hidden = r !== "viewer";
+  if (r !== "driver") placeKnob(0, 0);
   updateControls();
 }
 
@@ -174,20 +86,36 @@ function setSetting(obj, onError) {
 
 // -- connection ---------------------------------------------------------------------------------
 function setConn(text, cls) { $("conn").textContent = text; $("conn").className = "badge " + cls; }
+function setOnline(online) {
+  document.body.classList.toggle("offline", !online);
+  document.body.classList.toggle("refused", !!refused);
+  $("pair").hidden = !refused;
+  $("estop").setAttribute("aria-disabled", String(!online));
+}
 sock.on("connect", () => {
   stats.connected = true;
   refused = null;
   setConn("connected", "good");
+  setOnline(true);
   notice("");
 });
 sock.on("connect_error", (msg) => {
   refused = msg;
   stats.lastError = msg;
   setConn("refused", "bad");
-  notice(msg);
+  setOnline(false);
+  notice(msg.charAt(0).toUpperCase() + msg.slice(1) + ", or enter the token above");
+});
+// a refused page is given a field for the token: the page opens again with it in its address
+$("token").value = params.get("token") || "";
+$("pair").addEventListener("submit", (e) => {
+  e.preventDefault();
+  params.set("token", $("token").value.trim());
+  location.search = "?" + params.toString();
 });
 sock.on("disconnect", () => {
   stats.connected = false;
+  setOnline(false);
   pending.clear();  // no reply comes for what was in flight
   if (!refused) setConn("disconnected — retrying", "bad");
   setRole("none");
@@ -275,17 +203,22 @@ function onState(s) {
     $("cargamepad").textContent = "car pad " + t.car_gamepad;
     $("cargamepad").className = "badge " + (t.car_gamepad === "connected" ? "good" : "bad");
   }
-  for (const b of document.querySelectorAll("[data-mode]")) b.classList.toggle("on", b.dataset.mode === c.mode);
+  for (const b of document.querySelectorAll("[data-mode]")) {
+    b.classList.toggle("on", b.dataset.mode === c.mode);
+    b.setAttribute("aria-pressed", String(b.dataset.mode === c.mode));
+  }
   $("record").classList.toggle("on", c.recording);
   $("record").textContent = c.recording ? "■ Recording" : "● Record";
   const estop = c.estop || t.estop === true;
   $("estop").classList.toggle("latched", estop);
-  $("estop").textContent = estop ? "STOPPED — release" : "STOP";
+  // only the driving browser can release the stop: a watcher's STOP never offers it
+  $("estop").textContent = !estop ? "STOP" : role === "driver" ? "STOPPED — release" : "STOPPED";
   if (document.activeElement !== $("maxthrottle")) $("maxthrottle").value = c.max_throttle;
   $("maxthrottle-v").textContent = fmt(c.max_throttle);
   if (!pending.has("constant_throttle")) $("constant").checked = c.constant_throttle;
   if (!pending.has("speed_limit")) $("nolimit").checked = c.speed_limit === null;
   if (c.speed_limit !== null && document.activeElement !== $("speedlimit")) $("speedlimit").value = c.speed_limit;
+  $("speedlimit").setAttribute("aria-valuetext", $("nolimit").checked ? "no limit" : $("speedlimit").value + " m/s");
   $("speedlimit-v").textContent = c.speed_limit === null ? "none" : fmt(c.speed_limit, 1) + " m/s";
   $("speedlimit-note").textContent = t.speed === null && t.loops > 0
     ? "needs a measured speed (simulator, wheel encoder, GPS or VESC): none on this car, or its sensor is stale"
@@ -301,11 +234,29 @@ function onState(s) {
   }
   $("behaviorrow").hidden = t.behavior === null;  // a car without behaviours has no lanes to show
   $("behavior").textContent = t.behavior === null ? "–" : t.behavior.replace(/_/g, " ");
-  if (c.estop) notice("Emergency stop latched: press the STOP button again to release");
+  if (c.estop && role === "driver") notice("Emergency stop latched: press the STOP button again to release");
+  else if (c.estop) notice(VIEWER_LATCHED);
   else if ($("notice").textContent.startsWith("Emergency")) notice("");
 }
 let trips = null;
 let deadmanS = 0.5;
+const VIEWER_LATCHED = "Emergency stop latched: only the driving browser can release it (press Take control to drive)";
+
+// a message on the page; a command in it ("manage.py drive --model ...") is kept on one line
+function showText(el, text) {
+  if (el.textContent === text) return;
+  el.textContent = "";
+  const parts = text.split(/(manage\.py [^)]*)/);
+  parts.forEach((part, i) => {
+    if (i % 2 === 0) { el.append(part); return; }
+    const cmd = document.createElement("code");
+    cmd.textContent = part;
+    el.append(cmd);
+  });
+}
+
+// whether the car has no pilot (a pilot reports its model, or has written its angle)
+function noPilot(t) { return !!t && t.loops > 0 && t.pilot_model === null && t.pilot_angle === null; }
 
 // what this page may touch: a watcher nothing but STOP; while STOP is latched nothing that moves
 // the car or records; the speed limit only where the car measures its speed
@@ -313,12 +264,18 @@ function updateControls() {
   const driver = role === "driver";
   const c = state ? state.command : null, t = state ? state.telemetry : null;
   const latched = !!(c && c.estop);
-  for (const b of document.querySelectorAll("[data-mode]")) b.disabled = !driver || (latched && b.dataset.mode !== "user");
+  const pilotless = noPilot(t);
+  for (const b of document.querySelectorAll("[data-mode]")) {
+    b.disabled = !driver || (b.dataset.mode !== "user" && (latched || pilotless));
+  }
+  showText($("mode-note"), modeError || (pilotless ? NO_PILOT : ""));
+  document.body.classList.toggle("modenote", !!$("mode-note").textContent);  // a phone held sideways makes room
   $("record").disabled = !driver || latched;
   $("constant").disabled = !driver || latched;
   $("maxthrottle").disabled = !driver;
   const speed = !t || t.speed !== null || t.loops === 0;
-  $("speedlimit").disabled = !driver || !speed;
+  $("speedlimit").disabled = !driver || !speed || $("nolimit").checked;
+  $("speedlimit").classList.toggle("unset", $("nolimit").checked);  // no limit: no position shown
   $("nolimit").disabled = !driver || !speed;
   $("model").disabled = !driver;
   $("load").disabled = !driver || !$("model").value;
@@ -329,25 +286,55 @@ function fillModels(models) {
   const sel = $("model");
   const cur = sel.value;
   sel.innerHTML = "";
-  if (!models.length) { sel.add(new Option("(no models in the models folder)", "")); return; }
+  // nothing is preselected: the first entry says so (a file shown would look loaded)
+  sel.add(new Option(models.length ? "(choose a model)" : "(no models in the models folder)", ""));
   for (const m of models) sel.add(new Option(m, m));
-  if (models.includes(cur)) sel.value = cur;
+  sel.value = models.includes(cur) ? cur : "";
 }
 
 // the list shows the model driving, unless the user is choosing; errors come from the car
 function syncModel(t) {
   const sel = $("model");
   const choosing = document.activeElement === sel || performance.now() - pickedAt < 5000;
-  if (t.pilot_model && !choosing && sel.value !== t.pilot_model) {
-    if (![...sel.options].some((o) => o.value === t.pilot_model)) sel.add(new Option(t.pilot_model, t.pilot_model));
-    sel.value = t.pilot_model;
+  const running = t.pilot_model || "";
+  if (!choosing && sel.value !== running) {
+    if (![...sel.options].some((o) => o.value === running)) sel.add(new Option(running, running));
+    sel.value = running;
   }
-  $("model-error").textContent = modelError || (t.pilot_error ? "not loaded: " + t.pilot_error : "");
+  const error = modelError || (t.pilot_error ? loadError(t.pilot_error) : "");
+  showText($("model-error"), error);
+  // the answer to this page's Load where the eye is (never a scroll on opening the page: the
+  // joystick and STOP come first)
+  if (loadPressed && error && error !== shownModelError) {
+    $("model-error").scrollIntoView({ block: "nearest" });
+    loadPressed = false;
+  }
+  shownModelError = error;
+}
+
+// the car's "PATH: why" for a model it did not load, in plain words, the file named once
+function loadError(text) {
+  const i = text.indexOf(": ");
+  if (i < 0) return text;
+  const path = text.slice(0, i), name = path.split(/[\\/]/).pop();
+  let why = text.slice(i + 2);
+  if (why.startsWith(path + ": ")) why = why.slice(path.length + 2);
+  return `Could not load ${name}: ${why.split(path).join(name)}`;
 }
 
 // -- controls -----------------------------------------------------------------------------------
 $("take").onclick = () => sock.emit("take_control", undefined, (res) => { if (res && res.ok) setRole("driver"); });
-for (const b of document.querySelectorAll("[data-mode]")) b.onclick = () => setSetting({ mode: b.dataset.mode });
+$("watch-take").onclick = $("take").onclick;
+let modeErrorTimer = 0;
+function setMode(mode) {
+  modeError = "";
+  setSetting({ mode }, (e) => {  // refused (no pilot, STOP latched): said beside the buttons
+    modeError = e; updateControls();
+    clearTimeout(modeErrorTimer);
+    modeErrorTimer = setTimeout(() => { modeError = ""; updateControls(); }, 8000);
+  });
+}
+for (const b of document.querySelectorAll("[data-mode]")) b.onclick = () => setMode(b.dataset.mode);
 $("record").onclick = () => state && setSetting({ recording: !state.command.recording });
 $("maxthrottle").oninput = () => setSetting({ max_throttle: Number($("maxthrottle").value) });
 $("constant").onchange = () => setSetting({ constant_throttle: $("constant").checked });
@@ -355,26 +342,51 @@ const speedError = (e) => { $("speedlimit-note").textContent = e; };
 $("speedlimit").oninput = () => {
   if (Number($("speedlimit").value) > 0) setSetting({ speed_limit: Number($("speedlimit").value) }, speedError);
 };
-$("nolimit").onchange = () => setSetting({ speed_limit: $("nolimit").checked ? null : Math.max(0.1, Number($("speedlimit").value)) }, speedError);
+$("nolimit").onchange = () => {
+  updateControls();  // the slider shows a position only while a limit is chosen
+  setSetting({ speed_limit: $("nolimit").checked ? null : Math.max(0.1, Number($("speedlimit").value)) }, speedError);
+};
 $("model").onchange = () => { pickedAt = performance.now(); updateControls(); };
 $("load").onclick = () => {
   const name = $("model").value;
   if (!name) return;
   modelError = "";
-  pickedAt = 0;  // from now on the list follows the model driving again
-  setSetting({ model: name }, (e) => { modelError = e; $("model-error").textContent = e; });
+  loadPressed = true;
+  pickedAt = -Infinity;  // from now on the list follows the model driving again
+  setSetting({ model: name }, (e) => { modelError = e; if (state) syncModel(state.telemetry); });
 };
 $("model").onfocus = () => sock.emit("models", undefined, (res) => { if (res && res.ok) fillModels(res.models); });
 $("behaviornext").onclick = () => { if (role === "driver") send("behavior", { step: 1 }); };
 
 // The emergency stop acts on the first touch of any finger (pointerdown), also while another
 // finger holds the joystick: a multi-touch tap makes no click. A click then only comes from the
-// keyboard (Enter / space on the focused button: detail 0); a pointer's own click is ignored.
+// keyboard (Enter on the focused button: detail 0); a pointer's own click is ignored. Pressed
+// again, it releases the stop: only in the driving browser (a watcher's STOP only ever stops).
 function pressStop() {
   const latched = state && state.command.estop;
+  if (latched && role !== "driver") { emergencyStop(); notice(VIEWER_LATCHED); return; }
+  stats.stops++;
   stopNow();
   send("estop", { on: !latched });
   if (!latched && state) state.command.estop = true;  // until the car confirms: no second toggle
+}
+
+// Esc (and a gamepad's B): latch the emergency stop
+function emergencyStop() {
+  stats.stops++;
+  stopNow(); input.source = "keyboard";
+  send("estop", { on: true });
+  if (state) state.command.estop = true;
+}
+
+// Space: throttle to neutral, user mode, constant throttle off (the car's own state, not the page's);
+// in a watching browser, whose only stop is STOP, it latches the emergency stop
+function spaceStop() {
+  if (role !== "driver") { emergencyStop(); return; }
+  stats.stops++;
+  stopNow(); input.source = "keyboard";
+  setSetting({ mode: "user", constant_throttle: false });
+  tick();
 }
 $("estop").addEventListener("pointerdown", (e) => { e.preventDefault(); pressStop(); });
 $("estop").addEventListener("click", (e) => { if (e.detail === 0) pressStop(); });
@@ -386,36 +398,50 @@ function stopNow() {
 
 function cycleMode() {
   if (!state) return;
-  setSetting({ mode: MODES[(MODES.indexOf(state.command.mode) + 1) % MODES.length] });
+  setMode(MODES[(MODES.indexOf(state.command.mode) + 1) % MODES.length]);
 }
 
 // keyboard
 const DRIVE_KEYS = { ArrowUp: "up", KeyW: "up", ArrowDown: "down", KeyS: "down",
   ArrowLeft: "left", KeyA: "left", ArrowRight: "right", KeyD: "right" };
+const TEXT_INPUTS = new Set(["text", "password", "search", "email", "url", "tel", "number"]);
+const typing = (t) => !!t && ((t.tagName === "INPUT" && TEXT_INPUTS.has(t.type)) || t.tagName === "TEXTAREA"
+  || t.isContentEditable);
+// The stop keys act whatever has focus, and never reach the focused control (Space would toggle a
+// checkbox or press a button). The arrows drive and never move a focused slider or list; the
+// letters are shortcuts everywhere but in a text field (the pairing token), which keeps its typing.
+// Enter and Tab keep their meaning (press the focused button, next control). Captured first, so
+// that no control sees a key the page uses.
 window.addEventListener("keydown", (e) => {
-  if (e.target && (e.target.tagName === "INPUT" || e.target.tagName === "SELECT") && !DRIVE_KEYS[e.code]) return;
-  if (e.target && e.target.id === "estop" && (e.code === "Enter" || e.code === "Space")) return;  // its click
+  if (e.code === "Space" || e.code === "Escape") {
+    e.preventDefault();
+    if (e.code === "Escape") { emergencyStop(); tick(); } else spaceStop();
+    return;
+  }
+  if (e.ctrlKey || e.metaKey || e.altKey || typing(e.target)) return;
   if (DRIVE_KEYS[e.code]) {
     e.preventDefault();
     input.keys.add(DRIVE_KEYS[e.code]);
     input.source = "keyboard";
     tick();  // send at once: key press to car without waiting for the next tick
-  } else if (e.code === "Space") {
-    e.preventDefault(); stopNow(); input.source = "keyboard";
-    if (state && state.command.mode !== "user") setSetting({ mode: "user" });
-    tick();
-  } else if (e.code === "Escape") { stopNow(); send("estop", { on: true }); }
-  else if (e.repeat) return;
-  else if (e.code === "KeyR") $("record").onclick();
-  else if (e.code === "KeyM") cycleMode();
-  else if (e.code === "KeyL") $("behaviornext").onclick();
-  else if (e.code === "KeyC") setSetting({ constant_throttle: !(state && state.command.constant_throttle) });
-  else if (e.key === "+" || e.key === "=") setSetting({ max_throttle: clamp(((state && state.command.max_throttle) || 0) + 0.05, 0, 1) });
-  else if (e.key === "-") setSetting({ max_throttle: clamp(((state && state.command.max_throttle) || 0) - 0.05, 0, 1) });
-});
+    return;
+  }
+  const shortcut = {
+    KeyR: () => $("record").onclick(),
+    KeyM: cycleMode,
+    KeyL: () => $("behaviornext").onclick(),
+    KeyC: () => setSetting({ constant_throttle: !(state && state.command.constant_throttle) }),
+  }[e.code] || { "+": () => setSetting({ max_throttle: clamp(((state && state.command.max_throttle) || 0) + 0.05, 0, 1) }),
+    "=": () => setSetting({ max_throttle: clamp(((state && state.command.max_throttle) || 0) + 0.05, 0, 1) }),
+    "-": () => setSetting({ max_throttle: clamp(((state && state.command.max_throttle) || 0) - 0.05, 0, 1) }) }[e.key];
+  if (!shortcut) return;
+  e.preventDefault();  // a list's type-ahead, a slider's keys
+  if (!e.repeat) shortcut();
+}, true);
 window.addEventListener("keyup", (e) => {
+  if (e.code === "Space") e.preventDefault();  // a focused button or checkbox acts on Space's keyup
   if (DRIVE_KEYS[e.code]) { input.keys.delete(DRIVE_KEYS[e.code]); tick(); }
-});
+}, true);
 // leaving the page releases every control at once: keys, joystick (the browser may never tell
 // the page that a held finger or button went up while it was hidden)
 window.addEventListener("blur", () => { input.keys.clear(); });
@@ -439,6 +465,7 @@ function padMove(e) {
   placeKnob(x, y);
 }
 pad.addEventListener("pointerdown", (e) => {
+  if (role !== "driver") return;  // a watcher's joystick drives nothing
   if (input.pad.active && input.pad.id !== e.pointerId) return;  // a second finger on the pad
   pad.setPointerCapture(e.pointerId); padMove(e); tick();
 });
@@ -469,7 +496,7 @@ function readGamepad() {
   const throttle = rt > 0.05 || lt > 0.05 ? rt - lt : -dz(gp.axes[3] || 0);
   const pressed = gp.buttons.map((b) => b.pressed);
   const edge = (i) => pressed[i] && !input.gamepadButtons[i];
-  if (edge(1)) { stopNow(); send("estop", { on: true }); }   // B / circle
+  if (edge(1)) emergencyStop();                               // B / circle
   if (edge(0)) $("record").onclick();                         // A / cross
   if (edge(3)) cycleMode();                                   // Y / triangle
   input.gamepadButtons = pressed;
@@ -496,6 +523,11 @@ function tick() {
   angle = Math.round(clamp(angle, -1, 1) * 1000) / 1000;
   throttle = Math.round(clamp(throttle, -1, 1) * 1000) / 1000;
   stats.angle = angle; stats.throttle = throttle;
+  // the knob shows what is sent, whatever drives (keys, gamepad); a held finger places it itself
+  if (!input.pad.active) {
+    const n = Math.max(1, Math.hypot(angle, throttle));
+    placeKnob(role === "driver" ? angle / n : 0, role === "driver" ? -throttle / n : 0);
+  }
   if (role === "driver" && sock.connected) {
     sock.emit("drive", { angle, throttle }, (res) => {
       if (res && res.ok === false) { stats.rejected++; stats.lastError = res.error; }
@@ -504,4 +536,5 @@ function tick() {
   }
 }
 setInterval(tick, TICK_MS);
+setRole("none");  // nothing may be touched until the car says who drives
 sock.open();

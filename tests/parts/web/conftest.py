@@ -5,6 +5,7 @@ real cars (a Vehicle in a thread) for the browser tests."""
 from __future__ import annotations
 
 import asyncio
+import re
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -34,6 +35,7 @@ class LoopSide:
     def __init__(self, part: WebController) -> None:
         self.part = part
         self.telemetry: dict[str, Any] = {k: None for k in WebController.INPUTS}
+        self.telemetry["pilot/model"] = "a.pt"  # a car with a pilot (step(pilot__model=None): without)
         self.i = 0
 
     def step(self, **telemetry: Any) -> dict[str, Any]:
@@ -356,6 +358,33 @@ def make_car(tmp_path: Path) -> Iterator[Callable[..., Car]]:
     yield make
     for car in cars:
         car.stop()
+
+
+#: viewports of the browser tests, CSS pixels
+DESKTOP = {"width": 1280, "height": 800}
+
+
+@pytest.fixture
+def open_page(new_page: Callable[..., Any]) -> Callable[..., Any]:
+    """``open_page(url, viewport=DESKTOP, touch=False, role="driver", init_script=None,
+    route_socket=None)``: a page in its own browser context (a phone's with ``touch``), connected
+    with that role."""
+
+    def open_(url: str, viewport: dict[str, int] | None = None, touch: bool = False,
+              role: str | None = "driver", init_script: str | None = None,
+              route_socket: Callable[[Any], None] | None = None) -> Any:
+        page = new_page(device="phone" if touch else "desktop", viewport=viewport or DESKTOP)
+        if init_script:
+            page.add_init_script(init_script)
+        if route_socket:  # sees (and may hold) every WebSocket message between page and car
+            page.route_web_socket(re.compile(r".*/socket\.io/.*"), route_socket)
+        page.goto(url)
+        if role:
+            page.wait_for_function(f"window.webStats && webStats.connected && webStats.role === '{role}'")
+        return page
+
+    return open_
+
 
 
 @pytest.fixture

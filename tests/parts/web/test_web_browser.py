@@ -51,8 +51,8 @@ def test_a_frozen_page_trips_the_deadman(tmp_path, browser, new_page, fake_car):
         page.wait_for_function("document.getElementById('notice').textContent.startsWith('Dead-man')")
 
 
-def test_buttons_modes_record_estop_and_watcher(tmp_path, browser, new_page, fake_car):
-    with fake_car(tmp_path, browser) as car:
+def test_buttons_modes_record_estop_and_watcher(tmp_path, browser, new_page, fake_car, make_model_file):
+    with fake_car(tmp_path, browser, model=make_model_file("linear")) as car:  # Auto steer needs a pilot
         driver = new_page(car.web.url)
         driver.wait_for_function(CONNECTED.format("driver"))
         watcher = new_page(car.web.url)

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import re
 import time
-from collections.abc import Callable
 from typing import Any
 
 import pytest
@@ -16,28 +15,6 @@ pytestmark = pytest.mark.browser  # chromium missing: the browser fixture skips,
 DESKTOP = {"width": 1280, "height": 800}
 PHONE = {"width": 390, "height": 844}
 PHONE_LANDSCAPE = {"width": 844, "height": 390}
-
-
-@pytest.fixture
-def open_page(new_page: Callable[..., Any]) -> Callable[..., Any]:
-    """``open_page(url, viewport=DESKTOP, touch=False, role="driver", init_script=None,
-    route_socket=None)``: a page in its own browser context (a phone's with ``touch``), connected
-    with that role."""
-
-    def open_(url: str, viewport: dict[str, int] = DESKTOP, touch: bool = False,
-              role: str | None = "driver", init_script: str | None = None,
-              route_socket: Callable[[Any], None] | None = None) -> Any:
-        page = new_page(device="phone" if touch else "desktop", viewport=viewport)
-        if init_script:
-            page.add_init_script(init_script)
-        if route_socket:  # sees (and may hold) every WebSocket message between page and car
-            page.route_web_socket(re.compile(r".*/socket\.io/.*"), route_socket)
-        page.goto(url)
-        if role:
-            page.wait_for_function(f"window.webStats && webStats.connected && webStats.role === '{role}'")
-        return page
-
-    return open_
 
 
 def box(page: Any, selector: str) -> dict[str, float]:
@@ -200,7 +177,7 @@ def test_the_model_picker_shows_the_running_model_every_model_and_errors(make_ca
     page = open_page(car.web.url)
     page.wait_for_function("document.getElementById('model').value === 'pilot.pt'")
     options = page.eval_on_selector_all("#model option", "os => os.map(o => o.value)")
-    assert options == ["broken.pt", "pilot.pt", "pilot.ts"]
+    assert options == ["", "broken.pt", "pilot.pt", "pilot.ts"]  # "" = "(choose a model)"
     page.select_option("#model", "broken.pt")
     page.click("#load")
     page.wait_for_function("document.getElementById('model-error').textContent.includes('broken.pt')")
@@ -213,7 +190,7 @@ def test_loading_a_model_in_a_car_without_a_pilot_says_why(make_car, open_page, 
     page = open_page(car.web.url)
     page.select_option("#model", "pilot.pt")
     page.click("#load")
-    page.wait_for_function("document.getElementById('model-error').textContent.includes('without a pilot')")
+    page.wait_for_function("document.getElementById('model-error').textContent.includes('no pilot')")
 
 
 # -- 18: the simulator's CTE, laps and off-track events; the gamepad ------------------------------
@@ -253,8 +230,8 @@ def test_no_simulator_no_simulator_panel_and_no_gamepad(make_car, open_page):
 
 
 # -- 19: STOP latched: settings wait; released: user mode, not recording ---------------------------
-def test_settings_wait_for_the_stop_and_release_returns_to_user_mode(make_car, open_page):
-    car = make_car()
+def test_settings_wait_for_the_stop_and_release_returns_to_user_mode(make_car, open_page, make_model_file):
+    car = make_car(model=make_model_file("linear"))  # Full auto needs a pilot
     page = open_page(car.web.url)
     page.click("[data-mode=local]")
     page.click("#record")
@@ -322,7 +299,7 @@ def test_every_control_error_and_stale_value_at_each_screen_size(make_car, open_
     # 16: the car stops: what the page shows is greyed, not shown as live
     car.stop()
     page.wait_for_function("document.body.classList.contains('stale')", timeout=8000)
-    for selector in (".gauges", ".view"):
+    for selector in (".gauges", "#cam"):
         assert float(page.evaluate(f"getComputedStyle(document.querySelector('{selector}')).opacity")) < 1, selector
 
 

@@ -569,14 +569,33 @@ def test_a_model_or_a_speed_limit_the_car_cannot_use_is_refused(web, loop_side, 
     async def main():
         c = client_cls()
         await c.connect(web.port)
-        loop_side.step()  # a car without a pilot and without a speed measurement
+        loop_side.step(pilot__model=None)  # a car without a pilot and without a speed measurement
         res = await c.call("set", {"model": "a.pt"})
-        assert res["ok"] is False and "without a pilot" in res["error"] and "--model" in res["error"]
+        assert res["ok"] is False and "no pilot" in res["error"] and "--model" in res["error"]
         res = await c.call("set", {"speed_limit": 1.0})
         assert res["ok"] is False and "measures no speed" in res["error"]
         assert await c.call("set", {"speed_limit": None}) == {"ok": True}
         loop_side.step(pilot__model="a.pt", sim__speed=0.0)
         assert await c.call("set", {"model": "b.pt", "speed_limit": 1.0}) == {"ok": True}
+        await c.close()
+
+    arun(main())
+
+
+def test_pilot_modes_are_refused_in_a_car_without_a_pilot(web, loop_side, client_cls, arun):
+    """Issue 27 item 2: Auto steer in a car without a pilot drove straight at the user's throttle."""
+    async def main():
+        c = client_cls()
+        await c.connect(web.port)
+        loop_side.step(pilot__model=None)
+        for mode in ("local_angle", "local"):
+            res = await c.call("set", {"mode": mode})
+            assert res["ok"] is False and "no pilot" in res["error"] and "--model" in res["error"], res
+            assert loop_side.step()["user/mode"] == "user"
+        assert await c.call("set", {"mode": "user"}) == {"ok": True}
+        loop_side.step(pilot__model="a.pt")
+        assert await c.call("set", {"mode": "local"}) == {"ok": True}
+        assert loop_side.step()["user/mode"] == "local"
         await c.close()
 
     arun(main())

@@ -25,8 +25,10 @@ def test_page_and_assets_are_served(web, arun):
     async def main():
         status, body = await raw_get(web.port, "/")
         assert status == 200 and b"<canvas id=\"cam\"" in body
-        status, body = await raw_get(web.port, "/static/app.js")
+        status, body = await raw_get(web.port, "/static/sio.js")
         assert status == 200 and b"class SioClient" in body
+        status, body = await raw_get(web.port, "/static/app.js")
+        assert status == 200 and b"new SioClient" in body
         status, body = await raw_get(web.port, "/static/style.css")
         assert status == 200 and b".estop" in body
         status, body = await raw_get(web.port, "/favicon.ico")  # issue 21: it was a 404
