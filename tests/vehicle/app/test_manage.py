@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
@@ -113,3 +114,26 @@ def test_expert_options_without_expert_are_an_error(tmp_path, capsys, option):
     assert manage.main(["drive", *option, "--max-loops", "2"]) == 2
     assert capsys.readouterr().err.strip() == \
         "error: --record-records and --lane-changes are for the expert: add --expert"
+
+
+@pytest.mark.slow
+def test_train_run_from_elsewhere_writes_the_model_and_registry_in_the_car(tmp_path, monkeypatch, capsys):
+    # issue 27: `python mycar/manage.py train --tubs data --model models/z.pt` from outside the car
+    # wrote the model and a second registry under the current folder; `vehicle models` missed it
+    from fixtures.pilots import write_tub
+
+    from vehicle.app.cli import main as vehicle
+
+    manage = _sim_car(tmp_path)
+    car = tmp_path / "car"
+    write_tub(car / "data" / "tub", n=40, sessions=1)
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    assert manage.main(["train", "--tubs", "data", "--model", "models/z.pt", "--epochs", "1",
+                        "--type", "linear"]) == 0
+    assert (car / "models" / "z.pt").is_file() and (car / "models" / "models.sqlite3").is_file()
+    assert not (elsewhere / "models").exists()
+    assert str(car / "models" / "z.pt") in capsys.readouterr().out
+    assert vehicle(["models", "--car", str(car), "--json"]) == 0
+    assert [m["name"] for m in json.loads(capsys.readouterr().out)] == ["z"]

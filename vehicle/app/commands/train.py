@@ -222,13 +222,22 @@ def train_car(cfg: Any, args: argparse.Namespace) -> int:
     ``--model`` (default ``models/pilot_<date>_<n>.pt``), with the loss curve, the metrics JSON and
     an entry in the car's model registry. Returns the exit code.
 
-    Relative ``--tubs`` that do not exist in the current folder are looked up in the car folder.
+    Paths are the car's, wherever manage.py is run from: a relative ``--model`` is written in the
+    car folder (so the model and its registry entry land where ``vehicle models`` looks); relative
+    ``--tubs`` and ``--transfer`` are read from the car folder, or from the current folder when
+    only it has them.
     """
-    tubs = []
-    for tub in tub_list(getattr(args, "tubs", None)):
-        path = Path(tub)
-        if not path.is_absolute() and not path.exists() and (Path(cfg.CAR_PATH) / path).exists():
-            path = Path(cfg.CAR_PATH) / path
-        tubs.append(str(path))
-    args.tubs = tubs or None
+    car = Path(cfg.CAR_PATH)
+
+    def read_path(value: str) -> str:
+        path = Path(value).expanduser()
+        if not path.is_absolute() and ((car / path).exists() or not path.exists()):
+            path = car / path
+        return str(path)
+
+    args.tubs = [read_path(tub) for tub in tub_list(getattr(args, "tubs", None))] or None
+    if getattr(args, "transfer", None):
+        args.transfer = read_path(args.transfer)
+    if getattr(args, "model", None):
+        args.model = str(car / Path(args.model).expanduser())  # an absolute path stays as it is
     return run_from_args(cfg, args)
