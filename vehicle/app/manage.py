@@ -17,7 +17,8 @@ from typing import Any
 
 from vehicle.app.cli import configure_logging, stop_code
 from vehicle.config import Config, load_config
-from vehicle.errors import PartError, VehicleError, VehicleStopped
+from vehicle.errors import PartError, UserError, VehicleError, VehicleStopped
+from vehicle.keys import MODES, Mode
 
 logger = logging.getLogger(__name__)
 
@@ -73,6 +74,26 @@ def main(parser: argparse.ArgumentParser, car_path: str | Path, argv: Sequence[s
         return 2
     except (VehicleStopped, KeyboardInterrupt, PartError) as exc:  # a vehicle a command started
         return stop_code(exc)
+
+
+def add_mode_option(parser: argparse.ArgumentParser) -> None:
+    """Add ``--mode user|local_angle|local``: who drives from the first loop (DEFAULT_MODE for one drive)."""
+    parser.add_argument("--mode", choices=MODES, help="who drives from the first loop: user (you), local_angle "
+                        "(the pilot steers, you set the throttle) or local (the pilot drives; with --model); "
+                        "default: DEFAULT_MODE")
+
+
+def start_mode(cfg: Config, mode: str | None, model: str | None) -> Config:
+    """``cfg`` with DEFAULT_MODE = ``mode`` (the ``--mode`` option) when one is given.
+
+    Raises:
+        UserError: a pilot mode without a model: nothing would steer.
+    """
+    if mode is None:
+        return cfg
+    if mode != Mode.USER and not model:
+        raise UserError(f"--mode {mode} needs a pilot: add --model FILE (a models/*.pt file)")
+    return cfg.replace(DEFAULT_MODE=mode)
 
 
 def int_list(text: str) -> list[int]:
