@@ -103,10 +103,8 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
 
     t, c = time.perf_counter(), cpu_seconds()
     say(f"[2/4] training a {model_type} model for up to {epochs} epochs ...")
-    from parts.pilots.training import train
-
-    metrics = train(cfg, [tub], model_path, model_type_name=model_type, epochs=epochs,
-                    comment="vehicle demo")
+    metrics = train_or_stop(cfg, [tub], model_path, model_type_name=model_type, epochs=epochs,
+                            comment="vehicle demo")
     seconds["train"] = time.perf_counter() - t
     cpu["train"] = cpu_seconds() - c
     say(f"      best val_loss {metrics['best_val_loss']:.5f} at epoch {metrics['best_epoch']} of "
@@ -143,6 +141,31 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
             f"({describe(pair['expert'])[len('conditions: '):]})")
     return {"reports": reports, "trained_themes": trained, "unseen_theme": unseen_theme, "model": model_path,
             "seconds": seconds, "cpu_seconds": cpu, "metrics": metrics}
+
+
+def train_or_stop(cfg: Any, tubs: list[Path], model_path: Path, **options: Any) -> dict[str, Any]:
+    """``parts.pilots.training.train`` as ``manage.py train`` runs it: the first Ctrl-C ends the
+    training after the current step and keeps the best model so far with its metrics, loss plot
+    and registry entry; the demo then says what it kept and ends (KeyboardInterrupt: exit 130)."""
+    from parts.pilots.training import train
+    from vehicle.app.interrupt import ctrl_c_stops_training
+
+    with ctrl_c_stops_training() as interrupted:
+        try:
+            metrics = train(cfg, tubs, model_path, should_stop=interrupted.is_set if interrupted else None,
+                            **options)
+        except ValueError as exc:
+            if interrupted is not None and interrupted.is_set() and "cancelled" in str(exc):
+                say("stopped by Ctrl-C before the first epoch ended: no model was saved")
+                raise KeyboardInterrupt from None
+            raise
+    if metrics.get("cancelled"):
+        best = metrics.get("best_val_loss")
+        loss = f"{best:.5f}" if isinstance(best, float) else "n/a"
+        say(f"stopped by Ctrl-C: kept {model_path} (best epoch {metrics['best_epoch']} of {metrics['epochs']}, "
+            f"val_loss {loss}) with its metrics, loss plot and registry entry; the demo ends here")
+        raise KeyboardInterrupt
+    return metrics
 
 
 def cpu_seconds() -> float:

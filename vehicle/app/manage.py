@@ -15,7 +15,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from vehicle.app.cli import configure_logging, stop_code
+from vehicle.app.cli import ArgumentParser, RawHelpFormatter, configure_logging, stop_code
 from vehicle.config import Config, load_config
 from vehicle.errors import PartError, UserError, VehicleError, VehicleStopped
 from vehicle.keys import MODES, Mode
@@ -27,7 +27,7 @@ Command = Callable[[Config, argparse.Namespace], int | None]
 
 def command_parser(doc: str | None) -> argparse.ArgumentParser:
     """The manage.py parser: ``--myconfig``, ``-v`` and a subcommand slot."""
-    parser = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = ArgumentParser(description=doc, formatter_class=RawHelpFormatter)
     parser.add_argument("--myconfig", default=None,
                         help="override file to load instead of myconfig.py (relative to the car folder)")
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv: debug)")
@@ -73,7 +73,7 @@ def main(parser: argparse.ArgumentParser, car_path: str | Path, argv: Sequence[s
         print(f"error: {exc}", file=sys.stderr)  # noqa: T201 - the CLI's own output
         return 2
     except (VehicleStopped, KeyboardInterrupt, PartError) as exc:  # a vehicle a command started
-        return stop_code(exc)
+        return stop_code(exc, driving=args.command == "drive")  # train, console: no throttle
 
 
 def add_mode_option(parser: argparse.ArgumentParser) -> None:

@@ -12,17 +12,15 @@ folder), else the defaults; the options override them. ``manage.py train`` takes
 from __future__ import annotations
 
 import argparse
-import contextlib
 import logging
 import os
-import signal
 import sys
-import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from vehicle.app.carconfig import add_car_options, load_for_command
+from vehicle.app.interrupt import ctrl_c_stops_training
 from vehicle.errors import UserError
 
 logger = logging.getLogger(__name__)
@@ -167,7 +165,7 @@ def run_from_args(cfg: Any, args: argparse.Namespace) -> int:
         raise UserError(str(exc)) from exc
     tubs = tub_list(args.tubs) or [str(cfg.path("DATA_PATH"))]
     model_path = Path(args.model) if args.model else default_model_path(cfg.path("MODELS_PATH"))
-    with _ctrl_c_stops_training() as interrupted:
+    with ctrl_c_stops_training() as interrupted:
         try:
             metrics = train(cfg, tubs, model_path, model_type_name=model_type_name, transfer=args.transfer,
                             comment=args.comment, register=not args.no_register,
@@ -187,34 +185,6 @@ def run_from_args(cfg: Any, args: argparse.Namespace) -> int:
         print(f"{stopped}saved {model_path} (best epoch {metrics['best_epoch']} of {metrics['epochs']}, "  # noqa: T201
               f"val_loss {loss}); metrics: {sidecar(model_path, '.metrics.json')}")
     return 130 if metrics.get("cancelled") else 0
-
-
-@contextlib.contextmanager
-def _ctrl_c_stops_training() -> Iterator[threading.Event | None]:
-    """The first Ctrl-C ends the training after the current step, keeping the best model so far
-    (its metrics, plot and registry entry written as for a finished run); a second one stops at
-    once. Yields the event ``fit`` polls, or None where a handler cannot be set (another thread,
-    several processes: torchrun stops its workers itself)."""
-    if threading.current_thread() is not threading.main_thread() or int(os.environ.get("WORLD_SIZE", "1")) > 1:
-        yield None
-        return
-    interrupted = threading.Event()
-    owner = os.getpid()
-
-    def on_sigint(signum: int, frame: Any) -> None:
-        if os.getpid() != owner:  # a forked DataLoader worker got the terminal's Ctrl-C: the trainer stops it
-            return
-        if interrupted.is_set():
-            raise KeyboardInterrupt
-        interrupted.set()
-        logger.warning("Ctrl-C: training stops after this step and keeps its best model so far "
-                       "(Ctrl-C again to stop at once)")
-
-    previous = signal.signal(signal.SIGINT, on_sigint)
-    try:
-        yield interrupted
-    finally:
-        signal.signal(signal.SIGINT, previous)
 
 
 def train_car(cfg: Any, args: argparse.Namespace) -> int:
