@@ -42,6 +42,7 @@ from parts.pilots.hyperparams import check_config
 from parts.pilots.modelfile import load_model, save_model
 from parts.pilots.models import PilotModel, create_model, model_type, model_type_names
 from parts.pilots.preprocess import Preprocess, preprocess_from_config
+from parts.pilots.progress_log import ProgressLog
 from parts.pilots.split import split_train_val
 from parts.pilots.train_report import plot_losses, sidecar, write_metrics
 
@@ -332,8 +333,11 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
                       "batches": min(len(train_loader), cfg.TRAIN_STEPS_PER_EPOCH or len(train_loader)),
                       "model": str(model_path)})
             phase("training")
+        sink = on_event
+        if dist_info.is_main and not (progress if progress is not None else _tty()):
+            sink = ProgressLog(on_event)  # no progress bar: a log line at a steady interval instead
         history = fit(train_model, train_loader, val_loader, preprocess, dev, settings, dist_info, save_best,
-                      plan=plan, on_event=on_event, should_stop=should_stop)
+                      plan=plan, on_event=sink, should_stop=should_stop)
         # every rank got through the last collective: from here each leaves through the barrier,
         # rank 0 even when its own file writing below fails, so no peer waits for it in vain
         clean = True

@@ -54,6 +54,36 @@ DEFAULTS = {"records": 12000, "epochs": 10, "noise": 0.4, "train_tracks": list(r
             "eval_tracks": [101, 102, 103, 104, 105], "laps": 2, "eval_randomize": None, "unseen_theme": "park"}
 
 
+#: the demo's wall time in seconds on a quiet 2-core CPU of each kind: "bf16" where the CPU has
+#: native bf16 (AVX512-BF16 or AMX: training runs in bf16), "fp32" where it has not (training runs
+#: in fp32, the bigger part of the time). Measured figures only (docs/benchmarks.md, "demo";
+#: docs/vision.md for --lanes); a kind without one is said to be unmeasured.
+EXPECTED_SECONDS: dict[str, dict[str, float]] = {
+    "plain": {"bf16": 129, "fp32": 363},
+    "lanes": {"bf16": 240},
+}
+
+
+def expected_time(demo: str, native_bf16: bool, cpu: str) -> str:
+    """The demo's start-up line: what it should take on this CPU and what that depends on.
+
+    ``demo`` is "plain" or "lanes"; ``native_bf16`` and ``cpu`` (its name) describe the CPU
+    (:func:`parts.pilots.acceleration.cpu_caps`).
+    """
+    kind = "bf16" if native_bf16 else "fp32"
+    what = f"{cpu}, {'native bf16: trains in bf16' if native_bf16 else 'no native bf16: trains in fp32'}"
+    seconds = EXPECTED_SECONDS.get(demo, {}).get(kind)
+    if seconds is None:
+        return f"expected time: not measured on a CPU of this kind ({what}); each step prints its time"
+    return (f"expected time: about {_minutes(seconds)} on a quiet 2-core CPU of this kind ({what}); more on a busy "
+            "machine, less with more cores; most of it is training")
+
+
+def _minutes(seconds: float) -> str:
+    """``about 2 minutes`` style wording: whole minutes from 90 s on, else seconds."""
+    return f"{seconds:.0f} s" if seconds < 90 else f"{round(seconds / 60)} minutes"
+
+
 def say(text: str) -> None:
     print(text, flush=True)  # noqa: T201 - the command's own output
 
