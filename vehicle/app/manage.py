@@ -93,6 +93,9 @@ def start_mode(cfg: Config, mode: str | None, model: str | None) -> Config:
         return cfg
     if mode != Mode.USER and not model:
         raise UserError(f"--mode {mode} needs a pilot: add --model FILE (a models/*.pt file)")
+    if mode != Mode.USER:
+        logger.warning("--mode %s: the pilot %s from the first loop", mode,
+                       "drives" if mode == Mode.LOCAL else "steers")
     return cfg.replace(DEFAULT_MODE=mode)
 
 
