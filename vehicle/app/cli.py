@@ -71,13 +71,21 @@ class ArgumentParser(argparse.ArgumentParser):
     def _check_options(self, args: list[str]) -> None:
         known = [s for a in self._actions for s in a.option_strings]
         subcommands = {name for a in self._actions if isinstance(a, argparse._SubParsersAction) for name in a.choices}
+        takes_value = False
         for token in args:
+            if takes_value:  # an option's value, whatever it looks like (--comment "--fast")
+                takes_value = False
+                continue
             if token == "--" or token in subcommands:  # the rest belongs to the subcommand
                 return
             if not token.startswith("--"):
                 continue
             name = token.split("=", 1)[0]
-            if name in known or (self.allow_abbrev and sum(k.startswith(name) for k in known) == 1):
+            matches = [k for k in known if k == name] or \
+                ([k for k in known if k.startswith(name)] if self.allow_abbrev else [])
+            if len(matches) == 1:
+                action = self._option_string_actions[matches[0]]
+                takes_value = "=" not in token and action.nargs is None  # exactly one value follows
                 continue
             close = difflib.get_close_matches(name, [k for k in known if k.startswith("--")], n=1)
             self.error(f"unknown option {name}" + (f": did you mean {close[0]}?" if close else

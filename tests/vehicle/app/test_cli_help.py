@@ -101,3 +101,8 @@ def test_ctrl_c_outside_a_drive_mentions_no_throttle(caplog):
         assert "stopped by Ctrl-C" in caplog.text and "throttle" not in caplog.text
         assert stop_code(KeyboardInterrupt()) == 130
     assert "throttle set to neutral" in caplog.text  # a drive still says where the throttle is
+
+
+def test_an_option_value_that_looks_like_an_option_is_a_value(tmp_path):
+    args = build_parser().parse_args(["train", "--car", str(tmp_path), "--comment", "--fast run", "--epochs", "2"])
+    assert args.comment == "--fast run" and args.epochs == "2"
