@@ -42,6 +42,7 @@ from training.distributed import DistInfo, init_distributed, shutdown_distribute
 from training.fit import EventSink, FitSettings, fit
 from training.framecache import FrameCache
 from training.hyperparams import check_config
+from training.progress_log import ProgressLog
 from training.recipes import Recipe
 from training.split import split_train_val
 from training.train_report import plot_losses, sidecar, write_metrics
@@ -136,6 +137,7 @@ def prepare_data(cfg: Any, data: DriveData, model: PilotModel, preprocess: Prepr
                                         cfg.TRAIN_BALANCE_MAX_PER_BIN, cfg.TRAIN_SEED)
         logger.info("balanced by steering: %d of %d training records kept", len(train_pos), n_split)
     side = dict(cfg.TRAIN_SIDE_CAMERAS)
+    _check_side_cameras(data, side)
     keys = [IMAGE_KEY, *side]
     offsets = [0.0, *(float(v) for v in side.values())]
     depth = max(model.frames - 1, model.command_history)
@@ -147,8 +149,9 @@ def prepare_data(cfg: Any, data: DriveData, model: PilotModel, preprocess: Prepr
         train_s = train_s.subset(~np.isin(train_s.chain, bad).any(axis=1))
         val_s = val_s.subset(~np.isin(val_s.chain, bad).any(axis=1))
     if len(train_s) == 0:
-        raise ValueError(f"no training samples left from {len(data)} records (sequence models need "
-                         f"{depth} consecutive records before each sample); record more data")
+        why = (f"sequence models need {depth} consecutive records before each sample" if depth
+               else "the frames of every record could not be read: see the warnings above")
+        raise ValueError(f"no training samples left from {len(data)} records ({why}); record more data")
     names = cfg.AUGMENTATIONS if augmentations is None else list(augmentations)
     order = cfg.BEHAVIOR_LIST if behavior_order is None else behavior_order
     mirror, behaviors, extra_values = _behavior_inputs(data, model, names, order)
@@ -174,6 +177,22 @@ def prepare_data(cfg: Any, data: DriveData, model: PilotModel, preprocess: Prepr
             "augmentations": aug_settings.to_dict(), "behaviors": behaviors}
     return PreparedData(data, train_ds, val_ds, preprocess, tuple(cache.get(int(train_s.chain[0, 0])).shape),
                         info)
+
+
+def _check_side_cameras(data: DriveData, side: dict[str, float]) -> None:
+    """ValueError naming a TRAIN_SIDE_CAMERAS key that records lack, and the image keys they hold.
+
+    A record without the image would otherwise be skipped with a warning per record that asks
+    for ``tub check --repair``, though the tub is fine and the setting is wrong.
+    """
+    for key in side:
+        lacking = sum(not rec.has_image(key) for rec in data.records)
+        if lacking:
+            held = sorted({k for rec in data.records[:1000] for k, v in rec.data.items()
+                           if k.startswith("cam/") and isinstance(v, str) and v.endswith((".jpg", ".png"))})
+            raise ValueError(f"TRAIN_SIDE_CAMERAS names {key!r} but {lacking} of {len(data)} records have no "
+                             f"image under it; the tubs' images are {', '.join(held) or 'none'}: name those "
+                             "in TRAIN_SIDE_CAMERAS, or set it to {} to train on the centre camera only")
 
 
 def _behavior_inputs(data: DriveData, model: PilotModel, augmentations: Sequence[str], order: Sequence[str]
@@ -356,8 +375,11 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
                       "batches": min(len(train_loader), cfg.TRAIN_STEPS_PER_EPOCH or len(train_loader)),
                       "model": str(model_path)})
             phase("training")
+        sink = on_event
+        if dist_info.is_main and not (progress if progress is not None else _tty()):
+            sink = ProgressLog(on_event)  # no progress bar: a log line at a steady interval instead
         history = fit(train_model, train_loader, val_loader, preprocess, dev, settings, dist_info, save_best,
-                      plan=plan, on_event=on_event, should_stop=should_stop)
+                      plan=plan, on_event=sink, should_stop=should_stop)
         # every rank got through the last collective: from here each leaves through the barrier,
         # rank 0 even when its own file writing below fails, so no peer waits for it in vain
         clean = True

@@ -59,6 +59,9 @@ STANDARD_KEYS: dict[str, KeyInfo] = {
     # -- camera
     "cam/image_array": KeyInfo("ndarray HxWx3 uint8 RGB", "latest camera frame"),
     "cam/timestamp": KeyInfo("float", "capture time of cam/image_array, seconds (time.time())"),
+    "cam/image_array_left": KeyInfo("ndarray HxWx3 uint8 RGB", "left side camera's frame (Udacity recordings; "
+                                    "training: TRAIN_SIDE_CAMERAS)"),
+    "cam/image_array_right": KeyInfo("ndarray HxWx3 uint8 RGB", "right side camera's frame (as the left)"),
     "cam/frame_id": KeyInfo("int", "counter of frames delivered by the camera"),
     "cam/ok": KeyInfo("bool", "False when the camera stopped delivering frames"),
     # -- human input
@@ -170,6 +173,22 @@ STANDARD_KEYS: dict[str, KeyInfo] = {
 def describe(key: str) -> KeyInfo | None:
     """Return what ``key`` holds, or None for a key outside the standard list."""
     return STANDARD_KEYS.get(key)
+
+
+#: older names of standard keys -> the standard name. Tubs and settings written with an old name
+#: are still read (our docs once named the side cameras ``cam/left_image_array``, which
+#: ``vehicle tub import-udacity`` never wrote).
+KEY_ALIASES: dict[str, str] = {
+    "cam/left_image_array": "cam/image_array_left",
+    "cam/right_image_array": "cam/image_array_right",
+}
+
+
+def key_names(key: str) -> tuple[str, ...]:
+    """``key`` followed by the other names of the same key (its standard name or its old names)."""
+    standard = KEY_ALIASES.get(key, key)
+    others = [standard] + [old for old, new in KEY_ALIASES.items() if new == standard]
+    return (key, *(k for k in others if k != key))
 
 
 #: keys at the top level of the namespace (DonkeyCar's names)

@@ -15,7 +15,8 @@ from vehicle.keys import Mode
 # == Drive modes ==
 
 # Mode at start: "user" (human drives), "local_angle" (pilot steers), "local" (pilot drives).
-# The web page, the gamepad and the drive-mode part all start from it (DonkeyCar: WEB_INIT_MODE).
+# The web page, the gamepad and the drive-mode part all start from it (DonkeyCar: WEB_INIT_MODE);
+# `manage.py drive --mode MODE` sets it for one drive.
 DEFAULT_MODE: Mode = "user"
 # Pilot throttle is multiplied by this in "local" mode (1.0 = as predicted).
 AI_THROTTLE_MULT: Annotated[float, Range(0, 2)] = 1.0

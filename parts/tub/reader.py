@@ -25,6 +25,7 @@ from parts.tub.codec import decode_image
 from parts.tub.errors import CorruptRecord, TubError
 from parts.tub.format import CATALOG_RE, IMAGE_TYPES, IMAGES, MANIFEST, O_BINARY
 from parts.tub.tub import Tub
+from vehicle.keys import key_names
 
 logger = logging.getLogger(__name__)
 
@@ -71,16 +72,34 @@ class TubRecord:
 
     def image_path(self, key: str = IMAGE_KEY) -> Path:
         """The image file of ``key``; CorruptRecord if the record has no such image."""
-        name = self.data.get(key)
-        if not isinstance(name, str) or not name:
+        name = self._image_name(key)
+        if name is None:
             raise CorruptRecord(self.tub, self.index, self.tub / IMAGES, f"record has no image {key!r}")
         return self.tub / IMAGES / name
+
+    def _image_name(self, key: str) -> str | None:
+        """The image file name under ``key``, or under another name of the same key (an older
+        name, see ``vehicle.keys.KEY_ALIASES``); None if the record has none."""
+        name = self.data.get(key)
+        if isinstance(name, str) and name:
+            return name
+        for other in key_names(key)[1:]:
+            name = self.data.get(other)
+            if isinstance(name, str) and name:
+                return name
+        return None
+
+    def has_image(self, key: str) -> bool:
+        """Whether the record names an image file under ``key`` (or another name of it)."""
+        return self._image_name(key) is not None
 
     def image_bytes(self, key: str = IMAGE_KEY) -> bytes:
         """The image file's bytes; CorruptRecord if missing or empty."""
         name = self.data.get(key)
         if not isinstance(name, str) or not name:
-            self.image_path(key)  # raises the "no image" error
+            name = self._image_name(key)
+            if name is None:
+                self.image_path(key)  # raises the "no image" error
         path = os.path.join(self.tub, IMAGES, name)  # str join: this runs once per training sample
         try:
             data = _read_file(path)

@@ -37,6 +37,7 @@ from parts.tub.format import MANIFEST, building_folder, check_new_folder
 from parts.tub.manifest import parse_manifest
 from parts.tub.reader import IMAGE_KEY, SPEED_KEYS, TubRecord, find_tubs, iter_records
 from parts.tub.tub import Tub
+from vehicle.keys import key_names
 
 logger = logging.getLogger(__name__)
 
@@ -328,10 +329,11 @@ def export_udacity(tubs: list[str | os.PathLike[str]] | str | os.PathLike[str], 
                 continue
             if rec.tub not in sides_of:
                 inputs = parse_manifest(rec.tub / MANIFEST).manifest.inputs
-                sides_of[rec.tub] = [(side, key) for side, key in SIDES if key == IMAGE_KEY or key in inputs]
+                sides_of[rec.tub] = [(side, key) for side, key in SIDES  # a side camera under either name
+                                     if key == IMAGE_KEY or any(k in inputs for k in key_names(key))]
             images: dict[str, bytes] = {}
             for side, key in sides_of[rec.tub]:
-                if rec.get(key) is None:
+                if not rec.has_image(key):
                     report.skip(what, f"without a {key} image")
                     break
                 try:

@@ -2,7 +2,8 @@
 """Drive, record and train this car: camera, controller, PWM drivetrain, tub writer, pilot.
 
     python manage.py drive                            # drive from the web page or gamepad, record tubs
-    python manage.py drive --model models/pilot.pt    # let a trained pilot drive
+    python manage.py drive --model models/pilot.pt    # drive with a pilot (the Mode button engages it)
+    python manage.py drive --model models/pilot.pt --mode local    # the pilot drives from the start
     python manage.py train --tubs data --model models/pilot.pt
     python manage.py console                          # datasets, training, models in the browser
 
@@ -19,6 +20,7 @@ from vehicle.app import assembly, manage
 
 def drive(cfg, args):
     """Assemble the car and drive it until Ctrl-C (or --max-loops)."""
+    cfg = manage.start_mode(cfg, args.mode, args.model)  # --mode: who drives from the first loop
     V = Vehicle()
     assembly.add_camera(V, cfg)  # -> cam/image_array, cam/timestamp, cam/ok
     assembly.add_sensors(V, cfg)  # HAVE_ODOM, HAVE_IMU, HAVE_GPS, USE_LIDAR -> enc/*, pos/*, imu/*, gps/*, lidar/*
@@ -39,6 +41,7 @@ def main(argv=None):
     parser = manage.command_parser(__doc__)
     d = manage.add_command(parser, "drive", drive, "drive the car and record tubs")
     d.add_argument("--model", help="trained pilot to drive with (a models/*.pt file)")
+    manage.add_mode_option(d)  # --mode user|local_angle|local
     d.add_argument("--max-loops", type=manage.positive_int, metavar="N", help="stop after N loops")
     d.add_argument("--js", action="store_true", help="drive with the gamepad too, this run (USE_JOYSTICK_AS_DEFAULT)")
     manage.add_train_command(parser)  # the options of `vehicle train`, on this car's data/

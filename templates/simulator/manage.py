@@ -2,7 +2,8 @@
 """Drive, record and train this car in a simulator: ours (built in), Udacity's or Donkey's.
 
     python manage.py drive                            # drive from the web page, record tubs
-    python manage.py drive --model models/pilot.pt    # let a trained pilot drive
+    python manage.py drive --model models/pilot.pt    # drive with a pilot (the Mode button engages it)
+    python manage.py drive --model models/pilot.pt --mode local    # the pilot drives from the start
     python manage.py drive --expert --record-records 3000 --tracks 1,2,3
                                                       # record demonstrations, no human needed
     python manage.py drive --sim udacity              # drive the Udacity simulator (Autonomous Mode)
@@ -30,6 +31,7 @@ def drive(cfg, args):
         return record_demonstrations(cfg, args)
     if args.record_records or args.lane_changes:
         raise UserError("--record-records and --lane-changes are for the expert: add --expert")
+    cfg = manage.start_mode(cfg, args.mode, args.model)  # --mode: who drives from the first loop
     V = Vehicle(clock=assembly.sim_clock(cfg, args.sim))  # SIM_REALTIME = False: as fast as the CPU allows
     assembly.add_simulator(V, cfg, seeds=args.tracks, sim_type=args.sim)  # angle, throttle -> cam/image_array, sim/*
     assembly.add_controller(V, cfg)  # web page (and gamepad) -> user/angle, user/throttle, user/mode
@@ -58,6 +60,7 @@ def main(argv=None):
     parser = manage.command_parser(__doc__)
     d = manage.add_command(parser, "drive", drive, "drive the simulated car and record tubs")
     d.add_argument("--model", help="trained pilot to drive with (a models/*.pt file)")
+    manage.add_mode_option(d)  # --mode user|local_angle|local
     d.add_argument("--expert", action="store_true", help="let the built-in expert drive and record (simulated time)")
     d.add_argument("--record-records", type=manage.positive_int, metavar="N", help="with --expert: records to write")
     d.add_argument("--lane-changes", type=manage.non_negative_int, metavar="N",

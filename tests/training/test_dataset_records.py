@@ -212,3 +212,62 @@ def test_frame_cache_counts_only_the_frames_it_holds(tiny_tub, tmp_path, caplog)
         bad = FrameCache(data.records, ["cam/image_array"]).fill(np.arange(len(data)))
     assert list(bad) == [7]
     assert "cached 119 decoded frames" in caplog.text and "1 record skipped" in caplog.text
+
+
+def _side_camera_tub(path, left: str, right: str, n: int = 12):
+    """A Udacity-style tub: centre, left and right frames of distinct brightness under ``left``/``right``."""
+    from parts.tub import Tub
+
+    tub = Tub(path, inputs=["cam/image_array", left, right, "user/angle", "user/throttle"],
+              types=["image_array"] * 3 + ["float", "float"])
+    for _ in range(n):
+        tub.write_record({"cam/image_array": np.full((64, 64, 3), 100, np.uint8),
+                          left: np.full((64, 64, 3), 50, np.uint8), right: np.full((64, 64, 3), 200, np.uint8),
+                          "user/angle": 0.1, "user/throttle": 0.5})
+    tub.close()
+    return path
+
+
+@pytest.mark.parametrize("written, configured", [
+    ("image_array_{}", "image_array_{}"),   # what `vehicle tub import-udacity` writes, the documented name
+    ("image_array_{}", "{}_image_array"),   # issue 27: docs/training.md once named them so
+    ("{}_image_array", "image_array_{}"),   # a tub written under the old name
+])
+def test_side_cameras_are_read_under_either_name(tmp_path, written, configured):
+    # issue 27: the docs' names did not match import-udacity's: 600 warnings asking for
+    # `tub check --repair`, then "no training samples left"
+    from parts.pilots.training import prepare_data
+
+    tub = _side_camera_tub(tmp_path / "t", *(f"cam/{written.format(s)}" for s in ("left", "right")))
+    side = {f"cam/{configured.format('left')}": 0.2, f"cam/{configured.format('right')}": -0.2}
+    cfg = Config.defaults(TRAIN_SIDE_CAMERAS=side, TRAIN_TEST_SPLIT=1.0, AUGMENTATIONS=[])
+    prep = prepare_data(cfg, read_drive_data([tub]), create_model("linear", (3, 64, 64)), Preprocess())
+    assert prep.info["train_samples"] == 3 * 12
+    labels = sorted({round(prep.train[i][2][0].item(), 4) for i in range(len(prep.train))})
+    assert labels == [-0.1, 0.1, 0.3]
+    means = {round(prep.train[i][2][0].item(), 4): prep.train[i][0].float().mean().item() for i in range(3)}
+    assert means == pytest.approx({0.1: 100, 0.3: 50, -0.1: 200}, abs=3)  # each offset on its own camera
+
+
+def test_a_side_camera_the_tubs_lack_is_one_error_naming_the_key(tmp_path):
+    from parts.pilots.training import prepare_data
+
+    tub = _side_camera_tub(tmp_path / "t", "cam/image_array_left", "cam/image_array_right")
+    cfg = Config.defaults(TRAIN_SIDE_CAMERAS={"cam/image_array_rear": 0.1}, TRAIN_TEST_SPLIT=1.0)
+    with pytest.raises(ValueError, match=r"TRAIN_SIDE_CAMERAS.*'cam/image_array_rear'.*12 of 12 records") as err:
+        prepare_data(cfg, read_drive_data([tub]), create_model("linear", (3, 64, 64)), Preprocess())
+    assert "cam/image_array_left" in str(err.value)  # what the tubs do hold
+    assert "--repair" not in str(err.value)
+
+
+def test_the_docs_name_the_side_cameras_as_import_udacity_writes_them():
+    from pathlib import Path
+
+    from parts.tub.udacity import SIDES
+
+    root = Path(__file__).resolve().parents[3]
+    assert dict(SIDES)["left"] == "cam/image_array_left"  # what import-udacity writes
+    for doc in ("docs/config.md", "vehicle/config_defaults.py"):
+        text = (root / doc).read_text()
+        assert "left_image_array" not in text and "right_image_array" not in text, doc
+    assert 'TRAIN_SIDE_CAMERAS = {"cam/image_array_left": ' in (root / "docs/training.md").read_text()

@@ -54,6 +54,36 @@ DEFAULTS = {"records": 12000, "epochs": 10, "noise": 0.4, "train_tracks": list(r
             "eval_tracks": [101, 102, 103, 104, 105], "laps": 2, "eval_randomize": None, "unseen_theme": "park"}
 
 
+#: the demo's wall time in seconds on a quiet 2-core CPU of each kind: "bf16" where the CPU has
+#: native bf16 (AVX512-BF16 or AMX: training runs in bf16), "fp32" where it has not (training runs
+#: in fp32, the bigger part of the time). Measured figures only (docs/benchmarks.md, "demo";
+#: docs/vision.md for --lanes); a kind without one is said to be unmeasured.
+EXPECTED_SECONDS: dict[str, dict[str, float]] = {
+    "plain": {"bf16": 129, "fp32": 363},
+    "lanes": {"bf16": 240},
+}
+
+
+def expected_time(demo: str, native_bf16: bool, cpu: str) -> str:
+    """The demo's start-up line: what it should take on this CPU and what that depends on.
+
+    ``demo`` is "plain" or "lanes"; ``native_bf16`` and ``cpu`` (its name) describe the CPU
+    (:func:`parts.pilots.acceleration.cpu_caps`).
+    """
+    kind = "bf16" if native_bf16 else "fp32"
+    what = f"{cpu}, {'native bf16: trains in bf16' if native_bf16 else 'no native bf16: trains in fp32'}"
+    seconds = EXPECTED_SECONDS.get(demo, {}).get(kind)
+    if seconds is None:
+        return f"expected time: not measured on a CPU of this kind ({what}); each step prints its time"
+    return (f"expected time: about {_minutes(seconds)} on a quiet 2-core CPU of this kind ({what}); more on a busy "
+            "machine, less with more cores; most of it is training")
+
+
+def _minutes(seconds: float) -> str:
+    """``about 2 minutes`` style wording: whole minutes from 90 s on, else seconds."""
+    return f"{seconds:.0f} s" if seconds < 90 else f"{round(seconds / 60)} minutes"
+
+
 def say(text: str) -> None:
     print(text, flush=True)  # noqa: T201 - the command's own output
 
@@ -103,10 +133,8 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
 
     t, c = time.perf_counter(), cpu_seconds()
     say(f"[2/4] training a {model_type} model for up to {epochs} epochs ...")
-    from training.trainer import train
-
-    metrics = train(cfg, [tub], model_path, model_type_name=model_type, epochs=epochs,
-                    comment="vehicle demo")
+    metrics = train_or_stop(cfg, [tub], model_path, model_type_name=model_type, epochs=epochs,
+                            comment="vehicle demo")
     seconds["train"] = time.perf_counter() - t
     cpu["train"] = cpu_seconds() - c
     say(f"      best val_loss {metrics['best_val_loss']:.5f} at epoch {metrics['best_epoch']} of "
@@ -143,6 +171,31 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
             f"({describe(pair['expert'])[len('conditions: '):]})")
     return {"reports": reports, "trained_themes": trained, "unseen_theme": unseen_theme, "model": model_path,
             "seconds": seconds, "cpu_seconds": cpu, "metrics": metrics}
+
+
+def train_or_stop(cfg: Any, tubs: list[Path], model_path: Path, **options: Any) -> dict[str, Any]:
+    """``training.trainer.train`` as ``manage.py train`` runs it: the first Ctrl-C ends the
+    training after the current step and keeps the best model so far with its metrics, loss plot
+    and registry entry; the demo then says what it kept and ends (KeyboardInterrupt: exit 130)."""
+    from training.trainer import train
+    from vehicle.app.interrupt import ctrl_c_stops_training
+
+    with ctrl_c_stops_training() as interrupted:
+        try:
+            metrics = train(cfg, tubs, model_path, should_stop=interrupted.is_set if interrupted else None,
+                            **options)
+        except ValueError as exc:
+            if interrupted is not None and interrupted.is_set() and "cancelled" in str(exc):
+                say("stopped by Ctrl-C before the first epoch ended: no model was saved")
+                raise KeyboardInterrupt from None
+            raise
+    if metrics.get("cancelled"):
+        best = metrics.get("best_val_loss")
+        loss = f"{best:.5f}" if isinstance(best, float) else "n/a"
+        say(f"stopped by Ctrl-C: kept {model_path} (best epoch {metrics['best_epoch']} of {metrics['epochs']}, "
+            f"val_loss {loss}) with its metrics, loss plot and registry entry; the demo ends here")
+        raise KeyboardInterrupt
+    return metrics
 
 
 def cpu_seconds() -> float:

@@ -62,8 +62,7 @@ def run_lanes_demo(out: Path, *, records: int, lane_changes: int, epochs: int, n
     """Run the four steps in ``out``; returns ``{"reports": {name: report}, "models": {type: path},
     "metrics": {type: training metrics}, "seconds": {step: s}}``. Raises ValueError on bad arguments."""
     from parts.sim.eval_report import format_table, write_json, write_png
-    from training.trainer import train
-    from vehicle.app.demo import write_myconfig
+    from vehicle.app.demo import train_or_stop, write_myconfig
     from vehicle.app.evaluate import evaluate
     from vehicle.app.record import record_expert
     from vehicle.config import Config
@@ -96,8 +95,8 @@ def run_lanes_demo(out: Path, *, records: int, lane_changes: int, epochs: int, n
         t = time.perf_counter()
         path = out / "models" / f"demo_{model_type}.pt"
         say(f"[2/4] training the {model_type} model ({i} of {len(types)}) for up to {epochs} epochs ...")
-        metrics[model_type] = train(cfg, [tub], path, model_type_name=model_type, epochs=epochs,
-                                    comment="vehicle demo --lanes")
+        metrics[model_type] = train_or_stop(cfg, [tub], path, model_type_name=model_type, epochs=epochs,
+                                            comment="vehicle demo --lanes")
         seconds[f"train {model_type}"] = time.perf_counter() - t
         m = metrics[model_type]
         say(f"      best val_loss {m['best_val_loss']:.5f} at epoch {m['best_epoch']} of {m['epochs']} "

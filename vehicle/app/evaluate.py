@@ -64,8 +64,10 @@ from parts.sim.world import prefetch_world, world_params
 from vehicle import Vehicle
 from vehicle.app.assembly.camera import add_undistort
 from vehicle.app.assembly.drive import add_behavior, add_drive_mode
+from vehicle.app.assembly.pilot import BEHAVIOR_KEY, check_behavior_input, pilot_inputs
 from vehicle.app.assembly.sim import add_expert
 from vehicle.clock import SimulatedClock
+from vehicle.errors import UserError
 from vehicle.keys import Mode, rename
 from vehicle.part import part_name
 
@@ -233,6 +235,11 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
             raise ValueError(f"the expert drives the built-in simulator only: pass a model file to evaluate on "
                              f"the {sim} simulator")
         lanes_on = sim == "builtin" and _lane_changes(driver, cfg, extra_inputs, lane_changes)
+        if driver != "expert" and not lanes_on and BEHAVIOR_KEY not in (extra_inputs or {}):
+            try:  # as manage.py drive: the user's setting, not the wiring
+                check_behavior_input(driver, cfg)
+            except UserError as exc:
+                raise ValueError(str(exc)) from None
         if lanes_on:
             _check_change_schedule(cfg)
         episode_args = {"max_time": max_time, "penalty_s": penalty, "fixed_throttle": fixed_throttle,
@@ -482,6 +489,8 @@ def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float,
             sim.start_offset = sim.track.lane_offset(lane)
             sim.select_track(seed)
         V.add(CommandedLane(sim))
+    elif driver != "expert" and BEHAVIOR_KEY in pilot_inputs(driver) and BEHAVIOR_KEY not in V.mem:
+        add_behavior(V, cfg)  # TRAIN_BEHAVIORS (checked before): BEHAVIOR_INITIAL all along, as a drive
     if driver == "expert":
         # user mode: the expert is the "human"; it follows behaviours only when they are commanded
         add_expert(V, cfg if lanes is not None else cfg.replace(TRAIN_BEHAVIORS=False), sim)
@@ -564,6 +573,8 @@ def run_bridge_episode(driver: Any, sim_type: str, scene: str, laps: int, cfg: A
         V = Vehicle()  # the Udacity simulator runs in real time
         add_simulator(V, cfg, sim_type="udacity")
     V.mem.update(extra_inputs or {})
+    if BEHAVIOR_KEY in pilot_inputs(driver) and BEHAVIOR_KEY not in V.mem:
+        add_behavior(V, cfg)  # TRAIN_BEHAVIORS (checked before): BEHAVIOR_INITIAL all along, as a drive
     add_engaged_pilot(V, driver, fixed_throttle)
     add_drive_mode(V, cfg)
     metrics = EpisodeMetrics(dt, laps, max_time, penalty_s, stop=V.stop, seed=scene)  # type: ignore[arg-type]

@@ -15,9 +15,10 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from vehicle.app.cli import configure_logging, stop_code
+from vehicle.app.cli import ArgumentParser, RawHelpFormatter, configure_logging, stop_code
 from vehicle.config import Config, load_config
-from vehicle.errors import PartError, VehicleError, VehicleStopped
+from vehicle.errors import PartError, UserError, VehicleError, VehicleStopped
+from vehicle.keys import MODES, Mode
 
 logger = logging.getLogger(__name__)
 
@@ -26,7 +27,7 @@ Command = Callable[[Config, argparse.Namespace], int | None]
 
 def command_parser(doc: str | None) -> argparse.ArgumentParser:
     """The manage.py parser: ``--myconfig``, ``-v`` and a subcommand slot."""
-    parser = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = ArgumentParser(description=doc, formatter_class=RawHelpFormatter)
     parser.add_argument("--myconfig", default=None,
                         help="override file to load instead of myconfig.py (relative to the car folder)")
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv: debug)")
@@ -74,7 +75,30 @@ def main(parser: argparse.ArgumentParser, car_path: str | Path, argv: Sequence[s
         print(f"error: {exc}", file=sys.stderr)  # noqa: T201 - the CLI's own output
         return 2
     except (VehicleStopped, KeyboardInterrupt, PartError) as exc:  # a vehicle a command started
-        return stop_code(exc)
+        return stop_code(exc, driving=args.command == "drive")  # train, console: no throttle
+
+
+def add_mode_option(parser: argparse.ArgumentParser) -> None:
+    """Add ``--mode user|local_angle|local``: who drives from the first loop (DEFAULT_MODE for one drive)."""
+    parser.add_argument("--mode", choices=MODES, help="who drives from the first loop: user (you), local_angle "
+                        "(the pilot steers, you set the throttle) or local (the pilot drives; with --model); "
+                        "default: DEFAULT_MODE")
+
+
+def start_mode(cfg: Config, mode: str | None, model: str | None) -> Config:
+    """``cfg`` with DEFAULT_MODE = ``mode`` (the ``--mode`` option) when one is given.
+
+    Raises:
+        UserError: a pilot mode without a model: nothing would steer.
+    """
+    if mode is None:
+        return cfg
+    if mode != Mode.USER and not model:
+        raise UserError(f"--mode {mode} needs a pilot: add --model FILE (a models/*.pt file)")
+    if mode != Mode.USER:
+        logger.warning("--mode %s: the pilot %s from the first loop", mode,
+                       "drives" if mode == Mode.LOCAL else "steers")
+    return cfg.replace(DEFAULT_MODE=mode)
 
 
 def int_list(text: str) -> list[int]:

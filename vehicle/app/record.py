@@ -38,8 +38,11 @@ RECORD_FIELDS: tuple[tuple[str, str], ...] = (
 )
 
 
-class _Backpressure:
-    """Part: in simulated time the loop outruns the disk; wait (wall time) until the writer keeps up."""
+class WaitForTubWriter:
+    """Part: in simulated time the loop outruns the disk; wait (wall time) until the writer keeps up.
+
+    Its class name is what the timing report at the stop shows (the time spent waiting for the disk).
+    """
 
     def __init__(self, writer: Any) -> None:
         self.writer = writer
@@ -140,7 +143,7 @@ def record_expert(cfg: Any, seeds: Sequence[int] | None, n_records: int, tub_pat
 
     writer = add_tub_writer(V, cfg, inputs=keys, types=types)
     # the writer is last in the loop: wait for it before the next loop's frame is queued
-    V.add(_Backpressure(writer))
+    V.add(WaitForTubWriter(writer))
     t0 = time.perf_counter()
     V.start(rate_hz=cfg.DRIVE_LOOP_HZ, max_loop_count=n_records)
     path = Path(writer.path)

@@ -197,3 +197,18 @@ def test_export_skips_records_without_a_centre_image_or_with_nan_and_says_so(tmp
         assert row[2] == ""  # the tub has no right camera
         for key, p in zip(("cam/image_array", "cam/image_array_left"), row[:2], strict=True):
             assert Path(p).read_bytes() == rec.image_bytes(key), (rec.index, key)
+
+
+def test_export_reads_side_cameras_written_under_their_old_names(tmp_path, image):
+    # issue 27: docs once named the side cameras cam/left_image_array, cam/right_image_array
+    keys = ["cam/image_array", "cam/left_image_array", "cam/right_image_array", "user/angle", "user/throttle"]
+    with Tub(tmp_path / "t", keys, ["image_array"] * 3 + ["float"] * 2, fsync=False) as tub:
+        for i in range(2):
+            tub.write_record({"cam/image_array": image(i, 48, 64), "cam/left_image_array": image(10 + i, 48, 64),
+                              "cam/right_image_array": image(20 + i, 48, 64), "user/angle": 0.1,
+                              "user/throttle": 0.5}, timestamp_ms=T0 + 50 * i)
+    report = export_udacity(tmp_path / "t", tmp_path / "out", style="sample")
+    assert report.rows == 2 and report.cameras == ["center", "left", "right"] and not report.skipped
+    for rec, row in zip(load_records(tmp_path / "t"), read_log(tmp_path / "out")[1:], strict=True):
+        assert (tmp_path / "out" / row[1]).read_bytes() == rec.image_bytes("cam/left_image_array")
+        assert (tmp_path / "out" / row[2]).read_bytes() == rec.image_bytes("cam/image_array_right")

@@ -203,6 +203,7 @@ def test_add_tub_writer_inputs_follow_config_and_available_keys(tmp_path, image)
     from vehicle.errors import UserError
 
     cfg = Config.defaults(CAR_PATH=str(tmp_path), RECORD_DURING_AI=True, AUTO_CREATE_NEW_TUB=False)
+    (tmp_path / "data").mkdir()  # as createcar makes it: a tub the writer did not create stays when empty
     V = Vehicle()
     V.add(lambda: (image(0), 0.0, 0.0, "user", True),
           outputs=["cam/image_array", "user/angle", "user/throttle", "user/mode", "recording"])

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
@@ -113,3 +114,53 @@ def test_expert_options_without_expert_are_an_error(tmp_path, capsys, option):
     assert manage.main(["drive", *option, "--max-loops", "2"]) == 2
     assert capsys.readouterr().err.strip() == \
         "error: --record-records and --lane-changes are for the expert: add --expert"
+
+
+@pytest.mark.slow
+def test_train_run_from_elsewhere_writes_the_model_and_registry_in_the_car(tmp_path, monkeypatch, capsys):
+    # issue 27: `python mycar/manage.py train --tubs data --model models/z.pt` from outside the car
+    # wrote the model and a second registry under the current folder; `vehicle models` missed it
+    from fixtures.pilots import write_tub
+
+    from vehicle.app.cli import main as vehicle
+
+    manage = _sim_car(tmp_path)
+    car = tmp_path / "car"
+    write_tub(car / "data" / "tub", n=40, sessions=1)
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    assert manage.main(["train", "--tubs", "data", "--model", "models/z.pt", "--epochs", "1",
+                        "--type", "linear"]) == 0
+    assert (car / "models" / "z.pt").is_file() and (car / "models" / "models.sqlite3").is_file()
+    assert not (elsewhere / "models").exists()
+    assert str(car / "models" / "z.pt") in capsys.readouterr().out
+    assert vehicle(["models", "--car", str(car), "--json"]) == 0
+    assert [m["name"] for m in json.loads(capsys.readouterr().out)] == ["z"]
+
+
+@pytest.mark.parametrize("mode, pilot_runs", [("user", False), ("local_angle", True), ("local", True)])
+def test_drive_mode_option_says_who_drives_from_the_first_loop(tmp_path, monkeypatch, make_model_file, mode,
+                                                               pilot_runs):
+    # issue 27: a headless `drive --model M --max-loops N` never engaged the pilot unless
+    # DEFAULT_MODE = "local", which only docs/config.md mentioned
+    from vehicle.app import assembly
+
+    manage = _sim_car(tmp_path, "WEB_CONTROL_PORT = 0\n")
+    cars = []
+    add_drive_mode = assembly.add_drive_mode
+    monkeypatch.setattr(assembly, "add_drive_mode", lambda V, cfg: (cars.append(V), add_drive_mode(V, cfg))[1])
+    model = make_model_file("linear")
+    assert manage.main(["drive", "--model", str(model), "--mode", mode, "--max-loops", "3"]) == 0
+    mem = cars[0].mem
+    assert mem["user/mode"] == mode and mem["run_pilot"] is pilot_runs
+    (pilot_angle,) = mem.get(["pilot/angle"])
+    assert (pilot_angle is not None) is pilot_runs
+    if mode != "user":
+        assert mem["angle"] == pytest.approx(mem["pilot/angle"])
+
+
+def test_drive_with_a_pilot_mode_and_no_model_is_a_one_line_error(tmp_path, capsys):
+    manage = _sim_car(tmp_path, "WEB_CONTROL_PORT = 0\n")
+    assert manage.main(["drive", "--mode", "local", "--max-loops", "3"]) == 2
+    assert "error: --mode local needs a pilot: add --model FILE" in capsys.readouterr().err

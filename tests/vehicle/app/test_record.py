@@ -78,3 +78,16 @@ def test_record_expert_mixes_themes_and_randomisation(cfg, tmp_path):
     # two loops of latency: the car stands still for the first two loops on each track
     speeds = [r["sim/speed"] for r in records if r["sim/track"] == 2]
     assert speeds[:2] == [0.0, 0.0] and speeds[5] > 0
+
+
+def test_the_stop_report_names_no_internal_part(cfg, tmp_path, caplog):
+    # issue 27: the internal `_Backpressure` appeared in the timing report printed at the stop
+    import logging
+    import re
+
+    with caplog.at_level(logging.INFO, logger="vehicle.vehicle"):
+        record_expert(cfg, [1], 5, tmp_path / "tub")
+    report = caplog.text[caplog.text.index("vehicle stopped"):]
+    names = re.findall(r"^(\S+)\s+\d+\s", report, re.MULTILINE)
+    assert "TubWriter" in names and "WaitForTubWriter" in names
+    assert not [n for n in names if n.startswith("_")], names

@@ -20,6 +20,30 @@ UDACITY_SIZE_HINT = ("the Udacity simulator's frames are always 320x160: train o
                      "driving_log.csv (vehicle tub import-udacity)")
 
 
+BEHAVIOR_KEY = "behavior/one_hot_state_array"
+
+
+def pilot_inputs(pilot: Any) -> tuple[str, ...]:
+    """The memory keys a pilot part reads (``INPUTS`` of a class, ``inputs`` of a loaded model)."""
+    return tuple(getattr(pilot, "INPUTS", None) or getattr(pilot, "inputs", None) or ())
+
+
+def check_behavior_input(pilot: Any, cfg: Config) -> None:
+    """UserError when the pilot reads the behaviour and the car, without TRAIN_BEHAVIORS, makes
+    none: the message says which setting to change (the vehicle's wiring check would name the
+    key and ``optional_inputs``, which is for whoever writes parts).
+
+    Call it where nothing else gives the pilot its behaviour (no part makes it, no value seeded).
+    """
+    if BEHAVIOR_KEY not in pilot_inputs(pilot) or cfg.TRAIN_BEHAVIORS:
+        return
+    trained = (getattr(pilot, "meta", None) or {}).get("training", {}).get("behaviors")
+    name = getattr(pilot, "model_name", None) or type(pilot).__name__
+    raise UserError(f"{name} reads the behaviour ({BEHAVIOR_KEY}; trained with "
+                    f"{trained or 'unnamed behaviours'}), which this car does not make: set TRAIN_BEHAVIORS = True "
+                    "in myconfig.py")
+
+
 def add_pilot(V: Any, cfg: Config, model_path: str | Path) -> Any:
     """Add PilotCondition (``user/mode`` -> ``run_pilot``), the model switcher and the Pilot.
 
@@ -41,13 +65,12 @@ def add_pilot(V: Any, cfg: Config, model_path: str | Path) -> Any:
     frame_shape, frame_hint = camera_frames(V)
     pilot = make_pilot(cfg, model_path, measured_speed_key=speed_key_of(V, cfg), frame_shape=frame_shape,
                        frame_hint=frame_hint)
-    behavior = "behavior/one_hot_state_array"
-    if behavior in pilot.inputs and not cfg.TRAIN_BEHAVIORS and not V.produces(behavior) and behavior not in V.mem:
-        trained = (pilot.meta.get("training") or {}).get("behaviors")
-        pilot.shutdown()
-        raise UserError(f"{pilot.model_name} reads the behaviour ({behavior}; trained with "
-                        f"{trained or 'unnamed behaviours'}), which this car does not make: set TRAIN_BEHAVIORS = True "
-                        "in myconfig.py")
+    if not V.produces(BEHAVIOR_KEY) and BEHAVIOR_KEY not in V.mem:
+        try:
+            check_behavior_input(pilot, cfg)
+        except UserError:
+            pilot.shutdown()
+            raise
     V.add(PilotCondition())
     V.add(ModelSwitch(pilot))
     pilot.lock_inputs = True  # the vehicle's wiring is fixed from here on

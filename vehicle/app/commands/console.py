@@ -45,7 +45,8 @@ def _cmd_console(args: argparse.Namespace) -> int:
 
 
 def serve(cfg: Any, args: argparse.Namespace) -> int:
-    """Run the console of the car ``cfg`` until Ctrl-C or SIGTERM; returns the exit code."""
+    """Run the console of the car ``cfg`` until Ctrl-C or SIGTERM; returns the exit code (130 after
+    Ctrl-C, 143 after SIGTERM, as every command)."""
     from parts.web.pairing import is_loopback, page_url, resolve_token, terminal_qr
     from vehicle.app.console.server import ConsoleApp
 
@@ -57,10 +58,16 @@ def serve(cfg: Any, args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise UserError(str(exc)) from exc
 
+    stopped_by: list[int] = []  # the signal that stopped the console: its exit code is 128 + N
+
+    def stop(signum: int) -> None:
+        stopped_by.append(signum)
+        app.stop()
+
     async def main() -> None:
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGINT, signal.SIGTERM):
-            loop.add_signal_handler(sig, app.stop)
+            loop.add_signal_handler(sig, stop, sig)
         try:
             await app.start()
         except OSError as exc:
@@ -82,4 +89,4 @@ def serve(cfg: Any, args: argparse.Namespace) -> int:
         logger.info("console stopped")
 
     asyncio.run(main())
-    return 0
+    return 128 + stopped_by[0] if stopped_by else 0  # 130 for Ctrl-C, as every command

@@ -75,8 +75,9 @@ def register(subparsers: Any) -> None:
 
 def _cmd_demo(args: argparse.Namespace) -> int:
     import torch
+    from parts.pilots.acceleration import cpu_caps
 
-    from vehicle.app.demo import run_demo, torch_threads
+    from vehicle.app.demo import expected_time, run_demo, torch_threads
     from vehicle.app.demo import say as _say
 
     if args.threads is not None and args.threads < 1:
@@ -84,6 +85,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     threads, why = torch_threads(args.threads)
     torch.set_num_threads(threads)
     _say(f"torch threads: {threads} ({why})")
+    caps = cpu_caps()
+    _say(expected_time("lanes" if args.lanes else "plain", caps.native_bf16, caps.name))
 
     for name, value in (LANE_DEFAULTS if args.lanes else DEFAULTS).items():
         if getattr(args, name, "") is None:

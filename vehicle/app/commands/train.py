@@ -12,17 +12,15 @@ folder), else the defaults; the options override them. ``manage.py train`` takes
 from __future__ import annotations
 
 import argparse
-import contextlib
 import logging
 import os
-import signal
 import sys
-import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from vehicle.app.carconfig import add_car_options, load_for_command
+from vehicle.app.interrupt import ctrl_c_stops_training
 from vehicle.errors import UserError
 
 logger = logging.getLogger(__name__)
@@ -184,7 +182,7 @@ def run_from_args(cfg: Any, args: argparse.Namespace) -> int:
         if recipe.drive_settings:
             logger.info("to drive as the document does, set %s", ", ".join(
                 f"{k} = {v!r}" for k, v in recipe.drive_settings.items()))
-    with _ctrl_c_stops_training() as interrupted:
+    with ctrl_c_stops_training() as interrupted:
         try:
             metrics = train(cfg, tubs, model_path, model_type_name=model_type_name, transfer=args.transfer,
                             comment=args.comment, register=not args.no_register, recipe=recipe,
@@ -232,46 +230,27 @@ def _recipe(name: str | None) -> Any:
         raise UserError(f"--recipe: {exc}") from exc
 
 
-@contextlib.contextmanager
-def _ctrl_c_stops_training() -> Iterator[threading.Event | None]:
-    """The first Ctrl-C ends the training after the current step, keeping the best model so far
-    (its metrics, plot and registry entry written as for a finished run); a second one stops at
-    once. Yields the event ``fit`` polls, or None where a handler cannot be set (another thread,
-    several processes: torchrun stops its workers itself)."""
-    if threading.current_thread() is not threading.main_thread() or int(os.environ.get("WORLD_SIZE", "1")) > 1:
-        yield None
-        return
-    interrupted = threading.Event()
-    owner = os.getpid()
-
-    def on_sigint(signum: int, frame: Any) -> None:
-        if os.getpid() != owner:  # a forked DataLoader worker got the terminal's Ctrl-C: the trainer stops it
-            return
-        if interrupted.is_set():
-            raise KeyboardInterrupt
-        interrupted.set()
-        logger.warning("Ctrl-C: training stops after this step and keeps its best model so far "
-                       "(Ctrl-C again to stop at once)")
-
-    previous = signal.signal(signal.SIGINT, on_sigint)
-    try:
-        yield interrupted
-    finally:
-        signal.signal(signal.SIGINT, previous)
-
-
 def train_car(cfg: Any, args: argparse.Namespace) -> int:
     """``manage.py train``: train a model on the car's tubs (default ``data/``) and write it to
     ``--model`` (default ``models/pilot_<date>_<n>.pt``), with the loss curve, the metrics JSON and
     an entry in the car's model registry. Returns the exit code.
 
-    Relative ``--tubs`` that do not exist in the current folder are looked up in the car folder.
+    Paths are the car's, wherever manage.py is run from: a relative ``--model`` is written in the
+    car folder (so the model and its registry entry land where ``vehicle models`` looks); relative
+    ``--tubs`` and ``--transfer`` are read from the car folder, or from the current folder when
+    only it has them.
     """
-    tubs = []
-    for tub in tub_list(getattr(args, "tubs", None)):
-        path = Path(tub)
-        if not path.is_absolute() and not path.exists() and (Path(cfg.CAR_PATH) / path).exists():
-            path = Path(cfg.CAR_PATH) / path
-        tubs.append(str(path))
-    args.tubs = tubs or None
+    car = Path(cfg.CAR_PATH)
+
+    def read_path(value: str) -> str:
+        path = Path(value).expanduser()
+        if not path.is_absolute() and ((car / path).exists() or not path.exists()):
+            path = car / path
+        return str(path)
+
+    args.tubs = [read_path(tub) for tub in tub_list(getattr(args, "tubs", None))] or None
+    if getattr(args, "transfer", None):
+        args.transfer = read_path(args.transfer)
+    if getattr(args, "model", None):
+        args.model = str(car / Path(args.model).expanduser())  # an absolute path stays as it is
     return run_from_args(cfg, args)

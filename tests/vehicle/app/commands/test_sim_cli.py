@@ -89,3 +89,19 @@ def test_track_cli_draws_any_theme(tmp_path, capsys):
     cam = cv2.imread(str(tmp_path / "c.png"))
     assert cam.shape == (120, 160, 3)
     assert cv2.imread(str(tmp_path / "t.png")).shape == (200, 200, 3)
+
+
+@pytest.mark.parametrize("model_type", ["behavior", "lanes"])
+def test_sim_eval_of_a_behaviour_model_in_a_car_without_behaviours_says_what_to_set(car, capsys, make_model_file,
+                                                                                     model_type):
+    # issue 27: "input 'behavior/one_hot_state_array' is produced by no part ... declare it in
+    # optional_inputs" (a developer's message); manage.py drive says to set TRAIN_BEHAVIORS = True
+    model = make_model_file(model_type)
+    assert main(["sim", "eval", "--pilot", str(model), "--tracks", "1", "--laps", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "set TRAIN_BEHAVIORS = True in myconfig.py" in err, err
+    assert "optional_inputs" not in err and "Traceback" not in err
+    # ... and with it set, the model drives in its initial behaviour (BEHAVIOR_INITIAL), as in a drive
+    (car / "myconfig.py").write_text("SIM_TEXTURE_RES = 0.02\nTRAIN_BEHAVIORS = True\n")
+    assert main(["sim", "eval", "--pilot", str(model), "--tracks", "1", "--laps", "1", "--max-time", "2"]) == 0, \
+        capsys.readouterr().err

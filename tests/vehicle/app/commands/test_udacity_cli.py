@@ -148,3 +148,15 @@ def test_a_pilot_trained_on_other_frames_stops_with_one_line(tmp_path, make_mode
                        "120x160x3 frames; the Udacity simulator's frames are always 320x160: train on tubs "
                        "recorded in it, or on its driving_log.csv (vehicle tub import-udacity)")
     assert not [r for r in caplog.records if r.exc_info], "no traceback for a user's mistake"
+
+
+def test_udacity_drive_that_nothing_connected_to_leaves_no_empty_tub(tmp_path, capsys):
+    # issue 27: `vehicle udacity drive MODEL DIR` left an empty tub in DIR when no simulator connected
+    model = untrained_udacity_model(tmp_path)
+    folder = tmp_path / "run1"
+    with socket.socket() as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    assert main(["udacity", "drive", str(model), str(folder), "--port", str(port), "--max-loops", "3",
+                 "--car", str(tmp_path)]) == 0
+    assert not folder.exists()

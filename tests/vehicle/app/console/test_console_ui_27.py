@@ -25,7 +25,6 @@ def _open(page, url, route=""):
 def _finished_jobs(config, model):
     """A finished training of ``model`` and a finished evaluation of it, as a console stored them."""
     from training.model_db import DB_FILENAME
-
     from vehicle.app.console.jobs import _TABLE
 
     db = config.path("MODELS_PATH") / DB_FILENAME
@@ -102,7 +101,6 @@ def test_training_setup_preview_and_name_error(page_factory, url, registered_mod
 
 def test_a_training_cancelled_before_its_first_epoch_says_no_model_was_saved(page, config, console_factory):
     from training.model_db import DB_FILENAME
-
     from vehicle.app.console.jobs import _TABLE
 
     db = config.path("MODELS_PATH") / DB_FILENAME
