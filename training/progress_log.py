@@ -18,7 +18,7 @@ PROGRESS_LOG_S = 30.0
 
 
 class ProgressLog:
-    """An event sink for :func:`parts.pilots.fit.fit`: logs ``epoch E/N: batch B of M, loss L,
+    """An event sink for :func:`training.fit.fit`: logs ``epoch E/N: batch B of M, loss L,
     S samples/s`` from the batch events, at most once every ``every_s`` seconds (counted again
     from each epoch's end, when fit logs its own line), and hands every event on to ``forward``.
 

@@ -236,7 +236,7 @@ def _side_camera_tub(path, left: str, right: str, n: int = 12):
 def test_side_cameras_are_read_under_either_name(tmp_path, written, configured):
     # issue 27: the docs' names did not match import-udacity's: 600 warnings asking for
     # `tub check --repair`, then "no training samples left"
-    from parts.pilots.training import prepare_data
+    from training.trainer import prepare_data
 
     tub = _side_camera_tub(tmp_path / "t", *(f"cam/{written.format(s)}" for s in ("left", "right")))
     side = {f"cam/{configured.format('left')}": 0.2, f"cam/{configured.format('right')}": -0.2}
@@ -250,7 +250,7 @@ def test_side_cameras_are_read_under_either_name(tmp_path, written, configured):
 
 
 def test_a_side_camera_the_tubs_lack_is_one_error_naming_the_key(tmp_path):
-    from parts.pilots.training import prepare_data
+    from training.trainer import prepare_data
 
     tub = _side_camera_tub(tmp_path / "t", "cam/image_array_left", "cam/image_array_right")
     cfg = Config.defaults(TRAIN_SIDE_CAMERAS={"cam/image_array_rear": 0.1}, TRAIN_TEST_SPLIT=1.0)
@@ -265,9 +265,9 @@ def test_the_docs_name_the_side_cameras_as_import_udacity_writes_them():
 
     from parts.tub.udacity import SIDES
 
-    root = Path(__file__).resolve().parents[3]
+    root = Path(__file__).resolve().parents[2]
     assert dict(SIDES)["left"] == "cam/image_array_left"  # what import-udacity writes
-    for doc in ("docs/config.md", "vehicle/config_defaults.py"):
+    for doc in ("docs/config.md", "training/settings.py"):
         text = (root / doc).read_text()
         assert "left_image_array" not in text and "right_image_array" not in text, doc
     assert 'TRAIN_SIDE_CAMERAS = {"cam/image_array_left": ' in (root / "docs/training.md").read_text()

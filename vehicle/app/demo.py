@@ -68,7 +68,7 @@ def expected_time(demo: str, native_bf16: bool, cpu: str) -> str:
     """The demo's start-up line: what it should take on this CPU and what that depends on.
 
     ``demo`` is "plain" or "lanes"; ``native_bf16`` and ``cpu`` (its name) describe the CPU
-    (:func:`parts.pilots.acceleration.cpu_caps`).
+    (:func:`training.acceleration.cpu_caps`).
     """
     kind = "bf16" if native_bf16 else "fp32"
     what = f"{cpu}, {'native bf16: trains in bf16' if native_bf16 else 'no native bf16: trains in fp32'}"
