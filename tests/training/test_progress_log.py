@@ -37,9 +37,8 @@ def test_progress_is_logged_once_per_interval_and_forwarded(caplog):
 def test_training_without_a_terminal_logs_progress_between_epochs(tiny_tub, tmp_path, caplog, monkeypatch,
                                                                   torch_one_thread):
     # issue 27: with output not a terminal, training printed nothing between epoch lines for minutes
-    from training.trainer import train
-
     from training import progress_log
+    from training.trainer import train
     from vehicle.config import Config
 
     monkeypatch.setattr(progress_log, "PROGRESS_LOG_S", 0.0)  # every step: no waiting in a test

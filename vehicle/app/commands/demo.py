@@ -75,8 +75,8 @@ def register(subparsers: Any) -> None:
 
 def _cmd_demo(args: argparse.Namespace) -> int:
     import torch
-    from training.acceleration import cpu_caps
 
+    from training.acceleration import cpu_caps
     from vehicle.app.demo import expected_time, run_demo, torch_threads
     from vehicle.app.demo import say as _say
 
