@@ -11,7 +11,7 @@ from parts.pilots.models import create_model, model_type, model_type_names
 from parts.pilots.preprocess import Preprocess
 from parts.vision.lanes import LaneSettings
 
-ALL_TYPES = ["linear", "categorical", "inferred", "pilotnet", "memory", "behavior", "rnn", "3d", "lanes"]
+ALL_TYPES = ["linear", "linear_tanh", "categorical", "inferred", "pilotnet", "memory", "behavior", "rnn", "3d", "lanes"]
 
 
 def test_registry_lists_every_type():
