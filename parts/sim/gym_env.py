@@ -6,9 +6,9 @@ rate), so what an agent learns transfers to the Vehicle loop. One step is one lo
 applied for ``1 / DRIVE_LOOP_HZ`` simulated seconds (throttle scaled by AI_THROTTLE_MULT, as
 DriveMode does for a pilot), then the camera renders the next observation.
 
-- Observation: the camera frame, uint8 HxWx3 (or, with ``frame``, after a pilot's stage-1
-  preprocessing: crop, resize, colour), optionally with a vector ``[speed m/s, last angle, last
-  throttle]`` (``vector_obs=True``: a Dict observation).
+- Observation: the camera frame, uint8 HxWx3 (or, with ``frame``, what that function makes of it,
+  e.g. a pilot's stage-1 preprocessing ``Preprocess.frame``: crop, resize, colour), optionally
+  with a vector ``[speed m/s, last angle, last throttle]`` (``vector_obs=True``: a Dict observation).
 - Action: ``[angle, throttle]`` in [-1, 1], or ``[angle]`` with a fixed ``throttle``.
 - ``reset(seed=...)`` draws a track of ``tracks``, a theme of ``themes`` and one of
   ``randomize_draws`` randomisation draws (with SIM_RANDOMIZE set) from the environment's generator.
@@ -72,8 +72,9 @@ class TrackEnv(gym.Env):
         laps: laps that complete an episode (terminated).
         max_steps: steps before truncation (default SECONDS_PER_LAP s per lap).
         reward: a reward file (``reward_function(params)``), a callable, or None for the default.
-        frame: a :class:`parts.pilots.preprocess.Preprocess` (or its dict) whose stage 1 (crop,
-            resize, colour) turns camera frames into observations; None: the frames as they are.
+        frame: a function of a uint8 HxWx3 camera frame returning the uint8 HxWxC observation
+            (e.g. ``Preprocess.frame`` of :mod:`parts.pilots.preprocess`: crop, resize, colour);
+            picklable for vectorised environments. None: the frames as they are.
         vector_obs: add ``[speed, last angle, last throttle]`` (Dict observation).
         render_mode: None or "rgb_array" (the camera frame).
     """
@@ -104,14 +105,16 @@ class TrackEnv(gym.Env):
         self.max_steps = int(max_steps) if max_steps is not None else int(round(laps * SECONDS_PER_LAP / self.dt))
         self.throttle_mult = float(getattr(cfg, "AI_THROTTLE_MULT", 1.0))
         self.reward_fn: RewardFn = reward if callable(reward) else load_reward_function(reward)
-        self.frame = self._preprocess(frame)
+        if frame is not None and not callable(frame):
+            raise TypeError(f"frame must be a function of a camera frame or None, got {type(frame).__name__}")
+        self.frame = frame
         self.vector_obs = bool(vector_obs)
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": cfg.DRIVE_LOOP_HZ}
         h, w = cfg.SIM_CAMERA_H, cfg.SIM_CAMERA_W
-        shape = (h, w, 3) if self.frame is None else self.frame.frame(np.zeros((h, w, 3), np.uint8)).shape
+        shape = (h, w, 3) if self.frame is None else self.frame(np.zeros((h, w, 3), np.uint8)).shape
         image = spaces.Box(0, 255, shape, np.uint8)
         if self.vector_obs:
             hi = np.array([cfg.SIM_MAX_SPEED, 1.0, 1.0], np.float32)
@@ -124,14 +127,6 @@ class TrackEnv(gym.Env):
         self.sim: SimCar | None = None
         self._waypoints: dict[int, TrackWaypoints] = {}
         self._image: np.ndarray | None = None
-
-    @staticmethod
-    def _preprocess(frame: Any) -> Any:
-        if frame is None:
-            return None
-        from parts.pilots.preprocess import Preprocess
-
-        return frame if isinstance(frame, Preprocess) else Preprocess.from_dict(dict(frame))
 
     # -- episodes ---------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
@@ -182,7 +177,7 @@ class TrackEnv(gym.Env):
         assert self.sim is not None
         img = self.sim.render()
         self._image = img
-        obs = img if self.frame is None else self.frame.frame(img)
+        obs = img if self.frame is None else self.frame(img)
         if not self.vector_obs:
             return obs
         speed = self.sim.frame.speed if self.sim.frame is not None else 0.0

@@ -154,7 +154,7 @@ def train_rl(cfg: Any, out: str | Path, s: RLSettings, *, progress: bool = False
         logger.warning("evaluation tracks %s are also training tracks: the evaluation is not held out",
                        sorted(set(tracks) & set(eval_tracks)))
     env_kwargs = {"tracks": tracks, "throttle": s.throttle, "laps": s.laps, "max_steps": s.max_steps,
-                  "reward": s.reward, "frame": prep.to_dict(), "randomize_draws": s.randomize_draws}
+                  "reward": s.reward, "frame": prep.frame, "randomize_draws": s.randomize_draws}
     n_envs = s.envs or os.cpu_count() or 1
     meta = {"preprocess": {**prep.to_dict(), "image_shape": list(image_shape)}, "camera": camera_meta(cfg),
             "datasets": [], "transfer": str(s.init) if s.init else None, "comment": s.comment,

@@ -31,7 +31,7 @@ def _ppo(cfg: Config, throttle: float | None = None, seed: int = 0):
 
     mtype = policy_model_type("ppo", throttle is not None)
     prep = preprocess_from_config(cfg, mtype, image_shape=(cfg.SIM_CAMERA_H, cfg.SIM_CAMERA_W, 3))
-    venv = DummyVecEnv([lambda: TrackEnv(cfg, tracks=[1], throttle=throttle, frame=prep.to_dict())])
+    venv = DummyVecEnv([lambda: TrackEnv(cfg, tracks=[1], throttle=throttle, frame=prep.frame)])
     model = PPO("CnnPolicy", venv, n_steps=64, batch_size=32, seed=seed, device="cpu",
                 policy_kwargs=policy_kwargs("ppo", mtype, model_options(mtype, throttle), prep.normalize))
     meta = {"preprocess": {**prep.to_dict(), "image_shape": [cfg.SIM_CAMERA_H, cfg.SIM_CAMERA_W, 3]}}
@@ -41,6 +41,7 @@ def _ppo(cfg: Config, throttle: float | None = None, seed: int = 0):
 @pytest.mark.parametrize("throttle", [None, 0.4])
 def test_the_exported_pilot_computes_the_policys_deterministic_action(small, tmp_path, throttle):
     from parts.pilots import load_pilot
+    from parts.pilots.preprocess import Preprocess
     from parts.pilots.rl import export_pilot
     from parts.sim.gym_env import TrackEnv
 
@@ -52,7 +53,7 @@ def test_the_exported_pilot_computes_the_policys_deterministic_action(small, tmp
     assert loaded["format"] == "vehicle-pilot"
     assert loaded["meta"]["model"]["type"] == ("inferred" if throttle else "linear")
     pilot = load_pilot(path, backend="torch")
-    env = TrackEnv(small, tracks=[1], throttle=throttle, frame=meta["preprocess"])
+    env = TrackEnv(small, tracks=[1], throttle=throttle, frame=Preprocess.from_dict(meta["preprocess"]).frame)
     obs, _ = env.reset(seed=0)
     for _ in range(5):
         action, _ = model.predict(obs, deterministic=True)
