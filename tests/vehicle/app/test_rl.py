@@ -136,3 +136,32 @@ def test_sidecars_sit_beside_the_pilot():
 
     f = sidecars(Path("models/rl.pt"))
     assert f["state"] == Path("models/rl.rl.zip") and f["curve"] == Path("models/rl.rl.json")
+
+
+@pytest.mark.slow
+def test_ctrl_c_keeps_the_best_and_resume_goes_on(small, tmp_path):
+    """KeyboardInterrupt in the middle of training: the state and the best pilot are kept and the
+    interrupt propagates (the CLI exits 130); --resume continues from the saved step count."""
+    from vehicle.app.rl_train import RLSettings, sidecars, train_rl
+
+    out = tmp_path / "rl.pt"
+    s = RLSettings(timesteps=1024, envs=1, tracks=[1], eval_tracks=[101], eval_every=128, max_steps=40,
+                   n_steps=128, batch_size=64, n_epochs=1, seed=1)
+    seen = []
+
+    def interrupt(event):
+        seen.append(event)
+        if event["event"] == "evaluation" and event["timesteps"] >= 256:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        train_rl(small, out, s, on_event=interrupt)
+    files = sidecars(out)
+    assert out.is_file() and files["state"].is_file() and not files["eval"].exists()
+    stopped = json.loads(files["curve"].read_text())
+    assert stopped["evaluations"][-1]["timesteps"] == 256 and stopped["best"] is not None
+    s.resume, s.timesteps = True, 512
+    curve = train_rl(small, out, s)
+    # one rollout ended before the interrupt (during the second); resumed at 256 steps, two more
+    assert [r["timesteps"] for r in curve["rollouts"]] == [128, 384, 512]
+    assert [e["timesteps"] for e in curve["evaluations"]] == [128, 256, 384, 512]
