@@ -3,8 +3,8 @@
 PPO (default) or SAC on ``envs`` copies of :class:`parts.sim.gym_env.TrackEnv` (one process per
 core), the actor being a pilot model (:mod:`parts.pilots.rl`). Every ``eval_every`` steps the actor
 is exported as a pilot model file and driven by :func:`vehicle.app.evaluate.evaluate` on held-out
-tracks, closed loop in the Vehicle loop; the best (highest autonomy, then highest mean speed) is
-kept at ``out``, an ordinary model file, registered like a trained pilot. Beside it:
+tracks, closed loop in the Vehicle loop; the best (highest autonomy times the share of the laps
+driven, then mean speed) is kept at ``out``, an ordinary model file, registered like a trained pilot. Beside it:
 ``<out>.rl.zip`` (SB3 state: ``resume``), ``<out>.rl.json`` (the learning curve) and
 ``<out>.rl.png`` (its plot). Ctrl-C stops between steps: the state is saved, the best pilot kept,
 and KeyboardInterrupt propagates (the CLI exits 130).
@@ -187,7 +187,7 @@ def train_rl(cfg: Any, out: str | Path, s: RLSettings, *, progress: bool = False
             if algo == "ppo":
                 args.update(n_steps=s.n_steps, n_epochs=s.n_epochs)
             else:
-                args.update(buffer_size=20_000, learning_starts=1_000)
+                args.update(buffer_size=10_000, learning_starts=1_000)  # 10k frames of 120x160: 1.2 GB with next frames
             model = Algo("CnnPolicy", venv, **{**args, **s.extra})
             if init_model is not None:
                 load_pilot_weights(model.policy, init_model)
@@ -288,13 +288,18 @@ class _Trainer:
         report = evaluate(str(self.files["eval"]), self.eval_tracks, self.s.eval_laps, cfg=self.cfg)
         o = report["overall"]
         reward, length = self.episode_stats()
-        row = {"timesteps": steps, "autonomy": o["autonomy"], "laps_completed": o["laps_completed"],
+        laps = self.s.eval_laps
+        # a pilot that stands still never leaves the road (100 % autonomy): weigh by the share of
+        # the laps it drove
+        completion = float(np.mean([min(1.0, (t["laps_driven"] or 0.0) / laps) for t in report["tracks"]]))
+        row = {"timesteps": steps, "score": round(o["autonomy"] * completion, 2), "completion": round(completion, 3),
+               "autonomy": o["autonomy"], "laps_completed": o["laps_completed"],
                "mean_lap_s": o["mean_lap_s"], "mean_speed": o["mean_speed"], "mean_abs_cte": o["mean_abs_cte"],
                "interventions": o["interventions"], "mean_reward": reward, "mean_length": length}
         self.curve["evaluations"].append(row)
         best = self.curve["best"]
-        better = best is None or (row["autonomy"], row["mean_speed"] or 0.0) > \
-            (best["autonomy"], best["mean_speed"] or 0.0)
+        better = best is None or (row["score"], row["mean_speed"] or 0.0) > \
+            (best.get("score", best["autonomy"]), best["mean_speed"] or 0.0)
         logger.info("rl train: evaluation at %d steps on tracks %s: autonomy %.1f %%, %s laps, mean lap %s s%s",
                     steps, self.eval_tracks, o["autonomy"], o["laps_completed"], o["mean_lap_s"],
                     " (best so far: kept)" if better else "")

@@ -5,7 +5,7 @@
                      [--reward reward.py] [--throttle 0.3] [--init models/bc.pt] [--resume] [--seed 0]
     vehicle rl reward-check reward.py [--car DIR]
 
-The best pilot (highest autonomy on the held-out tracks) is an ordinary model file: drive it with
+The best pilot (highest autonomy over the laps driven on the held-out tracks) is an ordinary model file: drive it with
 ``manage.py drive --model``, evaluate it with ``vehicle sim eval``, export it with ``vehicle models
 export``. Ctrl-C keeps the best and the training state; ``--resume`` goes on from there.
 """
