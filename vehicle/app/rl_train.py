@@ -6,8 +6,8 @@ is exported as a pilot model file and driven by :func:`vehicle.app.evaluate.eval
 tracks, closed loop in the Vehicle loop; the best (highest autonomy times the share of the laps
 driven, then mean speed) is kept at ``out``, an ordinary model file, registered like a trained pilot. Beside it:
 ``<out>.rl.zip`` (SB3 state: ``resume``), ``<out>.rl.json`` (the learning curve) and
-``<out>.rl.png`` (its plot). Ctrl-C stops between steps: the state is saved, the best pilot kept,
-and KeyboardInterrupt propagates (the CLI exits 130).
+``<out>.rl.png`` (its plot). Ctrl-C (or SIGTERM / SIGHUP) stops between steps: the state is saved,
+the best pilot kept, and the interrupt propagates (the CLI exits 130, or 128 + the signal).
 """
 
 from __future__ import annotations
@@ -28,7 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from vehicle.errors import UserError
+from vehicle.errors import UserError, VehicleStopped
+from vehicle.vehicle import STOP_SIGNALS, handling
 
 logger = logging.getLogger(__name__)
 
@@ -112,7 +113,8 @@ def _algorithm(name: str) -> Any:
 def train_rl(cfg: Any, out: str | Path, s: RLSettings, *, progress: bool = False,
              on_event: Callable[[dict[str, Any]], None] | None = None) -> dict[str, Any]:
     """Train (or resume) and keep the best pilot at ``out``; returns the learning curve and the best
-    evaluation. Raises KeyboardInterrupt after saving when interrupted."""
+    evaluation. Raises KeyboardInterrupt (Ctrl-C) or VehicleStopped (SIGTERM, SIGHUP) after saving
+    when interrupted."""
     from parts.pilots.compat import camera_meta
     from parts.pilots.modelfile import load_model
     from parts.pilots.preprocess import Preprocess, preprocess_from_config
@@ -175,7 +177,7 @@ def train_rl(cfg: Any, out: str | Path, s: RLSettings, *, progress: bool = False
     # 520 ms per 120x160 frame with 2 threads, 20 ms with 1)
     torch.set_num_threads(max(1, (os.cpu_count() or 1) - n_envs))
     venv = make_vec_env(cfg, env_kwargs, n_envs, s.seed)
-    interrupted = False
+    interrupted: BaseException | None = None
     try:
         Algo = _algorithm(algo)  # noqa: N806 - a class
         if s.resume:
@@ -194,10 +196,13 @@ def train_rl(cfg: Any, out: str | Path, s: RLSettings, *, progress: bool = False
         trainer = _Trainer(model, cfg, out, files, meta, s, eval_tracks, curve, progress, on_event)
         remaining = max(0, s.timesteps - model.num_timesteps) if s.resume else s.timesteps
         try:
-            model.learn(total_timesteps=remaining, callback=trainer.callback(), reset_num_timesteps=not s.resume)
-        except KeyboardInterrupt:
-            interrupted = True
-            logger.warning("rl train: stopped by Ctrl-C at %d steps", model.num_timesteps)
+            with handling(STOP_SIGNALS, _stopped):  # SIGTERM / SIGHUP stop as Ctrl-C does
+                model.learn(total_timesteps=remaining, callback=trainer.callback(),
+                            reset_num_timesteps=not s.resume)
+        except (KeyboardInterrupt, VehicleStopped) as exc:
+            interrupted = exc
+            logger.warning("rl train: stopped by %s at %d steps", "Ctrl-C" if isinstance(exc, KeyboardInterrupt)
+                           else exc.signal_name, model.num_timesteps)
         finally:
             trainer.close_bar()
             model.save(files["state"])
@@ -212,9 +217,13 @@ def train_rl(cfg: Any, out: str | Path, s: RLSettings, *, progress: bool = False
     if curve["best"] is not None:
         logger.info("rl train: best pilot %s (autonomy %.1f %% at %d steps)", out, curve["best"]["autonomy"],
                     curve["best"]["timesteps"])
-    if interrupted:
-        raise KeyboardInterrupt
+    if interrupted is not None:
+        raise interrupted
     return curve
+
+
+def _stopped(signum: int, _frame: Any) -> None:
+    raise VehicleStopped(signum, signal.Signals(signum).name)
 
 
 class _Trainer:

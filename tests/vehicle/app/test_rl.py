@@ -165,3 +165,29 @@ def test_ctrl_c_keeps_the_best_and_resume_goes_on(small, tmp_path):
     # one rollout ended before the interrupt (during the second); resumed at 256 steps, two more
     assert [r["timesteps"] for r in curve["rollouts"]] == [128, 384, 512]
     assert [e["timesteps"] for e in curve["evaluations"]] == [128, 256, 384, 512]
+
+
+@pytest.mark.slow
+def test_sigterm_stops_training_like_ctrl_c(small, tmp_path):
+    """SIGTERM (a service manager, `kill`) in the middle of training: the state and the best pilot
+    are kept and VehicleStopped propagates (the CLI exits 128 + 15)."""
+    import os
+    import signal
+
+    from vehicle.app.rl_train import RLSettings, sidecars, train_rl
+    from vehicle.errors import VehicleStopped
+
+    out = tmp_path / "rl.pt"
+    s = RLSettings(timesteps=4096, envs=1, tracks=[1], eval_tracks=[101], eval_every=64, eval_laps=1,
+                   max_steps=20, n_steps=64, batch_size=64, n_epochs=1, seed=1)
+
+    def terminate(event):
+        if event["event"] == "evaluation":
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    before = signal.getsignal(signal.SIGTERM)
+    with pytest.raises(VehicleStopped) as stopped:
+        train_rl(small.replace(SIM_EVAL_MAX_TIME=1.0), out, s, on_event=terminate)
+    assert stopped.value.signum == signal.SIGTERM
+    assert out.is_file() and sidecars(out)["state"].is_file()
+    assert signal.getsignal(signal.SIGTERM) is before  # the handler is given back
