@@ -6,7 +6,8 @@ import json
 import subprocess
 import sys
 
-HEAVY = ("torch", "cv2", "pygame", "smbus2", "socketio", "aiohttp", "onnxruntime", "matplotlib")
+HEAVY = ("torch", "cv2", "pygame", "smbus2", "socketio", "aiohttp", "onnxruntime", "matplotlib", "gymnasium",
+         "stable_baselines3")
 
 
 def test_core_and_cli_import_light():
