@@ -11,7 +11,10 @@ API): the source of 1.3.1 is read from ``.bench/gym-donkeycar`` (``git archive``
 tawnkramer/gym-donkeycar, gym_donkeycar/ only; its dependencies gymnasium, numpy, pillow are in
 the venv).
 
-Usage: .venv/bin/python bench/rl_env.py [--seconds 20] [--hz 20,200]
+Setup (once): git clone https://github.com/tawnkramer/gym-donkeycar /tmp/gym-donkeycar &&
+mkdir -p .bench/gym-donkeycar && git -C /tmp/gym-donkeycar archive HEAD gym_donkeycar | tar -x -C .bench/gym-donkeycar
+
+Usage: .venv/bin/python bench/rl_env.py [--seconds 20] [--hz 20,1000]
 """
 
 from __future__ import annotations
@@ -94,7 +97,10 @@ def wait_listening(port: int, server: subprocess.Popen[bytes], timeout: float = 
 
 
 def gym_donkeycar(seconds: float, hz: float) -> float:
-    import gym_donkeycar  # noqa: F401 - registers the donkey-* environments
+    try:
+        import gym_donkeycar  # noqa: F401 - registers the donkey-* environments
+    except ImportError:
+        sys.exit("gym-donkeycar 1.3.1 is not in .bench/gym-donkeycar: see the setup in bench/rl_env.py")
 
     port = free_port()
     server = subprocess.Popen([sys.executable, "-m", "vehicle", "sim", "serve", "--port", str(port), "--tracks", "1",
