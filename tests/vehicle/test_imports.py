@@ -7,7 +7,7 @@ import subprocess
 import sys
 
 HEAVY = ("torch", "cv2", "pygame", "smbus2", "socketio", "aiohttp", "onnxruntime", "matplotlib", "gpiozero",
-         "serial")
+         "serial", "gymnasium", "stable_baselines3")
 
 
 def test_core_and_cli_import_light():

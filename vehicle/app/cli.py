@@ -105,6 +105,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "vehicle.app.commands.lanes",
     "vehicle.app.commands.createjs",
     "vehicle.app.commands.sim",
+    "vehicle.app.commands.rl",
     "vehicle.app.commands.tub",
     "vehicle.app.commands.udacity",
     "vehicle.app.commands.console",

@@ -11,7 +11,14 @@ import difflib
 from typing import Any
 
 from parts.pilots.models.base import PilotModel
-from parts.pilots.models.cnn import BehaviorModel, CategoricalModel, InferredModel, LinearModel, MemoryModel
+from parts.pilots.models.cnn import (
+    BehaviorModel,
+    CategoricalModel,
+    InferredModel,
+    LinearModel,
+    LinearTanhModel,
+    MemoryModel,
+)
 from parts.pilots.models.lanes import LanesBasicModel, LanesModel
 from parts.pilots.models.pilotnet import NvidiaModel, PilotNetModel
 from parts.pilots.models.sequence import Conv3DModel, RNNModel
@@ -31,8 +38,8 @@ def register_model_type(cls: type[PilotModel]) -> type[PilotModel]:
     return cls
 
 
-for _cls in (LinearModel, CategoricalModel, InferredModel, PilotNetModel, MemoryModel, BehaviorModel,
-             RNNModel, Conv3DModel, LanesModel, LanesBasicModel, NvidiaModel):
+for _cls in (LinearModel, LinearTanhModel, CategoricalModel, InferredModel, PilotNetModel, MemoryModel,
+             BehaviorModel, RNNModel, Conv3DModel, LanesModel, LanesBasicModel, NvidiaModel):
     register_model_type(_cls)
 
 

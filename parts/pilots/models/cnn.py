@@ -37,6 +37,17 @@ class LinearModel(PilotModel):
         return self.head(x)
 
 
+class LinearTanhModel(LinearModel):
+    """The linear model with its outputs bounded by tanh: what SAC's deterministic actor computes
+    (``vehicle rl train --algo sac`` exports to it); trains by MSE like ``linear``."""
+
+    type_name = "linear_tanh"
+    defaults: dict[str, Any] = {"dropout": 0.2}
+
+    def forward(self, images: torch.Tensor, extra: torch.Tensor | None = None) -> torch.Tensor:
+        return torch.tanh(super().forward(images, extra))
+
+
 class CategoricalModel(LinearModel):
     """Steering and throttle as classes: ``angle_bins`` over [-1, 1] and ``throttle_bins`` over
     [0, ``throttle_range``]; cross-entropy with weights 0.5/0.5; drives with the most likely bin."""

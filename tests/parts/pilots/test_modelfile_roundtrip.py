@@ -12,7 +12,7 @@ from parts.pilots.modelfile import FORMAT, ModelFileError, load_model, read_meta
 from parts.pilots.models import create_model
 from vehicle.errors import VehicleError
 
-TYPES = ["linear", "categorical", "inferred", "pilotnet", "memory", "behavior", "rnn", "3d", "lanes"]
+TYPES = ["linear", "linear_tanh", "categorical", "inferred", "pilotnet", "memory", "behavior", "rnn", "3d", "lanes"]
 
 
 @pytest.mark.parametrize("name", TYPES)

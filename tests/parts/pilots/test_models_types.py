@@ -11,8 +11,8 @@ from parts.vision.lanes import LaneSettings
 from training.dataset import PilotDataset, build_samples, read_drive_data
 from training.framecache import FrameCache
 
-ALL_TYPES = ["linear", "categorical", "inferred", "pilotnet", "memory", "behavior", "rnn", "3d", "lanes", "lanes_basic",
-             "nvidia"]
+ALL_TYPES = ["linear", "linear_tanh", "categorical", "inferred", "pilotnet", "memory", "behavior", "rnn", "3d", "lanes",
+             "lanes_basic", "nvidia"]
 
 
 def test_registry_lists_every_type():
