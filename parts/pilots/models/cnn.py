@@ -42,7 +42,7 @@ class LinearTanhModel(LinearModel):
     (``vehicle rl train --algo sac`` exports to it); trains by MSE like ``linear``."""
 
     type_name = "linear_tanh"
-    defaults: dict[str, Any] = {"dropout": 0.2}
+    defaults: dict[str, Any] = {"dropout": 0.2, "batch_norm": False}
 
     def forward(self, images: torch.Tensor, extra: torch.Tensor | None = None) -> torch.Tensor:
         return torch.tanh(super().forward(images, extra))
