@@ -102,6 +102,8 @@ class UdacitySim(ThreadedPart):
     #: size of the frames it delivers, fixed by the simulator (a pilot checks it fits when it loads)
     width: ClassVar[int] = FRAME_SIZE[0]
     height: ClassVar[int] = FRAME_SIZE[1]
+    #: for the wiring check (:mod:`vehicle.shapes`)
+    OUTPUT_SHAPES: ClassVar[dict[str, tuple[int, ...]]] = {"cam/image_array": (FRAME_SIZE[1], FRAME_SIZE[0], 3)}
     #: memory keys the part reads, in this order: the commands of the previous loop
     INPUTS: ClassVar[tuple[str, ...]] = ("angle", "throttle")
     FEEDBACK: ClassVar[tuple[str, ...]] = ("angle", "throttle")

@@ -78,6 +78,11 @@ class SimCar:
     OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("sim/reset",)
     OUTPUTS: ClassVar[tuple[str, ...]] = OUTPUTS
 
+    @property
+    def OUTPUT_SHAPES(self) -> dict[str, tuple[int, ...]]:  # noqa: N802 - the part declaration
+        """The rendered frames' shape (SIM_CAMERA_H, SIM_CAMERA_W, 3), for the wiring check."""
+        return {"cam/image_array": (self.base_camera.height, self.base_camera.width, 3)}
+
     def __init__(self, seeds: Sequence[int] = (1,), *, dt: float = 0.05, camera: Camera | None = None,
                  car_params: CarParams | None = None, world: dict[str, Any] | None = None,
                  themes: Sequence[str] | str = ("road",), reset_off_track: bool = True, reset_to: str = "start",
