@@ -8,9 +8,9 @@ served over the Donkey protocol.
 - :mod:`parts.bridges.donkey_server` – our simulator behind the Donkey protocol, for gym-donkeycar
   and any other Donkey-sim client.
 - :mod:`parts.bridges.donkey_protocol` – framing, parsing and message tables shared by both sides.
-- :mod:`parts.bridges.fake_udacity_client`, :mod:`parts.bridges.fake_donkey_sim` – faithful fake
-  peers written from docs/simulators.md's protocol facts, for tests and for trying a bridge
-  without the simulator.
+
+The faithful fake peers the tests drive them with, written from docs/simulators.md's protocol
+facts, live in tests/fixtures/ (fake_udacity_client.py, fake_donkey_sim.py, fake_road.py).
 
 Nothing is imported here: each module imports what it needs when it is used.
 """

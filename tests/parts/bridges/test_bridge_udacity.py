@@ -1,4 +1,4 @@
-"""The Udacity simulator part against the faithful fake simulator (parts.bridges.fake_udacity_client)."""
+"""The Udacity simulator part against the faithful fake simulator (fixtures.fake_udacity_client)."""
 
 from __future__ import annotations
 
@@ -16,8 +16,9 @@ pytest.importorskip("socketio")
 pytest.importorskip("aiohttp")
 pytest.importorskip("wsproto")
 
+from fixtures.fake_udacity_client import FakeUdacityClient, n4, parse_like_csharp  # noqa: E402
+
 from parts.bridges.errors import BridgeError  # noqa: E402
-from parts.bridges.fake_udacity_client import FakeUdacityClient, n4, parse_like_csharp  # noqa: E402
 from parts.bridges.udacity import UdacitySim  # noqa: E402
 from parts.bridges.udacity_protocol import MS_PER_MPH, format_command, parse_number  # noqa: E402
 

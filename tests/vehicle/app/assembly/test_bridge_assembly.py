@@ -8,9 +8,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from fixtures.fake_donkey_sim import FakeDonkeySim
 
 from parts.bridges.donkey_client import DonkeySim
-from parts.bridges.fake_donkey_sim import FakeDonkeySim
 from parts.bridges.udacity import UdacitySim
 from vehicle import Vehicle
 from vehicle.app import assembly
@@ -102,7 +102,7 @@ def test_manage_py_drives_the_donkey_simulator(tmp_path):
 
 
 def test_manage_py_drives_the_udacity_simulator_with_sim_option(tmp_path):
-    from parts.bridges.fake_udacity_client import FakeUdacityClient
+    from fixtures.fake_udacity_client import FakeUdacityClient
 
     port = free_port()
     car, manage = simulator_car(tmp_path, f"UDACITY_PORT = {port}\n")
