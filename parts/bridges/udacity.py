@@ -70,7 +70,7 @@ from vehicle.part import ThreadedPart, run_event_loop
 logger = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
-class Telemetry:
+class UdacityTelemetry:
     """One telemetry message, parsed."""
 
     seq: int  # 1 for the first telemetry since the part started
@@ -144,7 +144,7 @@ class UdacitySim(ThreadedPart):
         self._stop_server: asyncio.Event | None = None
         # shared with the server thread, under self._state
         self._state = threading.Lock()
-        self._telemetry: Telemetry | None = None
+        self._telemetry: UdacityTelemetry | None = None
         self._seq = 0
         self._pending: deque[tuple[str, int, float]] = deque()  # (sid, seq, arrival monotonic)
         self._delivered = 0  # seq of the frame handed to the loop at its previous run
@@ -443,7 +443,7 @@ class UdacitySim(ThreadedPart):
         self.telemetry_count += 1
         with self._state:
             self._seq += 1
-            tel = Telemetry(self._seq, tel.sid, tel.image, tel.timestamp, tel.steering_deg, tel.throttle,
+            tel = UdacityTelemetry(self._seq, tel.sid, tel.image, tel.timestamp, tel.steering_deg, tel.throttle,
                             tel.speed, tel.extra)
             self._telemetry = tel
             self._last_message = now
@@ -454,8 +454,8 @@ class UdacitySim(ThreadedPart):
         if neutral:
             await self._emit_steers([(sid, 0.0, 0.0)], neutral=True)
 
-    def _parse(self, sid: str, data: Any) -> Telemetry:
-        """Telemetry from the event's data; ValueError says what is wrong with it."""
+    def _parse(self, sid: str, data: Any) -> UdacityTelemetry:
+        """The telemetry in the event's data; ValueError says what is wrong with it."""
         from parts.bridges.frames import decode_frame
 
         if not isinstance(data, dict):
@@ -472,7 +472,7 @@ class UdacitySim(ThreadedPart):
             if key not in STOCK_KEYS:
                 number = parse_number(value)
                 extra[key] = value if number is None else number
-        return Telemetry(0, sid, image, time.time(), parse_number(data.get("steering_angle")),
+        return UdacityTelemetry(0, sid, image, time.time(), parse_number(data.get("steering_angle")),
                          parse_number(data.get("throttle")), None if speed is None else speed * MS_PER_MPH, extra)
 
     def _send_threadsafe(self, replies: list[tuple[str, Any, Any]], neutral: bool = False,
