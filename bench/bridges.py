@@ -222,7 +222,7 @@ def drive_py_baseline(seconds: float) -> list[float]:
 
 
 def bridge_tight(seconds: float) -> list[float]:
-    from parts.bridges.udacity import UdacitySim
+    from parts.bridges.udacity_sim import UdacitySim
 
     port = free_port()
     part = UdacitySim(port=port).start()
@@ -237,7 +237,7 @@ def bridge_tight(seconds: float) -> list[float]:
 
 
 def bridge_in_vehicle(seconds: float, hz: int, commands_last: bool) -> list[float]:
-    from parts.bridges.udacity import UdacitySim
+    from parts.bridges.udacity_sim import UdacitySim
     from vehicle import Vehicle
 
     port = free_port()

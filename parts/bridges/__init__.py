@@ -1,7 +1,7 @@
 """Simulator bridges: the Udacity simulator and the Donkey simulator as cars, and our simulator
 served over the Donkey protocol.
 
-- :mod:`parts.bridges.udacity` – the Udacity simulator as a car (we are its Socket.IO server);
+- :mod:`parts.bridges.udacity_sim` – the Udacity simulator as a car (we are its Socket.IO server);
   :mod:`parts.bridges.engineio3` makes python-socketio 5 speak its Engine.IO v3 dialect;
   :mod:`parts.bridges.udacity_protocol` reads and writes its values (units, keys, locales).
 - :mod:`parts.bridges.donkey_client` – the Donkey simulator as a car (we are its TCP client).

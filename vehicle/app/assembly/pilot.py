@@ -113,7 +113,7 @@ def camera_frames(V: Any) -> tuple[tuple[int, int, int] | None, str]:
     simulator's fixed frames), or None when it does not (the Donkey simulator: the pilot then
     learns the size from the first frame); and what to do about a model trained on frames of
     another size."""
-    from parts.bridges.udacity import UdacitySim
+    from parts.bridges.udacity_sim import UdacitySim
     from parts.sim.simulator import SimCar
     from vehicle.shapes import declared_shapes
 

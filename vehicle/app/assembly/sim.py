@@ -46,7 +46,7 @@ def add_simulator(V: Any, cfg: Any, seeds: Sequence[int] | None = None, sim_type
     ``cam/image_array``, ``cam/timestamp``, ``sim/*`` telemetry and ``enc/speed``.
 
     - "builtin": our simulator in this process, on the tracks of SIM_TRACK_SEEDS unless ``seeds``.
-    - "udacity": :class:`parts.bridges.udacity.UdacitySim`, the server the Udacity simulator
+    - "udacity": :class:`parts.bridges.udacity_sim.UdacitySim`, the server the Udacity simulator
       connects to (UDACITY_*); also ``cam/ok``, ``sim/manual``, ``sim/steering_deg``.
     - "donkey": :class:`parts.bridges.donkey_client.DonkeySim`, connected to SIM_HOST:SIM_PORT
       (DONKEY_GYM_ENV_NAME, GYM_CONF, DONKEY_MAX_CTE); also ``cam/ok``, ``sim/hit``.
@@ -98,7 +98,7 @@ def add_simulator_commands(V: Any) -> Any:
     """
     from parts.bridges.commands import SendCommands
     from parts.bridges.donkey_client import DonkeySim
-    from parts.bridges.udacity import UdacitySim
+    from parts.bridges.udacity_sim import UdacitySim
 
     bridges = V.find(UdacitySim) + V.find(DonkeySim)
     if not bridges:
@@ -124,7 +124,7 @@ def make_bridge(cfg: Any, sim_type: str, **options: Any) -> Any:
 
 
 def _udacity(cfg: Any, **options: Any) -> Any:
-    from parts.bridges.udacity import UdacitySim
+    from parts.bridges.udacity_sim import UdacitySim
 
     try:
         return UdacitySim(cfg.UDACITY_HOST, cfg.UDACITY_PORT, timeout_s=cfg.SIM_TIMEOUT_S,

@@ -11,7 +11,7 @@ import pytest
 from fixtures.fake_donkey_sim import FakeDonkeySim
 
 from parts.bridges.donkey_client import DonkeySim
-from parts.bridges.udacity import UdacitySim
+from parts.bridges.udacity_sim import UdacitySim
 from vehicle import Vehicle
 from vehicle.app import assembly
 from vehicle.clock import SimulatedClock
