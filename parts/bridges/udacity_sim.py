@@ -65,6 +65,7 @@ from parts.bridges.udacity_protocol import (
     parse_number,
     uses_decimal_comma,
 )
+from vehicle.config import ConfigError
 from vehicle.part import ThreadedPart, run_event_loop
 
 logger = logging.getLogger(__name__)
@@ -110,6 +111,19 @@ class UdacitySim(ThreadedPart):
     #: memory keys the part writes, in this order (an instance adds ``sim/<key>`` per extra key)
     OUTPUTS: tuple[str, ...] = ("cam/image_array", "cam/timestamp", "cam/ok", "cam/frame_id", "sim/speed", "enc/speed",
                       "sim/steering_deg", "sim/throttle", "sim/manual", "sim/cte", "sim/lap", "sim/extra")
+
+    @classmethod
+    def from_config(cls, cfg: Any, **options: Any) -> UdacitySim:
+        """SIM_TYPE = "udacity": the server on UDACITY_HOST:UDACITY_PORT, not started; ``options`` go
+        to the part."""
+        try:
+            return cls(cfg.UDACITY_HOST, cfg.UDACITY_PORT, timeout_s=cfg.SIM_TIMEOUT_S,
+                       # a stuck loop gets the simulator a neutral steer after 3 loop periods (>= 0.5 s)
+                       command_timeout_s=max(0.5, 3.0 / cfg.DRIVE_LOOP_HZ), decimal=cfg.UDACITY_DECIMAL,
+                       extra_keys=tuple(cfg.UDACITY_EXTRA_KEYS), **options)
+        except ValueError as exc:
+            raise ConfigError(f"{exc} (check UDACITY_PORT, SIM_TIMEOUT_S and UDACITY_EXTRA_KEYS in myconfig.py)") \
+                from exc
 
     def __init__(self, host: str = "127.0.0.1", port: int = 4567, *, timeout_s: float = 1.0,
                  command_timeout_s: float = 0.5, decimal: str = "auto", extra_keys: Sequence[str] = (),

@@ -15,7 +15,7 @@ from parts.bridges.udacity_sim import UdacitySim
 from vehicle import Vehicle
 from vehicle.app import assembly
 from vehicle.clock import SimulatedClock
-from vehicle.config import Config
+from vehicle.config import Config, ConfigError
 from vehicle.errors import UserError, VehicleError
 from vehicle.keys import is_valid_key
 
@@ -61,9 +61,9 @@ def test_sim_clock_is_simulated_only_for_the_builtin_simulator():
 
 def test_settings_errors_name_the_setting(tmp_path):
     V = Vehicle()
-    with pytest.raises(UserError, match=r"GYM_CONF has unknown keys \['colour'\]"):
+    with pytest.raises(ConfigError, match=r"GYM_CONF has unknown keys \['colour'\]"):
         assembly.add_simulator(V, Config.defaults(GYM_CONF={"colour": "red"}), sim_type="donkey")
-    with pytest.raises(UserError, match=r"body_style .*GYM_CONF"):
+    with pytest.raises(ConfigError, match=r"body_style .*GYM_CONF"):
         assembly.add_simulator(V, Config.defaults(GYM_CONF={"body_style": "tank"}), sim_type="donkey")
     with pytest.raises(VehicleError, match=r"UDACITY_PORT = 70000 is out of range; valid: 1 to 65535"):
         assembly.add_simulator(V, Config.defaults(UDACITY_PORT=70000), sim_type="udacity")  # the config refuses it
