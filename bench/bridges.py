@@ -38,6 +38,7 @@ from typing import Any
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.join(ROOT, "tests"))  # the fake Udacity client lives in tests/fixtures
 
 import cv2  # noqa: E402
 
@@ -144,7 +145,7 @@ def donkey(steps: int, repeats: int) -> dict[str, Any]:
 # -- Udacity ------------------------------------------------------------------------------------------
 FAKE = """
 import json, sys, time
-from parts.bridges.fake_udacity_client import FakeUdacityClient
+from fixtures.fake_udacity_client import FakeUdacityClient
 port, seconds = int(sys.argv[1]), float(sys.argv[2])
 with FakeUdacityClient(port) as sim:
     sim.wait_for(lambda c: len(c.steers) > 0, 60)
@@ -221,7 +222,7 @@ def drive_py_baseline(seconds: float) -> list[float]:
 
 
 def bridge_tight(seconds: float) -> list[float]:
-    from parts.bridges.udacity import UdacitySim
+    from parts.bridges.udacity_sim import UdacitySim
 
     port = free_port()
     part = UdacitySim(port=port).start()
@@ -236,7 +237,7 @@ def bridge_tight(seconds: float) -> list[float]:
 
 
 def bridge_in_vehicle(seconds: float, hz: int, commands_last: bool) -> list[float]:
-    from parts.bridges.udacity import UdacitySim
+    from parts.bridges.udacity_sim import UdacitySim
     from vehicle import Vehicle
 
     port = free_port()

@@ -41,7 +41,7 @@ try:  # torch is not needed here; if it is installed keep it to one thread too
 except ImportError:
     pass
 
-from parts.sim.camera import Camera  # noqa: E402
+from parts.sim.camera import PinholeCamera  # noqa: E402
 from parts.sim.expert import Expert  # noqa: E402
 from parts.sim.simulator import SimCar  # noqa: E402
 from parts.sim.world import load_world  # noqa: E402
@@ -49,7 +49,7 @@ from vehicle.app.evaluate import evaluate  # noqa: E402
 from vehicle.config import Config  # noqa: E402
 
 
-def naive_render(cam: Camera, texture, x: float, y: float, heading: float) -> np.ndarray:
+def naive_render(cam: PinholeCamera, texture, x: float, y: float, heading: float) -> np.ndarray:
     """Per-pixel ray casting: each frame, intersect every pixel's ray with the ground in numpy."""
     w, h = cam.width, cam.height
     f = (w / 2) / math.tan(math.radians(cam.fov_deg) / 2)
@@ -113,7 +113,7 @@ def main() -> int:
     cfg = Config.defaults(SIM_CAMERA_W=w, SIM_CAMERA_H=h, SIM_REALTIME=False)
     world = load_world(1)
     track, texture = world.track, world.texture
-    cam = Camera(w, h, cfg.SIM_CAMERA_FOV, cfg.SIM_CAMERA_PITCH, cfg.SIM_CAMERA_HEIGHT, cfg.SIM_CAMERA_FORWARD)
+    cam = PinholeCamera(w, h, cfg.SIM_CAMERA_FOV, cfg.SIM_CAMERA_PITCH, cfg.SIM_CAMERA_HEIGHT, cfg.SIM_CAMERA_FORWARD)
     poses = [track.pose_at(s) for s in np.linspace(0, track.length, 500)]
     out = np.empty((h, w, 3), np.uint8)
 

@@ -31,7 +31,7 @@ import torch  # noqa: E402
 torch.set_num_threads(1)
 
 from parts.pilots.preprocess import preprocess_from_config  # noqa: E402
-from parts.sim.camera import Camera, lane_region_points  # noqa: E402
+from parts.sim.camera import PinholeCamera, lane_region_points  # noqa: E402
 from parts.sim.simulator import SimCar  # noqa: E402
 from parts.vision.calibration import CameraCalibration  # noqa: E402
 from parts.vision.lanes import LaneExtractor, LaneSettings  # noqa: E402
@@ -43,7 +43,7 @@ LENS = np.array([-0.25, 0.07, 0.001, -0.0015, 0.0])
 
 def frames_of(width: int, height: int, n: int) -> list[np.ndarray]:
     """``n`` simulator frames of a two-lane track (64 distinct views, repeated)."""
-    sim = SimCar([1], camera=Camera(width, height), world={"lanes": 2, "res": 0.02})
+    sim = SimCar([1], camera=PinholeCamera(width, height), world={"lanes": 2, "res": 0.02})
     out = []
     for i in range(64):
         x, y, h = sim.track.pose_at(i * sim.track.length / 64, -0.2)
@@ -71,7 +71,7 @@ def main() -> None:
     args = ap.parse_args()
     w, h = (int(v) for v in args.size.split("x"))
     frames = frames_of(w, h, args.frames)
-    points = lane_region_points(Camera(w, h))
+    points = lane_region_points(PinholeCamera(w, h))
     settings = LaneSettings(source=points["LANE_SOURCE_POINTS"], destination=points["LANE_DESTINATION_POINTS"],
                             points_size=points["LANE_POINTS_SIZE"], color_mask="white")
     lanes = LaneExtractor(settings)
@@ -96,7 +96,7 @@ def main() -> None:
     rows.append(("preprocessing of the behavior model (crop, scale)", p1, p1 / base))
     rows.append(("preprocessing of the lanes model (+ lane image)", p2, p2 / base))
 
-    cam = Camera(w, h)
+    cam = PinholeCamera(w, h)
     cal = CameraCalibration((w, h), cam.intrinsics, LENS, 0.1)
     und = Undistort(cal)
     und.run(frames[0])  # the maps are made once, outside the timing

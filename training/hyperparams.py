@@ -1,8 +1,10 @@
 """Training hyper-parameters: one table and one validation for every way of starting a training.
 
 ``vehicle train``, ``manage.py train`` and the trainer console all describe and check their
-options here: each :class:`HyperParam` names the car setting it overrides (``MAX_EPOCHS`` ...),
-its command-line flag, its kind and bounds and the reason for the bounds. :func:`parse` turns user
+options here: each :class:`HyperParam` is derived from the one declaration of the car setting it
+overrides (``MAX_EPOCHS`` ..., in :mod:`training.settings`, marked ``Form(...)``): its command-line
+flag, label and group, its kind and bounds (the setting's type and range), its help (the setting's
+comment) and the reason for the bounds. :func:`parse` turns user
 input (typed values, or the strings of a web form) into checked values with one message per bad
 field; :func:`settings_for` maps them onto config settings for ``cfg.replace(...)``;
 :func:`check_config` applies the same rules to a car's own myconfig.py values before training.
@@ -19,15 +21,20 @@ from __future__ import annotations
 import difflib
 import math
 import re
+import types
+import typing
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from enum import Enum
+from functools import cache
+from typing import Annotated, Any
 
-__all__ = ["HYPERPARAMS", "HyperParam", "HyperParamError", "by_name", "check_config", "defaults", "describe",
-           "for_setting", "parse", "settings_for"]
+from vehicle.config import setting_type, settings
+from vehicle.config_checks import Form, Length, Range
 
-AUGMENTATION_CHOICES = ("flip", "brightness", "multiply", "shadow", "shift", "zoom", "blur", "hue")
-MODE_CHOICES = ("user", "local_angle", "local")
+__all__ = ["HyperParam", "HyperParamError", "by_name", "check_config", "defaults", "describe",
+           "for_setting", "hyperparams", "parse", "settings_for"]
+
 _DEVICE_RE = re.compile(r"^(auto|cpu|mps|cuda(:\d+)?)$")
 _INT_RE = re.compile(r"^[+-]?\d+$")
 
@@ -113,123 +120,63 @@ def _num(x: float) -> str:
     return str(int(x)) if float(x).is_integer() else f"{x:g}"
 
 
-def _p(name: str, what: str) -> HyperParam:
-    return HyperParam(f"aug_{name}_p", f"AUG_{name.upper()}_P", f"{name.capitalize()} probability",
-                      "Augmentation", "float", f"Chance that a training frame gets {what}.",
-                      "it is a probability", 0.0, 1.0)
+#: the form's groups, in the order forms and ``--help`` show them
+GROUPS = ("Model", "Optimisation", "Data", "Augmentation", "Hardware")
 
 
-#: Every hyper-parameter, in the order forms and ``--help`` show them.
-HYPERPARAMS: tuple[HyperParam, ...] = (
-    HyperParam("model_type", "DEFAULT_MODEL_TYPE", "Model type", "Model", "choice",
-               "Architecture to train (see the model types for what each needs).",
-               "only registered model types can be built", flag="--type"),
-    HyperParam("seq_length", "SEQUENCE_LENGTH", "Sequence length", "Model", "int",
-               "Frames (rnn, 3d) or previous commands (memory) a sequence model sees.",
-               "a sequence holds at least one frame", 1, 100),
-    HyperParam("epochs", "MAX_EPOCHS", "Epochs", "Optimisation", "int",
-               "Most passes over the training data (early stopping may end sooner).",
-               "training needs at least one epoch", 1),
-    HyperParam("batch_size", "BATCH_SIZE", "Batch size", "Optimisation", "int",
-               "Samples per training step.", "a step needs at least one sample", 1),
-    HyperParam("learning_rate", "LEARNING_RATE", "Learning rate", "Optimisation", "float",
-               "Adam step size; lower it if the loss jumps or becomes NaN.",
-               "a step of size 0 or less never learns", 0.0, low_open=True, flag="--lr"),
-    HyperParam("weight_decay", "TRAIN_WEIGHT_DECAY", "Weight decay", "Optimisation", "float",
-               "L2 penalty on the weights (0 = off).", "a negative penalty would reward large weights", 0.0),
-    HyperParam("steps_per_epoch", "TRAIN_STEPS_PER_EPOCH", "Steps per epoch", "Optimisation", "int",
-               "Batches per epoch; blank = every training sample once per epoch.",
-               "an epoch needs at least one step", 1, optional=True),
-    HyperParam("val_steps", "TRAIN_VAL_STEPS", "Validation steps", "Optimisation", "int",
-               "Validation batches per epoch; blank = every validation sample.",
-               "validation needs at least one batch", 1, optional=True),
-    HyperParam("early_stop", "USE_EARLY_STOP", "Early stopping", "Optimisation", "bool",
-               "Stop when the validation loss stops improving; the best epoch's model is kept."),
-    HyperParam("patience", "EARLY_STOP_PATIENCE", "Patience", "Optimisation", "int",
-               "Epochs without improvement before early stopping.",
-               "at least one epoch must be allowed to improve", 1),
-    HyperParam("min_delta", "MIN_DELTA", "Minimum improvement", "Optimisation", "float",
-               "Smallest drop of the validation loss that counts as an improvement.",
-               "an improvement cannot be negative", 0.0),
-    HyperParam("val_share", "TRAIN_TEST_SPLIT", "Validation share", "Data", "float",
-               "Share of the records held out for validation (whole sessions or blocks, never "
-               "single frames; at least one block always trains).", "it is a share of the records",
-               0.0, 1.0, complement=True),
-    HyperParam("split_by", "TRAIN_SPLIT_BY", "Split by", "Data", "choice",
-               "Hold out whole recording sessions, contiguous blocks of records, or random records "
-               "(as the source documents' scikit-learn/Keras splits do).",
-               "only these splits exist", choices=("block", "session", "random")),
-    HyperParam("split_block", "TRAIN_SPLIT_BLOCK", "Block length", "Data", "int",
-               "Records per block of the block split (100 = 5 s at 20 Hz).",
-               "a block holds at least one record", 1),
-    HyperParam("modes", "TRAIN_MODES", "Drive modes", "Data", "multi",
-               "Train only on records driven in these modes (pilot-driven records teach nothing new).",
-               "training needs at least one mode to read records from", choices=MODE_CHOICES, min_items=1),
-    HyperParam("flip_copy", "TRAIN_FLIP_COPY", "Mirrored copy", "Data", "bool",
-               "Add a mirrored copy of every frame (steering negated), doubling the data."),
-    HyperParam("balance", "TRAIN_BALANCE", "Balance by steering", "Data", "bool",
-               "Keep at most 'samples per bin' records per steering bin (straight driving otherwise "
-               "dominates)."),
-    HyperParam("balance_bins", "TRAIN_BALANCE_BINS", "Number of bins", "Data", "int",
-               "Equal-width steering bins for balancing.", "balancing needs at least one bin", 1),
-    HyperParam("max_per_bin", "TRAIN_BALANCE_MAX_PER_BIN", "Samples per bin", "Data", "int",
-               "Most training records kept per steering bin.", "a bin must keep at least one record", 1),
-    HyperParam("seed", "TRAIN_SEED", "Random seed", "Data", "int",
-               "Seed of the split, balancing, shuffling and augmentations (same seed, same run).",
-               "random generators take seeds ≥ 0", 0),
-    HyperParam("augmentations", "AUGMENTATIONS", "Augmentations", "Augmentation", "multi",
-               "Training-only image changes; none = train on the frames as recorded.",
-               "only these augmentations exist", choices=AUGMENTATION_CHOICES, flag="--aug"),
-    _p("flip", "mirrored (steering negated)"),
-    _p("brightness", "a brightness/contrast change"),
-    HyperParam("aug_brightness_range", "AUG_BRIGHTNESS_RANGE", "Brightness range", "Augmentation", "float",
-               "Largest brightness change, fraction of full scale (0.2 = ±20 %).",
-               "it is a fraction of full scale", 0.0, 1.0),
-    _p("multiply", "its brightness multiplied by one random factor"),
-    HyperParam("aug_contrast_range", "AUG_CONTRAST_RANGE", "Contrast range", "Augmentation", "float",
-               "Largest contrast change (0.2 = ×0.8 to ×1.2).", "a contrast below 0 inverts the image", 0.0, 1.0),
-    _p("shadow", "a shadow"),
-    HyperParam("aug_shadow_darkness", "AUG_SHADOW_DARKNESS", "Shadow darkness", "Augmentation", "float",
-               "Darkest factor a shadow multiplies pixels by.", "it is a brightness factor", 0.0, 1.0),
-    _p("shift", "shifted (panned, steering corrected)"),
-    HyperParam("aug_shift_x", "AUG_SHIFT_X", "Shift x", "Augmentation", "float",
-               "Largest horizontal shift, fraction of the frame width.", "it is a fraction of the width",
-               0.0, 1.0),
-    HyperParam("aug_shift_y", "AUG_SHIFT_Y", "Shift y", "Augmentation", "float",
-               "Largest vertical shift, fraction of the frame height.", "it is a fraction of the height",
-               0.0, 1.0),
-    HyperParam("aug_shift_steering", "AUG_SHIFT_STEERING", "Shift steering", "Augmentation", "float",
-               "Steering added per full frame width of horizontal shift.",
-               "a shift to the right must steer right, not left", 0.0),
-    _p("zoom", "a centred zoom in"),
-    HyperParam("aug_zoom_range", "AUG_ZOOM_RANGE", "Zoom range", "Augmentation", "float",
-               "Largest zoom in, as a fraction (0.3 = up to 130 %).", "it is a fraction of the size", 0.0, 1.0),
-    _p("blur", "a Gaussian blur"),
-    _p("hue", "its colours turned round the colour wheel"),
-    HyperParam("aug_hue_range", "AUG_HUE_RANGE", "Hue range", "Augmentation", "float",
-               "Largest hue turn in degrees (180 = any colour).",
-               "half the colour wheel reaches every colour", 0.0, 180.0),
-    HyperParam("device", "TRAIN_DEVICE", "Device", "Hardware", "device",
-               "Where to train: auto = the GPU when there is one.", "torch knows these devices"),
-    HyperParam("workers", "TRAIN_NUM_WORKERS", "Data workers", "Hardware", "int",
-               "DataLoader worker processes (0 = load in the training process).",
-               "a count of processes cannot be negative", 0, 64),
-    HyperParam("precision", "TRAIN_PRECISION", "Precision", "Hardware", "choice",
-               "Arithmetic precision: auto = bf16 where the CPU or GPU computes it natively, fp16 "
-               "on older GPUs, fp32 elsewhere; fp32 forces full precision.",
-               "only these precisions are implemented", choices=("auto", "fp32", "bf16", "fp16")),
-    HyperParam("compile", "TRAIN_COMPILE", "Compile", "Hardware", "bool",
-               "Compile the model with torch.compile first (needs a C++ compiler on CPUs); pays "
-               "only on long trainings."),
-)
+def from_setting(setting: Any, form: Form) -> HyperParam:
+    """The hyper-parameter a setting declares with ``Form(...)`` in its annotation: kind, bounds and
+    choices from its type and range, help from its comment."""
+    tp = setting_type(setting.name)
+    meta: tuple[Any, ...] = ()
+    if typing.get_origin(tp) is Annotated:
+        tp, meta = typing.get_args(tp)[0], tp.__metadata__
+    args = typing.get_args(tp)
+    optional = typing.get_origin(tp) in (typing.Union, types.UnionType) and type(None) in args
+    if optional:
+        tp = next(a for a in args if a is not type(None))
+    rng = next((m for m in meta if isinstance(m, Range)), Range())
+    least = next((m.min for m in meta if isinstance(m, Length) and m.min), 0)
+    choices: tuple[str, ...] = ()
+    kind = form.kind
+    if not kind:
+        if typing.get_origin(tp) is list:
+            kind, choices = "multi", _choices(typing.get_args(tp)[0])
+        elif typing.get_origin(tp) is typing.Literal:
+            kind, choices = "choice", _choices(tp)
+        else:
+            kind = {bool: "bool", int: "int", float: "float"}[tp]
+    return HyperParam(form.name, setting.name, form.label, form.group, kind, form.help or setting.doc, form.why,
+                      rng.lo, rng.hi, rng.lo_open, optional, choices, form.complement, form.flag, least)
 
-_BY_NAME = {p.name: p for p in HYPERPARAMS}
-_BY_SETTING = {p.setting: p for p in HYPERPARAMS}
+
+def _choices(tp: Any) -> tuple[str, ...]:
+    if isinstance(tp, type) and issubclass(tp, Enum):
+        return tuple(m.value for m in tp)
+    return tuple(str(a) for a in typing.get_args(tp))
+
+
+@cache
+def hyperparams() -> tuple[HyperParam, ...]:
+    """Every setting declared with ``Form(...)``, by group (:data:`GROUPS`), then in declaration order."""
+    found = [from_setting(s, form) for s in settings().values()
+             for form in typing.get_args(setting_type(s.name))[1:] if isinstance(form, Form)]
+    return tuple(sorted(found, key=lambda p: GROUPS.index(p.group)))
+
+
+def __getattr__(name: str) -> Any:
+    if name == "HYPERPARAMS":  # built on first use from the settings (no work at import time)
+        return hyperparams()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def _by_name() -> dict[str, HyperParam]:
+    return {p.name: p for p in hyperparams()}
 
 
 def by_name(name: str) -> HyperParam:
     """The hyper-parameter called ``name``."""
-    return _BY_NAME[name]
+    return _by_name()[name]
 
 
 def _text(value: Any) -> str:
@@ -333,10 +280,11 @@ def parse(values: Mapping[str, Any], *, model_types: Sequence[str] | None = None
     """
     clean: dict[str, Any] = {}
     errors: dict[str, str] = {}
+    known = _by_name()
     for name, value in values.items():
-        p = _BY_NAME.get(name)
+        p = known.get(name)
         if p is None:
-            close = difflib.get_close_matches(name, _BY_NAME, n=1)
+            close = difflib.get_close_matches(name, known, n=1)
             errors[name] = "unknown hyper-parameter" + (f"; did you mean {close[0]}?" if close else "")
             continue
         try:
@@ -348,20 +296,22 @@ def parse(values: Mapping[str, Any], *, model_types: Sequence[str] | None = None
 
 def settings_for(clean: Mapping[str, Any]) -> dict[str, Any]:
     """Config overrides (``{"MAX_EPOCHS": 10, ...}``) for values returned by :func:`parse`."""
-    return {_BY_NAME[n].setting: _BY_NAME[n].to_setting(v) for n, v in clean.items()}
+    known = _by_name()
+    return {known[n].setting: known[n].to_setting(v) for n, v in clean.items()}
 
 
 def defaults(cfg: Any) -> dict[str, Any]:
     """Every field's value in the car's config (the form's defaults)."""
-    return {p.name: p.from_setting(getattr(cfg, p.setting)) for p in HYPERPARAMS}
+    return {p.name: p.from_setting(getattr(cfg, p.setting)) for p in hyperparams()}
 
 
 def check_config(cfg: Any, model_types: Sequence[str] | None = None) -> None:
     """Apply the same rules to a config's values; ValueError names every bad setting."""
-    values = {p.name: p.from_setting(getattr(cfg, p.setting)) for p in HYPERPARAMS}
+    values = {p.name: p.from_setting(getattr(cfg, p.setting)) for p in hyperparams()}
     _clean, errors = parse(values, model_types=model_types)
     if errors:
-        raise HyperParamError({_BY_NAME[n].setting: m for n, m in errors.items()},
+        known = _by_name()
+        raise HyperParamError({known[n].setting: m for n, m in errors.items()},
                               names=lambda s: f"{s} = {getattr(cfg, s)!r}")
 
 
@@ -369,7 +319,7 @@ def describe(cfg: Any = None, model_types: Sequence[str] | None = None) -> list[
     """The table as plain values for a form: name, label, group, kind, bounds, help, rule, flag,
     setting, choices and (with ``cfg``) the car's default."""
     out = []
-    for p in HYPERPARAMS:
+    for p in hyperparams():
         choices = list(model_types) if p.name == "model_type" and model_types is not None else list(p.choices)
         item = {"name": p.name, "setting": p.setting, "label": p.label, "group": p.group, "kind": p.kind,
                 "help": p.help, "why": p.why, "rule": p.rule(), "low": p.low, "high": p.high,
@@ -382,4 +332,4 @@ def describe(cfg: Any = None, model_types: Sequence[str] | None = None) -> list[
 
 def for_setting(setting: str) -> HyperParam | None:
     """The hyper-parameter that overrides ``setting`` (None if none does)."""
-    return _BY_SETTING.get(setting)
+    return next((p for p in hyperparams() if p.setting == setting), None)

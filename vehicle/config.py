@@ -225,6 +225,11 @@ def describe_type(annotation: str) -> str:
     return type_text(annotation).replace("list[Mode]", f"list[{modes}]").replace("Mode", modes)
 
 
+def setting_type(name: str) -> Any:
+    """The annotation of setting ``name``, evaluated (``Annotated[int, Range(1)]``: with its metadata)."""
+    return _type_of(name)
+
+
 @cache
 def constraints(name: str) -> tuple[Constraint, ...]:
     """The ranges a setting declares in its annotation (``Annotated[int, Range(1, 1000)]``)."""

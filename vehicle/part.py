@@ -12,6 +12,8 @@ properties) that :meth:`vehicle.Vehicle.add` uses when it is not given them:
 - ``OPTIONAL_INPUTS``: inputs that may be produced by no part of a car (they read None);
 - ``FEEDBACK``: inputs produced by a part added after this one, read from the previous loop on
   purpose.
+- ``OUTPUT_SHAPES`` / ``INPUT_SHAPES``: ``{key: shape}`` of what it makes and of what it expects
+  (:mod:`vehicle.shapes`), compared by the wiring check before the first loop.
 
 Key names follow :mod:`vehicle.keys`.
 """

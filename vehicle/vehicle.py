@@ -226,6 +226,9 @@ class Vehicle:
                     problems.append(f"part {e.name!r} {role} {key!r} is produced by no part and not seeded "
                                     f"in memory{hint}; declare it in optional_inputs if it may be absent")
             available.update(e.outputs)
+        from vehicle.shapes import shape_problems  # here: vehicle.shapes reads declarations as add() does
+
+        problems += shape_problems(self.parts)
         if problems:
             raise WiringError("; ".join(problems))
 

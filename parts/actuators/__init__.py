@@ -6,7 +6,8 @@
 - :mod:`parts.actuators.watchdog`: the command watchdog thread.
 - :mod:`parts.actuators.pwm_calibration`: the interactive ``vehicle calibrate`` session.
 - :mod:`parts.actuators.config_writer`: writing found values into a car's myconfig.py.
-- :mod:`parts.actuators.fake_pca9685`, :mod:`parts.actuators.fake_i2c_dev`: the hardware-free board.
+- :mod:`parts.actuators.fake_pca9685`: the hardware-free board (DRIVE_TRAIN_TYPE = "MOCK"); the tests
+  also run the real smbus2 against it (tests/fixtures/fake_i2c_dev.py).
 
 Nothing here imports smbus2 until a real bus is opened.
 """

@@ -295,16 +295,6 @@ class PCA9685:
         self._write(MODE1, AI | ALLCALL, "initialising")
         self._sleep(WAKE_DELAY_S)  # oscillator start-up before RESTART
 
-    def set_frequency(self, frequency: float) -> None:
-        """Change the PWM frequency (sleeps the chip briefly: outputs pause for one period)."""
-        prescale = prescale_for(frequency, self.osc_hz)
-        with self._lock:
-            self.prescale = prescale
-            self.requested_frequency = float(frequency)
-            if self._bus is not None:
-                self._set_prescale()
-                self._write(MODE1, RESTART | AI | ALLCALL, "setting the frequency of")
-
     def close(self) -> None:
         """Close the bus. The outputs keep their last setting: write neutral or full-off first."""
         with self._lock:

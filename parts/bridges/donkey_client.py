@@ -61,6 +61,7 @@ import numpy as np
 from parts.bridges import donkey_protocol as proto
 from parts.bridges.errors import BridgeError
 from parts.bridges.frames import decode_frame
+from vehicle.config import ConfigError
 from vehicle.part import ThreadedPart
 
 logger = logging.getLogger(__name__)
@@ -172,6 +173,26 @@ class DonkeySim(ThreadedPart):
         "cam/image_array", "cam/timestamp", "cam/ok", "cam/frame_id", "sim/speed", "enc/speed", "sim/cte", "sim/hit",
         "sim/off_track",
         "sim/lap", "sim/lap_time", "sim/progress", "sim/pos", "sim/time", "sim/extra")
+
+    @classmethod
+    def from_config(cls, cfg: Any, **options: Any) -> DonkeySim:
+        """SIM_TYPE = "donkey": connected to SIM_HOST:SIM_PORT when started, in DONKEY_GYM_ENV_NAME,
+        with GYM_CONF's car look; ``options`` go to the part (``synchronous=True``: step mode)."""
+        conf = dict(cfg.GYM_CONF)
+        known = ("body_style", "body_rgb", "car_name", "font_size", "racer_name", "country", "bio", "guid")
+        unknown = sorted(set(conf) - set(known))
+        if unknown:
+            raise ConfigError(f"GYM_CONF has unknown keys {unknown}: use {', '.join(known)}")
+        try:
+            look = CarLook(**{k: tuple(v) if k == "body_rgb" else v for k, v in conf.items()})
+            return cls(cfg.SIM_HOST, cfg.SIM_PORT, scene=cfg.DONKEY_GYM_ENV_NAME, image_w=cfg.IMAGE_W,
+                       image_h=cfg.IMAGE_H, look=look, max_cte=cfg.DONKEY_MAX_CTE, timeout_s=cfg.SIM_TIMEOUT_S,
+                       connect_timeout_s=cfg.SIM_CONNECT_TIMEOUT_S,
+                       # a stuck loop brakes the car after 3 loop periods (>= 0.5 s), like the Udacity bridge
+                       command_timeout_s=max(0.5, 3.0 / cfg.DRIVE_LOOP_HZ), **options)
+        except (TypeError, ValueError) as exc:
+            raise ConfigError(f"{exc} (check SIM_PORT, GYM_CONF, DONKEY_MAX_CTE, SIM_TIMEOUT_S and "
+                              "SIM_CONNECT_TIMEOUT_S in myconfig.py)") from exc
 
     def __init__(self, host: str = "127.0.0.1", port: int = proto.DEFAULT_PORT, *, scene: str = "generated_track",
                  image_w: int = 160, image_h: int = 120, look: CarLook | None = None,

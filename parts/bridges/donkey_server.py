@@ -436,11 +436,12 @@ class Session:
             self.sim.camera = self._camera()
 
     def _camera(self) -> Any:
-        from parts.sim.camera import Camera
+        from parts.sim.camera import PinholeCamera
 
         cfg = self.server.cfg
         w, h = self.camera_size or (cfg.SIM_CAMERA_W, cfg.SIM_CAMERA_H)
-        return Camera(w, h, cfg.SIM_CAMERA_FOV, cfg.SIM_CAMERA_PITCH, cfg.SIM_CAMERA_HEIGHT, cfg.SIM_CAMERA_FORWARD)
+        return PinholeCamera(w, h, cfg.SIM_CAMERA_FOV, cfg.SIM_CAMERA_PITCH, cfg.SIM_CAMERA_HEIGHT,
+                             cfg.SIM_CAMERA_FORWARD)
 
     def _load(self, name: str, seed: int) -> None:
         from parts.sim.simulator import SimCar

@@ -43,7 +43,7 @@ _PRIVATE_API: dict[str, tuple[str, ...]] = {
     "_handle_connect": ("self", "eio_sid", "namespace", "data"),
     "_handle_eio_message": ("self", "eio_sid", "data"),
 }
-#: what else parts.bridges.udacity calls below python-socketio's documented surface: (module,
+#: what else parts.bridges.udacity_sim calls below python-socketio's documented surface: (module,
 #: class, method) -> parameters. It closes a simulator's websocket through the Engine.IO server
 #: (a Socket.IO v2 client ignores the namespace DISCONNECT).
 _INTERNAL_API: dict[tuple[str, str, str], tuple[str, ...]] = {

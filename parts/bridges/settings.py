@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
+from parts.bridges.registry import SIMULATORS
 from vehicle.config_checks import Range
 
 # == Simulator bridges ==
@@ -15,7 +16,7 @@ from vehicle.config_checks import Range
 # Which simulator a simulator car drives: "builtin" (ours, in this process), "udacity" (the
 # Udacity self-driving-car simulator, which connects to us) or "donkey" (the Donkey simulator or
 # `vehicle sim serve`, which we connect to). `manage.py drive --sim NAME` overrides it.
-SIM_TYPE: Literal["builtin", "udacity", "donkey"] = "builtin"
+SIM_TYPE: Annotated[str, SIMULATORS.choice()] = "builtin"
 # Seconds without telemetry from the Udacity or Donkey simulator before its camera counts as
 # stale (cam/ok False: the camera watchdog takes the pilot out) and one line says what to check.
 SIM_TIMEOUT_S: Annotated[float, Range(0.1, 10, unit="s")] = 1.0

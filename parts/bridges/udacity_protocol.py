@@ -3,7 +3,7 @@
 Facts (docs/simulators.md): the simulator sends every number as a string written in its own
 locale (``"0,1234"`` on a comma-decimal Windows) and speed in mph; it parses a ``steer``'s
 values with ``float.Parse`` in that same locale. Research forks add keys of their own (``cte``,
-``lapNumber``). :mod:`parts.bridges.udacity` (the part) uses these; nothing here does I/O.
+``lapNumber``). :mod:`parts.bridges.udacity_sim` (the part) uses these; nothing here does I/O.
 """
 
 from __future__ import annotations

@@ -81,6 +81,11 @@ class Camera(ThreadedPart):
     INPUTS: ClassVar[tuple[str, ...]] = ()
     OUTPUTS: ClassVar[tuple[str, ...]] = OUTPUTS
 
+    @property
+    def OUTPUT_SHAPES(self) -> dict[str, tuple[int, ...]]:  # noqa: N802 - the part declaration
+        """The frames' shape (IMAGE_H, IMAGE_W, 3), for the wiring check (:mod:`vehicle.shapes`)."""
+        return {"cam/image_array": (self.height, self.width, 3)}
+
     def __init__(self, source: FrameSource, width: int = 160, height: int = 120, fps: float = 20.0,
                  vflip: bool = False, hflip: bool = False, timeout_s: float = 1.0) -> None:
         super().__init__()

@@ -159,6 +159,12 @@ class Pilot:
 
     OUTPUTS: ClassVar[tuple[str, ...]] = ("pilot/angle", "pilot/throttle")
 
+    @property
+    def INPUT_SHAPES(self) -> dict[str, tuple[int, ...]]:  # noqa: N802 - the part declaration
+        """The frames the model driving now was trained on, for the wiring check (:mod:`vehicle.shapes`)."""
+        shape = self._active.runner.preprocessing.image_shape
+        return {} if shape is None else {IMAGE_KEY: tuple(shape)}
+
     def reset(self) -> None:
         """Forget the frames and commands remembered for sequence models: a new episode starts
         (an evaluation track, a car put back on the start line). Also resets the speed controller."""

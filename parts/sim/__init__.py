@@ -7,5 +7,6 @@ backdrops (walls, tree lines), texture (top-down images), randomize (per-episode
 scenery (backdrop, distractors and the car's shadow over the ground), world (a track drawn in a
 theme, cached), camera (renderer), sensor (per-frame image effects), kinematics (bicycle model),
 telemetry (laps, CTE), simulator (the SimCar part), expert (pure pursuit, noise injection),
+episode (the parts of an evaluation episode: reset when off the road, give up without frames),
 eval_report (tables, JSON, PNG).
 """

@@ -30,7 +30,7 @@ logger = logging.getLogger(__name__)
 GRID = 4
 
 
-class Camera:
+class PinholeCamera:
     """A forward-looking camera fixed on the car: a pinhole, optionally with lens distortion.
 
     Args:
@@ -278,15 +278,15 @@ def _check_distortion(distortion: Sequence[float] | None) -> np.ndarray | None:
 
 
 def camera_from_config(cfg: Any, *, height: float = 0.0, pitch: float = 0.0, fov: float = 0.0,
-                       max_distance: float = 12.0) -> Camera:
+                       max_distance: float = 12.0) -> PinholeCamera:
     """The simulated camera of a Config (SIM_CAMERA_*), with offsets of height (m), pitch and field
     of view (degrees) as a randomised track draws them."""
-    return Camera(cfg.SIM_CAMERA_W, cfg.SIM_CAMERA_H, cfg.SIM_CAMERA_FOV + fov, cfg.SIM_CAMERA_PITCH + pitch,
+    return PinholeCamera(cfg.SIM_CAMERA_W, cfg.SIM_CAMERA_H, cfg.SIM_CAMERA_FOV + fov, cfg.SIM_CAMERA_PITCH + pitch,
                   cfg.SIM_CAMERA_HEIGHT + height, cfg.SIM_CAMERA_FORWARD, max_distance,
                   distortion=cfg.SIM_CAMERA_DISTORTION)
 
 
-def lane_region_points(camera: Camera, near: float | None = None, far: float = 1.2, half_width: float = 0.5,
+def lane_region_points(camera: PinholeCamera, near: float | None = None, far: float = 1.2, half_width: float = 0.5,
                        intrinsics: np.ndarray | None = None) -> dict[str, list[list[float]] | list[int]]:
     """Lane-extraction points for this camera (``LANE_SOURCE_POINTS``, ``LANE_DESTINATION_POINTS``,
     ``LANE_POINTS_SIZE``) that make a rectangle of ground a true bird's-eye view.

@@ -2,7 +2,7 @@
 
 The thesis (§5.4) calibrates its simulator's camera like the real one: a chessboard object in the
 scene, photographed from at least ten angles. Here the board is a plane at any pose in front of
-the camera (:class:`parts.sim.camera.Camera`), rendered through the same pinhole canvas and lens
+the camera (:class:`parts.sim.camera.PinholeCamera`), rendered through the same pinhole canvas and lens
 remap as the track, so calibrating these views must give back the camera's intrinsics and its
 ``distortion`` coefficients.
 
@@ -21,7 +21,7 @@ from typing import ClassVar
 import cv2
 import numpy as np
 
-from parts.sim.camera import Camera
+from parts.sim.camera import PinholeCamera
 
 logger = logging.getLogger(__name__)
 
@@ -52,7 +52,7 @@ def _board_to_texture(square_mm: float, px: int, margin: int) -> np.ndarray:
     return np.array([[s, 0.0, origin], [0.0, s, origin], [0.0, 0.0, 1.0]])
 
 
-def render_board_view(camera: Camera, columns: int, rows: int, rvec: np.ndarray, tvec: np.ndarray, *,
+def render_board_view(camera: PinholeCamera, columns: int, rows: int, rvec: np.ndarray, tvec: np.ndarray, *,
                       square_mm: float = 25.0, background: np.ndarray | None = None) -> np.ndarray:
     """The camera's image (height x width x 3 uint8 RGB) of the board at pose (rvec, tvec) in the
     camera frame (x right, y down, z forward; millimetres, Rodrigues rotation), over ``background``
@@ -81,7 +81,7 @@ def render_board_view(camera: Camera, columns: int, rows: int, rvec: np.ndarray,
     return np.ascontiguousarray(camera.lens(canvas))
 
 
-def project_corners(camera: Camera, columns: int, rows: int, rvec: np.ndarray, tvec: np.ndarray,
+def project_corners(camera: PinholeCamera, columns: int, rows: int, rvec: np.ndarray, tvec: np.ndarray,
                     square_mm: float = 25.0) -> np.ndarray:
     """Image positions (N, 2) of the inner corners (row by row, as OpenCV orders them) through
     the lens; the ground truth for a rendered view."""
@@ -92,7 +92,7 @@ def project_corners(camera: Camera, columns: int, rows: int, rvec: np.ndarray, t
     return pts.reshape(-1, 2)
 
 
-def random_board_poses(camera: Camera, columns: int, rows: int, n: int, *, seed: int = 0,
+def random_board_poses(camera: PinholeCamera, columns: int, rows: int, n: int, *, seed: int = 0,
                        square_mm: float = 25.0, max_tilt_deg: float = 40.0,
                        size: tuple[float, float] = (0.5, 0.95), margin_px: float = 4.0,
                        min_step_px: float = 8.0) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -170,7 +170,7 @@ class ChessboardCamera:
     INPUTS: ClassVar[tuple[str, ...]] = ()
     OUTPUTS: ClassVar[tuple[str, ...]] = ("cam/image_array", "cam/timestamp")
 
-    def __init__(self, camera: Camera, columns: int = 10, rows: int = 7, *, poses: int = 30, hold: int = 3,
+    def __init__(self, camera: PinholeCamera, columns: int = 10, rows: int = 7, *, poses: int = 30, hold: int = 3,
                  seed: int = 0, square_mm: float = 25.0) -> None:
         if hold < 1:
             raise ValueError(f"hold must be >= 1 frame, got {hold}")

@@ -28,7 +28,7 @@ class RangesError(ValueError):
     """SIM_RANDOMIZE_RANGES names an unknown quantity or gives a pair outside its limits."""
 
 
-class Range(NamedTuple):
+class Interval(NamedTuple):
     """A randomised quantity: its default range, what the renderer can do, and what it means."""
 
     low: float
@@ -40,28 +40,28 @@ class Range(NamedTuple):
 
 
 #: every randomised quantity (SIM_RANDOMIZE_RANGES overrides low and high), in the order drawn
-RANGES: dict[str, Range] = {
-    "light": Range(0.55, 1.4, "overall light level, x brightness", 0.05, 4.0),
-    "colour_temperature": Range(3000.0, 8500.0, "colour temperature of the light, kelvin (6500 = neutral)",
+RANGES: dict[str, Interval] = {
+    "light": Interval(0.55, 1.4, "overall light level, x brightness", 0.05, 4.0),
+    "colour_temperature": Interval(3000.0, 8500.0, "colour temperature of the light, kelvin (6500 = neutral)",
                                 1500.0, 15000.0),
-    "contrast": Range(0.8, 1.2, "contrast around the mean colour, x", 0.2, 3.0),
-    "shade": Range(0.0, 0.35, "soft large-scale light variation over the ground, strength", 0.0, 1.0),
-    "shadows": Range(0, 6, "shadows cast across the track (trees, buildings; furniture indoors), count", 0, 40,
+    "contrast": Interval(0.8, 1.2, "contrast around the mean colour, x", 0.2, 3.0),
+    "shade": Interval(0.0, 0.35, "soft large-scale light variation over the ground, strength", 0.0, 1.0),
+    "shadows": Interval(0, 6, "shadows cast across the track (trees, buildings; furniture indoors), count", 0, 40,
                      True),
-    "shadow_darkness": Range(0.3, 0.7, "light blocked in a shadow, fraction", 0.0, 0.95),
-    "sun_elevation": Range(25.0, 75.0, "height of the sun (indoors: of the lamps, at least 60), degrees", 5.0, 90.0),
-    "camera_height": Range(-0.03, 0.03, "camera height offset from SIM_CAMERA_HEIGHT, metres", -0.15, 0.5),
-    "camera_pitch": Range(-4.0, 4.0, "camera tilt offset from SIM_CAMERA_PITCH, degrees (+ = down)", -30.0, 30.0),
-    "camera_fov": Range(-8.0, 8.0, "field of view offset from SIM_CAMERA_FOV, degrees", -60.0, 60.0),
-    "vignetting": Range(0.0, 0.45, "darkening of the image corners by the lens, fraction", 0.0, 0.9),
-    "noise": Range(0.0, 8.0, "sensor noise, standard deviation in 0-255 units", 0.0, 60.0),
-    "motion_blur": Range(0.0, 0.015, "exposure time for motion blur at speed, seconds", 0.0, 0.1),
-    "jpeg_quality": Range(35, 95, "JPEG quality of the camera's compression (every frame)", 1, 100, True),
-    "latency": Range(0, 2, "camera-to-command latency, loops (commands act this many loops late)", 0, 20, True),
-    "distractors": Range(0, 8, "cones, boxes and parked cars beside the track, count", 0, 60, True),
-    "colour_jitter": Range(0.0, 0.12, "per-channel variation of ground, road, line and sky colours, fraction",
+    "shadow_darkness": Interval(0.3, 0.7, "light blocked in a shadow, fraction", 0.0, 0.95),
+    "sun_elevation": Interval(25.0, 75.0, "height of the sun (indoors: of the lamps, at least 60), degrees", 5.0, 90.0),
+    "camera_height": Interval(-0.03, 0.03, "camera height offset from SIM_CAMERA_HEIGHT, metres", -0.15, 0.5),
+    "camera_pitch": Interval(-4.0, 4.0, "camera tilt offset from SIM_CAMERA_PITCH, degrees (+ = down)", -30.0, 30.0),
+    "camera_fov": Interval(-8.0, 8.0, "field of view offset from SIM_CAMERA_FOV, degrees", -60.0, 60.0),
+    "vignetting": Interval(0.0, 0.45, "darkening of the image corners by the lens, fraction", 0.0, 0.9),
+    "noise": Interval(0.0, 8.0, "sensor noise, standard deviation in 0-255 units", 0.0, 60.0),
+    "motion_blur": Interval(0.0, 0.015, "exposure time for motion blur at speed, seconds", 0.0, 0.1),
+    "jpeg_quality": Interval(35, 95, "JPEG quality of the camera's compression (every frame)", 1, 100, True),
+    "latency": Interval(0, 2, "camera-to-command latency, loops (commands act this many loops late)", 0, 20, True),
+    "distractors": Interval(0, 8, "cones, boxes and parked cars beside the track, count", 0, 60, True),
+    "colour_jitter": Interval(0.0, 0.12, "per-channel variation of ground, road, line and sky colours, fraction",
                            0.0, 0.5),
-    "line_wear": Range(0.0, 0.8, "worn paint or tape: lines fade in patches by up to this fraction (x the "
+    "line_wear": Interval(0.0, 0.8, "worn paint or tape: lines fade in patches by up to this fraction (x the "
                        "theme's wear)", 0.0, 1.0),
 }
 

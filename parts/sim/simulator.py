@@ -16,7 +16,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from parts.sim.camera import Camera, camera_from_config
+from parts.sim.camera import PinholeCamera, camera_from_config
 from parts.sim.kinematics import Car, CarParams
 from parts.sim.randomize import Conditions, RangesError, check_ranges
 from parts.sim.sensor import Sensor
@@ -80,7 +80,12 @@ class SimCar:
     OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("sim/reset",)
     OUTPUTS: tuple[str, ...] = OUTPUTS  # without enc/speed when measured_speed is False
 
-    def __init__(self, seeds: Sequence[int] = (1,), *, dt: float = 0.05, camera: Camera | None = None,
+    @property
+    def OUTPUT_SHAPES(self) -> dict[str, tuple[int, ...]]:  # noqa: N802 - the part declaration
+        """The rendered frames' shape (SIM_CAMERA_H, SIM_CAMERA_W, 3), for the wiring check."""
+        return {"cam/image_array": (self.base_camera.height, self.base_camera.width, 3)}
+
+    def __init__(self, seeds: Sequence[int] = (1,), *, dt: float = 0.05, camera: PinholeCamera | None = None,
                  car_params: CarParams | None = None, world: dict[str, Any] | None = None,
                  themes: Sequence[str] | str = ("road",), reset_off_track: bool = True, reset_to: str = "start",
                  off_track_cte: float | None = None, sensor: dict[str, Any] | None = None, realtime: bool = True,
@@ -96,7 +101,7 @@ class SimCar:
         self.seeds = [int(s) for s in seeds]
         self.themes = theme_list(themes)
         self.dt = float(dt)
-        self.base_camera = camera or Camera()
+        self.base_camera = camera or PinholeCamera()
         self.camera = self.base_camera
         self.car = Car(car_params)
         self.world_args = dict(world or {})
@@ -208,7 +213,7 @@ class SimCar:
                     base.max_distance == theme.far_distance:
                 self.camera = base
             else:
-                self.camera = Camera(base.width, base.height, base.fov_deg + cond.camera_fov,
+                self.camera = PinholeCamera(base.width, base.height, base.fov_deg + cond.camera_fov,
                                      base.pitch_deg + cond.camera_pitch, base.height_m + cond.camera_height,
                                      base.forward_m, theme.far_distance, distortion=base.distortion)
             args = dict(self.sensor_args)

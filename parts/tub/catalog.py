@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import os
 import time
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -182,11 +181,3 @@ class CatalogFile:
             os.close(self.fd)
             self.fd = -1
 
-
-def iter_lines(paths: list[Path]) -> Iterator[tuple[Path, int, bytes]]:
-    """(catalog, position in the tub, line) for every whole line of the catalogs, in order."""
-    position = 0
-    for path in paths:
-        for line in scan_catalog(path).lines:
-            yield path, position, line
-            position += 1

@@ -63,7 +63,7 @@ class UdacityRow:
 
 
 @dataclass
-class ImportReport:
+class UdacityImportReport:
     """What ``import_udacity`` did."""
 
     tub: Path
@@ -172,7 +172,7 @@ def timestamp_from_name(name: str) -> int | None:
 
 
 def import_udacity(source: str | os.PathLike[str], tub_path: str | os.PathLike[str], *,
-                   max_catalog_len: int = 1000, progress: bool = False) -> ImportReport:
+                   max_catalog_len: int = 1000, progress: bool = False) -> UdacityImportReport:
     """Import a recording (driving_log.csv, or the folder holding it) into ``tub_path``."""
     from tqdm import tqdm
 
@@ -191,7 +191,7 @@ def import_udacity(source: str | os.PathLike[str], tub_path: str | os.PathLike[s
         + (["cam/image_array_right"] if has_right else []) \
         + ["user/angle", "user/throttle", "user/brake", "enc/speed", "user/mode"]
     types = ["image_array"] * (1 + has_left + has_right) + ["float"] * 4 + ["str"]
-    report = ImportReport(Path(tub_path))
+    report = UdacityImportReport(Path(tub_path))
     with Tub(tub_path, inputs, types, {"source": "udacity", "driving_log": str(csv_path.resolve())},
              max_catalog_len, fsync_records=200, fsync_ms=5000) as tub:
         report.tub = tub.path

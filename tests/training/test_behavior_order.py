@@ -92,11 +92,11 @@ def test_tubs_without_labels_keep_their_one_hot_and_a_mix_is_refused(tmp_path):
 
 def test_the_model_file_records_its_behaviour_order_and_undistortion(two_orders, tmp_path, torch_one_thread):
     from parts.pilots.modelfile import load_model
-    from parts.sim.camera import Camera
+    from parts.sim.camera import PinholeCamera
     from parts.vision.calibration import CameraCalibration
     from training.trainer import train
 
-    CameraCalibration((320, 240), Camera(320, 240).intrinsics, np.zeros(5), 0.1).save(
+    CameraCalibration((320, 240), PinholeCamera(320, 240).intrinsics, np.zeros(5), 0.1).save(
         tmp_path / "camera_calibration.json")
     cfg = Config.defaults(CAR_PATH=str(tmp_path), BATCH_SIZE=16, MAX_EPOCHS=1, AUGMENTATIONS=[], CAMERA_UNDISTORT=True,
                           BEHAVIOR_LIST=["Right_Lane", "Left_Lane"])

@@ -48,7 +48,7 @@ def test_typed_values_and_bools():
     assert errors["epoch"] == "unknown hyper-parameter; did you mean epochs?"
     assert errors["modes"] == ("choose at least 1 of user, local_angle, local: training needs at least one mode "
                                "to read records from")
-    assert errors["split_by"] == "must be one of block, session, random (got 'frames')"
+    assert errors["split_by"] == "must be one of session, block, random (got 'frames')"
 
 
 def test_model_types_are_checked_against_the_registered_ones():

@@ -12,7 +12,7 @@ import pytest
 
 from parts.pilots.modelfile import load_model
 
-REPO = Path(__file__).resolve().parents[3]
+REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.mark.slow

@@ -14,17 +14,18 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def module_name(path: Path) -> str:
+def module_name(path: Path, root: Path = ROOT) -> str:
     """``parts/sim/track.py`` -> ``parts.sim.track`` (a package's ``__init__`` is the package)."""
-    parts = list(path.relative_to(ROOT).with_suffix("").parts) if path.is_relative_to(ROOT) else [path.stem]
+    parts = list(path.relative_to(root).with_suffix("").parts) if path.is_relative_to(root) else [path.stem]
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
-def imports_of(path: Path) -> set[str]:
+def imports_of(path: Path, root: Path = ROOT) -> set[str]:
     """Every module name ``path`` imports, at any depth of the file: import statements (relative
     ones resolved) and string literals given to ``importlib.import_module`` / ``__import__``."""
     tree = ast.parse(path.read_text(), filename=str(path))
-    package = module_name(path) if path.name == "__init__.py" else module_name(path).rpartition(".")[0]
+    name = module_name(path, root)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
     names: set[str] = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
@@ -69,14 +70,12 @@ def test_the_checker_sees_imports_inside_functions(tmp_path):
     assert {"vehicle.app", "parts.sim.track"} <= imports_of(module)
 
 
-def test_the_checker_resolves_relative_and_dynamic_imports():
-    probe = ROOT / "vehicle" / "_layer_probe.py"
+def test_the_checker_resolves_relative_and_dynamic_imports(tmp_path):
+    probe = tmp_path / "vehicle" / "_layer_probe.py"  # a module of the package vehicle, in a temporary root
+    probe.parent.mkdir()
     probe.write_text("from .app.cli import main\nfrom . import keys\nimport importlib\n"
                      "importlib.import_module('parts.sim.track')\nimportlib.import_module(f'vehicle.app.{1}')\n")
-    try:
-        found = imports_of(probe)
-    finally:
-        probe.unlink()
+    found = imports_of(probe, root=tmp_path)
     assert {"vehicle.app.cli", "vehicle.keys", "parts.sim.track", "vehicle.app"} <= found
 
 

@@ -206,3 +206,13 @@ def test_every_part_of_the_simulator_car_keeps_the_contract(tmp_path, make_model
     for entry in V.parts:
         check_part(entry.part, inputs=[memory.get(k) for k in entry.inputs], threaded=entry.threaded)
     assert "SimCar" in {type(e.part).__name__ for e in V.parts}
+
+
+def test_the_evaluation_episode_parts_keep_the_contract():
+    from parts.sim.episode import ResetOnOffTrack, StopIfNoSimulator
+
+    check_part(ResetOnOffTrack(), inputs=(True,))
+    stopped = []
+    waiter = StopIfNoSimulator(0.0, lambda: stopped.append(True))
+    check_part(waiter, inputs=(False,))
+    assert waiter.gave_up and stopped == [True]

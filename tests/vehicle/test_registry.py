@@ -45,10 +45,11 @@ def test_rows_are_checked_when_registered():
 
 def test_every_row_of_every_family_table_loads_and_has_from_config():
     from parts.actuators.registry import DRIVETRAINS
+    from parts.bridges.registry import SIMULATORS
     from parts.cameras.registry import CAMERAS
     from parts.sensors.registry import SENSOR_TABLES
 
-    for table in (CAMERAS, DRIVETRAINS, *SENSOR_TABLES):
+    for table in (CAMERAS, DRIVETRAINS, SIMULATORS, *SENSOR_TABLES):
         for name in table:
             assert callable(getattr(table.load(name), "from_config", None)), f"{table.setting} {name}"
 

@@ -55,6 +55,7 @@ import numpy as np
 
 from parts.drive.behavior import BehaviorSchedule, behavior_lane, periodic_change_times
 from parts.drive.modes import PilotCondition
+from parts.sim.episode import ResetOnOffTrack, StopIfNoSimulator
 from parts.sim.lane_metrics import CommandedLane, LaneMetrics, overall_lane_metrics
 from parts.sim.metrics import EpisodeMetrics, overall
 from parts.sim.randomize import check_ranges
@@ -511,35 +512,6 @@ def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float,
         V.add(lanes)
     V.start(rate_hz=cfg.DRIVE_LOOP_HZ, log_summary=False)
     return metrics
-
-
-class ResetOnOffTrack:
-    """Part: an off-track event asks the Donkey simulator for ``reset_car`` (rising ``sim/reset``),
-    as a person would put the car back; the simulator puts it on the start line."""
-
-    INPUTS: ClassVar[tuple[str, ...]] = ("sim/off_track",)
-    OUTPUTS: ClassVar[tuple[str, ...]] = ("sim/reset",)
-
-    def run(self, off_track: Any) -> bool:
-        return bool(off_track)
-
-
-class StopIfNoSimulator:
-    """Part: stops the loop when no frame arrived within ``wait_s`` seconds of the start."""
-
-    INPUTS: ClassVar[tuple[str, ...]] = ("cam/ok",)
-
-    def __init__(self, wait_s: float, stop: Callable[[], None]) -> None:
-        self.wait_s, self.stop = wait_s, stop
-        self.started = time.monotonic()
-        self.seen = False
-        self.gave_up = False
-
-    def run(self, ok: Any) -> None:
-        self.seen = self.seen or bool(ok)
-        if not self.seen and time.monotonic() - self.started > self.wait_s:
-            self.gave_up = True
-            self.stop()
 
 
 def run_bridge_episode(driver: Any, sim_type: str, scene: str, laps: int, cfg: Any, *, max_time: float,

@@ -129,26 +129,6 @@ def _whole_number(text: str, least: int) -> int:
     return value
 
 
-class StopAfter:
-    """A part that stops the vehicle once a memory value reaches a limit (e.g. records written)."""
-
-    def __init__(self, V: Any, limit: int) -> None:
-        self.V = V
-        self.limit = limit
-
-    def run(self, value: Any) -> None:
-        """Ask the vehicle to stop when ``value >= limit``."""
-        if value is not None and value >= self.limit:
-            self.V.stop()
-
-
-def stop_after(V: Any, key: str, limit: int) -> StopAfter:
-    """Stop ``V`` once memory ``key`` reaches ``limit``."""
-    part = StopAfter(V, limit)
-    V.add(part, inputs=[key])
-    return part
-
-
 def run(V: Any, cfg: Config, max_loops: int | None = None) -> int:
     """Start the vehicle at DRIVE_LOOP_HZ and map how it stopped to an exit code.
 

@@ -9,7 +9,7 @@ import pytest
 
 
 @pytest.mark.parametrize("name", ["parts.actuators.pca9685", "parts.actuators.pwm", "parts.actuators.esc",
-                                  "parts.actuators.fake_pca9685", "parts.actuators.fake_i2c_dev",
+                                  "parts.actuators.fake_pca9685", "fixtures.fake_i2c_dev",
                                   "parts.actuators.pins", "parts.actuators.motors",
                                   "parts.actuators.vesc_protocol"])
 def test_docstring_examples(name):

@@ -7,8 +7,8 @@ import subprocess
 import sys
 
 import pytest
+from fixtures.fake_i2c_dev import real_smbus2_on
 
-from parts.actuators.fake_i2c_dev import real_smbus2_on
 from parts.actuators.fake_pca9685 import OFF, FakeI2C, Transfer
 from parts.actuators.pca9685 import (
     PCA9685,

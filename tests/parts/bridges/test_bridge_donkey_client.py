@@ -1,4 +1,4 @@
-"""The Donkey simulator client part against the faithful fake simulator (parts.bridges.fake_donkey_sim)."""
+"""The Donkey simulator client part against the faithful fake simulator (fixtures.fake_donkey_sim)."""
 
 from __future__ import annotations
 
@@ -12,11 +12,11 @@ from typing import Any
 import numpy as np
 import pytest
 from fixtures.carpath import unity_cross_track_err
+from fixtures.fake_donkey_sim import FakeDonkeySim
 
 from parts.bridges import donkey_protocol as proto
 from parts.bridges.donkey_client import CarLook, DonkeySim
 from parts.bridges.errors import BridgeError
-from parts.bridges.fake_donkey_sim import FakeDonkeySim
 
 
 @contextmanager
@@ -308,7 +308,7 @@ def test_send_commands_sends_the_loop_command_once() -> None:
 def test_fake_cte_is_what_carpath_computes() -> None:
     """The fake's cte has the sign and size of protocols.md §4.1's CarPath formula, computed here
     from the fake's path nodes (a circle, driven counter-clockwise seen from above) and its pos_x/z."""
-    from parts.bridges.fake_donkey_sim import TOTAL_NODES, TRACK_RADIUS, FakeCar
+    from fixtures.fake_donkey_sim import TOTAL_NODES, TRACK_RADIUS, FakeCar
 
     def node(i: int) -> tuple[float, float]:
         angle = 2 * np.pi * i / TOTAL_NODES

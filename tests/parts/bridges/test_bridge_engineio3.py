@@ -20,9 +20,10 @@ pytest.importorskip("socketio")
 pytest.importorskip("aiohttp")
 pytest.importorskip("wsproto")
 
+from fixtures.fake_udacity_client import FakeUdacityClient, WebSocketClient  # noqa: E402
+
 from parts.bridges import engineio3  # noqa: E402
 from parts.bridges.errors import BridgeError  # noqa: E402
-from parts.bridges.fake_udacity_client import FakeUdacityClient, WebSocketClient  # noqa: E402
 
 
 @contextlib.contextmanager

@@ -1,4 +1,4 @@
-"""The Udacity simulator part against the faithful fake simulator (parts.bridges.fake_udacity_client)."""
+"""The Udacity simulator part against the faithful fake simulator (fixtures.fake_udacity_client)."""
 
 from __future__ import annotations
 
@@ -16,10 +16,11 @@ pytest.importorskip("socketio")
 pytest.importorskip("aiohttp")
 pytest.importorskip("wsproto")
 
+from fixtures.fake_udacity_client import FakeUdacityClient, n4, parse_like_csharp  # noqa: E402
+
 from parts.bridges.errors import BridgeError  # noqa: E402
-from parts.bridges.fake_udacity_client import FakeUdacityClient, n4, parse_like_csharp  # noqa: E402
-from parts.bridges.udacity import UdacitySim  # noqa: E402
 from parts.bridges.udacity_protocol import MS_PER_MPH, format_command, parse_number  # noqa: E402
+from parts.bridges.udacity_sim import UdacitySim  # noqa: E402
 
 
 class LoopDriver:
@@ -169,7 +170,7 @@ def test_fork_keys_are_passed_through_under_sim() -> None:
 
 
 def test_lost_simulator_makes_the_camera_stale_with_one_log_line(caplog: pytest.LogCaptureFixture) -> None:
-    with caplog.at_level("INFO", logger="parts.bridges.udacity"), udacity(timeout_s=0.3) as part, \
+    with caplog.at_level("INFO", logger="parts.bridges.udacity_sim"), udacity(timeout_s=0.3) as part, \
             LoopDriver(part, lambda out: (0.0, 0.3)) as loop:
         with FakeUdacityClient(part.port) as sim:
             assert sim.wait_for(lambda c: len(c.steers) >= 5, 15)
@@ -230,7 +231,7 @@ def test_port_in_use_is_one_clear_error() -> None:
 
 
 def test_waiting_for_the_simulator_is_said_once(caplog: pytest.LogCaptureFixture) -> None:
-    with caplog.at_level("INFO", logger="parts.bridges.udacity"), udacity(timeout_s=0.1) as part:
+    with caplog.at_level("INFO", logger="parts.bridges.udacity_sim"), udacity(timeout_s=0.1) as part:
         for _ in range(30):
             out = part.run_threaded(None, None)
             time.sleep(0.01)
@@ -339,8 +340,7 @@ def test_bad_telemetry_is_one_log_line_per_kind_and_bounded(caplog: pytest.LogCa
     import json
 
     import cv2
-
-    from parts.bridges.fake_udacity_client import URL_QUERY, WebSocketClient
+    from fixtures.fake_udacity_client import URL_QUERY, WebSocketClient
 
     with caplog.at_level("INFO", logger="parts.bridges"), udacity() as part:
         ws = WebSocketClient("127.0.0.1", part.port, f"/socket.io/?{URL_QUERY}")
@@ -365,7 +365,7 @@ def test_bad_telemetry_is_one_log_line_per_kind_and_bounded(caplog: pytest.LogCa
 
 
 def test_an_over_size_message_is_said_once(caplog: pytest.LogCaptureFixture) -> None:
-    from parts.bridges.fake_udacity_client import URL_QUERY, WebSocketClient, WebSocketClosed
+    from fixtures.fake_udacity_client import URL_QUERY, WebSocketClient, WebSocketClosed
 
     with caplog.at_level("INFO", logger="parts.bridges"), udacity() as part:
         for _ in range(2):

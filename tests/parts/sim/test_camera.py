@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from parts.sim.camera import Camera
+from parts.sim.camera import PinholeCamera
 from parts.sim.sensor import Sensor
 from parts.sim.world import load_world
 
@@ -16,14 +16,14 @@ def track_and_texture(world):
     return w.track, w.texture
 
 
-def ground_to_pixel(cam: Camera, x_car: float, y_car: float) -> tuple[float, float]:
+def ground_to_pixel(cam: PinholeCamera, x_car: float, y_car: float) -> tuple[float, float]:
     """Project a ground point given in the car frame to image pixels (inverse homography)."""
     p = np.linalg.inv(cam.car_from_pixel) @ np.array([x_car, y_car, 1.0])
     return p[0] / p[2], p[1] / p[2]
 
 
 def test_homography_matches_pinhole_geometry():
-    cam = Camera(160, 120, fov_deg=90.0, pitch_deg=30.0, height_m=0.2, forward_m=0.1)
+    cam = PinholeCamera(160, 120, fov_deg=90.0, pitch_deg=30.0, height_m=0.2, forward_m=0.1)
     # the optical axis hits the ground at h / tan(pitch) ahead of the camera, in the image centre
     u, v = ground_to_pixel(cam, 0.1 + 0.2 / math.tan(math.radians(30)), 0.0)
     assert (u, v) == pytest.approx((79.5, 59.5), abs=1e-6)
@@ -38,7 +38,7 @@ def test_homography_matches_pinhole_geometry():
 
 def test_render_sees_the_road_ahead_and_the_sky(track_and_texture):
     track, tex = track_and_texture
-    cam = Camera(160, 120)
+    cam = PinholeCamera(160, 120)
     x, y, h = track.pose_at(3.0, -0.2)  # right half of the road: asphalt under the camera
     img = cam.render(tex, x, y, h)
     assert img.shape == (120, 160, 3) and img.dtype == np.uint8
@@ -55,7 +55,7 @@ def test_render_sees_the_road_ahead_and_the_sky(track_and_texture):
 
 def test_other_resolutions_and_buffers(track_and_texture):
     track, tex = track_and_texture
-    cam = Camera(320, 160, fov_deg=80.0)
+    cam = PinholeCamera(320, 160, fov_deg=80.0)
     out = np.zeros((160, 320, 3), np.uint8)
     res = cam.render(tex, *track.pose_at(0.0), out=out)
     assert res is out and out.any()
@@ -63,11 +63,11 @@ def test_other_resolutions_and_buffers(track_and_texture):
 
 def test_camera_rejects_bad_settings():
     with pytest.raises(ValueError, match="fov"):
-        Camera(fov_deg=200)
+        PinholeCamera(fov_deg=200)
     with pytest.raises(ValueError, match="size"):
-        Camera(4, 4)
+        PinholeCamera(4, 4)
     with pytest.raises(ValueError, match="height"):
-        Camera(height_m=0)
+        PinholeCamera(height_m=0)
 
 
 def test_sensor_effects_are_seeded_and_change_images():
@@ -92,7 +92,7 @@ def test_lens_distortion_bends_the_pinhole_image_as_opencvs_model(track_and_text
 
     track, tex = track_and_texture
     dist = (-0.25, 0.07, 0.001, -0.0015, 0.0)
-    pinhole, lens = Camera(320, 240), Camera(320, 240, distortion=dist)
+    pinhole, lens = PinholeCamera(320, 240), PinholeCamera(320, 240, distortion=dist)
     assert not pinhole.distorted and lens.distorted
     assert lens.canvas_size[0] > 320 and lens.canvas_size[1] > 240  # barrel: the lens sees wider
     pose = track.pose_at(2.0, -0.2)
@@ -111,11 +111,11 @@ def test_lens_distortion_bends_the_pinhole_image_as_opencvs_model(track_and_text
         pa = a[int(round(v0)), int(round(u0))].astype(int)
         pb = b[int(round(v1)), int(round(u1))].astype(int)
         assert np.abs(pa - pb).max() < 40
-    assert Camera(160, 120, distortion=(0, 0, 0, 0, 0)).distortion is None  # all zero = a pinhole
+    assert PinholeCamera(160, 120, distortion=(0, 0, 0, 0, 0)).distortion is None  # all zero = a pinhole
     with pytest.raises(ValueError, match="cannot be inverted"):
-        Camera(320, 240, distortion=(-0.1, 0.0, 0.0, 0.0, 0.0))  # folds before the image corners
+        PinholeCamera(320, 240, distortion=(-0.1, 0.0, 0.0, 0.0, 0.0))  # folds before the image corners
     with pytest.raises(ValueError, match="4, 5 or 8"):
-        Camera(distortion=(0.1, 0.2))
+        PinholeCamera(distortion=(0.1, 0.2))
 
 
 def test_lane_region_points_make_a_true_birds_eye_view():
@@ -123,7 +123,7 @@ def test_lane_region_points_make_a_true_birds_eye_view():
 
     from parts.sim.camera import lane_region_points
 
-    cam = Camera(160, 120)
+    cam = PinholeCamera(160, 120)
     pts = lane_region_points(cam, near=0.4, far=1.2, half_width=0.5)
     assert pts["LANE_POINTS_SIZE"] == [160, 120]
     src = np.float32(pts["LANE_SOURCE_POINTS"])
@@ -150,7 +150,7 @@ def test_lane_region_points_of_an_undistorting_car_make_a_true_birds_eye_view_of
     from parts.vision.undistort import Undistort
 
     dist = np.array([-0.25, 0.07, 0.001, -0.0015, 0.0])
-    cam = Camera(320, 240, distortion=dist)
+    cam = PinholeCamera(320, 240, distortion=dist)
     new_k = Undistort(CameraCalibration((320, 240), cam.intrinsics, dist, 0.1)).output_camera_matrix(320, 240)
     along = np.linspace(0.45, 1.15, 6)
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from parts.sim.backdrops import Backdrop
-from parts.sim.camera import Camera
+from parts.sim.camera import PinholeCamera
 from parts.sim.randomize import RANGES, check_ranges, draw_conditions, kelvin_gains
 from parts.sim.scenery import CLEARANCE, Scenery, make_distractor, place_distractors
 from parts.sim.sensor import Sensor
@@ -31,7 +31,7 @@ def test_the_expert_does_not_draw_images(cfg):
 def test_themes_look_like_what_they_claim(world):
     # road: blue sky above, grey asphalt ahead
     road = load_world(21, theme="road", **world)
-    cam = Camera(160, 120)
+    cam = PinholeCamera(160, 120)
     x, y, h = road.track.pose_at(2.0)
     img = cam.render(road.texture, x, y, h, scenery=road.scenery)
     sky = img[:10].reshape(-1, 3).astype(float)
@@ -42,7 +42,7 @@ def test_themes_look_like_what_they_claim(world):
     indoor = load_world(21, theme="indoor", **world)
     assert indoor.look.road is None and indoor.look.ground in ("concrete", "wood", "carpet")
     assert indoor.look.edge is not None and indoor.look.edge.colour is not None
-    cam_in = Camera(160, 120, max_distance=indoor.theme.far_distance)
+    cam_in = PinholeCamera(160, 120, max_distance=indoor.theme.far_distance)
     img = cam_in.render(indoor.texture, x, y, h, scenery=indoor.scenery)
     top = img[:8].reshape(-1, 3).astype(float)
     assert (top[:, 2] > top[:, 0] + 20).mean() < 0.5  # walls and ceiling, no blue sky
@@ -180,7 +180,7 @@ def synthetic_world(size: float = 10.0):
 
 def test_walls_meet_the_floor_where_the_geometry_says():
     tex, backdrop = synthetic_world()
-    cam = Camera(160, 120, max_distance=30.0)
+    cam = PinholeCamera(160, 120, max_distance=30.0)
     x, y = 4.8, 5.0  # camera at x = 5.0 (0.2 m ahead), 5 m from the wall at x = 10
     img = cam.render(tex, x, y, 0.0, scenery=Scenery(backdrop))
     uv, _ = cam.project(np.array([[10.0, 5.0, 0.0], [10.0, 5.0, 2.0]]), x, y, 0.0)
@@ -200,7 +200,7 @@ def test_distractors_are_drawn_where_they_stand():
     tex, _ = synthetic_world()
     rng = np.random.default_rng(0)
     box = make_distractor("box", 7.0, 5.0, 0.0, rng, (np.ones(3), np.array([0.0, 0.0, 1.0])))
-    cam = Camera(160, 120)
+    cam = PinholeCamera(160, 120)
     img = cam.render(tex, 4.8, 5.0, 0.0, scenery=Scenery(distractors=[box], far=12.0))
     u, v = cam.project(np.array([[7.0, 5.0, 0.05]]), 4.8, 5.0, 0.0)[0][0]
     assert colour_distance(img[int(v), int(u)], (0, 200, 0)) > 100  # the box hides the floor there
@@ -210,7 +210,7 @@ def test_distractors_are_drawn_where_they_stand():
 
 def test_own_shadow_falls_away_from_the_sun():
     tex, _ = synthetic_world()
-    cam = Camera(160, 120)
+    cam = PinholeCamera(160, 120)
     behind = Scenery(sun=np.array([-0.7, 0.0, 0.7]), own_shadow=0.5)  # sun behind: shadow ahead
     ahead = Scenery(sun=np.array([0.7, 0.0, 0.7]), own_shadow=0.5)
     lit = cam.render(tex, 5.0, 5.0, 0.0)[-10:, 60:100, 1].mean()

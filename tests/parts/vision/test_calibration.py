@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from parts.sim.camera import Camera
+from parts.sim.camera import PinholeCamera
 from parts.sim.chessboard import ChessboardCamera, project_corners, random_board_poses, render_board_view
 from parts.vision.calibration import (
     CalibrationError,
@@ -27,13 +27,13 @@ TRUE_DIST = (-0.25, 0.07, 0.001, -0.0015, 0.0)
 BOARD = Chessboard(10, 7, 25.0)
 
 
-def _views(camera: Camera, n: int = 15, seed: int = 1) -> list[tuple[str, np.ndarray]]:
+def _views(camera: PinholeCamera, n: int = 15, seed: int = 1) -> list[tuple[str, np.ndarray]]:
     poses = random_board_poses(camera, BOARD.columns, BOARD.rows, n, seed=seed)
     return [(f"view_{i:02d}.png", render_board_view(camera, BOARD.columns, BOARD.rows, r, t))
             for i, (r, t) in enumerate(poses)]
 
 
-def _max_displacement_error(cal: CameraCalibration, camera: Camera) -> float:
+def _max_displacement_error(cal: CameraCalibration, camera: PinholeCamera) -> float:
     """Largest difference (px) over the image between where the fitted and the true lens put a ray."""
     dist = camera.distortion if camera.distortion is not None else np.zeros(5)
     und = undistort_grid(camera.intrinsics, dist, camera.width, camera.height)[::8, ::8]
@@ -47,7 +47,7 @@ def _max_displacement_error(cal: CameraCalibration, camera: Camera) -> float:
 
 
 def test_corners_are_found_where_the_lens_puts_them():
-    camera = Camera(320, 240, distortion=TRUE_DIST)
+    camera = PinholeCamera(320, 240, distortion=TRUE_DIST)
     (r, t), = random_board_poses(camera, 10, 7, 1, seed=5)
     corners = find_corners(render_board_view(camera, 10, 7, r, t), BOARD)
     truth = project_corners(camera, 10, 7, r, t)
@@ -60,7 +60,7 @@ def test_corners_are_found_where_the_lens_puts_them():
 
 
 def test_simulated_lens_is_recovered_by_calibration(tmp_path):
-    camera = Camera(320, 240, distortion=TRUE_DIST)
+    camera = PinholeCamera(320, 240, distortion=TRUE_DIST)
     for name, image in _views(camera):
         cv2.imwrite(str(tmp_path / name), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
     result = calibrate_folder(tmp_path, BOARD, annotate_to=tmp_path / "corners")
@@ -81,7 +81,7 @@ def test_simulated_lens_is_recovered_by_calibration(tmp_path):
 
 
 def test_an_ideal_pinhole_calibrates_to_no_distortion():
-    camera = Camera(320, 240)
+    camera = PinholeCamera(320, 240)
     found = collect_views(_views(camera, 12, seed=4), BOARD)
     from parts.vision.calibration import calibrate
 
@@ -91,7 +91,7 @@ def test_an_ideal_pinhole_calibrates_to_no_distortion():
 
 
 def test_calibration_file_round_trip_and_bad_files(tmp_path):
-    camera = Camera(160, 120, distortion=(-0.2, 0.05, 0.0, 0.0, 0.0))
+    camera = PinholeCamera(160, 120, distortion=(-0.2, 0.05, 0.0, 0.0, 0.0))
     cal = CameraCalibration((160, 120), camera.intrinsics.copy(), np.array([-0.2, 0.05, 0.0, 0.0, 0.0]), 0.12,
                             [0.1, 0.14], ["a.png", "b.png"], BOARD)
     path = cal.save(tmp_path / "car" / "camera_calibration.json")
@@ -137,7 +137,7 @@ def test_too_few_views_and_bad_boards_say_what_to_do(tmp_path):
 
 
 def test_live_collector_keeps_distinct_views_and_writes_them(tmp_path):
-    camera = Camera(320, 240, distortion=TRUE_DIST)
+    camera = PinholeCamera(320, 240, distortion=TRUE_DIST)
     source = ChessboardCamera(camera, 10, 7, poses=8, hold=3, seed=2)
     clock = iter(np.arange(0.0, 100.0, 0.05))
     collector = ChessboardCollector(tmp_path / "views", BOARD, target=5, min_interval=0.0, clock=lambda: next(clock))
@@ -161,7 +161,7 @@ def test_live_collector_keeps_distinct_views_and_writes_them(tmp_path):
 def test_a_view_with_wrongly_detected_corners_is_left_out():
     from parts.vision.calibration import View, calibrate
 
-    camera = Camera(320, 240, distortion=TRUE_DIST)
+    camera = PinholeCamera(320, 240, distortion=TRUE_DIST)
     found = collect_views(_views(camera, 12, seed=4), BOARD)
     views, size = found.views, found.size
     good = calibrate(views, BOARD, size)  # the detector itself misplaces a grid now and then
@@ -181,7 +181,7 @@ def test_near_duplicate_photos_are_left_out_and_named(tmp_path, caplog):
     """A burst of photos of one pose counts once: the live collector's novelty test, on a folder."""
     import logging
 
-    camera = Camera(320, 240, distortion=TRUE_DIST)
+    camera = PinholeCamera(320, 240, distortion=TRUE_DIST)
     views = _views(camera, 12, seed=4)
     for name, image in views:
         cv2.imwrite(str(tmp_path / name), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
@@ -197,7 +197,7 @@ def test_near_duplicate_photos_are_left_out_and_named(tmp_path, caplog):
 
 
 def test_an_unreadable_file_is_listed_and_the_rest_calibrates(tmp_path):
-    camera = Camera(320, 240, distortion=TRUE_DIST)
+    camera = PinholeCamera(320, 240, distortion=TRUE_DIST)
     for name, image in _views(camera, 10, seed=4):
         cv2.imwrite(str(tmp_path / name), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
     (tmp_path / "broken.jpg").write_bytes(b"\xff\xd8 not really a jpeg")
@@ -216,7 +216,7 @@ def test_an_uncertain_fit_is_reported(caplog):
 
     from parts.vision.calibration import calibrate
 
-    camera = Camera(320, 240, distortion=TRUE_DIST)
+    camera = PinholeCamera(320, 240, distortion=TRUE_DIST)
     poses = random_board_poses(camera, BOARD.columns, BOARD.rows, 4, seed=1, max_tilt_deg=5)
     found = collect_views([(f"v{i}", render_board_view(camera, 10, 7, r, t)) for i, (r, t) in enumerate(poses)], BOARD)
     with caplog.at_level(logging.WARNING):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from parts.sim.camera import Camera
+from parts.sim.camera import PinholeCamera
 from parts.sim.chessboard import random_board_poses, render_board_view
 from parts.vision.calibration import CalibrationError, CameraCalibration, Chessboard, find_corners
 from parts.vision.undistort import Undistort
@@ -25,7 +25,7 @@ def _straightness(corners: np.ndarray, rows: int, columns: int) -> float:
 
 
 def test_undistorted_board_rows_are_straight_again(tmp_path):
-    camera = Camera(320, 240, distortion=DIST)
+    camera = PinholeCamera(320, 240, distortion=DIST)
     cal = CameraCalibration((320, 240), camera.intrinsics.copy(), np.array(DIST), 0.1)
     path = cal.save(tmp_path / "camera_calibration.json")
     part = Undistort(path, alpha=0.0)
@@ -48,9 +48,9 @@ def test_undistorted_board_rows_are_straight_again(tmp_path):
 def test_frames_of_another_size_are_undistorted_with_the_scaled_calibration_and_other_aspects_fail():
     """A 320x240 calibration undistorts 640x480 frames of the same lens: the board's rows come out
     straight (as at the calibration's own size)."""
-    cal = CameraCalibration((320, 240), Camera(320, 240, distortion=DIST).intrinsics.copy(), np.array(DIST), 0.1)
+    cal = CameraCalibration((320, 240), PinholeCamera(320, 240, distortion=DIST).intrinsics.copy(), np.array(DIST), 0.1)
     part = Undistort(cal, alpha=0.0)
-    camera = Camera(640, 480, distortion=DIST)  # the same lens, frames twice the size
+    camera = PinholeCamera(640, 480, distortion=DIST)  # the same lens, frames twice the size
     board = Chessboard(10, 7)
     bent, straight = [], []
     for r, t in random_board_poses(camera, 10, 7, 4, seed=3, max_tilt_deg=20):
@@ -75,6 +75,6 @@ def test_from_config_reads_the_car_folder_and_says_how_to_make_a_calibration(tmp
     cfg = Config.defaults(CAR_PATH=str(tmp_path), CAMERA_UNDISTORT=True)
     with pytest.raises(CalibrationError, match="vehicle camera calibrate"):
         Undistort.from_config(cfg)
-    CameraCalibration((160, 120), Camera(160, 120).intrinsics, np.zeros(5), 0.1).save(
+    CameraCalibration((160, 120), PinholeCamera(160, 120).intrinsics, np.zeros(5), 0.1).save(
         tmp_path / "camera_calibration.json")
     assert Undistort.from_config(cfg).calibration.image_size == (160, 120)

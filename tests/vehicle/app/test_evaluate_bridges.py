@@ -86,7 +86,7 @@ class Constant:
 
 
 def test_udacity_evaluation_names_what_the_stock_simulator_cannot_report():
-    from parts.bridges.fake_udacity_client import FakeUdacityClient
+    from fixtures.fake_udacity_client import FakeUdacityClient
 
     port = free_port()
     cfg = Config.defaults(UDACITY_PORT=port, DRIVE_LOOP_HZ=20)
@@ -122,7 +122,7 @@ def test_udacity_evaluation_names_what_the_stock_simulator_cannot_report():
 def test_a_model_file_is_checked_against_the_udacity_simulators_frames(tmp_path, make_model_file):
     # a model trained on the Udacity simulator's 320x160 frames was refused by `sim eval --sim
     # udacity`: it was checked against the built-in simulator's camera
-    from parts.bridges.fake_udacity_client import FakeUdacityClient
+    from fixtures.fake_udacity_client import FakeUdacityClient
 
     port = free_port()
     cfg = Config.defaults(UDACITY_PORT=port, DRIVE_LOOP_HZ=20, PILOT_BACKEND="torch", CAR_PATH=str(tmp_path))
@@ -135,7 +135,7 @@ def test_a_model_file_is_checked_against_the_udacity_simulators_frames(tmp_path,
         evaluate(str(make_model_file("linear")), laps=1, cfg=cfg, sim="udacity", max_time=1.0)
 
 def test_udacity_fork_keys_make_the_cte_metrics_available():
-    from parts.bridges.fake_udacity_client import FakeUdacityClient
+    from fixtures.fake_udacity_client import FakeUdacityClient
 
     port = free_port()
     cfg = Config.defaults(UDACITY_PORT=port)

@@ -137,21 +137,22 @@ def speed_key_of(V: Any, cfg: Config) -> str:
 
 
 def camera_frames(V: Any) -> tuple[tuple[int, int, int] | None, str]:
-    """(height, width, 3) of the ``cam/image_array`` frames the pilot will get, the size of the part
-    that makes them (a camera part, the simulator's camera, the Udacity simulator's fixed frames),
-    or None when that part does not say (the Donkey simulator: the pilot then learns the size from
-    the first frame); and what to do about a model trained on frames of another size."""
-    from parts.bridges.udacity import UdacitySim
+    """(height, width, 3) of the ``cam/image_array`` frames the pilot will get, as the part that
+    makes them declares (``OUTPUT_SHAPES``: a camera, the simulator's camera, the Udacity
+    simulator's fixed frames), or None when it does not (the Donkey simulator: the pilot then
+    learns the size from the first frame); and what to do about a model trained on frames of
+    another size."""
+    from parts.bridges.udacity_sim import UdacitySim
     from parts.sim.simulator import SimCar
+    from vehicle.shapes import declared_shapes
 
     for entry in reversed(getattr(V, "parts", ())):
         if "cam/image_array" in entry.outputs:
             hint = SIM_SIZE_HINT if isinstance(entry.part, SimCar) else \
                 UDACITY_SIZE_HINT if isinstance(entry.part, UdacitySim) else IMAGE_SIZE_HINT
-            camera = getattr(entry.part, "camera", entry.part)  # the simulator renders with a Camera
-            width, height = getattr(camera, "width", None), getattr(camera, "height", None)
-            if isinstance(width, int) and isinstance(height, int):
-                return (height, width, 3), hint
+            shape = declared_shapes(entry.part, "OUTPUT_SHAPES", "OUTPUTS", entry.outputs).get("cam/image_array")
+            if shape is not None and len(shape) == 3 and all(isinstance(d, int) for d in shape):
+                return (shape[0], shape[1], shape[2]), hint
             return None, hint
     return None, IMAGE_SIZE_HINT
 

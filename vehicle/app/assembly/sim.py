@@ -12,12 +12,13 @@ import logging
 from collections.abc import Sequence
 from typing import Any
 
+from parts.bridges.registry import SIMULATORS
 from vehicle.errors import UserError
 
 logger = logging.getLogger(__name__)
 
-
-SIM_TYPES: tuple[str, ...] = ("builtin", "udacity", "donkey")
+#: the simulators a car can drive (SIM_TYPE, ``--sim``): the rows of the simulator table
+SIM_TYPES: tuple[str, ...] = tuple(SIMULATORS)
 
 
 def resolve_sim_type(cfg: Any, sim_type: str | None = None) -> str:
@@ -48,7 +49,7 @@ def add_simulator(V: Any, cfg: Any, seeds: Sequence[int] | None = None, sim_type
     car's settings switch on (see :func:`add_sim_sensors`).
 
     - "builtin": our simulator in this process, on the tracks of SIM_TRACK_SEEDS unless ``seeds``.
-    - "udacity": :class:`parts.bridges.udacity.UdacitySim`, the server the Udacity simulator
+    - "udacity": :class:`parts.bridges.udacity_sim.UdacitySim`, the server the Udacity simulator
       connects to (UDACITY_*); also ``cam/ok``, ``sim/manual``, ``sim/steering_deg``.
     - "donkey": :class:`parts.bridges.donkey_client.DonkeySim`, connected to SIM_HOST:SIM_PORT
       (DONKEY_GYM_ENV_NAME, GYM_CONF, DONKEY_MAX_CTE); also ``cam/ok``, ``sim/hit``.
@@ -66,10 +67,8 @@ def add_simulator(V: Any, cfg: Any, seeds: Sequence[int] | None = None, sim_type
 
     kind = resolve_sim_type(cfg, sim_type)
     if kind == "builtin":
-        from parts.sim.simulator import SimCar
-
         # with a (simulated) encoder the odometer measures enc/speed, as on a real car
-        sim = SimCar.from_config(cfg, seeds=seeds, measured_speed=not cfg.HAVE_ODOM)
+        sim = SIMULATORS.from_config(cfg, "builtin", seeds=seeds, measured_speed=not cfg.HAVE_ODOM)
         V.add(sim)
         add_sim_sensors(V, cfg, sim)
         # a simulated lens (SIM_CAMERA_DISTORTION) is undistorted like a real one
@@ -125,7 +124,7 @@ def add_simulator_commands(V: Any) -> Any:
     """
     from parts.bridges.commands import SendCommands
     from parts.bridges.donkey_client import DonkeySim
-    from parts.bridges.udacity import UdacitySim
+    from parts.bridges.udacity_sim import UdacitySim
 
     bridges = V.find(UdacitySim) + V.find(DonkeySim)
     if not bridges:
@@ -136,50 +135,17 @@ def add_simulator_commands(V: Any) -> Any:
 
 
 def make_bridge(cfg: Any, sim_type: str, **options: Any) -> Any:
-    """The part of an external simulator ("udacity" or "donkey") built from the car's settings,
-    not added to a vehicle; ``options`` go to the part (e.g. ``synchronous=True`` for the Donkey
-    simulator's step mode).
+    """The part of an external simulator ("udacity" or "donkey") built from the car's settings (its
+    row of :data:`parts.bridges.registry.SIMULATORS`), not added to a vehicle; ``options`` go to the
+    part (e.g. ``synchronous=True`` for the Donkey simulator's step mode).
 
     Raises:
-        UserError: a setting is out of range (the message names it).
+        ConfigError: a setting is out of range (the message names it).
+        UserError: ``sim_type`` is not an external simulator.
     """
-    if sim_type == "udacity":
-        return _udacity(cfg, **options)
-    if sim_type == "donkey":
-        return _donkey(cfg, **options)
-    raise UserError(f"{sim_type!r} is not an external simulator: use udacity or donkey")
-
-
-def _udacity(cfg: Any, **options: Any) -> Any:
-    from parts.bridges.udacity import UdacitySim
-
-    try:
-        return UdacitySim(cfg.UDACITY_HOST, cfg.UDACITY_PORT, timeout_s=cfg.SIM_TIMEOUT_S,
-                          # a stuck loop gets the simulator a neutral steer after 3 loop periods (>= 0.5 s)
-                          command_timeout_s=max(0.5, 3.0 / cfg.DRIVE_LOOP_HZ), decimal=cfg.UDACITY_DECIMAL,
-                          extra_keys=tuple(cfg.UDACITY_EXTRA_KEYS), **options)
-    except ValueError as exc:
-        raise UserError(f"{exc} (check UDACITY_PORT, SIM_TIMEOUT_S and UDACITY_EXTRA_KEYS in myconfig.py)") from exc
-
-
-def _donkey(cfg: Any, **options: Any) -> Any:
-    from parts.bridges.donkey_client import CarLook, DonkeySim
-
-    conf = dict(cfg.GYM_CONF)
-    known = ("body_style", "body_rgb", "car_name", "font_size", "racer_name", "country", "bio", "guid")
-    unknown = sorted(set(conf) - set(known))
-    if unknown:
-        raise UserError(f"GYM_CONF has unknown keys {unknown}: use {', '.join(known)}")
-    try:
-        look = CarLook(**{k: tuple(v) if k == "body_rgb" else v for k, v in conf.items()})
-        return DonkeySim(cfg.SIM_HOST, cfg.SIM_PORT, scene=cfg.DONKEY_GYM_ENV_NAME, image_w=cfg.IMAGE_W,
-                         image_h=cfg.IMAGE_H, look=look, max_cte=cfg.DONKEY_MAX_CTE, timeout_s=cfg.SIM_TIMEOUT_S,
-                         connect_timeout_s=cfg.SIM_CONNECT_TIMEOUT_S,
-                         # a stuck loop brakes the car after 3 loop periods (>= 0.5 s), like the Udacity bridge
-                         command_timeout_s=max(0.5, 3.0 / cfg.DRIVE_LOOP_HZ), **options)
-    except (TypeError, ValueError) as exc:
-        raise UserError(f"{exc} (check SIM_PORT, GYM_CONF, DONKEY_MAX_CTE, SIM_TIMEOUT_S and SIM_CONNECT_TIMEOUT_S "
-                        "in myconfig.py)") from exc
+    if sim_type == "builtin" or sim_type not in SIMULATORS:
+        raise UserError(f"{sim_type!r} is not an external simulator: use udacity or donkey")
+    return SIMULATORS.from_config(cfg, sim_type, **options)
 
 
 def add_expert(V: Any, cfg: Any, sim: Any) -> Any:

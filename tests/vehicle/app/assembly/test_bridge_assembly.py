@@ -8,14 +8,14 @@ import sys
 from pathlib import Path
 
 import pytest
+from fixtures.fake_donkey_sim import FakeDonkeySim
 
 from parts.bridges.donkey_client import DonkeySim
-from parts.bridges.fake_donkey_sim import FakeDonkeySim
-from parts.bridges.udacity import UdacitySim
+from parts.bridges.udacity_sim import UdacitySim
 from vehicle import Vehicle
 from vehicle.app import assembly
 from vehicle.clock import SimulatedClock
-from vehicle.config import Config
+from vehicle.config import Config, ConfigError
 from vehicle.errors import UserError, VehicleError
 from vehicle.keys import is_valid_key
 
@@ -61,9 +61,9 @@ def test_sim_clock_is_simulated_only_for_the_builtin_simulator():
 
 def test_settings_errors_name_the_setting(tmp_path):
     V = Vehicle()
-    with pytest.raises(UserError, match=r"GYM_CONF has unknown keys \['colour'\]"):
+    with pytest.raises(ConfigError, match=r"GYM_CONF has unknown keys \['colour'\]"):
         assembly.add_simulator(V, Config.defaults(GYM_CONF={"colour": "red"}), sim_type="donkey")
-    with pytest.raises(UserError, match=r"body_style .*GYM_CONF"):
+    with pytest.raises(ConfigError, match=r"body_style .*GYM_CONF"):
         assembly.add_simulator(V, Config.defaults(GYM_CONF={"body_style": "tank"}), sim_type="donkey")
     with pytest.raises(VehicleError, match=r"UDACITY_PORT = 70000 is out of range; valid: 1 to 65535"):
         assembly.add_simulator(V, Config.defaults(UDACITY_PORT=70000), sim_type="udacity")  # the config refuses it
@@ -102,7 +102,7 @@ def test_manage_py_drives_the_donkey_simulator(tmp_path):
 
 
 def test_manage_py_drives_the_udacity_simulator_with_sim_option(tmp_path):
-    from parts.bridges.fake_udacity_client import FakeUdacityClient
+    from fixtures.fake_udacity_client import FakeUdacityClient
 
     port = free_port()
     car, manage = simulator_car(tmp_path, f"UDACITY_PORT = {port}\n")

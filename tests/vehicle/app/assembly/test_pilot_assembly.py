@@ -184,11 +184,12 @@ def test_undistortion_must_match_the_frames_the_model_was_trained_on(make_model_
 
     import numpy as np
 
-    from parts.sim.camera import Camera
+    from parts.sim.camera import PinholeCamera
     from parts.vision.calibration import CameraCalibration
 
     car = tmp_path / "car"
-    CameraCalibration((320, 240), Camera(320, 240).intrinsics, np.zeros(5), 0.1).save(car / "camera_calibration.json")
+    CameraCalibration((320, 240), PinholeCamera(320, 240).intrinsics, np.zeros(5), 0.1).save(
+        car / "camera_calibration.json")
     cfg = Config.defaults(PILOT_BACKEND="torch", CAR_PATH=str(car), TRAIN_BEHAVIORS=True)
     undistorted = _behaviour_model(make_model_file, "u", ["Left_Lane", "Right_Lane"],
                                    camera={"undistort": True, "calibration_size": [320, 240]})

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from parts.sim.camera import Camera
+from parts.sim.camera import PinholeCamera
 from parts.vision.calibration import CameraCalibration
 from vehicle import Vehicle
 from vehicle.app.assembly.camera import add_camera, add_undistort
@@ -16,7 +16,7 @@ from vehicle.errors import UserError
 
 
 def _calibrate_at(car, width, height):
-    CameraCalibration((width, height), Camera(width, height).intrinsics, np.array([-0.2, 0.05, 0.0, 0.0, 0.0]),
+    CameraCalibration((width, height), PinholeCamera(width, height).intrinsics, np.array([-0.2, 0.05, 0.0, 0.0, 0.0]),
                       0.1).save(car / "camera_calibration.json")
 
 

@@ -116,10 +116,10 @@ def test_lanes_points_and_preview(car, capsys, tmp_path):
 def test_live_calibration_from_the_cars_camera_with_the_web_view(tmp_path, monkeypatch, capsys):
     """--live runs the car's own camera part (here a folder of photos replayed as the camera) and
     the web page showing the detected corners."""
-    from parts.sim.camera import Camera
+    from parts.sim.camera import PinholeCamera
     from parts.sim.chessboard import random_board_poses, render_board_view
 
-    camera = Camera(320, 240, distortion=(-0.2, 0.05, 0.0, 0.0, 0.0))
+    camera = PinholeCamera(320, 240, distortion=(-0.2, 0.05, 0.0, 0.0, 0.0))
     photos = tmp_path / "photos"
     photos.mkdir()
     for i, (r, t) in enumerate(random_board_poses(camera, 10, 7, 4, seed=11)):
@@ -139,10 +139,10 @@ def test_live_calibration_from_the_cars_camera_with_the_web_view(tmp_path, monke
 
 
 def _photos(folder, width=320, height=240, n=10, seed=9):
-    from parts.sim.camera import Camera
+    from parts.sim.camera import PinholeCamera
     from parts.sim.chessboard import random_board_poses, render_board_view
 
-    camera = Camera(width, height, distortion=LENS)
+    camera = PinholeCamera(width, height, distortion=LENS)
     folder.mkdir(exist_ok=True)
     for i, (r, t) in enumerate(random_board_poses(camera, 10, 7, n, seed=seed)):
         cv2.imwrite(str(folder / f"p{i}.png"), cv2.cvtColor(render_board_view(camera, 10, 7, r, t), cv2.COLOR_RGB2BGR))
@@ -221,11 +221,11 @@ def test_a_wrong_board_size_is_named_while_collecting(tmp_path, monkeypatch, cap
 def test_lanes_points_and_preview_are_for_the_frames_the_pilot_sees(car, capsys, tmp_path):
     """A car with a wide-angle lens and CAMERA_UNDISTORT feeds its pilot undistorted frames: the
     points are computed and the preview drawn on those."""
-    from parts.sim.camera import Camera, lane_region_points
+    from parts.sim.camera import PinholeCamera, lane_region_points
     from parts.vision.calibration import CameraCalibration
     from parts.vision.undistort import Undistort
 
-    lens = Camera(320, 240, distortion=LENS)
+    lens = PinholeCamera(320, 240, distortion=LENS)
     cal = CameraCalibration((320, 240), lens.intrinsics, np.array(LENS), 0.1)
     cal.save(car / "camera_calibration.json")
     base = (car / "myconfig.py").read_text()

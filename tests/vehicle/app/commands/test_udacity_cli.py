@@ -11,8 +11,9 @@ import pytest
 pytest.importorskip("socketio")
 pytest.importorskip("wsproto")
 
-from parts.bridges.fake_road import road_view  # noqa: E402
-from parts.bridges.fake_udacity_client import FakeUdacityClient  # noqa: E402
+from fixtures.fake_road import road_view  # noqa: E402
+from fixtures.fake_udacity_client import FakeUdacityClient  # noqa: E402
+
 from vehicle.app.cli import main  # noqa: E402
 
 

@@ -65,6 +65,7 @@ from parts.bridges.udacity_protocol import (
     parse_number,
     uses_decimal_comma,
 )
+from vehicle.config import ConfigError
 from vehicle.part import ThreadedPart, run_event_loop
 
 #: largest websocket message accepted, bytes (a 320x160 JPEG telemetry is ~20 KB): a larger one
@@ -74,7 +75,7 @@ MAX_MESSAGE_BYTES = 4_000_000
 logger = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
-class Telemetry:
+class UdacityTelemetry:
     """One telemetry message, parsed."""
 
     seq: int  # 1 for the first telemetry since the part started
@@ -106,12 +107,27 @@ class UdacitySim(ThreadedPart):
     #: size of the frames it delivers, fixed by the simulator (a pilot checks it fits when it loads)
     width: ClassVar[int] = FRAME_SIZE[0]
     height: ClassVar[int] = FRAME_SIZE[1]
+    #: for the wiring check (:mod:`vehicle.shapes`)
+    OUTPUT_SHAPES: ClassVar[dict[str, tuple[int, ...]]] = {"cam/image_array": (FRAME_SIZE[1], FRAME_SIZE[0], 3)}
     #: memory keys the part reads, in this order: the commands of the previous loop
     INPUTS: ClassVar[tuple[str, ...]] = ("angle", "throttle")
     FEEDBACK: ClassVar[tuple[str, ...]] = ("angle", "throttle")
     #: memory keys the part writes, in this order (an instance adds ``sim/<key>`` per extra key)
     OUTPUTS: tuple[str, ...] = ("cam/image_array", "cam/timestamp", "cam/ok", "cam/frame_id", "sim/speed", "enc/speed",
                       "sim/steering_deg", "sim/throttle", "sim/manual", "sim/cte", "sim/lap", "sim/extra")
+
+    @classmethod
+    def from_config(cls, cfg: Any, **options: Any) -> UdacitySim:
+        """SIM_TYPE = "udacity": the server on UDACITY_HOST:UDACITY_PORT, not started; ``options`` go
+        to the part."""
+        try:
+            return cls(cfg.UDACITY_HOST, cfg.UDACITY_PORT, timeout_s=cfg.SIM_TIMEOUT_S,
+                       # a stuck loop gets the simulator a neutral steer after 3 loop periods (>= 0.5 s)
+                       command_timeout_s=max(0.5, 3.0 / cfg.DRIVE_LOOP_HZ), decimal=cfg.UDACITY_DECIMAL,
+                       extra_keys=tuple(cfg.UDACITY_EXTRA_KEYS), **options)
+        except ValueError as exc:
+            raise ConfigError(f"{exc} (check UDACITY_PORT, SIM_TIMEOUT_S and UDACITY_EXTRA_KEYS in myconfig.py)") \
+                from exc
 
     def __init__(self, host: str = "127.0.0.1", port: int = 4567, *, timeout_s: float = 1.0,
                  command_timeout_s: float = 0.5, decimal: str = "auto", extra_keys: Sequence[str] = (),
@@ -146,7 +162,7 @@ class UdacitySim(ThreadedPart):
         self._stop_server: asyncio.Event | None = None
         # shared with the server thread, under self._state
         self._state = threading.Lock()
-        self._telemetry: Telemetry | None = None
+        self._telemetry: UdacityTelemetry | None = None
         self._seq = 0
         self._pending: deque[tuple[str, int, float]] = deque()  # (sid, seq, arrival monotonic)
         self._delivered = 0  # seq of the frame handed to the loop at its previous run
@@ -446,7 +462,7 @@ class UdacitySim(ThreadedPart):
         self.telemetry_count += 1
         with self._state:
             self._seq += 1
-            tel = Telemetry(self._seq, tel.sid, tel.image, tel.timestamp, tel.steering_deg, tel.throttle,
+            tel = UdacityTelemetry(self._seq, tel.sid, tel.image, tel.timestamp, tel.steering_deg, tel.throttle,
                             tel.speed, tel.extra)
             self._telemetry = tel
             self._last_message = now
@@ -457,8 +473,8 @@ class UdacitySim(ThreadedPart):
         if neutral:
             await self._emit_steers([(sid, 0.0, 0.0)], neutral=True)
 
-    def _parse(self, sid: str, data: Any) -> Telemetry:
-        """Telemetry from the event's data; ValueError says what is wrong with it."""
+    def _parse(self, sid: str, data: Any) -> UdacityTelemetry:
+        """The telemetry in the event's data; ValueError says what is wrong with it."""
         from parts.bridges.frames import decode_frame
 
         if not isinstance(data, dict):
@@ -475,7 +491,7 @@ class UdacitySim(ThreadedPart):
             if key not in STOCK_KEYS:
                 number = parse_number(value)
                 extra[key] = value if number is None else number
-        return Telemetry(0, sid, image, time.time(), parse_number(data.get("steering_angle")),
+        return UdacityTelemetry(0, sid, image, time.time(), parse_number(data.get("steering_angle")),
                          parse_number(data.get("throttle")), None if speed is None else speed * MS_PER_MPH, extra)
 
     def _send_threadsafe(self, replies: list[tuple[str, Any, Any]], neutral: bool = False,
