@@ -41,11 +41,14 @@ OUTPUTS: tuple[str, ...] = (
     "cam/image_array", "cam/timestamp", "sim/cte", "sim/heading_error", "sim/speed", "sim/progress",
     "sim/lap", "sim/lap_time", "sim/off_track", "sim/pos", "sim/track", "enc/speed",
 )
-__all__ = ["OUTPUTS", "SimCar", "load_world", "register_track", "registered_tracks", "world_params"]
+#: what a car with side cameras (SIM_SIDE_CAMERAS_OFFSET) writes too, after :data:`OUTPUTS`
+SIDE_OUTPUTS: tuple[str, ...] = ("cam/image_array_left", "cam/image_array_right")
+__all__ = ["OUTPUTS", "SIDE_OUTPUTS", "SimCar", "load_world", "register_track", "registered_tracks", "world_params"]
 
 
 class SimCar:
-    """Simulated car part. Inputs: angle, throttle[, reset (rising edge)]. Outputs: :data:`OUTPUTS`.
+    """Simulated car part. Inputs: angle, throttle[, reset (rising edge)]. Outputs: :data:`OUTPUTS`
+    (and :data:`SIDE_OUTPUTS` with ``side_cameras``).
 
     Args:
         seeds: track seeds; with several, the car moves to the next track after each lap.
@@ -68,6 +71,9 @@ class SimCar:
         render: draw camera frames (False: cam/image_array is None and no texture is drawn, for
             drivers that do not look, like the expert).
         seed: seed of the per-frame random draws (SIM_SEED).
+        side_cameras: metres left and right of the centre camera where two more cameras of the
+            same kind look ahead (SIM_SIDE_CAMERAS_OFFSET), as in the Udacity simulator; their
+            frames are ``cam/image_array_left`` and ``cam/image_array_right``. None: no side cameras.
     """
 
     INPUTS: ClassVar[tuple[str, ...]] = ("angle", "throttle", "sim/reset")
@@ -76,14 +82,15 @@ class SimCar:
     FEEDBACK: ClassVar[tuple[str, ...]] = ("angle", "throttle")
     #: a car may have no reset button
     OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("sim/reset",)
-    OUTPUTS: ClassVar[tuple[str, ...]] = OUTPUTS
+    #: a car with side cameras declares :data:`SIDE_OUTPUTS` too (set per instance)
+    OUTPUTS: tuple[str, ...] = OUTPUTS
 
     def __init__(self, seeds: Sequence[int] = (1,), *, dt: float = 0.05, camera: Camera | None = None,
                  car_params: CarParams | None = None, world: dict[str, Any] | None = None,
                  themes: Sequence[str] | str = ("road",), reset_off_track: bool = True, reset_to: str = "start",
                  off_track_cte: float | None = None, sensor: dict[str, Any] | None = None, realtime: bool = True,
                  start_offset: float = 0.0, switch_every: int | None = None, render: bool = True,
-                 seed: int = 0) -> None:
+                 seed: int = 0, side_cameras: float | None = None) -> None:
         seeds = [seeds] if isinstance(seeds, int) else list(seeds)
         if not seeds or not all(isinstance(s, int | np.integer) and not isinstance(s, bool) for s in seeds):
             raise ValueError(f"track seeds must be a non-empty list of ints, got {seeds!r}")
@@ -116,6 +123,11 @@ class SimCar:
             raise ValueError(f"switch_every must be >= 1 step or None, got {switch_every}")
         self.switch_every = switch_every
         self.render_images = bool(render)
+        if side_cameras is not None and not (math.isfinite(side_cameras) and side_cameras > 0):
+            raise ValueError(f"side camera offset must be > 0 m or None, got {side_cameras!r}")
+        self.side_cameras = None if side_cameras is None else float(side_cameras)
+        if self.side_cameras is not None:  # this car's declaration: the side frames too
+            self.OUTPUTS = OUTPUTS + SIDE_OUTPUTS
         self.frame_seed = int(seed)
         self.time = 0.0  # simulated seconds since the part was made
         self.steps = 0
@@ -141,7 +153,7 @@ class SimCar:
             "reset_to": cfg.SIM_RESET_TO, "off_track_cte": cfg.SIM_OFF_TRACK_CTE,
             "sensor": {"noise": cfg.SIM_IMAGE_NOISE, "blur": cfg.SIM_IMAGE_BLUR,
                        "brightness": cfg.SIM_BRIGHTNESS_JITTER},
-            "realtime": cfg.SIM_REALTIME, "seed": cfg.SIM_SEED}
+            "realtime": cfg.SIM_REALTIME, "seed": cfg.SIM_SEED, "side_cameras": cfg.SIM_SIDE_CAMERAS_OFFSET}
         if cfg.SIM_LANES == 2:  # start (and re-centre) in the lane the expert keeps to
             lane = "left" if cfg.SIM_EXPERT_LANE == "left" else "right"
             if cfg.SIM_EXPERT_LANE != "center":
@@ -273,14 +285,16 @@ class SimCar:
             frame = self.frame  # the first frame on the new track
         return frame
 
-    def render(self) -> np.ndarray | None:
+    def render(self, left: float = 0.0) -> np.ndarray | None:
         """The camera image for the car's current pose (a new HxWx3 uint8 RGB array; None when
-        the part does not render)."""
+        the part does not render); ``left``: of a camera that many metres left of the centre one
+        (negative: right), looking the same way."""
         if self.world is None:
             return None
         st = self.car.state
+        x, y = st.x - left * math.sin(st.heading), st.y + left * math.cos(st.heading)
         scenery = None if self.world.scenery.empty else self.world.scenery
-        img = self.camera.render(self.world.texture, st.x, st.y, st.heading, scenery=scenery)
+        img = self.camera.render(self.world.texture, x, y, st.heading, scenery=scenery)
         if self.sensor is not None:
             self.sensor.apply(img, st.speed)
         return img
@@ -302,8 +316,11 @@ class SimCar:
         """Values for :data:`OUTPUTS` at the current state, without stepping (a new frame)."""
         f = self.frame
         assert f is not None  # set by select_track()
-        return (self.render(), self.timestamp(), f.cte, f.heading_error, f.speed, f.progress, f.lap,
-                f.lap_time, f.off_track, f.pos, self.seed, f.speed)
+        values = (self.render(), self.timestamp(), f.cte, f.heading_error, f.speed, f.progress, f.lap,
+                  f.lap_time, f.off_track, f.pos, self.seed, f.speed)
+        if self.side_cameras is None:
+            return values
+        return (*values, self.render(self.side_cameras), self.render(-self.side_cameras))
 
     def shutdown(self) -> None:
         """Log a short summary of the run."""

@@ -13,6 +13,7 @@ from typing import Any
 from parts.pilots.models.base import PilotModel
 from parts.pilots.models.cnn import BehaviorModel, CategoricalModel, InferredModel, LinearModel, MemoryModel
 from parts.pilots.models.lanes import LanesBasicModel, LanesModel
+from parts.pilots.models.multicam import ThreeCameraModel
 from parts.pilots.models.pilotnet import NvidiaModel, PilotNetModel
 from parts.pilots.models.sequence import Conv3DModel, RNNModel
 
@@ -32,7 +33,7 @@ def register_model_type(cls: type[PilotModel]) -> type[PilotModel]:
 
 
 for _cls in (LinearModel, CategoricalModel, InferredModel, PilotNetModel, MemoryModel, BehaviorModel,
-             RNNModel, Conv3DModel, LanesModel, LanesBasicModel, NvidiaModel):
+             RNNModel, Conv3DModel, LanesModel, LanesBasicModel, NvidiaModel, ThreeCameraModel):
     register_model_type(_cls)
 
 

@@ -13,6 +13,8 @@ TIMESTAMP_KEY = "cam/timestamp"
 ERASE_KEY = "tub/erase"
 #: what a drive with TRAIN_BEHAVIORS records besides TUB_INPUTS (DonkeyCar's keys and tub types)
 BEHAVIOR_FIELDS = (("behavior/state", "int"), ("behavior/label", "str"), ("behavior/one_hot_state_array", "vector"))
+#: cameras beside the centre one, recorded when a part makes them (the three_camera model's views)
+SIDE_CAMERA_KEYS = ("cam/image_array_left", "cam/image_array_right")
 
 
 def new_tub_path(data_path: Path) -> Path:
@@ -38,7 +40,8 @@ def add_tub_writer(V: Any, cfg: Any, inputs: list[str] | None = None, types: lis
     """Add a TubWriter (run_condition ``recording``, output ``tub/num_records``) and return it.
 
     ``inputs``/``types`` default to TUB_INPUTS/TUB_TYPES (plus pilot/angle and pilot/throttle with
-    RECORD_DURING_AI, when a pilot part was added, and the behaviour keys with TRAIN_BEHAVIORS).
+    RECORD_DURING_AI, when a pilot part was added, the behaviour keys with TRAIN_BEHAVIORS, and the
+    side cameras' frames when a part makes them).
     When a part produces ``cam/timestamp`` it is recorded as ``_timestamp_ms``. When a part
     produces ``tub/erase``, a TubWiper deletes the last ERASE_LAST_N_RECORDS records on each press.
     """
@@ -54,6 +57,10 @@ def add_tub_writer(V: Any, cfg: Any, inputs: list[str] | None = None, types: lis
                 if key not in inputs and _produced(V, key):  # a drive without a model has no pilot
                     inputs.append(key)
                     types.append("float")
+        for key in SIDE_CAMERA_KEYS:  # the simulator's side cameras (SIM_SIDE_CAMERAS_OFFSET)
+            if key not in inputs and _produced(V, key):
+                inputs.append(key)
+                types.append("image_array")
         if getattr(cfg, "TRAIN_BEHAVIORS", False):  # as DonkeyCar: behaviour drives record it
             for key, tp in BEHAVIOR_FIELDS:
                 if key not in inputs and _produced(V, key):
