@@ -33,3 +33,20 @@ def test_the_setting_turns_them_on_and_refuses_undistortion():
     assert SimCar.from_config(cfg, seeds=[3]).side_cameras == 0.1
     with pytest.raises(ValueError, match="SIM_SIDE_CAMERAS_OFFSET with CAMERA_UNDISTORT"):
         cfg.replace(CAMERA_UNDISTORT=True)
+
+
+def test_a_simulator_car_records_the_side_frames(tmp_path):
+    from vehicle import Vehicle
+    from vehicle.app import assembly
+    from vehicle.clock import SimulatedClock
+
+    cfg = Config.defaults(CAR_PATH=str(tmp_path), SIM_SIDE_CAMERAS_OFFSET=0.1, SIM_TEXTURE_RES=0.02)
+    V = Vehicle(clock=SimulatedClock())
+    assembly.add_simulator(V, cfg, seeds=[3])
+    writer = assembly.add_tub_writer(V, cfg)  # manage.py drive's recording: TUB_INPUTS and what the car makes
+    try:
+        assert [k for k in writer.inputs if k.startswith("cam/image_array")] == [
+            "cam/image_array", "cam/image_array_left", "cam/image_array_right"]
+        assert writer.tub.manifest.types[writer.tub.manifest.inputs.index("cam/image_array_left")] == "image_array"
+    finally:
+        writer.shutdown()
