@@ -68,11 +68,12 @@ def test_the_pilot_feeds_all_three_frames_with_torch_and_onnx(make_model_file, f
         pilot.run(centre)
     pilot.shutdown()
 
-    export_model(path, "onnx")
-    onnx_pilot = Pilot(path.with_suffix(".onnx"))
-    assert onnx_pilot.runner.backend == "onnx" and onnx_pilot.inputs == VIEWS
-    assert onnx_pilot.run(left, centre, right) == pytest.approx((angle, throttle), abs=1e-4)
-    onnx_pilot.shutdown()
+    for fmt, suffix in (("onnx", ".onnx"), ("torchscript", ".ts")):  # exports take (1, 3, C, H, W)
+        export_model(path, fmt)
+        exported = Pilot(path.with_suffix(suffix))
+        assert exported.runner.backend == fmt and exported.inputs == VIEWS
+        assert exported.run(left, centre, right) == pytest.approx((angle, throttle), abs=1e-4)
+        exported.shutdown()
 
 
 def test_refused_in_a_car_without_side_cameras(make_model_file, tmp_path):
@@ -93,11 +94,16 @@ def test_refused_in_a_car_without_side_cameras(make_model_file, tmp_path):
         add_pilot(sim_car, cfg, path)
 
 
-def test_the_udacity_simulator_sends_only_the_centre_frame_so_evaluation_refuses(make_model_file, tmp_path):
+def test_the_udacity_simulator_sends_only_the_centre_frame_so_driving_and_evaluation_refuse(make_model_file,
+                                                                                             tmp_path):
     from vehicle.app.evaluate import evaluate
 
     path = make_model_file("three_camera", frames=(160, 320))
     cfg = Config.defaults(CAR_PATH=str(tmp_path))
+    V = Vehicle()
+    assembly.add_simulator(V, cfg, sim_type="udacity")  # `vehicle udacity drive`'s car (not started)
+    with pytest.raises(WiringError, match="Udacity simulator sends only the centre frame while driving"):
+        add_pilot(V, cfg, path)
     with pytest.raises(WiringError, match="Udacity simulator sends only the centre frame while driving"):
         evaluate(path, cfg=cfg, sim="udacity")  # refused before waiting for the simulator
     with pytest.raises(WiringError, match="set SIM_SIDE_CAMERAS_OFFSET"):
