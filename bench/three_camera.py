@@ -8,8 +8,8 @@ conditions (road and indoor themes, randomised, steering noise). Two pilots trai
 with the same preprocessing, augmentations and epochs: ``three_camera`` (the three frames as one
 input) and ``pilotnet`` with ELU (Track Driver AI's DAVE-2), which learns from the side frames as
 extra samples with a steering offset of ±0.15 (the document's ``side_cam_offset``) and drives on
-the centre frame. Both drive the same unseen tracks (road theme, the side cameras on for the
-three-camera pilot). Prints one table and writes ``results.json``.
+the centre frame. Both drive the same unseen tracks in the road, indoor and (never trained) park
+themes, with the side cameras on. Prints one table and writes ``results.json``.
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from vehicle.app.demo import DEFAULTS, DEMO_SETTINGS  # noqa: E402
 from vehicle.config import Config  # noqa: E402
 
+THEMES = ("road", "indoor", "park")
 PILOTS: dict[str, dict[str, Any]] = {
     "three_camera": {"DEFAULT_MODEL_TYPE": "three_camera", "TRAIN_SIDE_CAMERAS": {}},
     "pilotnet+side": {"DEFAULT_MODEL_TYPE": "pilotnet", "MODEL_OPTIONS": {"activation": "elu", "dropout": 0.0},
@@ -40,14 +41,17 @@ def main() -> int:
     parser.add_argument("--epochs", type=int, default=4)
     parser.add_argument("--offset", type=float, default=0.1, help="SIM_SIDE_CAMERAS_OFFSET, metres")
     parser.add_argument("--train-tracks", type=int, default=16, help="tracks 1..N")
-    parser.add_argument("--eval-tracks", type=int, nargs="+", default=DEFAULTS["eval_tracks"][:2])
+    parser.add_argument("--eval-tracks", type=int, nargs="+", default=DEFAULTS["eval_tracks"])
     parser.add_argument("--laps", type=int, default=2)
+    parser.add_argument("--themes", nargs="+", default=list(THEMES), help="themes to drive in (park: never trained)")
+    parser.add_argument("--reuse", action="store_true", help="drive the models of an earlier run (no training)")
     args = parser.parse_args()
 
     import logging
 
     import torch
 
+    from parts.pilots.modelfile import read_meta
     from training.trainer import train
     from vehicle.app.evaluate import evaluate
     from vehicle.app.record import record_expert
@@ -66,21 +70,26 @@ def main() -> int:
     for name, settings in PILOTS.items():
         model = out / "models" / f"{name}.pt"
         t = time.perf_counter()
-        metrics = train(base.replace(**settings), [tub], model, epochs=args.epochs, register=False, workers=0)
+        if args.reuse and model.exists():
+            metrics = read_meta(model)["metrics"]
+        else:
+            metrics = train(base.replace(**settings), [tub], model, epochs=args.epochs, register=False, workers=0)
         row: dict[str, Any] = {"train_s": round(time.perf_counter() - t, 1), "epochs": metrics["epochs"],
-                               "train_samples": metrics["train_samples"], "best_val_loss": metrics["best_val_loss"]}
-        report = evaluate(model, args.eval_tracks, args.laps, cfg=base.replace(SIM_THEME="road", SIM_RANDOMIZE=None))
-        o = report["overall"]
-        row.update({k: o.get(k) for k in ("autonomy", "laps_completed", "interventions", "mean_abs_cte",
-                                           "mean_speed")})
+                               "train_samples": metrics["train_samples"], "best_val_loss": metrics["best_val_loss"],
+                               "themes": {}}
+        for theme in args.themes:
+            report = evaluate(model, args.eval_tracks, args.laps, cfg=base.replace(SIM_THEME=theme, SIM_RANDOMIZE=None))
+            o = report["overall"]
+            row["themes"][theme] = {k: o.get(k) for k in ("autonomy", "laps_completed", "interventions",
+                                                           "mean_abs_cte", "mean_speed")}
         results[name] = row
         (out / "results.json").write_text(json.dumps(results, indent=2))
         print(json.dumps({name: row}), flush=True)
-    print(f"\n{'pilot':14} {'train s':>8} {'samples':>8} {'val loss':>9} {'autonomy':>9} {'laps':>5} "
-          f"{'interv.':>7} {'|cte| m':>8}")
+    print(f"\n{'pilot':14} {'theme':7} {'autonomy':>9} {'laps':>5} {'interv.':>7} {'|cte| m':>8}")
     for name, r in results.items():
-        print(f"{name:14} {r['train_s']:8.0f} {r['train_samples']:8d} {r['best_val_loss']:9.4f} "
-              f"{r['autonomy']:8.1f}% {r['laps_completed']:5d} {r['interventions']:7d} {r['mean_abs_cte']:8.3f}")
+        for theme, v in r["themes"].items():
+            print(f"{name:14} {theme:7} {v['autonomy']:8.1f}% {v['laps_completed']:5d} {v['interventions']:7d} "
+                  f"{v['mean_abs_cte']:8.3f}")
     return 0
 
 

@@ -89,7 +89,7 @@ TRAIN_BALANCE_MAX_PER_BIN: Annotated[int, Range(1)] = 400
 # augmentation (a random "flip" augmentation is the other way to the same end).
 TRAIN_FLIP_COPY: bool = False
 # Udacity-style side cameras: image key -> steering offset added to the label of that camera's frame
-# (e.g. {"cam/left_image_array": 0.15, "cam/right_image_array": -0.15}: the left camera sees the road
+# (e.g. {"cam/image_array_left": 0.15, "cam/image_array_right": -0.15}: the left camera sees the road
 # as if the car were left of centre, so it must steer right). Empty = centre camera only.
 TRAIN_SIDE_CAMERAS: Annotated[dict[str, float], Range(-1, 1)] = {}
 # Frames (rnn, 3d) or previous commands (memory) a sequence model sees.
