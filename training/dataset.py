@@ -28,6 +28,7 @@ from torch.utils.data import Dataset
 from parts.pilots.preprocess import Preprocess
 from training.augment import Augmenter
 from training.framecache import FrameCache
+from training.views import view_mirror
 
 logger = logging.getLogger(__name__)
 
@@ -272,7 +273,10 @@ def behavior_mirror(names: Sequence[str]) -> np.ndarray | None:
 class PilotDataset(Dataset):
     """Samples as ``(images, extra, target)`` tensors.
 
-    ``images``: uint8 (C, H, W), or (T, C, H, W) oldest first when ``frames > 1``; ``extra``: float32
+    ``images``: uint8 (C, H, W), or (T, C, H, W) oldest first when ``frames > 1``, or (V, C, H, W)
+    when ``views > 1`` (camera keys 0 .. V-1 of the cache, e.g. left, centre, right: every view
+    gets the same augmentation draw, and a flip mirrors each view and swaps left and right,
+    :func:`view_mirror`); ``extra``: float32
     (E,) (previous commands or behaviour one-hot; (0,) when the model takes none); ``target``: float32
     (angle, throttle). With an ``augmenter`` (training only) every sample gets a fresh random draw,
     reproducible from (seed, epoch, index). ``extra_mirror`` permutes the extra values of a flipped
@@ -285,9 +289,13 @@ class PilotDataset(Dataset):
                  key_offsets: Sequence[float] = (0.0,), frames: int = 1, command_history: int = 0,
                  extra_key: str | None = None, extra_size: int = 0, augmenter: Augmenter | None = None,
                  seed: int = 0, extra_mirror: np.ndarray | None = None,
-                 extra_values: np.ndarray | None = None) -> None:
+                 extra_values: np.ndarray | None = None, views: int = 1) -> None:
         if samples.chain.shape[1] < max(frames, command_history + 1):
             raise ValueError("samples were built with too short a history for this model")
+        if views > 1 and frames > 1:
+            raise ValueError("a sample has either several frames (sequence) or several camera views, not both")
+        self.views = views
+        self.view_mirror = view_mirror(cache.keys[:views]) if views > 1 else None
         self.data = data
         self.samples = samples
         self.cache = cache
@@ -352,6 +360,13 @@ class PilotDataset(Dataset):
             angle = self.augmenter.steering(angle, ops)
         else:
             angle = float(np.clip(angle, -1.0, 1.0))
+        flipped = mirrored != Augmenter.flipped(ops)
+        if self.views > 1:
+            x = torch.stack([self._view(pos, v, mirrored, ops) for v in range(self.views)])
+            if flipped:  # each view was mirrored: the left camera's now shows what the right one would
+                x = x[torch.from_numpy(self.view_mirror)]
+            extra = torch.from_numpy(self._extra(chain, flipped))
+            return x, extra, torch.tensor([angle, throttle], dtype=torch.float32)
         images = []
         for k in range(self.frames - 1, -1, -1):  # oldest first
             frame = self.cache.get(int(chain[k]), key)
@@ -361,5 +376,14 @@ class PilotDataset(Dataset):
                 frame = self.augmenter.apply(frame, ops)
             images.append(Preprocess.to_chw(self.preprocess.frame(frame)))
         x = images[0] if self.frames == 1 else torch.stack(images)
-        extra = torch.from_numpy(self._extra(chain, mirrored != Augmenter.flipped(ops)))
+        extra = torch.from_numpy(self._extra(chain, flipped))
         return x, extra, torch.tensor([angle, throttle], dtype=torch.float32)
+
+    def _view(self, pos: int, key: int, mirrored: bool, ops: list) -> torch.Tensor:
+        """Camera view ``key`` of record ``pos``, mirrored / augmented as the sample is (CxHxW uint8)."""
+        frame = self.cache.get(pos, key)
+        if mirrored:
+            frame = cv2.flip(frame, 1)
+        if ops:
+            frame = self.augmenter.apply(frame, ops)
+        return Preprocess.to_chw(self.preprocess.frame(frame))

@@ -3,8 +3,8 @@
 Both exports compute the *controls* (angle, throttle) — the model's forward followed by its
 ``controls()`` decoding — from the preprocessed input, so every runtime needs only the shared
 preprocessing (:mod:`parts.pilots.preprocess`) in front. Inputs: ``images`` ``(1, C, H, W)``
-(``(1, T, C, H, W)`` for sequence models) and, for models with an extra input, ``extra``
-``(1, E)``. Output: ``controls`` ``(1, 2)``.
+(``(1, T, C, H, W)`` for sequence models, ``(1, V, C, H, W)`` for the views of ``three_camera``)
+and, for models with an extra input, ``extra`` ``(1, E)``. Output: ``controls`` ``(1, 2)``.
 
 Each export carries the source model file's metadata (JSON) and the SHA-256 of the source file,
 so an export is self-contained (``load_pilot("x.onnx")`` works without the .pt) and a stale export
@@ -62,7 +62,9 @@ def example_inputs(desc: dict[str, Any]) -> tuple[torch.Tensor, ...]:
     """Zero inputs of batch 1 shaped as the model described by ``meta["model"]`` expects."""
     shape = [int(v) for v in desc["input_shape"]]
     frames = int(desc.get("frames", 1))
-    images = torch.zeros(1, frames, *shape) if frames > 1 else torch.zeros(1, *shape)
+    views = len(desc.get("image_inputs") or ("cam/image_array",))  # three_camera: (1, 3, C, H, W)
+    lead = frames if frames > 1 else views
+    images = torch.zeros(1, lead, *shape) if lead > 1 else torch.zeros(1, *shape)
     extra_size = int(desc.get("extra_size", 0))
     return (images, torch.zeros(1, extra_size)) if extra_size else (images,)
 

@@ -52,8 +52,9 @@ def calibration_inputs(meta: dict[str, Any], tubs: Sequence[str | os.PathLike[st
         raise ValueError(f"no usable records for calibration in {', '.join(map(str, tubs))}")
     pick = np.unique(np.linspace(0, len(samples) - 1, min(frames, len(samples))).round().astype(np.int64))
     samples = samples.subset(np.isin(np.arange(len(samples)), pick))
-    ds = PilotDataset(data, samples, FrameCache(data.records, [IMAGE_KEY], enabled=False), pre,
-                      frames=n_frames, command_history=history,
+    keys = list(desc.get("image_inputs") or [IMAGE_KEY])
+    ds = PilotDataset(data, samples, FrameCache(data.records, keys, enabled=False), pre,
+                      frames=n_frames, command_history=history, views=len(keys),
                       extra_key=extra_inputs[0] if extra_inputs else None, extra_size=int(desc.get("extra_size", 0)))
     out = []
     for i in range(len(ds)):

@@ -46,6 +46,7 @@ from training.progress_log import ProgressLog
 from training.recipes import Recipe
 from training.split import split_train_val
 from training.train_report import plot_losses, sidecar, write_metrics
+from training.views import require_views
 
 __all__ = ["default_model_path", "prepare_data", "train"]
 
@@ -137,11 +138,16 @@ def prepare_data(cfg: Any, data: DriveData, model: PilotModel, preprocess: Prepr
                                         cfg.TRAIN_BALANCE_MAX_PER_BIN, cfg.TRAIN_SEED)
         logger.info("balanced by steering: %d of %d training records kept", len(train_pos), n_split)
     side = dict(cfg.TRAIN_SIDE_CAMERAS)
+    if model.views > 1:  # the views are one sample (three_camera), not a sample each with an offset
+        if side:
+            logger.info("TRAIN_SIDE_CAMERAS left out: model type %s takes %s together", model.type_name,
+                        ", ".join(model.image_inputs))
+        side = {}
     _check_side_cameras(data, side)
-    keys = [IMAGE_KEY, *side]
+    keys = list(model.image_inputs) if model.views > 1 else [IMAGE_KEY, *side]
     offsets = [0.0, *(float(v) for v in side.values())]
     depth = max(model.frames - 1, model.command_history)
-    train_s = build_samples(data, train_pos, n_keys=len(keys), depth=depth)
+    train_s = build_samples(data, train_pos, n_keys=1 + len(side), depth=depth)
     val_s = build_samples(data, val_pos, n_keys=1, depth=depth)  # validate on what the car sees: centre
     cache = FrameCache(data.records, keys, enabled=cfg.TRAIN_CACHE_IMAGES, max_mb=cfg.TRAIN_CACHE_MAX_MB)
     bad = cache.fill(np.union1d(train_s.positions(), val_s.positions()), progress=progress)
@@ -167,7 +173,8 @@ def prepare_data(cfg: Any, data: DriveData, model: PilotModel, preprocess: Prepr
     augmenter = Augmenter(aug_settings) if aug_settings.names else None
     common = {"frames": model.frames, "command_history": model.command_history,
               "extra_key": model.extra_inputs[0] if model.extra_inputs else None,
-              "extra_size": model.extra_size, "extra_mirror": mirror, "extra_values": extra_values}
+              "extra_size": model.extra_size, "extra_mirror": mirror, "extra_values": extra_values,
+              "views": model.views}
     train_ds = PilotDataset(data, train_s, cache, preprocess, key_offsets=offsets, augmenter=augmenter,
                             seed=cfg.TRAIN_SEED, **common)
     val_ds = PilotDataset(data, val_s, cache, preprocess, **common) if len(val_s) else None
@@ -306,6 +313,8 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
         model_type(type_name)  # unknown types fail before reading any data
         phase("reading")
         data = read_drive_data(tubs, modes=cfg.TRAIN_MODES, record_filter=cfg.TRAIN_FILTER)
+        if len(model_type(type_name).image_inputs) > 1:  # three_camera: every record needs every view
+            require_views(type_name, model_type(type_name).image_inputs, data.records)
         image_shape = tuple(int(v) for v in data.records[0].image(IMAGE_KEY).shape)
         if recipe is not None:
             recipe.check_frames(image_shape)
@@ -326,7 +335,8 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
                             progress=dist_info.is_main and (progress if progress is not None else _tty()),
                             behavior_order=order or None)
         model.to(dev)
-        plan = plan_for(dev, precision or cfg.TRAIN_PRECISION, cfg.TRAIN_COMPILE, spatial_model=model.frames == 1)
+        plan = plan_for(dev, precision or cfg.TRAIN_PRECISION, cfg.TRAIN_COMPILE,
+                        spatial_model=model.frames == 1 and model.views == 1)  # 4-D batches only
         apply_layout(model, plan)
         n_params = sum(p.numel() for p in model.parameters())
         if dist_info.is_main:

@@ -59,9 +59,10 @@ STANDARD_KEYS: dict[str, KeyInfo] = {
     # -- camera
     "cam/image_array": KeyInfo("ndarray HxWx3 uint8 RGB", "latest camera frame"),
     "cam/timestamp": KeyInfo("float", "capture time of cam/image_array, seconds (time.time())"),
-    "cam/image_array_left": KeyInfo("ndarray HxWx3 uint8 RGB", "left side camera's frame (Udacity recordings; "
-                                    "training: TRAIN_SIDE_CAMERAS)"),
-    "cam/image_array_right": KeyInfo("ndarray HxWx3 uint8 RGB", "right side camera's frame (as the left)"),
+    "cam/image_array_left": KeyInfo("ndarray HxWx3 uint8 RGB", "frame of a camera left of the centre one (Udacity "
+                                    "recordings, the simulator's SIM_SIDE_CAMERAS_OFFSET; training: "
+                                    "TRAIN_SIDE_CAMERAS)"),
+    "cam/image_array_right": KeyInfo("ndarray HxWx3 uint8 RGB", "frame of a camera right of the centre one"),
     "cam/frame_id": KeyInfo("int", "counter of frames delivered by the camera"),
     "cam/ok": KeyInfo("bool", "False when the camera stopped delivering frames"),
     # -- human input

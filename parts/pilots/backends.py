@@ -67,6 +67,8 @@ class Runner(abc.ABC):
             desc = meta["model"]
             self.model_type: str = str(desc["type"])
             self.frames = int(desc.get("frames", 1))
+            #: camera frames per prediction, in the model's view order (older files: the centre one)
+            self.image_inputs: tuple[str, ...] = tuple(str(k) for k in desc.get("image_inputs") or ("cam/image_array",))
             self.command_history = int(desc.get("command_history", 0))
             self.extra_inputs: tuple[str, ...] = tuple(str(k) for k in desc.get("extra_inputs", ()))
             self.extra_size = int(desc.get("extra_size", 0))

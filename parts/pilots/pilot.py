@@ -1,7 +1,9 @@
 """The Pilot part: drives with a trained model file.
 
 ``Pilot(path).run(image, *extra_inputs) -> (angle, throttle)``. The model file says what the model
-needs (``pilot.inputs``: ``cam/image_array`` first, then e.g. ``behavior/one_hot_state_array``);
+needs (``pilot.inputs``: its camera frames first, ``cam/image_array`` or, for the three-camera
+model, ``cam/image_array_left``, ``cam/image_array``, ``cam/image_array_right``; then e.g.
+``behavior/one_hot_state_array``);
 previous commands (``memory`` models) and the last N frames (sequence models) are kept inside the
 part. Frames go through the same preprocessing code as training. Outputs are clamped to [-1, 1];
 a NaN or infinite prediction becomes angle 0, throttle 0 with a rate-limited warning.
@@ -145,9 +147,9 @@ class Pilot:
 
     @property
     def inputs(self) -> list[str]:
-        """Memory keys ``run`` takes, in order: the image, the model's extra inputs, then (with
-        speed control) the measured speed."""
-        keys = [IMAGE_KEY, *self._active.runner.extra_inputs]
+        """Memory keys ``run`` takes, in order: the model's camera frames, its extra inputs, then
+        (with speed control) the measured speed."""
+        keys = [*self._active.runner.image_inputs, *self._active.runner.extra_inputs]
         if self.speed_control is not None:
             keys.append(self.speed_key)
         return keys
@@ -174,20 +176,21 @@ class Pilot:
 
     # -- the loop -------------------------------------------------------------------------------
     def run(self, image: np.ndarray | None, *rest: Any) -> tuple[float, float]:
-        """``(angle, throttle)`` for the current frame (and extra inputs, see :attr:`inputs`)."""
+        """``(angle, throttle)`` for the current frame(s) (and extra inputs, see :attr:`inputs`)."""
         active = self._active  # one read: a swap during this call does not mix two models
         runner = active.runner
-        n_extra = len(runner.extra_inputs)
-        expected = 1 + n_extra + (1 if self.speed_control is not None else 0)
+        n_views, n_extra = len(runner.image_inputs), len(runner.extra_inputs)
+        expected = n_views + n_extra + (1 if self.speed_control is not None else 0)
         if len(rest) + 1 != expected:
             raise TypeError(f"Pilot.run takes {expected} inputs {self.inputs}, got {len(rest) + 1}; "
                             "wire the part with inputs=pilot.inputs")
-        if image is None:  # no frame yet (camera starting): stand still, wheels straight, even
-            return 0.0, 0.0  # with speed control (which would accelerate from standstill blind)
+        images, rest = (image, *rest[:n_views - 1]), rest[n_views - 1:]
+        if any(view is None for view in images):  # no frame yet (camera starting): stand still, wheels
+            return 0.0, 0.0  # straight, even with speed control (which would accelerate from standstill blind)
         if self.frame_shape is None and isinstance(image, np.ndarray):
             self.frame_shape = image.shape  # what a model switched to must take
             self._check_frames(runner)
-        angle, throttle = self._predict(active, image, rest[:n_extra])
+        angle, throttle = self._predict(active, images, rest[:n_extra])
         if self.speed_control is not None:
             throttle = self.speed_control.run(throttle, rest[n_extra], None)  # its own target speed
             if throttle is None or not math.isfinite(throttle):
@@ -197,10 +200,13 @@ class Pilot:
             active.history.append((angle, throttle))
         return angle, throttle
 
-    def _predict(self, active: _Active, image: np.ndarray,
+    def _predict(self, active: _Active, views: tuple[np.ndarray, ...],
                  extra_values: tuple[Any, ...]) -> tuple[float, float]:
         runner = active.runner
-        x = runner.preprocess(image)
+        if len(views) > 1:  # (1, V, C, H, W): every view through the same preprocessing
+            images = np.stack([runner.preprocess(view) for view in views])[None]
+            return self._finish(runner, images, self._extra(active, extra_values))
+        x = runner.preprocess(views[0])
         if runner.frames > 1:
             if not active.frames:  # first frame: the past is unknown, repeat it
                 active.frames.extend([x] * runner.frames)
@@ -209,7 +215,10 @@ class Pilot:
             images = np.stack(active.frames)[None]
         else:
             images = x[None]
-        extra = self._extra(active, extra_values)
+        return self._finish(runner, images, self._extra(active, extra_values))
+
+    def _finish(self, runner: Runner, images: np.ndarray, extra: np.ndarray | None) -> tuple[float, float]:
+        """The runner's prediction, clamped to [-1, 1]; a non-finite one becomes (0, 0)."""
         angle, throttle = runner.predict(images, extra)
         if not (math.isfinite(angle) and math.isfinite(throttle)):
             self.nonfinite_count += 1
@@ -298,11 +307,12 @@ class Pilot:
             self._refuse(path, str(exc))
             return
         old = self._active
-        if self.lock_inputs and runner.extra_inputs != old.runner.extra_inputs:
+        if self.lock_inputs and (runner.image_inputs, runner.extra_inputs) != \
+                (old.runner.image_inputs, old.runner.extra_inputs):
             runner.close()
-            self._refuse(path, f"the model needs inputs {[IMAGE_KEY, *runner.extra_inputs]} but the pilot "
-                         f"was wired with {[IMAGE_KEY, *old.runner.extra_inputs]}; restart the car with "
-                         "this model instead")
+            self._refuse(path, f"the model needs inputs {[*runner.image_inputs, *runner.extra_inputs]} but the "
+                         f"pilot was wired with {[*old.runner.image_inputs, *old.runner.extra_inputs]}; restart "
+                         "the car with this model instead")
             return
         self._active = _Active(runner)  # the swap: one reference assignment, atomic for the loop
         self.load_error = None

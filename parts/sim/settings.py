@@ -86,6 +86,12 @@ SIM_CAMERA_DISTORTION: Annotated[list[float] | None, Length(min=4, max=8, note="
 SIM_CAMERA_W: Annotated[int, Range(8, 4096, unit="pixels")] = IMAGE_W
 # Height of the rendered image in pixels; follows IMAGE_H unless set (e.g. 160).
 SIM_CAMERA_H: Annotated[int, Range(8, 4096, unit="pixels")] = IMAGE_H
+# Side cameras: metres left and right of the centre camera where two more cameras of the same
+# kind look ahead, as the Udacity simulator records them (e.g. 0.1 m on a 1:10 car, whose road is
+# SIM_ROAD_WIDTH wide); the car then also writes
+# cam/image_array_left and cam/image_array_right (recorded by `vehicle sim record`, fed to the
+# three_camera model when driving and in `vehicle sim eval`). None = the centre camera only.
+SIM_SIDE_CAMERAS_OFFSET: Annotated[float | None, Range(0, 2, lo_open=True, unit="m")] = None
 # Standard deviation of per-pixel Gaussian noise on the image (0-255 units; 0 = off).
 SIM_IMAGE_NOISE: Annotated[float, Range(0, 255)] = 0.0
 # Box blur kernel size in pixels (0 or 1 = off).
@@ -185,4 +191,12 @@ def _track(v: Mapping[str, Any]) -> Iterator[Problem]:
 
 
 #: rules across this module's settings, run after every setting passed its own range
-RULES: tuple[Rule, ...] = (_track, ordered_pair("SIM_EVAL_LANE_CHANGE_EVERY"),)
+def _side_cameras(v: Mapping[str, Any]) -> Iterator[Problem]:
+    if v["SIM_SIDE_CAMERAS_OFFSET"] is not None and v.get("CAMERA_UNDISTORT"):
+        yield Problem("SIM_SIDE_CAMERAS_OFFSET", "SIM_SIDE_CAMERAS_OFFSET with CAMERA_UNDISTORT: only the centre "
+                      "frame is undistorted, the side frames would not match it; set one of them off (the "
+                      "simulator's lens is SIM_CAMERA_DISTORTION: None renders undistorted frames)",
+                      ("CAMERA_UNDISTORT",))
+
+
+RULES: tuple[Rule, ...] = (_track, ordered_pair("SIM_EVAL_LANE_CHANGE_EVERY"), _side_cameras)

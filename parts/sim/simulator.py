@@ -41,11 +41,14 @@ OUTPUTS: tuple[str, ...] = (
     "cam/image_array", "cam/timestamp", "sim/cte", "sim/heading_error", "sim/speed", "sim/progress",
     "sim/lap", "sim/lap_time", "sim/off_track", "sim/pos", "sim/track", "enc/speed",
 )
-__all__ = ["OUTPUTS", "SimCar", "load_world", "register_track", "registered_tracks", "world_params"]
+#: what a car with side cameras (SIM_SIDE_CAMERAS_OFFSET) writes too, after :data:`OUTPUTS`
+SIDE_OUTPUTS: tuple[str, ...] = ("cam/image_array_left", "cam/image_array_right")
+__all__ = ["OUTPUTS", "SIDE_OUTPUTS", "SimCar", "load_world", "register_track", "registered_tracks", "world_params"]
 
 
 class SimCar:
-    """Simulated car part. Inputs: angle, throttle[, reset (rising edge)]. Outputs: :data:`OUTPUTS`.
+    """Simulated car part. Inputs: angle, throttle[, reset (rising edge)]. Outputs: :data:`OUTPUTS`
+    (and :data:`SIDE_OUTPUTS` with ``side_cameras``).
 
     Args:
         seeds: track seeds; with several, the car moves to the next track after each lap.
@@ -70,6 +73,9 @@ class SimCar:
         seed: seed of the per-frame random draws (SIM_SEED).
         measured_speed: also write the true speed as ``enc/speed`` (False when simulated encoders
             and the odometer measure it, as on a real car).
+        side_cameras: metres left and right of the centre camera where two more cameras of the
+            same kind look ahead (SIM_SIDE_CAMERAS_OFFSET), as in the Udacity simulator; their
+            frames are ``cam/image_array_left`` and ``cam/image_array_right``. None: no side cameras.
     """
 
     INPUTS: ClassVar[tuple[str, ...]] = ("angle", "throttle", "sim/reset")
@@ -78,7 +84,9 @@ class SimCar:
     FEEDBACK: ClassVar[tuple[str, ...]] = ("angle", "throttle")
     #: a car may have no reset button
     OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("sim/reset",)
-    OUTPUTS: tuple[str, ...] = OUTPUTS  # without enc/speed when measured_speed is False
+    #: without enc/speed when measured_speed is False; a car with side cameras declares
+    #: :data:`SIDE_OUTPUTS` too (set per instance)
+    OUTPUTS: tuple[str, ...] = OUTPUTS
 
     @property
     def OUTPUT_SHAPES(self) -> dict[str, tuple[int, ...]]:  # noqa: N802 - the part declaration
@@ -90,7 +98,7 @@ class SimCar:
                  themes: Sequence[str] | str = ("road",), reset_off_track: bool = True, reset_to: str = "start",
                  off_track_cte: float | None = None, sensor: dict[str, Any] | None = None, realtime: bool = True,
                  start_offset: float = 0.0, switch_every: int | None = None, render: bool = True,
-                 seed: int = 0, measured_speed: bool = True) -> None:
+                 seed: int = 0, measured_speed: bool = True, side_cameras: float | None = None) -> None:
         seeds = [seeds] if isinstance(seeds, int) else list(seeds)
         if not seeds or not all(isinstance(s, int | np.integer) and not isinstance(s, bool) for s in seeds):
             raise ValueError(f"track seeds must be a non-empty list of ints, got {seeds!r}")
@@ -124,8 +132,13 @@ class SimCar:
         self.switch_every = switch_every
         self.render_images = bool(render)
         self.measured_speed = bool(measured_speed)
-        if not self.measured_speed:  # the odometer writes enc/speed from simulated encoder ticks
-            self.OUTPUTS = OUTPUTS[:-1]
+        if side_cameras is not None and not (math.isfinite(side_cameras) and side_cameras > 0):
+            raise ValueError(f"side camera offset must be > 0 m or None, got {side_cameras!r}")
+        self.side_cameras = None if side_cameras is None else float(side_cameras)
+        # this car's declaration: without enc/speed when the odometer writes it from simulated
+        # encoder ticks, with the side frames when it has side cameras
+        self.OUTPUTS = (OUTPUTS if self.measured_speed else OUTPUTS[:-1]) + \
+            (SIDE_OUTPUTS if self.side_cameras is not None else ())
         self.frame_seed = int(seed)
         self.time = 0.0  # simulated seconds since the part was made
         self.steps = 0
@@ -151,7 +164,7 @@ class SimCar:
             "reset_to": cfg.SIM_RESET_TO, "off_track_cte": cfg.SIM_OFF_TRACK_CTE,
             "sensor": {"noise": cfg.SIM_IMAGE_NOISE, "blur": cfg.SIM_IMAGE_BLUR,
                        "brightness": cfg.SIM_BRIGHTNESS_JITTER},
-            "realtime": cfg.SIM_REALTIME, "seed": cfg.SIM_SEED}
+            "realtime": cfg.SIM_REALTIME, "seed": cfg.SIM_SEED, "side_cameras": cfg.SIM_SIDE_CAMERAS_OFFSET}
         if cfg.SIM_LANES == 2:  # start (and re-centre) in the lane the expert keeps to
             lane = "left" if cfg.SIM_EXPERT_LANE == "left" else "right"
             if cfg.SIM_EXPERT_LANE != "center":
@@ -283,14 +296,16 @@ class SimCar:
             frame = self.frame  # the first frame on the new track
         return frame
 
-    def render(self) -> np.ndarray | None:
+    def render(self, left: float = 0.0) -> np.ndarray | None:
         """The camera image for the car's current pose (a new HxWx3 uint8 RGB array; None when
-        the part does not render)."""
+        the part does not render); ``left``: of a camera that many metres left of the centre one
+        (negative: right), looking the same way."""
         if self.world is None:
             return None
         st = self.car.state
+        x, y = st.x - left * math.sin(st.heading), st.y + left * math.cos(st.heading)
         scenery = None if self.world.scenery.empty else self.world.scenery
-        img = self.camera.render(self.world.texture, st.x, st.y, st.heading, scenery=scenery)
+        img = self.camera.render(self.world.texture, x, y, st.heading, scenery=scenery)
         if self.sensor is not None:
             self.sensor.apply(img, st.speed)
         return img
@@ -314,7 +329,11 @@ class SimCar:
         assert f is not None  # set by select_track()
         values = (self.render(), self.timestamp(), f.cte, f.heading_error, f.speed, f.progress, f.lap,
                   f.lap_time, f.off_track, f.pos, self.seed)
-        return (*values, f.speed) if self.measured_speed else values
+        if self.measured_speed:
+            values = (*values, f.speed)
+        if self.side_cameras is None:
+            return values
+        return (*values, self.render(self.side_cameras), self.render(-self.side_cameras))
 
     def shutdown(self) -> None:
         """Log a short summary of the run."""

@@ -191,7 +191,8 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
         (:func:`parts.sim.lane_metrics.lane_metrics`).
 
     Raises:
-        ValueError: bad arguments, or the pilot reads keys nothing produces (a WiringError).
+        ValueError: bad arguments, or the pilot reads keys nothing produces (a WiringError; a
+            three_camera model needs SIM_SIDE_CAMERAS_OFFSET in the built-in simulator).
         parts.bridges.errors.BridgeError: the Donkey or Udacity simulator cannot be reached.
     """
     cfg = cfg if cfg is not None else _default_config()
@@ -235,6 +236,8 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
         if driver == "expert" and sim != "builtin":
             raise ValueError(f"the expert drives the built-in simulator only: pass a model file to evaluate on "
                              f"the {sim} simulator")
+        if driver != "expert":
+            _check_views(driver, name, cfg, sim, extra_inputs)
         lanes_on = sim == "builtin" and _lane_changes(driver, cfg, extra_inputs, lane_changes)
         if driver != "expert" and not lanes_on and BEHAVIOR_KEY not in (extra_inputs or {}):
             try:  # as manage.py drive: the user's setting, not the wiring
@@ -426,6 +429,20 @@ def add_engaged_pilot(V: Vehicle, driver: Any, fixed_throttle: float | None) -> 
     V.add(Engaged(fixed_throttle))
     V.add(PilotCondition())
     V.add(Lent(driver), run_condition="run_pilot")
+
+
+def _check_views(driver: Any, name: str, cfg: Any, sim: str, extra_inputs: dict[str, Any] | None) -> None:
+    """WiringError (one line) when the pilot takes camera frames the simulator does not make: the
+    three_camera model's side frames come from the built-in simulator with SIM_SIDE_CAMERAS_OFFSET."""
+    from parts.sim.simulator import SIDE_OUTPUTS
+    from vehicle.app.assembly.pilot import check_views
+
+    inputs = tuple(getattr(driver, "INPUTS", None) or getattr(driver, "inputs", None) or DEFAULT_PILOT_INPUTS)
+    made = {"cam/image_array", *(extra_inputs or {})}
+    if sim == "builtin" and cfg.SIM_SIDE_CAMERAS_OFFSET is not None:
+        made.update(SIDE_OUTPUTS)
+    views = [key for key in inputs if key.startswith("cam/image_array")]
+    check_views(name, views, made.__contains__, sim)
 
 
 def _lane_changes(driver: Any, cfg: Any, extra_inputs: dict[str, Any] | None, asked: bool | None) -> bool:

@@ -9,6 +9,9 @@ With ``lane_changes`` (two-lane tracks), a :class:`parts.drive.behavior.Behavior
 behaviour (BEHAVIOR_LIST, e.g. Left_Lane / Right_Lane) at seeded random times, the expert moves
 to the lane of the active behaviour, and every record carries ``behavior/state``,
 ``behavior/label`` and ``behavior/one_hot_state_array``: the thesis's lane-change data.
+
+With SIM_SIDE_CAMERAS_OFFSET every record also holds the side cameras' frames
+(``cam/image_array_left``, ``cam/image_array_right``): the three_camera model's data.
 """
 
 from __future__ import annotations
@@ -114,6 +117,10 @@ def record_expert(cfg: Any, seeds: Sequence[int] | None, n_records: int, tub_pat
     if len(seeds) > 1:
         sim.switch_every = math.ceil(n_records / len(seeds))
     fields = list(RECORD_FIELDS)
+    if cfg.SIM_SIDE_CAMERAS_OFFSET is not None:  # left and right frames, as `vehicle tub import-udacity` has them
+        from vehicle.app.assembly.tub import SIDE_CAMERA_KEYS
+
+        fields += [(key, "image_array") for key in SIDE_CAMERA_KEYS]
     if cfg.TRAIN_BEHAVIORS:
         from parts.drive.behavior import BehaviorSchedule, behavior_lane, random_change_times
         from vehicle.app.assembly.drive import add_behavior

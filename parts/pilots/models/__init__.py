@@ -20,6 +20,7 @@ from parts.pilots.models.cnn import (
     MemoryModel,
 )
 from parts.pilots.models.lanes import LanesBasicModel, LanesModel
+from parts.pilots.models.multicam import ThreeCameraModel
 from parts.pilots.models.pilotnet import NvidiaModel, PilotNetModel
 from parts.pilots.models.sequence import Conv3DModel, RNNModel
 
@@ -39,7 +40,7 @@ def register_model_type(cls: type[PilotModel]) -> type[PilotModel]:
 
 
 for _cls in (LinearModel, LinearTanhModel, CategoricalModel, InferredModel, PilotNetModel, MemoryModel,
-             BehaviorModel, RNNModel, Conv3DModel, LanesModel, LanesBasicModel, NvidiaModel):
+             BehaviorModel, RNNModel, Conv3DModel, LanesModel, LanesBasicModel, NvidiaModel, ThreeCameraModel):
     register_model_type(_cls)
 
 

@@ -6,7 +6,9 @@ A model's contract (what training, the pilot part and export rely on):
   preprocessed (see :mod:`parts.pilots.preprocess`), or ``(N, T, C, H, W)`` when
   ``frames > 1`` (sequence models, oldest frame first). ``extra`` is a float batch ``(N, E)``
   when ``extra_size > 0``: the previous commands (``memory``) or the one-hot behaviour state
-  (``behavior``). Returns one tensor ``(N, K)`` of raw outputs.
+  (``behavior``). A model of several camera views (``image_inputs``, e.g. the left, centre and
+  right cameras) takes ``(N, V, C, H, W)``, the views in the order of ``image_inputs``.
+  Returns one tensor ``(N, K)`` of raw outputs.
 - ``loss(output, target)``: ``target`` is always ``(N, 2)`` = (angle, throttle) in [-1, 1].
 - ``controls(output)``: ``(N, 2)`` = (angle, throttle) to drive with.
 - ``options``: plain values that rebuild the same architecture (stored in the model file).
@@ -25,7 +27,9 @@ class PilotModel(nn.Module):
 
     #: registry name, set by each subclass
     type_name: ClassVar[str] = ""
-    #: memory keys the model needs beyond ``cam/image_array`` (e.g. the behaviour one-hot)
+    #: camera frames the model takes per sample, in the order of its views (memory keys)
+    image_inputs: ClassVar[tuple[str, ...]] = ("cam/image_array",)
+    #: memory keys the model needs beyond its camera frames (e.g. the behaviour one-hot)
     extra_inputs: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
@@ -40,6 +44,11 @@ class PilotModel(nn.Module):
     @property
     def frames(self) -> int:
         return 1
+
+    #: camera views per sample (>1: ``images`` is (N, V, C, H, W), one view per ``image_inputs`` key)
+    @property
+    def views(self) -> int:
+        return len(self.image_inputs)
 
     #: previous (angle, throttle) pairs fed as extra input (``memory`` model)
     @property
@@ -62,7 +71,8 @@ class PilotModel(nn.Module):
     def describe(self) -> dict[str, Any]:
         """What the model expects and produces, as plain values (stored in the model file)."""
         return {"type": self.type_name, "input_shape": list(self.input_shape), "options": dict(self.options),
-                "frames": self.frames, "command_history": self.command_history,
+                "frames": self.frames, "image_inputs": list(self.image_inputs),
+                "command_history": self.command_history,
                 "extra_inputs": list(self.extra_inputs), "extra_size": self.extra_size}
 
 

@@ -15,8 +15,13 @@ ALL_TYPES = ["linear", "linear_tanh", "categorical", "inferred", "pilotnet", "me
              "lanes_basic", "nvidia"]
 
 
+#: types of several camera views, tested in test_three_camera.py (tubs of the centre camera cannot train them)
+VIEW_TYPES = ["three_camera"]
+
+
 def test_registry_lists_every_type():
-    assert model_type_names() == sorted(ALL_TYPES)
+    assert model_type_names() == sorted(ALL_TYPES + VIEW_TYPES)
+    assert all(model_type(name).image_inputs == ("cam/image_array",) for name in ALL_TYPES)
 
 
 def test_pilotnet_has_exactly_252219_parameters_on_66x200():

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 from vehicle.config import Config
-from vehicle.errors import UserError
+from vehicle.errors import UserError, WiringError
 
 logger = logging.getLogger(__name__)
 
@@ -44,11 +45,48 @@ def check_behavior_input(pilot: Any, cfg: Config) -> None:
                     "in myconfig.py")
 
 
+#: what to do about a model of several camera views (three_camera) in a car that lacks some,
+#: by what makes the car's frames
+VIEWS_HINTS = {
+    "builtin": "set SIM_SIDE_CAMERAS_OFFSET in myconfig.py (the offset in metres its tubs were recorded with)",
+    "udacity": "the Udacity simulator sends only the centre frame while driving (it records the side cameras "
+               "but never streams them): drive this model in the built-in simulator with SIM_SIDE_CAMERAS_OFFSET, "
+               "or train a single-camera model on the same tubs (e.g. --recipe track-driver-ai, which learns "
+               "from the side frames as extra samples)",
+    "donkey": "the Donkey simulator sends one camera: drive this model in the built-in simulator with "
+              "SIM_SIDE_CAMERAS_OFFSET, or train a single-camera model",
+    "car": "this car has one camera: give it parts that write the side frames, or train a single-camera model "
+           "(e.g. pilotnet with TRAIN_SIDE_CAMERAS, which learns from the side frames as extra samples)",
+}
+
+
+def check_views(name: str, image_inputs: Sequence[str], available: Callable[[str], bool], car: str) -> None:
+    """Raise WiringError (one line: what is missing, why, what to do) unless the car makes every
+    camera frame of ``image_inputs``; ``car`` is a key of :data:`VIEWS_HINTS`."""
+    missing = [key for key in image_inputs if not available(key)]
+    if missing:
+        raise WiringError(f"{name} takes the frames {', '.join(image_inputs)} together, but this car makes no "
+                          f"{' and no '.join(missing)}: {VIEWS_HINTS[car]}")
+
+
+def frames_source(V: Any) -> str:
+    """What makes a vehicle's camera frames: "builtin", "udacity", "donkey" (simulators) or "car"."""
+    from parts.bridges.donkey_client import DonkeySim
+    from parts.bridges.udacity_sim import UdacitySim
+    from parts.sim.simulator import SimCar
+
+    for kind, cls in (("builtin", SimCar), ("udacity", UdacitySim), ("donkey", DonkeySim)):
+        if V.find(cls):
+            return kind
+    return "car"
+
+
 def add_pilot(V: Any, cfg: Config, model_path: str | Path) -> Any:
     """Add PilotCondition (``user/mode`` -> ``run_pilot``), the model switcher and the Pilot.
 
     The pilot runs only while ``run_pilot`` is True and reads the inputs its model file declares
-    (``cam/image_array`` first); it outputs ``pilot/angle`` and ``pilot/throttle``. A
+    (``cam/image_array`` first; the three-camera model's side frames are refused, with what to do,
+    where the car makes none); it outputs ``pilot/angle`` and ``pilot/throttle``. A
     :class:`parts.pilots.pilot.ModelSwitch` (every loop) loads the model named in
     ``pilot/model_request`` in the background and outputs ``pilot/model``. With
     PILOT_SPEED_CONTROL and PILOT_SPEED_LIMIT set, a speed controller replaces the model's throttle
@@ -58,6 +96,7 @@ def add_pilot(V: Any, cfg: Config, model_path: str | Path) -> Any:
 
     Raises:
         UserError: the model file is missing, unreadable, or the backend setting cannot be met.
+        WiringError: the model takes camera frames the car does not make (:func:`check_views`).
     """
     from parts.drive.modes import PilotCondition
     from parts.pilots.pilot import ModelSwitch
@@ -65,6 +104,12 @@ def add_pilot(V: Any, cfg: Config, model_path: str | Path) -> Any:
     frame_shape, frame_hint = camera_frames(V)
     pilot = make_pilot(cfg, model_path, measured_speed_key=speed_key_of(V, cfg), frame_shape=frame_shape,
                        frame_hint=frame_hint)
+    try:  # a three-camera model needs the side frames
+        check_views(pilot.model_name, pilot.runner.image_inputs, lambda k: V.produces(k) or k in V.mem,
+                    frames_source(V))
+    except WiringError:
+        pilot.shutdown()
+        raise
     if not V.produces(BEHAVIOR_KEY) and BEHAVIOR_KEY not in V.mem:
         try:
             check_behavior_input(pilot, cfg)

@@ -25,6 +25,9 @@ SENSOR_FIELDS: dict[str, tuple[tuple[str, str], ...]] = {
     "USE_LIDAR": (("lidar/dist_array", "vector"),),
 }
 
+#: cameras beside the centre one, recorded when a part makes them (the three_camera model's views)
+SIDE_CAMERA_KEYS = ("cam/image_array_left", "cam/image_array_right")
+
 
 def new_tub_path(data_path: Path) -> Path:
     """``data_path/tub_<N>_<YY-MM-DD>`` with N one above the highest existing tub number."""
@@ -50,7 +53,8 @@ def add_tub_writer(V: Any, cfg: Any, inputs: list[str] | None = None, types: lis
 
     ``inputs``/``types`` default to TUB_INPUTS/TUB_TYPES (plus pilot/angle and pilot/throttle with
     RECORD_DURING_AI, when a pilot part was added, the behaviour keys with TRAIN_BEHAVIORS, and the
-    keys of the sensors HAVE_ODOM, HAVE_IMU, HAVE_GPS, USE_LIDAR switch on: :data:`SENSOR_FIELDS`).
+    keys of the sensors HAVE_ODOM, HAVE_IMU, HAVE_GPS, USE_LIDAR switch on: :data:`SENSOR_FIELDS`; the
+    side cameras' frames when a part makes them).
     When a part produces ``cam/timestamp`` it is recorded as ``_timestamp_ms``. When a part
     produces ``tub/erase``, a TubWiper deletes the last ERASE_LAST_N_RECORDS records on each press.
     """
@@ -71,6 +75,10 @@ def add_tub_writer(V: Any, cfg: Any, inputs: list[str] | None = None, types: lis
                 if getattr(cfg, switch, False) and key not in inputs and _produced(V, key):
                     inputs.append(key)
                     types.append(tp)
+        for key in SIDE_CAMERA_KEYS:  # the simulator's side cameras (SIM_SIDE_CAMERAS_OFFSET)
+            if key not in inputs and _produced(V, key):
+                inputs.append(key)
+                types.append("image_array")
         if getattr(cfg, "TRAIN_BEHAVIORS", False):  # as DonkeyCar: behaviour drives record it
             for key, tp in BEHAVIOR_FIELDS:
                 if key not in inputs and _produced(V, key):
