@@ -70,11 +70,23 @@ def main(argv: list[str]) -> int:
             sh(BIN / "vehicle", "demo", env=env)
         else:
             install_browser()
-            sh(BIN / "ruff", "check", "vehicle", "parts", "templates", "tests", "bench", "bootstrap.py")
-            sh(BIN / "python", "-m", "pytest", "-q", env=env)
+            sh(BIN / "ruff", "check", "vehicle", "parts", "training", "templates", "tests", "bench", "bootstrap.py")
+            # in parallel, one worker per core; a test file stays on one worker (its module
+            # fixtures are built once, its tests share their files and servers in order)
+            sh(BIN / "python", "-m", "pytest", "-q", "-n", "auto", "--dist", "loadfile", env=env)
     except subprocess.CalledProcessError as exc:
-        return exc.returncode or 1
+        return exit_status(exc.returncode)
+    except KeyboardInterrupt:
+        return 130
     return 0
+
+
+def exit_status(returncode: int) -> int:
+    """The command's exit status as a shell reports it: pytest's own (1 failed tests, 2
+    interrupted, 3 internal error, 4 usage error, 5 no tests), 128 + N for a child killed by signal N."""
+    if returncode < 0:
+        return 128 - returncode
+    return returncode or 1
 
 
 if __name__ == "__main__":

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from fixtures.carpath import unity_cross_track_err
 from fixtures.fake_donkey_sim import FakeDonkeySim
+from fixtures.load import scaled, wait_until
 
 from parts.bridges import donkey_protocol as proto
 from parts.bridges.donkey_client import CarLook, DonkeySim
@@ -21,7 +22,7 @@ from parts.bridges.errors import BridgeError
 
 @contextmanager
 def client(sim: FakeDonkeySim, **kwargs: Any) -> Iterator[DonkeySim]:
-    part = DonkeySim(port=sim.port, connect_timeout_s=3, **kwargs)
+    part = DonkeySim(port=sim.port, connect_timeout_s=scaled(3), **kwargs)
     part.start()
     try:
         yield part
@@ -326,9 +327,9 @@ def test_cte_keeps_the_simulators_sign() -> None:
     """The simulator's cte is positive right of the path, as ours: passed through unchanged."""
     with FakeDonkeySim(port=0, wall_cte=100) as sim, client(sim, max_cte=None) as part:
         for right in (1.5, -0.75):
-            sim.cars[0].right = right
-            time.sleep(0.25)
-            assert outputs(part, 0.0, 0.0, False)["sim/cte"] == pytest.approx(right, abs=0.05)
+            sim.cars[0].right = right  # reaches the part with the next telemetry
+            assert wait_until(lambda r=right: outputs(part, 0.0, 0.0, False)["sim/cte"] == pytest.approx(r, abs=0.05),
+                              5.0), outputs(part, 0.0, 0.0, False)["sim/cte"]
 
 
 def test_step_mode_is_not_asked_of_the_donkey_simulator(caplog: pytest.LogCaptureFixture) -> None:

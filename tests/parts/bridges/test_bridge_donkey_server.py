@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import pytest
 from fixtures.carpath import unity_cross_track_err
+from fixtures.load import scaled
 from PIL import Image
 
 from parts.bridges import donkey_protocol as proto
@@ -140,7 +141,7 @@ class GymStyleClient:
 
     def observe(self, timeout: float = 5.0) -> dict[str, Any]:
         last = self.received_at
-        end = time.monotonic() + timeout
+        end = time.monotonic() + scaled(timeout)
         while self.received_at == last and time.monotonic() < end:
             time.sleep(0.001)
         assert self.received_at != last, "no telemetry"
@@ -181,7 +182,7 @@ class GymStyleClient:
         self.sock.close()
 
     def wait_loaded(self, timeout: float = 10.0) -> None:
-        end = time.monotonic() + timeout
+        end = time.monotonic() + scaled(timeout)
         while not self.loaded and self.error is None and time.monotonic() < end:
             time.sleep(0.01)
 
@@ -217,7 +218,7 @@ def test_gym_style_client_runs_episodes(server: DonkeyServer) -> None:
 def test_gym_style_client_gets_every_scene_of_the_gym_ids(server: DonkeyServer) -> None:
     env = GymStyleClient(server.port, level="no_such_level")
     try:
-        env.wait_loaded(3)
+        env.wait_loaded(3)  # (scaled) long enough for the error, not for a load
         assert isinstance(env.error, ValueError) and not env.loaded
     finally:
         env.close()
@@ -243,7 +244,8 @@ class ShadowExpert:
 
 
 def test_our_client_laps_our_server_in_synchronous_steps(server: DonkeyServer) -> None:
-    sim = DonkeySim(port=server.port, scene="track_5", synchronous=True, time_step=0.05, connect_timeout_s=3)
+    sim = DonkeySim(port=server.port, scene="track_5", synchronous=True, time_step=0.05, connect_timeout_s=scaled(3),
+                    timeout_s=scaled(1))
     driver = ShadowExpert(5)
     try:
         out = dict(zip(DonkeySim.OUTPUTS, sim.run(0.0, 0.0, False), strict=True))
@@ -269,8 +271,8 @@ def test_our_client_laps_our_server_in_synchronous_steps(server: DonkeyServer) -
 
 
 def test_several_clients_each_with_their_own_car_and_track(server: DonkeyServer) -> None:
-    a = DonkeySim(port=server.port, scene="track_5", connect_timeout_s=3).start()
-    b = DonkeySim(port=server.port, scene="track_6", connect_timeout_s=3).start()
+    a = DonkeySim(port=server.port, scene="track_5", connect_timeout_s=scaled(3), timeout_s=scaled(1)).start()
+    b = DonkeySim(port=server.port, scene="track_6", connect_timeout_s=scaled(3), timeout_s=scaled(1)).start()
     try:
         for _ in range(30):
             out_a = dict(zip(DonkeySim.OUTPUTS, a.run_threaded(0.0, 0.6, False), strict=True))
@@ -287,11 +289,11 @@ def test_several_clients_each_with_their_own_car_and_track(server: DonkeyServer)
 
 
 def test_exit_scene_regen_road_and_node_position(server: DonkeyServer) -> None:
-    with socket.create_connection(("127.0.0.1", server.port), timeout=5) as s:
+    with socket.create_connection(("127.0.0.1", server.port), timeout=scaled(5)) as s:
         stream = proto.JsonStream()
 
         def expect(kind: str) -> dict[str, Any]:
-            end = time.monotonic() + 5
+            end = time.monotonic() + scaled(5)
             while time.monotonic() < end:
                 for msg in stream.feed(s.recv(1 << 16)):
                     if msg["msg_type"] == kind:
@@ -320,7 +322,7 @@ def test_exit_scene_regen_road_and_node_position(server: DonkeyServer) -> None:
 
 def test_client_sees_a_missing_scene(server: DonkeyServer) -> None:
     with pytest.raises(BridgeError, match="no scene 'mars'"):
-        DonkeySim(port=server.port, scene="mars", connect_timeout_s=3).start()
+        DonkeySim(port=server.port, scene="mars", connect_timeout_s=scaled(3)).start()
 
 
 def test_port_in_use_is_one_clear_error(server: DonkeyServer) -> None:
@@ -333,11 +335,11 @@ class RawClient:
     """A bare TCP client of the protocol, for messages no well-behaved client sends."""
 
     def __init__(self, port: int) -> None:
-        self.sock = socket.create_connection(("127.0.0.1", port), timeout=5)
+        self.sock = socket.create_connection(("127.0.0.1", port), timeout=scaled(5))
         self.stream = proto.JsonStream()
 
     def expect(self, kind: str, timeout: float = 5.0) -> dict[str, Any]:
-        end = time.monotonic() + timeout
+        end = time.monotonic() + scaled(timeout)
         while time.monotonic() < end:
             data = self.sock.recv(1 << 16)
             if not data:
@@ -371,12 +373,12 @@ class RawClient:
         except TimeoutError:
             pass
         finally:
-            self.sock.settimeout(5)
+            self.sock.settimeout(scaled(5))
         self.stream = proto.JsonStream()
 
     def closed_within(self, timeout: float) -> bool:
         """Whether the server closes the connection within ``timeout`` s (what it sends is read)."""
-        end = time.monotonic() + timeout
+        end = time.monotonic() + scaled(timeout)
         self.sock.settimeout(0.1)
         while time.monotonic() < end:
             try:
@@ -464,7 +466,8 @@ def test_stream_skips_nested_junk_and_reads_on() -> None:
 
 
 def test_idle_and_oversized_clients_are_disconnected_and_free_their_slot() -> None:
-    with DonkeyServer(port=0, seeds=[5], max_clients=1, idle_timeout_s=0.5) as srv:
+    # idle: no scene asked for this long (scaled: a starved test thread must not look idle itself)
+    with DonkeyServer(port=0, seeds=[5], max_clients=1, idle_timeout_s=scaled(0.5)) as srv:
         idle = RawClient(srv.port)
         idle.expect("scene_selection_ready")
         assert idle.closed_within(5.0)  # it never asked for a scene

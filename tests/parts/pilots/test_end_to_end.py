@@ -11,6 +11,7 @@ import subprocess
 import sys
 
 import pytest
+from fixtures.load import scaled
 
 from vehicle.app.cli import main
 
@@ -30,7 +31,7 @@ SHOW_PLOT = False
 
 def manage(car, *args, timeout=120):
     proc = subprocess.run([sys.executable, "manage.py", *args], cwd=car, capture_output=True, text=True,
-                          timeout=timeout, env={**os.environ, "SDL_VIDEODRIVER": "dummy",
+                          timeout=scaled(timeout), env={**os.environ, "SDL_VIDEODRIVER": "dummy",
                                                 "OMP_NUM_THREADS": "1"})
     assert proc.returncode == 0, f"manage.py {' '.join(args)} failed:\n{proc.stdout}\n{proc.stderr}"
     return proc.stdout + proc.stderr

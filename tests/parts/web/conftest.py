@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from fixtures.load import scaled
 
 from parts.web.controller import WebController
 
@@ -160,7 +161,7 @@ def loop_side(web: WebController) -> LoopSide:
 
 def run(coro: Any) -> Any:
     """Run a test coroutine (no pytest-asyncio needed)."""
-    return asyncio.run(asyncio.wait_for(coro, 30))
+    return asyncio.run(asyncio.wait_for(coro, scaled(30)))  # a guard that grows with the machine's load
 
 
 @pytest.fixture

@@ -92,10 +92,11 @@ def test_page_drives_a_real_vehicle(tmp_path, client_cls, arun, with_gamepad):
         c = client_cls()
         await c.connect(web.port)
         await c.call("set", {"recording": True})
-        while V.mem["throttle"] != pytest.approx(0.7):
+        # the server starts before the loop's first pass ("throttle" is unset until then), and the
+        # loop writes its keys part after part while we read: wait until all three are there
+        while V.mem[["throttle", "angle", "recording"]] != [pytest.approx(0.7), pytest.approx(-0.3), True]:
             await c.call("drive", {"angle": -0.3, "throttle": 0.7})
             await asyncio.sleep(0.02)
-        assert V.mem["angle"] == pytest.approx(-0.3) and V.mem["recording"] is True
         while len(c.frames) < 3:
             await asyncio.sleep(0.02)
         # the page's state messages carry the loop's health, written by the Vehicle

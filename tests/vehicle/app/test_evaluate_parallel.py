@@ -194,3 +194,31 @@ def test_a_ctrl_c_while_workers_start_is_deferred_not_lost():
     child.communicate(b"")
     blocked = next(line for line in status.splitlines() if line.startswith("SigBlk:"))
     assert int(blocked.split()[1], 16) & (1 << (signal.SIGINT - 1))  # a worker started inside is deaf to it
+
+
+_SPAWN_IN_DEFERRAL = """
+import multiprocessing, signal, time
+from vehicle.app.evaluate import _ctrl_c_deferred
+with _ctrl_c_deferred():
+    worker = multiprocessing.get_context("spawn").Process(target=time.sleep, args=(60,), daemon=True)
+    worker.start()  # the process's first: multiprocessing starts its resource tracker before it
+    still_blocked = signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, [])
+    status = open(f"/proc/{worker.pid}/status").read()
+worker.kill()
+blocked = int(next(line for line in status.splitlines() if line.startswith("SigBlk:")).split()[1], 16)
+print(still_blocked, bool(blocked & (1 << (signal.SIGINT - 1))))
+"""
+
+
+def test_the_first_spawned_worker_is_deaf_to_ctrl_c_too():
+    # the full suite's run of the end-to-end Ctrl-C test printed a worker's spawn_main traceback:
+    # multiprocessing starts its resource tracker before a process's first spawned child and then
+    # unblocks SIGINT (and SIGTERM), so the workers were born hearing Ctrl-C after all
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[3]
+    out = subprocess.run([sys.executable, "-c", _SPAWN_IN_DEFERRAL], capture_output=True, text=True, timeout=120,
+                         env=dict(os.environ, PYTHONPATH=str(root)), check=True)
+    assert out.stdout.split() == ["True", "True"], out.stderr  # the parent's block held; the worker inherited it

@@ -147,7 +147,9 @@ def _simulated_car(cfg, limit, mode="user", throttle=1.0):
 
 def test_the_pages_speed_limit_caps_the_car_in_user_mode():
     # issue 21: with PILOT_SPEED_CONTROL = "off" (the default) the limit did nothing
-    cfg = Config.defaults(SIM_RESET_OFF_TRACK=False, SIM_TRACK_SIZE=40.0)
+    # a 40 m track (room to reach top speed) drawn at 2 cm per pixel: no frame is looked at, and at
+    # the default 1 cm a 4000x4000 texture made this the slowest test of the suite
+    cfg = Config.defaults(SIM_RESET_OFF_TRACK=False, SIM_TRACK_SIZE=40.0, SIM_TEXTURE_RES=0.02)
     V, _, log = _simulated_car(cfg, 1.0)
     V.start(rate_hz=20, max_loop_count=200)
     speeds = [s for s, _ in log.rows]

@@ -8,6 +8,8 @@ import socket
 import subprocess
 import sys
 
+from fixtures.load import scaled
+
 from parts.bridges.donkey_client import DonkeySim
 
 
@@ -24,7 +26,7 @@ def test_sim_serve_serves_until_ctrl_c(tmp_path):
                              "--car", str(tmp_path)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=env)
     try:
-        sim = DonkeySim(port=port, scene="track_4", synchronous=True, connect_timeout_s=60)
+        sim = DonkeySim(port=port, scene="track_4", synchronous=True, connect_timeout_s=scaled(60))
         try:
             outs = [dict(zip(DonkeySim.OUTPUTS, sim.run(0.0, 0.5, False), strict=True)) for _ in range(10)]
         finally:
@@ -32,7 +34,7 @@ def test_sim_serve_serves_until_ctrl_c(tmp_path):
         assert outs[-1]["sim/speed"] > 0 and outs[-1]["cam/image_array"].shape == (120, 160, 3)
         assert "track_3" in sim.scene_names and "generated_track" in sim.scene_names
         proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=30)
+        out, err = proc.communicate(timeout=scaled(30))
     finally:
         if proc.poll() is None:
             proc.kill()

@@ -4,20 +4,16 @@ free port in a thread, and Debian's chromium driven by Playwright."""
 from __future__ import annotations
 
 import os
-import shutil
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
+from fixtures.browser import scaled_ms
 from fixtures.tubs import build_donkey_tub
 
 pytest.importorskip("aiohttp")
-
-CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
-                 "--disable-sync", "--no-first-run"]
 
 
 @pytest.fixture
@@ -78,27 +74,16 @@ def url(console: Any) -> str:
     return f"http://127.0.0.1:{console.port}/"
 
 
-@pytest.fixture(scope="session")
-def browser() -> Iterator[Any]:
-    """Debian's headless chromium under Playwright (skipped where it is missing)."""
-    if not Path(CHROMIUM).exists() or shutil.which("chromium") is None:
-        pytest.skip("chromium is not installed (Debian: apt-get install chromium)")
-    sync_api = pytest.importorskip("playwright.sync_api")
-    with sync_api.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        yield b
-        b.close()
-
-
 @pytest.fixture
 def page_factory(browser: Any) -> Iterator[Callable[..., Any]]:
-    """New pages (each in its own browser context, like two browsers); page errors fail the test."""
+    """New pages (each in its own browser context, like two browsers) of the session's chromium
+    (fixtures.browser); waits scale with the machine's load; page errors fail the test."""
     contexts: list[Any] = []
     errors: list[str] = []
 
     def make(width: int = 1280, height: int = 900) -> Any:
         ctx = browser.new_context(viewport={"width": width, "height": height})
-        ctx.set_default_timeout(15000)
+        ctx.set_default_timeout(scaled_ms(15_000))
         contexts.append(ctx)
         page = ctx.new_page()
         page.on("pageerror", lambda exc: errors.append(str(exc)))

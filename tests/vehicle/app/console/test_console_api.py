@@ -11,6 +11,7 @@ import urllib.error
 import urllib.request
 
 import pytest
+from fixtures.load import scaled
 
 
 def request(port, path, method="GET", body=None, headers=None):
@@ -20,7 +21,7 @@ def request(port, path, method="GET", body=None, headers=None):
                                  headers={**({"Content-Type": "application/json"} if body is not None else {}),
                                           **(headers or {})})
     try:
-        with urllib.request.urlopen(req, timeout=30) as resp:
+        with urllib.request.urlopen(req, timeout=scaled(30)) as resp:
             return resp.status, resp.headers, resp.read()
     except urllib.error.HTTPError as exc:
         return exc.code, exc.headers, exc.read()
@@ -34,7 +35,7 @@ def test_off_loopback_rules_need_the_token(console_factory):
     assert request(app.port, "/api/datasets", headers={"X-Vehicle-Token": "secret-token-1"})[0] == 200
     assert request(app.port, "/")[0] == 401
     # the paired URL sets the cookie and sends the browser on to "/": the token leaves the address bar
-    conn = http.client.HTTPConnection("127.0.0.1", app.port, timeout=30)
+    conn = http.client.HTTPConnection("127.0.0.1", app.port, timeout=scaled(30))
     conn.request("GET", "/?token=secret-token-1")
     resp = conn.getresponse()
     cookie = resp.headers["Set-Cookie"]
@@ -77,7 +78,7 @@ def test_errors_are_json_with_the_field(console):
     req = urllib.request.Request(f"http://127.0.0.1:{port}/api/datasets", data=b"name=x", method="POST",
                                  headers={"Content-Type": "application/x-www-form-urlencoded"})
     with pytest.raises(urllib.error.HTTPError) as info:
-        urllib.request.urlopen(req, timeout=10)
+        urllib.request.urlopen(req, timeout=scaled(10))
     assert info.value.code == 415
     assert request(port, "/api/datasets/999")[0] == 404
     assert request(port, "/api/models/nothing")[0] == 404
@@ -85,7 +86,7 @@ def test_errors_are_json_with_the_field(console):
 
 
 def test_the_event_stream_starts_with_the_jobs(console):
-    with urllib.request.urlopen(f"http://127.0.0.1:{console.port}/api/events", timeout=10) as resp:
+    with urllib.request.urlopen(f"http://127.0.0.1:{console.port}/api/events", timeout=scaled(10)) as resp:
         assert resp.headers["Content-Type"] == "text/event-stream"
         line = resp.readline().decode()
     hello = json.loads(line.removeprefix("data: "))
@@ -93,7 +94,7 @@ def test_the_event_stream_starts_with_the_jobs(console):
 
 
 def _wait(port, job, cond, timeout=120.0):
-    end = time.monotonic() + timeout
+    end = time.monotonic() + scaled(timeout)
     while True:
         state = json.loads(request(port, f"/api/jobs/{job}")[2])
         if cond(state):

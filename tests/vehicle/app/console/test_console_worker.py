@@ -12,6 +12,7 @@ import sys
 import time
 
 import pytest
+from fixtures.load import scaled
 
 from training import hyperparams
 from training.model_db import ModelRegistry
@@ -71,7 +72,7 @@ def test_a_console_killed_mid_training_leaves_the_best_model_registered(config, 
     _wait_for(proc, "epoch")
     proc.stdout.close()  # the console is gone: nobody reads the events, nobody writes to stdin
     proc.stdin.close()
-    assert proc.wait(timeout=120) == 0
+    assert proc.wait(timeout=scaled(120)) == 0
     entry = ModelRegistry.for_models_dir(config.path("MODELS_PATH")).get("orphan")
     assert entry.exists and entry.metrics["cancelled"] is True and entry.metrics["epochs"] >= 1
     app = console_factory()
@@ -95,7 +96,7 @@ def test_a_worker_waits_for_the_job_that_holds_the_car_and_can_be_cancelled_mean
         proc.stdin.write(b"cancel\n")
         proc.stdin.flush()
         out = [json.loads(line) for line in proc.stdout]
-        assert proc.wait(timeout=60) == 0
+        assert proc.wait(timeout=scaled(60)) == 0
     finally:
         os.close(fd)
     assert out[-1]["event"] == "end" and out[-1]["status"] == "cancelled"
