@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-TOP_PACKAGES = ("vehicle", "parts", "templates")  # what the wheel installs at the top level
+TOP_PACKAGES = ("vehicle", "parts", "training", "templates")  # what the wheel installs at the top level
 # copied into the build folder to prove they stay out of the wheel (docs/ holds no Python)
 SOURCE = ("pyproject.toml", "README.md", *TOP_PACKAGES, "mycar", "tests", "bench")
 JUNK = shutil.ignore_patterns("__pycache__", "*.pyc", "*.egg-info", "build", ".*")

@@ -164,7 +164,7 @@ def test_ctrl_c_while_a_demo_trains_keeps_and_registers_the_best_model(tmp_path,
 def test_the_demo_says_at_its_start_what_to_expect_on_this_cpu(monkeypatch, tmp_path, capsys, bf16, lanes,
                                                                 expected):
     # issue 27: the README's "about 2 minutes" held on one CPU kind; the demo said nothing
-    from parts.pilots import acceleration
+    from training import acceleration
     from vehicle.app import demo, demo_lanes
 
     monkeypatch.setattr(acceleration, "cpu_caps", lambda: acceleration.DeviceCaps("cpu", "Xeon X", native_bf16=bf16))
