@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from parts.actuators.drivetrain import DrivetrainError
+from parts.serial_port import pyserial_port
 
 
 def open_serial(port: str, baudrate: int, setting: str) -> Any:
@@ -14,7 +15,9 @@ def open_serial(port: str, baudrate: int, setting: str) -> Any:
     except ImportError as exc:
         raise DrivetrainError(f"{setting} = {port!r} needs pyserial: pip install 'vehicle-rc[car]'") from exc
     try:
-        return serial.serial_for_url(port, baudrate=baudrate, timeout=0, write_timeout=0.5)
+        port_ = pyserial_port(port, baudrate, 0)
+        port_.write_timeout = 0.5
+        return port_
     except serial.SerialException as exc:
         text = str(exc)
         if "Permission denied" in text:

@@ -18,6 +18,7 @@ from collections.abc import Callable, Sequence
 from typing import Any, ClassVar, Literal, Protocol
 
 from parts.sensors.freshness import SensorPart
+from parts.serial_port import pyserial_port
 from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
@@ -188,12 +189,7 @@ class SerialTicks:
 
     def open(self) -> None:
         """Open the port and reset the device's counts to zero."""
-        factory = self._factory
-        if factory is None:
-            import serial  # noqa: PLC0415 - hardware library, imported only when a part starts
-
-            def factory(port: str, baudrate: int, timeout: float) -> Any:
-                return serial.serial_for_url(port, baudrate=baudrate, timeout=timeout)
+        factory = self._factory or pyserial_port
         try:
             self._serial = factory(self.port, self.baudrate, self.timeout)
         except (OSError, ValueError) as exc:

@@ -19,6 +19,7 @@ from collections.abc import Callable
 from typing import Any, ClassVar
 
 from parts.sensors.freshness import SensorPart
+from parts.serial_port import pyserial_port
 from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
@@ -143,12 +144,7 @@ class GPS(SensorPart):
                    max_age=cfg.GPS_MAX_AGE_S, nmea_path=path, clock=clock or time.monotonic)
 
     def open(self) -> None:
-        factory = self._factory
-        if factory is None:
-            import serial  # noqa: PLC0415 - hardware library, imported only when a part starts
-
-            def factory(port: str, baudrate: int, timeout: float) -> Any:
-                return serial.serial_for_url(port, baudrate=baudrate, timeout=timeout)
+        factory = self._factory or pyserial_port
         try:
             self._serial = factory(self.port, self.baudrate, 0.5)
         except (OSError, ValueError) as exc:

@@ -30,6 +30,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from parts.sensors.freshness import SensorPart
+from parts.serial_port import pyserial_port
 from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
@@ -118,12 +119,7 @@ class RPLidar(SensorPart):
 
     def open(self) -> None:
         """Open the port, stop any scan, start the motor and a scan, check the descriptor."""
-        factory = self._factory
-        if factory is None:
-            import serial  # noqa: PLC0415 - hardware library, imported only when a part starts
-
-            def factory(port: str, baudrate: int, timeout: float) -> Any:
-                return serial.serial_for_url(port, baudrate=baudrate, timeout=timeout)
+        factory = self._factory or pyserial_port
         try:
             self._serial = factory(self.port, self.baudrate, 0.5)
         except (OSError, ValueError) as exc:
