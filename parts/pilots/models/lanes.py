@@ -34,7 +34,39 @@ def _stream(in_channels: int, slope: float, dropout: float, last_dropout: bool) 
     return nn.Sequential(*layers)
 
 
-class LanesModel(PilotModel):
+class _TwoStreams(PilotModel):
+    """The thesis's two CNN streams, shared by its first iteration and its behavioural model: the
+    raw image's channels and the lane image (the last channel, repeated to 3 as ``GRAY2RGB``), each
+    five convolutions with LeakyReLU and dropout, flattened, Dense 100 and dropout."""
+
+    #: channels the thesis gives the lane stream (a binary image repeated: GRAY2RGB)
+    LANE_CHANNELS = 3
+
+    def _build_streams(self, input_shape: tuple[int, int, int]) -> None:
+        dropout = check_option(self.options, "dropout", float, 0.0)
+        if dropout >= 1.0:
+            raise ValueError(f"model option dropout={dropout} must be < 1")
+        slope = check_option(self.options, "leaky_slope", float, 0.0)
+        channels, h, w = input_shape
+        if channels < 2:
+            raise ValueError(f"model type {self.type_name!r} needs the raw channels plus the lane channel, got "
+                             f"{channels} channel(s): train it with the lanes preprocessing (the type's default)")
+        raw_shape = (channels - 1, h, w)
+        lane_shape = (self.LANE_CHANNELS, h, w)
+        self.image_convs = _stream(raw_shape[0], slope, dropout, last_dropout=True)
+        self.image_dense = nn.Sequential(nn.Linear(flat_size(self.image_convs, raw_shape), 100), nn.Dropout(dropout))
+        self.lane_convs = _stream(self.LANE_CHANNELS, slope, dropout, last_dropout=False)
+        self.lane_dense = nn.Sequential(nn.Linear(flat_size(self.lane_convs, lane_shape), 100), nn.Dropout(dropout))
+
+    def _streams(self, images: torch.Tensor) -> torch.Tensor:
+        """The two streams' Dense 100 outputs, concatenated (N, 200)."""
+        lane = images[:, -1:].expand(-1, self.LANE_CHANNELS, -1, -1)
+        x = self.image_dense(self.image_convs(images[:, :-1]))
+        y = self.lane_dense(self.lane_convs(lane))
+        return torch.cat([x, y], dim=1)
+
+
+class LanesModel(_TwoStreams):
     """Two-stream CNN + behaviour subnetwork, exactly as the thesis's Appendix 5.2 (``oriModel``).
 
     Input: ``images`` (N, C + 1, H, W) = the raw frame's C channels (preprocessed as usual) and,
@@ -80,26 +112,10 @@ class LanesModel(PilotModel):
     #: preprocessing this type defaults to where the car's config leaves a choice open; ``lanes``
     #: makes the preprocessing append the lane image (LANE_* settings) as the last channel
     preprocess_defaults: dict[str, Any] = {"resize": None, "color": "rgb", "normalize": "unit", "lanes": True}
-    #: channels the thesis gives the lane stream (a binary image repeated: GRAY2RGB)
-    LANE_CHANNELS = 3
-
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         super().__init__(input_shape, options)
         self.num_behaviors = check_option(self.options, "num_behaviors", int, 1)
-        dropout = check_option(self.options, "dropout", float, 0.0)
-        if dropout >= 1.0:
-            raise ValueError(f"model option dropout={dropout} must be < 1")
-        slope = check_option(self.options, "leaky_slope", float, 0.0)
-        channels, h, w = input_shape
-        if channels < 2:
-            raise ValueError(f"model type 'lanes' needs the raw channels plus the lane channel, got {channels} "
-                             "channel(s): train it with the lanes preprocessing (the type's default)")
-        raw_shape = (channels - 1, h, w)
-        lane_shape = (self.LANE_CHANNELS, h, w)
-        self.image_convs = _stream(raw_shape[0], slope, dropout, last_dropout=True)
-        self.image_dense = nn.Sequential(nn.Linear(flat_size(self.image_convs, raw_shape), 100), nn.Dropout(dropout))
-        self.lane_convs = _stream(self.LANE_CHANNELS, slope, dropout, last_dropout=False)
-        self.lane_dense = nn.Sequential(nn.Linear(flat_size(self.lane_convs, lane_shape), 100), nn.Dropout(dropout))
+        self._build_streams(input_shape)
         b = 2 * self.num_behaviors
         self.behavior = nn.Sequential(nn.Linear(self.num_behaviors, b), nn.ReLU(),
                                       nn.Linear(b, b), nn.ReLU(), nn.Linear(b, b), nn.ReLU())
@@ -115,17 +131,12 @@ class LanesModel(PilotModel):
     def forward(self, images: torch.Tensor, extra: torch.Tensor | None = None) -> torch.Tensor:
         if extra is None:
             raise ValueError(f"model type 'lanes' needs the behaviour one-hot ({self.num_behaviors} values per sample)")
-        raw = images[:, :-1]
-        lane = images[:, -1:].expand(-1, self.LANE_CHANNELS, -1, -1)
-        x = self.image_dense(self.image_convs(raw))
-        y = self.lane_dense(self.lane_convs(lane))
-        z = self.behavior(extra)
-        c = self.merge(torch.cat([x, y], dim=1))
-        o = self.decide(torch.cat([z, c], dim=1))
+        c = self.merge(self._streams(images))
+        o = self.decide(torch.cat([self.behavior(extra), c], dim=1))
         return torch.cat([self.steering_out(o), self.throttle_out(o)], dim=1)
 
 
-class LanesBasicModel(PilotModel):
+class LanesBasicModel(_TwoStreams):
     """The thesis's first iteration (seed 002, §9.1-9.2.1: ``oriModel``), without behaviours.
 
     The same two streams as :class:`LanesModel` (raw image; binary lane image repeated to 3
@@ -142,28 +153,11 @@ class LanesBasicModel(PilotModel):
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         super().__init__(input_shape, options)
-        dropout = check_option(self.options, "dropout", float, 0.0)
-        if dropout >= 1.0:
-            raise ValueError(f"model option dropout={dropout} must be < 1")
-        slope = check_option(self.options, "leaky_slope", float, 0.0)
-        channels, h, w = input_shape
-        if channels < 2:
-            raise ValueError(f"model type 'lanes_basic' needs the raw channels plus the lane channel, got "
-                             f"{channels} channel(s): train it with the lanes preprocessing (the type's default)")
-        raw_shape = (channels - 1, h, w)
-        lane_shape = (LanesModel.LANE_CHANNELS, h, w)
-        self.image_convs = _stream(raw_shape[0], slope, dropout, last_dropout=True)
-        self.image_dense = nn.Sequential(nn.Linear(flat_size(self.image_convs, raw_shape), 100), nn.Dropout(dropout))
-        self.lane_convs = _stream(LanesModel.LANE_CHANNELS, slope, dropout, last_dropout=False)
-        self.lane_dense = nn.Sequential(nn.Linear(flat_size(self.lane_convs, lane_shape), 100), nn.Dropout(dropout))
+        self._build_streams(input_shape)
         self.decide = nn.Sequential(nn.Linear(200, 100), nn.ReLU(), nn.Linear(100, 50), nn.ReLU())
         self.steering_out = nn.Linear(50, 1)
         self.throttle_out = nn.Linear(50, 1)
 
     def forward(self, images: torch.Tensor, extra: torch.Tensor | None = None) -> torch.Tensor:
-        raw = images[:, :-1]
-        lane = images[:, -1:].expand(-1, LanesModel.LANE_CHANNELS, -1, -1)
-        x = self.image_dense(self.image_convs(raw))
-        y = self.lane_dense(self.lane_convs(lane))
-        o = self.decide(torch.cat([x, y], dim=1))
+        o = self.decide(self._streams(images))
         return torch.cat([self.steering_out(o), self.throttle_out(o)], dim=1)
