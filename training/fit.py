@@ -54,7 +54,10 @@ class FitSettings:
     min_delta: float = 0.0005
     progress: bool | None = None  # None: a bar only when stderr is a terminal
     prefetch: int = 2  # batches read ahead in a background thread (0 = read in the training loop)
-    steps_per_epoch: int | None = None  # batches per epoch (None: the whole training set)
+    # batches per epoch (None: the whole training set once); more than one pass goes round the
+    # training set again, each pass in a new order with new augmentation draws (Keras's
+    # fit(generator, steps_per_epoch=...), which the source documents use)
+    steps_per_epoch: int | None = None
     val_steps: int | None = None  # validation batches per epoch (None: the whole validation set)
 
 
@@ -118,7 +121,18 @@ def plain_plan(device: torch.device) -> TrainPlan:
     return TrainPlan(device.type, pin_memory=cuda, non_blocking=cuda)
 
 
-def _batches(loader: DataLoader, device: torch.device, pre: Preprocess, needs_extra: bool,
+def _passes(loader: DataLoader, epoch: int, epochs: int):
+    """The loader's batches, pass after pass: pass k of epoch e draws as epoch ``e + k * epochs``,
+    so no two passes of a run share an order or augmentation draws."""
+    k = 0
+    while True:
+        if k:
+            _set_epoch(loader, epoch + k * epochs)
+        yield from loader
+        k += 1
+
+
+def _batches(loader: Any, device: torch.device, pre: Preprocess, needs_extra: bool,
              plan: TrainPlan):
     # uint8 images travel to the device (4x fewer bytes than floats), are laid out there, then
     # become floats in one pass that keeps the layout
@@ -203,9 +217,7 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
         logger.warning("fit: should_stop is ignored when training on several processes")
         should_stop = None
     emit = on_event if info.is_main else None
-    n_batches = len(train_loader)
-    if settings.steps_per_epoch is not None:
-        n_batches = min(n_batches, settings.steps_per_epoch)
+    n_batches = len(train_loader) if settings.steps_per_epoch is None else settings.steps_per_epoch
     patience = Patience(settings.min_delta)
     for epoch in range(1, settings.epochs + 1):
         _set_epoch(train_loader, epoch)
@@ -218,7 +230,8 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
 
             bar = tqdm(total=n_batches, desc=f"epoch {epoch}/{settings.epochs}", unit="batch",
                        leave=False, dynamic_ncols=True)
-        batches = islice(_batches(train_loader, device, pre, needs_extra, plan), n_batches)
+        batches = islice(_batches(_passes(train_loader, epoch, settings.epochs), device, pre, needs_extra, plan),
+                         n_batches)
         source = Prefetcher(batches, settings.prefetch) if settings.prefetch > 0 else None
         data_wait = 0.0
         clock = time.perf_counter

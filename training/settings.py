@@ -71,7 +71,8 @@ LEARNING_RATE: Annotated[float, Range(0, lo_open=True),
                          Form("learning_rate", "Learning rate", "Optimisation",
                               why="a step of size 0 or less never learns", flag="--lr")] = 0.001
 # Training steps (batches) per epoch; None = every training sample once. Fewer steps make epochs
-# shorter on a large data set (each epoch then sees a different random part of it).
+# shorter on a large data set (each epoch then sees a different random part of it); more than one
+# pass goes round the data again in a new order with new augmentations (Keras's steps_per_epoch).
 TRAIN_STEPS_PER_EPOCH: Annotated[int | None, Range(1),
                                  Form("steps_per_epoch", "Steps per epoch", "Optimisation",
                                       why="an epoch needs at least one step")] = None

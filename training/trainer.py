@@ -382,7 +382,7 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
             on_event({"event": "start", "type": type_name, "parameters": n_params, "device": str(dev),
                       "records": len(data), "train_samples": prep.info["train_samples"],
                       "val_samples": prep.info["val_samples"], "epochs": epochs, "batch_size": batch_size,
-                      "batches": min(len(train_loader), cfg.TRAIN_STEPS_PER_EPOCH or len(train_loader)),
+                      "batches": cfg.TRAIN_STEPS_PER_EPOCH or len(train_loader),
                       "model": str(model_path)})
             phase("training")
         sink = on_event

@@ -317,3 +317,19 @@ def test_udacity_bc_recipe_doubles_the_samples(tmp_path, torch_one_thread):
     cfg = Config.defaults(**{**RECIPES["udacity-bc"].settings, "MAX_EPOCHS": 1, "BATCH_SIZE": 8})
     metrics = train(cfg, [tub], tmp_path / "m.pt", register=False, recipe=RECIPES["udacity-bc"])
     assert metrics["train_samples"] == 2 * 16 and metrics["val_samples"] == 2 * 4  # 80/20 of 20, mirrored
+
+
+def test_steps_per_epoch_beyond_one_pass_go_round_the_data_again(tiny_tub, tmp_path, torch_one_thread):
+    """The document's 300 steps of 100 per epoch are 300 batches whatever the data's size (Keras's
+    generator); here 96 training samples make 6 batches of 16 a pass, and an epoch asks for 14."""
+    from training.trainer import train
+
+    batches: list[tuple[int, int]] = []
+
+    def on_event(event):
+        if event["event"] == "batch":
+            batches.append((event["epoch"], event["batch"]))
+
+    cfg = Config.defaults(BATCH_SIZE=16, MAX_EPOCHS=2, TRAIN_STEPS_PER_EPOCH=14, AUGMENTATIONS=[], TRAIN_SEED=0)
+    train(cfg, [tiny_tub], tmp_path / "m.pt", register=False, on_event=on_event)
+    assert [b for e, b in batches if e == 1][-1] == 14 and [b for e, b in batches if e == 2][-1] == 14
