@@ -9,6 +9,7 @@ import textwrap
 import time
 
 import pytest
+from fixtures.driving import ScriptedDriver
 
 from parts.actuators.fake_pca9685 import OFF, FakeI2C, read_trace_file
 from vehicle import Vehicle
@@ -20,18 +21,9 @@ from vehicle.errors import PartError
 STEERING_CH, THROTTLE_CH = 1, 0  # the defaults of STEERING_CHANNEL / THROTTLE_CHANNEL
 
 
-class Driver:
-    """Neutral for two loops (so the ESC arms), then steers and drives; may fail at a given loop."""
-
-    def __init__(self, fail_at: int | None = None) -> None:
-        self.n = 0
-        self.fail_at = fail_at
-
-    def run(self) -> tuple[float, float]:
-        self.n += 1
-        if self.n == self.fail_at:
-            raise RuntimeError("pilot crashed")
-        return (0.0, 0.0) if self.n <= 2 else (-1.0, 1.0)
+def Driver(fail_at: int | None = None) -> ScriptedDriver:  # noqa: N802 - reads as the part it makes
+    """Neutral for two loops (so the ESC arms), then full left at full throttle."""
+    return ScriptedDriver(fail_at, drive=(-1.0, 1.0))
 
 
 def _vehicle(cfg: Config, driver: Driver):

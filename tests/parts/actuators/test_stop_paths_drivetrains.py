@@ -20,6 +20,7 @@ from pathlib import Path
 
 import pytest
 from fixtures.drivetrain_rigs import ALL, Rig, ended_in_neutral
+from fixtures.driving import ScriptedDriver as Driver
 
 from vehicle import Vehicle
 from vehicle.app.assembly.drivetrain import add_drivetrain
@@ -33,20 +34,6 @@ def rig(request):
     r = Rig(request.param)
     yield r
     r.close()
-
-
-class Driver:
-    """Neutral for two loops (arming), then angle -1, throttle 0.5; may fail at a given loop."""
-
-    def __init__(self, fail_at: int | None = None) -> None:
-        self.n = 0
-        self.fail_at = fail_at
-
-    def run(self) -> tuple[float, float]:
-        self.n += 1
-        if self.n == self.fail_at:
-            raise RuntimeError("pilot crashed")
-        return (0.0, 0.0) if self.n <= 2 else (-1.0, 0.5)
 
 
 def test_part_exception_ends_in_neutral(rig):

@@ -3,12 +3,10 @@ a set speed in the simulator from encoder ticks."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
+from fixtures.driving import hold_speed_from_ticks
 
-from parts.drive.speed import SpeedLimit
 from parts.drive.speed_tuning import StepTest, TuningError, fit_step, simc_gains
 from parts.sensors.odometry import Odometer
 from parts.sim.sensors import SimSensors
@@ -55,22 +53,10 @@ def test_tuned_gains_hold_a_speed_in_the_simulator() -> None:
     assert model.tau == pytest.approx(1.25, rel=0.2)
     # closed loop with the suggested gains, on the road, from encoder ticks alone
     sim = SimCar([3], render=False, realtime=False, measured_speed=False)
-    from parts.sim.expert import Expert
-
-    sensors, odo, expert = SimSensors(sim, m_per_tick=mm), Odometer(mm, smoothing=2), Expert(sim, speed=3.0)
-    limit = SpeedLimit("enc/speed", dt=sim.dt, kp=gains.kp, ki=gains.ki)
-    angle = throttle = 0.0
-    true = []
-    for step in range(300):
-        sim.run(angle, throttle)
-        ticks, stamp, _ = sensors.run()
-        speed = odo.run(ticks, stamp)[1]
-        angle = expert.run()[0]
-        throttle = limit.run(1.0, speed, 1.2)
-        if step >= 150:
-            true.append(sim.car.state.speed)
+    true = hold_speed_from_ticks(sim, mm, kp=gains.kp, ki=gains.ki, target=1.2, expert_speed=3.0, steps=300,
+                                 settle=150)
     assert np.mean(true) == pytest.approx(1.2, abs=0.08)
-    assert np.std(true) < 0.1 and not math.isnan(np.mean(true))
+    assert np.std(true) < 0.1
 
 
 def test_a_step_cut_short_is_extrapolated() -> None:

@@ -8,9 +8,9 @@ import math
 
 import numpy as np
 import pytest
+from fixtures.driving import hold_speed_from_ticks
 
 from parts.drive.modes import DriveMode
-from parts.drive.speed import SpeedLimit
 from parts.sensors.obstacle import ObstacleStop
 from parts.sensors.odometry import BicyclePose, Odometer
 from parts.sim.expert import Expert
@@ -56,19 +56,8 @@ def test_odometry_matches_ground_truth_over_a_lap() -> None:
 def test_speed_limit_holds_a_speed_from_encoder_ticks_alone() -> None:
     sim = _sim()
     assert "enc/speed" not in sim.OUTPUTS and "sim/speed" in sim.OUTPUTS
-    sensors = SimSensors(sim, m_per_tick=MM_PER_TICK / 1000)
-    odo = Odometer(MM_PER_TICK / 1000, smoothing=2)
-    limit = SpeedLimit("enc/speed", dt=sim.dt, kp=0.3, ki=0.6)
-    expert = Expert(sim, speed=3.5)  # steers; its throttle is replaced by full throttle
-    speed, true_speeds, angle, throttle = None, [], 0.0, 0.0
-    for step in range(400):
-        sim.run(angle, throttle)
-        ticks, stamp, _ = sensors.run()
-        speed = odo.run(ticks, stamp)[1]
-        angle = expert.run()[0]
-        throttle = limit.run(1.0, speed, 1.5)
-        if step >= 200:
-            true_speeds.append(sim.car.state.speed)
+    true_speeds = hold_speed_from_ticks(sim, MM_PER_TICK / 1000, kp=0.3, ki=0.6, target=1.5, expert_speed=3.5,
+                                        steps=400, settle=200)
     assert np.mean(true_speeds) == pytest.approx(1.5, abs=0.1)
     assert max(true_speeds) < 1.5 * 1.15
     assert sim.resets == 0
