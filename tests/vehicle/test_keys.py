@@ -91,3 +91,9 @@ def test_a_malformed_keys_module_is_named(tmp_path, monkeypatch, body, why):
     monkeypatch.syspath_prepend(str(tmp_path))
     with pytest.raises(KeyDeclarationError, match=why):
         collect_keys((root,))
+
+
+def test_key_reference_is_in_sync():
+    from vehicle.config_docs import KEYS_DOC_PATH, render_keys
+
+    assert KEYS_DOC_PATH.read_text() == render_keys(), "run: python -m vehicle.config_docs"
