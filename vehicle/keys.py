@@ -100,6 +100,7 @@ def collect_keys(roots: Sequence[str] = FAMILY_ROOTS) -> KeyTable:
             message names the modules.
     """
     table = KeyTable(dict(KEYS), dict.fromkeys(KEYS, __name__), {})
+    alias_file: dict[str, str] = {}  # old name -> the file that declares the alias
     for name in family_modules("keys.py", roots):
         module = importlib.import_module(name)
         declared = getattr(module, "KEYS", None)
@@ -119,11 +120,11 @@ def collect_keys(roots: Sequence[str] = FAMILY_ROOTS) -> KeyTable:
             if old in table.aliases:
                 raise KeyDeclarationError(f"{module.__file__}: old key name {old!r} is already an alias of "
                                           f"{table.aliases[old]!r}; declare each alias once")
-            table.aliases[old] = new
+            table.aliases[old], alias_file[old] = new, str(module.__file__)
     for old, new in table.aliases.items():
         if new not in table.keys or old in table.keys:
-            raise KeyDeclarationError(f"ALIASES: {old!r} -> {new!r} must map an old name to a declared "
-                                      "standard key")
+            raise KeyDeclarationError(f"{alias_file[old]}: ALIASES {old!r} -> {new!r} must map an old name to a "
+                                      "declared standard key")
     return table
 
 
