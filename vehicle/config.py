@@ -2,7 +2,8 @@
 
 Settings are declared beside what they configure: the kernel's in :mod:`vehicle.settings`, every
 family's in a ``settings.py`` of its own package (``parts/cameras/settings.py``, ...), found under
-:data:`SETTINGS_ROOTS` with no list to keep. Each such module follows the rules below; the loader
+:data:`vehicle.discovery.FAMILY_ROOTS` with no list to keep (the same walk finds the families'
+``keys.py``). Each such module follows the rules below; the loader
 reads it by its syntax tree (for the documentation and the derived values) and imports it (for
 the names its annotations use, and its ``RULES`` across settings):
 
@@ -27,7 +28,6 @@ from __future__ import annotations
 import ast
 import difflib
 import importlib
-import importlib.util
 import logging
 import os
 import types
@@ -40,6 +40,7 @@ from pathlib import Path
 from typing import Annotated, Any
 
 from vehicle.config_checks import Checked, Constraint, Length, OneOf, Range, Rule
+from vehicle.discovery import FAMILY_ROOTS, family_modules
 from vehicle.errors import VehicleError
 from vehicle.keys import Mode
 
@@ -47,10 +48,6 @@ logger = logging.getLogger(__name__)
 
 #: the kernel's own settings (paths and the loop), always first
 KERNEL_SETTINGS = "vehicle.settings"
-#: packages whose every ``settings.py``, at any depth, declares settings; docs/config.md lists
-#: them in this order, each package's modules by path. A new family adds its own settings.py.
-SETTINGS_ROOTS: tuple[str, ...] = ("parts", "training", "vehicle.app")
-
 #: DonkeyCar settings that have another name here, so a copied myconfig.py gets a precise hint
 RENAMED: dict[str, str] = {
     "WEB_INIT_MODE": "DEFAULT_MODE",
@@ -83,19 +80,10 @@ class Setting:
         return Path(_module(self.module).__file__ or "")
 
 
-def settings_modules(roots: Sequence[str] = SETTINGS_ROOTS) -> list[str]:
-    """The settings modules: the kernel's, then every ``settings.py`` in a package under ``roots``."""
-    names = [KERNEL_SETTINGS]
-    for root in roots:
-        spec = importlib.util.find_spec(root)
-        for folder in (spec.submodule_search_locations or []) if spec else []:
-            for path in sorted(Path(folder).rglob("settings.py")):
-                rel = path.relative_to(folder)
-                if all((Path(folder) / p / "__init__.py").is_file() for p in rel.parents):
-                    name = ".".join((root, *rel.with_suffix("").parts))
-                    if name not in names:
-                        names.append(name)
-    return names
+def settings_modules(roots: Sequence[str] = FAMILY_ROOTS) -> list[str]:
+    """The settings modules: the kernel's, then every ``settings.py`` in a package under ``roots``
+    (:func:`vehicle.discovery.family_modules`). A new family adds its own settings.py."""
+    return [KERNEL_SETTINGS, *family_modules("settings.py", roots)]
 
 
 @cache

@@ -177,7 +177,8 @@ class Checked:
 @dataclass(frozen=True)
 class OneOf:
     """One of a set of names: a family's table (:class:`vehicle.registry.Registry`) or any iterable of
-    strings, read when checked, so a row registered later is valid too."""
+    strings, read when checked, so a row registered later is valid too. A list or tuple value is
+    checked item by item (``list[str]`` settings such as TUB_TYPES)."""
 
     choices: Any
 
@@ -187,7 +188,11 @@ class OneOf:
 
     def problem(self, value: Any) -> str | None:
         """Why ``value`` is invalid, or None."""
-        return None if value in self.names() else "is unknown"
+        names = self.names()
+        if isinstance(value, list | tuple):
+            unknown = [item for item in value if item not in names]
+            return f"holds {unknown[0]!r}, which is unknown" if unknown else None
+        return None if value in names else "is unknown"
 
     def describe(self) -> str:
         """What is valid, e.g. ``one of "PICAM", "MOCK"``."""

@@ -1,22 +1,38 @@
-"""The vocabulary parts share: the standard memory keys and the drive modes.
+"""The vocabulary parts share: memory keys, how they are declared and collected, and the drive modes.
 
 Names follow DonkeyCar where it has one, so tubs and parts interoperate. New keys get a
-namespace (``sim/...``, ``web/...``): ``<namespace>/<name>`` in lower case. Each entry of
-:data:`STANDARD_KEYS` is ``KEY: (type, meaning)``; a user's own parts may use any other string
-key, these are the ones the library itself produces or consumes.
+namespace (``sim/...``, ``web/...``): ``<namespace>/<name>`` in lower case. A user's own parts
+may use any key that follows the rule; the standard keys are the ones the library itself produces
+or consumes, each declared once with its type and meaning, ``KEY: KeyInfo(type, meaning)``:
 
-Part classes declare the keys they read and write once, as class attributes ``INPUTS`` and
-``OUTPUTS`` (and ``OPTIONAL_INPUTS`` / ``FEEDBACK``, see :meth:`vehicle.Vehicle.add`); a car that
-needs other keys renames them with :func:`rename`.
+- the kernel's own (the loop's health, written by :class:`vehicle.Vehicle`) in :data:`KEYS` here;
+- each family's in a ``keys.py`` of its package holding ``KEYS: dict[str, KeyInfo]`` (and, for
+  keys that were renamed, ``ALIASES: dict[str, str]`` of old name -> standard name), e.g.
+  ``parts/sensors/keys.py``. They are found by the same walk as the families' ``settings.py``
+  (:func:`vehicle.discovery.family_modules`), so a new family adds its ``keys.py`` and edits no
+  list; :data:`STANDARD_KEYS` holds them all, collected on first use. docs/keys.md is generated
+  from them (``python -m vehicle.config_docs``).
+
+Part classes declare the keys they read and write once, as class attributes that are tuples of
+key strings, ``INPUTS: ClassVar[tuple[str, ...]] = ("cam/image_array",)`` and ``OUTPUTS`` (and
+``OPTIONAL_INPUTS`` / ``FEEDBACK``, see :meth:`vehicle.Vehicle.add`); a part whose keys depend on
+how it was built (which sensors, how many cameras) declares them as a read-only property returning
+such a tuple. A car that needs other keys renames them when it adds the part, with :func:`rename`,
+never through the part's constructor.
 """
 
 from __future__ import annotations
 
+import importlib
 import logging
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from enum import StrEnum
+from functools import cache
 from typing import NamedTuple
+
+from vehicle.discovery import FAMILY_ROOTS, family_modules
+from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
 
@@ -55,120 +71,87 @@ class KeyInfo(NamedTuple):
     meaning: str
 
 
-STANDARD_KEYS: dict[str, KeyInfo] = {
-    # -- camera
-    "cam/image_array": KeyInfo("ndarray HxWx3 uint8 RGB", "latest camera frame"),
-    "cam/timestamp": KeyInfo("float", "capture time of cam/image_array, seconds (time.time())"),
-    "cam/image_array_left": KeyInfo("ndarray HxWx3 uint8 RGB", "frame of a camera left of the centre one (Udacity "
-                                    "recordings, the simulator's SIM_SIDE_CAMERAS_OFFSET; training: "
-                                    "TRAIN_SIDE_CAMERAS)"),
-    "cam/image_array_right": KeyInfo("ndarray HxWx3 uint8 RGB", "frame of a camera right of the centre one"),
-    "cam/frame_id": KeyInfo("int", "counter of frames delivered by the camera"),
-    "cam/ok": KeyInfo("bool", "False when the camera stopped delivering frames"),
-    # -- human input
-    "user/angle": KeyInfo("float in [-1, 1]", "steering from the human controller, -1 = full left"),
-    "user/throttle": KeyInfo("float in [-1, 1]", "throttle from the human controller, negative = reverse"),
-    "user/mode": KeyInfo("str: user | local_angle | local", "who drives: human, pilot steers, pilot drives"),
-    "recording": KeyInfo("bool", "whether the tub writer records this loop"),
-    "estop": KeyInfo("bool", "emergency stop latched: throttle forced to 0"),
-    "user/speed_limit": KeyInfo("float, m/s, or None", "web page's speed limit: caps the speed in every mode"),
-    "pilot/model_request": KeyInfo("str path or None", "model file the web picker asks the pilot to load"),
-    "controller/active": KeyInfo("str: gamepad | web", "which controller's stick drives (arbitration)"),
-    "web/angle": KeyInfo("float in [-1, 1]", "steering from the web page, before arbitration"),
-    "web/throttle": KeyInfo("float in [-1, 1]", "throttle from the web page, before arbitration"),
-    "web/mode": KeyInfo("str", "drive mode chosen on the web page, before arbitration"),
-    "web/recording": KeyInfo("bool", "record toggle of the web page, before arbitration"),
-    "web/estop": KeyInfo("bool", "emergency stop latched on the web page"),
-    "js/angle": KeyInfo("float in [-1, 1]", "gamepad steering, before arbitration with the web page"),
-    "js/throttle": KeyInfo("float in [-1, 1]", "gamepad throttle, before arbitration"),
-    "js/mode": KeyInfo("str", "gamepad drive mode, before arbitration"),
-    "js/recording": KeyInfo("bool", "gamepad record toggle, before arbitration"),
-    "js/estop": KeyInfo("bool", "emergency stop latched on the gamepad"),
-    "js/status": KeyInfo("str: connected | silent | lost", "the car's gamepad link (shown on the web page)"),
-    # -- pilot
-    "pilot/angle": KeyInfo("float in [-1, 1]", "steering from the pilot"),
-    "pilot/throttle": KeyInfo("float in [-1, 1]", "throttle from the pilot"),
-    "run_pilot": KeyInfo("bool", "True when the pilot must run this loop (mode is not user)"),
-    "pilot/model": KeyInfo("str", "file name of the model driving now (after a hot switch: the new one)"),
-    "pilot/load_error": KeyInfo("str or None", "why the last model asked for was not loaded (None after a success)"),
-    # -- final commands
-    "angle": KeyInfo("float in [-1, 1]", "steering command sent to the drivetrain"),
-    "throttle": KeyInfo("float in [-1, 1]", "throttle command sent to the drivetrain"),
-    # -- behaviour
-    "behavior/state": KeyInfo("int", "index of the active behaviour"),
-    "behavior/label": KeyInfo("str", "name of the active behaviour, e.g. Left_Lane"),
-    "behavior/one_hot_state_array": KeyInfo("list[float]", "one-hot encoding of behavior/state"),
-    "behavior/step": KeyInfo("int", "+1 / -1 for one loop: select the next / previous behaviour"),
-    "web/behavior_step": KeyInfo("int", "behaviour steps asked on the web page this loop (change lane)"),
-    "vision/lane_image": KeyInfo("ndarray HxW uint8", "binary lane image (bird's-eye, 255 = lane pixel)"),
-    "calib/image": KeyInfo("ndarray HxWx3 uint8 RGB", "camera frame with the chessboard corners drawn"),
-    "calib/views": KeyInfo("int", "chessboard views kept for camera calibration"),
-    "calib/found": KeyInfo("bool", "whether the chessboard is in the current frame"),
-    # -- recording
-    "tub/num_records": KeyInfo("int", "records in the current tub"),
-    "tub/erase": KeyInfo("bool", "rising edge: delete the last ERASE_LAST_N_RECORDS records"),
-    # -- simulator
-    "sim/cte": KeyInfo("float, m", "signed cross-track error, positive = right of the centre line "
-                       "(the simulator's own units from the Donkey simulator and Udacity forks)"),
-    "sim/heading_error": KeyInfo("float, rad", "car heading minus track heading"),
-    "sim/speed": KeyInfo("float, m/s", "speed of the simulated car"),
-    "sim/progress": KeyInfo("float in [0, 1)", "fraction of the current lap driven"),
-    "sim/lap": KeyInfo("int", "laps completed"),
-    "sim/lap_time": KeyInfo("float, s", "duration of the last completed lap"),
-    "sim/off_track": KeyInfo("bool", "True while the car is off the road"),
-    "sim/pos": KeyInfo("tuple[float, float], m", "car position in track coordinates"),
-    "sim/track": KeyInfo("int", "seed of the track the simulated car is on"),
-    "sim/reset": KeyInfo("bool", "rising edge puts the simulated car back on its start line"),
-    "sim/steering_deg": KeyInfo("float, degrees", "steering the Udacity simulator reports, positive = right"),
-    "sim/throttle": KeyInfo("float in [-1, 1]", "throttle the Udacity simulator reports"),
-    "sim/manual": KeyInfo("bool", "the user overrides the pilot in the simulator (Udacity: W/S held)"),
-    "sim/hit": KeyInfo("str", "what the simulated car hit this loop, or 'none' (Donkey simulator)"),
-    "sim/time": KeyInfo("float, s", "the simulator's clock (Donkey simulator: time since the scene loaded)"),
-    "sim/extra": KeyInfo("dict", "other telemetry fields of a simulator (Donkey IMU, Udacity fork keys)"),
-    # -- the loop itself (written by the Vehicle every loop)
+class KeyDeclarationError(VehicleError, ValueError):
+    """Two families declare the same memory key, or a ``keys.py`` is malformed."""
+
+
+#: the keys the kernel itself writes: :class:`vehicle.Vehicle` updates them every loop
+KEYS: dict[str, KeyInfo] = {
     "loop/rate_hz": KeyInfo("float, Hz", "achieved loop rate over the last second"),
     "loop/overruns": KeyInfo("int", "loops that started late so far"),
     "loop/count": KeyInfo("int", "loops run so far"),
-    # -- speed and odometry (DonkeyCar's names)
-    "enc/speed": KeyInfo("float, m/s", "measured speed (encoder odometer, VESC RPM or simulator); None when stale"),
-    "enc/ticks": KeyInfo("int", "cumulative signed wheel-encoder ticks"),
-    "enc/left/ticks": KeyInfo("int", "cumulative ticks of the left wheel's encoder (differential drive)"),
-    "enc/right/ticks": KeyInfo("int", "cumulative ticks of the right wheel's encoder (differential drive)"),
-    "enc/timestamp": KeyInfo("float, s", "time of the encoder reading, on the vehicle's clock"),
-    "enc/distance": KeyInfo("float, m", "signed distance driven since start (odometer)"),
-    "enc/left/distance": KeyInfo("float, m", "distance driven by the left wheel"),
-    "enc/right/distance": KeyInfo("float, m", "distance driven by the right wheel"),
-    "enc/ok": KeyInfo("bool", "False while the encoder has not reported within its max age"),
-    "pos/x": KeyInfo("float, m", "odometry pose: x in the start frame"),
-    "pos/y": KeyInfo("float, m", "odometry pose: y in the start frame (left of the start heading)"),
-    "pos/angle": KeyInfo("float, rad", "odometry heading, counter-clockwise, in [-pi, pi)"),
-    "vel/x": KeyInfo("float, m/s", "odometry velocity along x"),
-    "vel/y": KeyInfo("float, m/s", "odometry velocity along y"),
-    "vel/angle": KeyInfo("float, rad/s", "odometry turn rate, counter-clockwise"),
-    # -- IMU (x forward, y left, z up as mounted)
-    "imu/acl_x": KeyInfo("float, m/s^2", "IMU acceleration along x"),
-    "imu/acl_y": KeyInfo("float, m/s^2", "IMU acceleration along y"),
-    "imu/acl_z": KeyInfo("float, m/s^2", "IMU acceleration along z (+9.8 at rest, upright)"),
-    "imu/gyr_x": KeyInfo("float, rad/s", "IMU rotation rate about x"),
-    "imu/gyr_y": KeyInfo("float, rad/s", "IMU rotation rate about y"),
-    "imu/gyr_z": KeyInfo("float, rad/s", "IMU rotation rate about z (counter-clockwise seen from above)"),
-    "imu/ok": KeyInfo("bool", "False while the IMU has not reported within its max age"),
-    # -- GPS (local metric frame: x east, y north, origin at the first fix or GPS_ORIGIN)
-    "gps/x": KeyInfo("float, m", "GPS position east of the local origin; None without a fix"),
-    "gps/y": KeyInfo("float, m", "GPS position north of the local origin; None without a fix"),
-    "gps/latitude": KeyInfo("float, degrees", "GPS latitude"),
-    "gps/longitude": KeyInfo("float, degrees", "GPS longitude"),
-    "gps/accuracy": KeyInfo("float, m", "horizontal accuracy estimate (HDOP x 5 m)"),
-    "gps/speed": KeyInfo("float, m/s", "speed over ground (NMEA RMC)"),
-    "gps/ok": KeyInfo("bool", "a valid, fresh fix"),
-    # -- LiDAR and obstacle stop
-    "lidar/dist_array": KeyInfo("list[float], m", "nearest return per angle bin, bins counter-clockwise "
-                                "from straight ahead, 0.0 = no return"),
-    "lidar/ok": KeyInfo("bool", "False while the LiDAR has not completed a turn within its max age"),
-    "obstacle/stop": KeyInfo("bool", "the obstacle stop is cutting the throttle this loop"),
-    "obstacle/distance": KeyInfo("float, m, or None", "nearest LiDAR return in the cone ahead"),
-    "tune/done": KeyInfo("bool", "the speed step test has finished"),
 }
+
+
+class KeyTable(NamedTuple):
+    """The standard keys collected from the kernel and every family's ``keys.py``."""
+
+    keys: dict[str, KeyInfo]  # key -> what it holds, module by module, each in file order
+    module: dict[str, str]  # key -> the module that declares it
+    aliases: dict[str, str]  # old name -> standard name
+
+
+def collect_keys(roots: Sequence[str] = FAMILY_ROOTS) -> KeyTable:
+    """The kernel's :data:`KEYS`, then those of every ``keys.py`` in a package under ``roots``.
+
+    Raises:
+        KeyDeclarationError: a key (or an old name) is declared twice, a ``KEYS`` entry is not a
+            :class:`KeyInfo`, or an alias does not lead from an old name to a declared key; the
+            message names the modules.
+    """
+    table = KeyTable(dict(KEYS), dict.fromkeys(KEYS, __name__), {})
+    alias_file: dict[str, str] = {}  # old name -> the file that declares the alias
+    for name in family_modules("keys.py", roots):
+        module = importlib.import_module(name)
+        declared = getattr(module, "KEYS", None)
+        if not isinstance(declared, dict):
+            raise KeyDeclarationError(f"{module.__file__}: define KEYS: dict[str, KeyInfo] = {{...}} "
+                                      "(the memory keys this family declares)")
+        for key, info in declared.items():
+            if key in table.keys:
+                raise KeyDeclarationError(f"{module.__file__}: memory key {key!r} is already declared in "
+                                          f"{table.module[key]}; declare each key once, in the family that "
+                                          "writes it")
+            if not (isinstance(key, str) and isinstance(info, KeyInfo)):
+                raise KeyDeclarationError(f"{module.__file__}: KEYS[{key!r}] must map a key string to "
+                                          "KeyInfo(type, meaning)")
+            table.keys[key], table.module[key] = info, name
+        for old, new in getattr(module, "ALIASES", {}).items():
+            if old in table.aliases:
+                raise KeyDeclarationError(f"{module.__file__}: old key name {old!r} is already an alias of "
+                                          f"{table.aliases[old]!r}; declare each alias once")
+            table.aliases[old], alias_file[old] = new, str(module.__file__)
+    for old, new in table.aliases.items():
+        if new not in table.keys or old in table.keys:
+            raise KeyDeclarationError(f"{alias_file[old]}: ALIASES {old!r} -> {new!r} must map an old name to a "
+                                      "declared standard key")
+    return table
+
+
+@cache
+def _collected() -> KeyTable:
+    return collect_keys()
+
+
+class _StandardKeys(Mapping[str, KeyInfo]):
+    """Every standard key -> :class:`KeyInfo`, collected on first use (importing this module
+    imports no family)."""
+
+    def __getitem__(self, key: str) -> KeyInfo:
+        return _collected().keys[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(_collected().keys)
+
+    def __len__(self) -> int:
+        return len(_collected().keys)
+
+    def __repr__(self) -> str:
+        return f"STANDARD_KEYS({len(self)} keys)"
+
+
+#: every standard key: the kernel's and each family's (see the module docstring)
+STANDARD_KEYS: Mapping[str, KeyInfo] = _StandardKeys()
 
 
 def describe(key: str) -> KeyInfo | None:
@@ -176,24 +159,15 @@ def describe(key: str) -> KeyInfo | None:
     return STANDARD_KEYS.get(key)
 
 
-#: older names of standard keys -> the standard name. Tubs and settings written with an old name
-#: are still read (our docs once named the side cameras ``cam/left_image_array``, which
-#: ``vehicle tub import-udacity`` never wrote).
-KEY_ALIASES: dict[str, str] = {
-    "cam/left_image_array": "cam/image_array_left",
-    "cam/right_image_array": "cam/image_array_right",
-}
-
-
 def key_names(key: str) -> tuple[str, ...]:
-    """``key`` followed by the other names of the same key (its standard name or its old names)."""
-    standard = KEY_ALIASES.get(key, key)
-    others = [standard] + [old for old, new in KEY_ALIASES.items() if new == standard]
+    """``key`` followed by the other names of the same key (its standard name or its old names,
+    from the families' ``ALIASES``)."""
+    aliases = _collected().aliases
+    standard = aliases.get(key, key)
+    others = [standard] + [old for old, new in aliases.items() if new == standard]
     return (key, *(k for k in others if k != key))
 
 
-#: keys at the top level of the namespace (DonkeyCar's names)
-ROOT_KEYS: frozenset[str] = frozenset(k for k in STANDARD_KEYS if "/" not in k)
 _NAMESPACED = re.compile(r"^[a-z][a-z0-9_]*(/[a-z0-9_]+)+$")
 
 

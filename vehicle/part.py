@@ -5,8 +5,10 @@ or None. Optional: ``shutdown()``; ``update()`` + ``run_threaded(*inputs)`` for 
 ``threaded=True``; ``neutral()`` for actuators (called first on every stop path). This is
 DonkeyCar's contract, so existing Donkey parts run unmodified.
 
-A part class may also declare the memory keys it reads and writes, as class attributes (or
-properties) that :meth:`vehicle.Vehicle.add` uses when it is not given them:
+A part class may also declare the memory keys it reads and writes, as class attributes
+``ClassVar[tuple[str, ...]]`` (or read-only properties returning a tuple, where the keys depend on
+how the part was built; see :mod:`vehicle.keys`) that :meth:`vehicle.Vehicle.add` uses when it is
+not given them:
 
 - ``INPUTS`` / ``OUTPUTS``: tuples of keys, in the order of ``run``'s arguments / return values;
 - ``OPTIONAL_INPUTS``: inputs that may be produced by no part of a car (they read None);

@@ -9,9 +9,9 @@ Run it in the tests of a part of your own, on a part built with fakes instead of
 
 It checks, and raises :class:`PartCheckError` listing every problem found:
 
-- declared keys (``INPUTS``, ``OUTPUTS``, ``OPTIONAL_INPUTS``, ``FEEDBACK``): lists of standard keys
-  (:data:`vehicle.keys.STANDARD_KEYS`) or namespaced ones (``imu/accel_x``), none twice, the
-  optional and feedback ones among the inputs;
+- declared keys (``INPUTS``, ``OUTPUTS``, ``OPTIONAL_INPUTS``, ``FEEDBACK``): tuples of standard keys
+  (:data:`vehicle.keys.STANDARD_KEYS`, docs/keys.md) or namespaced ones (``imu/accel_x``), none
+  twice, the optional and feedback ones among the inputs;
 - ``run(*inputs)`` (``run_threaded`` for a threaded part) returns what ``OUTPUTS`` declares: one
   value for one key, a tuple of as many values (or None) for several, None for none;
 - a threaded part: ``update`` runs in its thread, ``run_threaded`` answers without waiting for the
@@ -47,13 +47,14 @@ def _declared(part: Any, problems: list[str]) -> dict[str, tuple[str, ...] | Non
         if keys is None:
             found[attr] = None
             continue
-        if isinstance(keys, str) or not isinstance(keys, list | tuple):
-            problems.append(f"{attr} must be a tuple of memory keys, not {type(keys).__name__} {keys!r}")
+        if not isinstance(keys, tuple):
+            problems.append(f"{attr} must be a tuple of memory keys, not {type(keys).__name__} {keys!r} "
+                            "(see vehicle/keys.py: declare keys as a tuple)")
             found[attr] = None
             continue
         bad = [k for k in keys if not (isinstance(k, str) and is_valid_key(k))]
         if bad:
-            problems.append(f"{attr} {bad}: neither standard keys (vehicle/keys.py) nor namespaced "
+            problems.append(f"{attr} {bad}: neither standard keys (docs/keys.md) nor namespaced "
                             "'family/name' keys (lower case)")
         twice = sorted({k for k in keys if list(keys).count(k) > 1})
         if twice:

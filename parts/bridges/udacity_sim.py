@@ -112,9 +112,13 @@ class UdacitySim(ThreadedPart):
     #: memory keys the part reads, in this order: the commands of the previous loop
     INPUTS: ClassVar[tuple[str, ...]] = ("angle", "throttle")
     FEEDBACK: ClassVar[tuple[str, ...]] = ("angle", "throttle")
-    #: memory keys the part writes, in this order (an instance adds ``sim/<key>`` per extra key)
-    OUTPUTS: tuple[str, ...] = ("cam/image_array", "cam/timestamp", "cam/ok", "cam/frame_id", "sim/speed", "enc/speed",
-                      "sim/steering_deg", "sim/throttle", "sim/manual", "sim/cte", "sim/lap", "sim/extra")
+
+    @property
+    def OUTPUTS(self) -> tuple[str, ...]:  # noqa: N802 - the part declaration read by Vehicle.add
+        """Memory keys the part writes, in this order; then ``sim/<key>`` per extra key."""
+        return ("cam/image_array", "cam/timestamp", "cam/ok", "cam/frame_id", "sim/speed", "enc/speed",
+                "sim/steering_deg", "sim/throttle", "sim/manual", "sim/cte", "sim/lap", "sim/extra",
+                *(extra_key(k) for k in self.extra_keys))
 
     @classmethod
     def from_config(cls, cfg: Any, **options: Any) -> UdacitySim:
@@ -151,7 +155,6 @@ class UdacitySim(ThreadedPart):
         self.command_timeout_s = float(command_timeout_s)
         self.decimal = decimal
         self.extra_keys = tuple(extra_keys)
-        self.OUTPUTS = type(self).OUTPUTS + tuple(extra_key(k) for k in self.extra_keys)
         self.start_timeout = start_timeout
         self.join_timeout = 5.0
         self._ready = threading.Event()

@@ -22,8 +22,6 @@ from vehicle.part import ThreadedPart
 
 logger = logging.getLogger(__name__)
 
-OUTPUTS = ("cam/image_array", "cam/timestamp", "cam/ok")
-
 
 class CameraError(VehicleError, RuntimeError):
     """A camera could not be opened or failed; the message names the device and a fix."""
@@ -79,7 +77,7 @@ class Camera(ThreadedPart):
 
     #: no inputs: the frame source is the camera's own
     INPUTS: ClassVar[tuple[str, ...]] = ()
-    OUTPUTS: ClassVar[tuple[str, ...]] = OUTPUTS
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("cam/image_array", "cam/timestamp", "cam/ok")
 
     @property
     def OUTPUT_SHAPES(self) -> dict[str, tuple[int, ...]]:  # noqa: N802 - the part declaration

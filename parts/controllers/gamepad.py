@@ -19,8 +19,6 @@ from vehicle.part import ThreadedPart
 
 logger = logging.getLogger(__name__)
 
-OUTPUTS = ("user/angle", "user/throttle", "user/mode", "recording", "estop", "tub/erase", "behavior/step")
-
 
 class PadReader(Protocol):
     """What the gamepad part needs from a device reader (LinuxJoystick, PygameJoystick)."""
@@ -48,7 +46,8 @@ class Gamepad(ThreadedPart):
     """
 
     INPUTS: ClassVar[tuple[str, ...]] = ()
-    OUTPUTS: ClassVar[tuple[str, ...]] = OUTPUTS
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("user/angle", "user/throttle", "user/mode", "recording", "estop", "tub/erase",
+                                          "behavior/step")
 
     def __init__(self, reader: PadReader, layout: Layout, settings: GamepadSettings | None = None,
                  retry_s: float = 3.0, read_timeout_s: float = 0.1,

@@ -215,22 +215,20 @@ class SpeedLimit:
     or non-finite speed with a limit set gives throttle 0 (the limit cannot be held blind).
 
     Args:
-        speed_key: memory key of the measured speed (``sim/speed``, ``enc/speed``).
         dt: seconds between two runs (1 / DRIVE_LOOP_HZ).
         kp, ki: PI gains, throttle per m/s and per m/s per second.
     """
 
-    #: the speed key is the constructor's ``speed_key`` (an instance's INPUTS say which)
-    INPUTS: tuple[str, ...] = ("throttle", "sim/speed", "user/speed_limit")
+    #: a car that measures its speed elsewhere renames ``sim/speed``:
+    #: ``V.add(part, inputs=rename(SpeedLimit.INPUTS, {"sim/speed": "enc/speed"}))``
+    INPUTS: ClassVar[tuple[str, ...]] = ("throttle", "sim/speed", "user/speed_limit")
     OUTPUTS: ClassVar[tuple[str, ...]] = ("throttle",)
     OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("user/speed_limit",)
     warn_interval_s = 5.0
 
-    def __init__(self, speed_key: str = "sim/speed", *, dt: float = 0.05, kp: float = 0.3,
-                 ki: float = 0.6) -> None:
+    def __init__(self, *, dt: float = 0.05, kp: float = 0.3, ki: float = 0.6) -> None:
         if not _finite(dt) or dt <= 0:
             raise ValueError(f"SpeedLimit: dt must be a positive number of seconds, got {dt!r}")
-        self.INPUTS = ("throttle", speed_key, "user/speed_limit")
         self.dt = float(dt)
         self.pi = PIController(kp, ki, 0.0, 1.0)
         self.limiting = False  # whether the limit cut the throttle in the last run

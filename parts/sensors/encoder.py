@@ -255,8 +255,12 @@ class Encoder(SensorPart):
         super().__init__(max_age, clock)
         self.source = source
         self.period = period
-        self.OUTPUTS = (("enc/ticks",) if source.channels == 1 else ("enc/left/ticks", "enc/right/ticks")) + \
-            ("enc/timestamp", "enc/ok")
+
+    @property
+    def OUTPUTS(self) -> tuple[str, ...]:  # noqa: N802 - the part declaration read by Vehicle.add
+        """The ticks of one channel or of the left and right wheels, their time, the ok flag."""
+        ticks = ("enc/ticks",) if self.source.channels == 1 else ("enc/left/ticks", "enc/right/ticks")
+        return (*ticks, "enc/timestamp", "enc/ok")
 
     @classmethod
     def from_config(cls, cfg: Any, clock: Callable[[], float] | None = None) -> Encoder:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
+from typing import ClassVar
 
 from vehicle.part import ThreadedPart
 
@@ -52,7 +53,7 @@ class SensorPart(ThreadedPart):
     ``open`` / ``close`` acquire and release the device.
     """
 
-    OUTPUTS: tuple[str, ...] = ()
+    OUTPUTS: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, max_age: float, clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__()

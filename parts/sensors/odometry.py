@@ -46,29 +46,23 @@ class Odometer:
             the distance between the newest and the ``smoothing``-th previous reading over their time.
     """
 
-    INPUTS: tuple[str, ...] = ("enc/ticks", "enc/timestamp")
-    OUTPUTS: tuple[str, ...] = ("enc/distance", "enc/speed")
+    INPUTS: ClassVar[tuple[str, ...]] = ("enc/ticks", "enc/timestamp")
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("enc/distance", "enc/speed")
 
-    def __init__(self, m_per_tick: float, smoothing: int = 1, *, inputs: tuple[str, str] | None = None,
-                 outputs: tuple[str, str] | None = None) -> None:
+    def __init__(self, m_per_tick: float, smoothing: int = 1) -> None:
         if not m_per_tick > 0:
             raise ValueError(f"metres per tick must be > 0 (MM_PER_TICK), got {m_per_tick!r}")
         if smoothing < 1:
             raise ValueError(f"ODOM_SMOOTHING must be >= 1 reading, got {smoothing}")
         self.m_per_tick = float(m_per_tick)
         self.smoothing = int(smoothing)
-        self.INPUTS = inputs or Odometer.INPUTS
-        self.OUTPUTS = outputs or Odometer.OUTPUTS
         self._history: deque[tuple[float, int]] = deque(maxlen=self.smoothing + 1)
         self.speed = 0.0
 
     @classmethod
-    def from_config(cls, cfg: Any, side: str | None = None) -> Odometer:
-        """MM_PER_TICK and ODOM_SMOOTHING; ``side`` "left"/"right" reads ``enc/<side>/ticks``."""
-        if side is None:
-            return cls(cfg.MM_PER_TICK / 1000.0, cfg.ODOM_SMOOTHING)
-        return cls(cfg.MM_PER_TICK / 1000.0, cfg.ODOM_SMOOTHING, inputs=(f"enc/{side}/ticks", "enc/timestamp"),
-                   outputs=(f"enc/{side}/distance", f"enc/{side}/speed"))
+    def from_config(cls, cfg: Any) -> Odometer:
+        """MM_PER_TICK and ODOM_SMOOTHING."""
+        return cls(cfg.MM_PER_TICK / 1000.0, cfg.ODOM_SMOOTHING)
 
     def run(self, ticks: int | None, timestamp: float | None) -> tuple[float | None, float | None]:
         """(distance, speed) for this reading; (None, None) without one."""

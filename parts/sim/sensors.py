@@ -109,7 +109,7 @@ class SimSensors:
             outputs += ["lidar/dist_array", "lidar/ok"]
         if not outputs:
             raise ValueError("SimSensors: no sensor switched on")
-        self.OUTPUTS: tuple[str, ...] = tuple(outputs)
+        self._outputs = tuple(outputs)
         self.distance = 0.0  # signed metres driven (the encoder's truth)
         self._prev: tuple[float, float, float, float, int, int] | None = None  # x, y, heading, speed, resets, seed
         self._gps_error = np.zeros(2)
@@ -119,6 +119,11 @@ class SimSensors:
         self._walls_of: Any = self  # the world the walls below belong to (self: none computed yet)
         self._walls = np.zeros((0, 4))
         self._circles = np.zeros((0, 3))
+
+    @property
+    def OUTPUTS(self) -> tuple[str, ...]:  # noqa: N802 - the part declaration read by Vehicle.add
+        """The keys of the sensors switched on, in the order of :meth:`run`'s values."""
+        return self._outputs
 
     @classmethod
     def from_config(cls, cfg: Any, sim: Any) -> SimSensors | None:

@@ -84,9 +84,12 @@ class SimCar:
     FEEDBACK: ClassVar[tuple[str, ...]] = ("angle", "throttle")
     #: a car may have no reset button
     OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("sim/reset",)
-    #: without enc/speed when measured_speed is False; a car with side cameras declares
-    #: :data:`SIDE_OUTPUTS` too (set per instance)
-    OUTPUTS: tuple[str, ...] = OUTPUTS
+    @property
+    def OUTPUTS(self) -> tuple[str, ...]:  # noqa: N802 - the part declaration read by Vehicle.add
+        """:data:`OUTPUTS`, without enc/speed when the odometer writes it from simulated encoder
+        ticks (``measured_speed`` False), with :data:`SIDE_OUTPUTS` when the car has side cameras."""
+        return (OUTPUTS if self.measured_speed else OUTPUTS[:-1]) + \
+            (SIDE_OUTPUTS if self.side_cameras is not None else ())
 
     @property
     def OUTPUT_SHAPES(self) -> dict[str, tuple[int, ...]]:  # noqa: N802 - the part declaration
@@ -135,10 +138,6 @@ class SimCar:
         if side_cameras is not None and not (math.isfinite(side_cameras) and side_cameras > 0):
             raise ValueError(f"side camera offset must be > 0 m or None, got {side_cameras!r}")
         self.side_cameras = None if side_cameras is None else float(side_cameras)
-        # this car's declaration: without enc/speed when the odometer writes it from simulated
-        # encoder ticks, with the side frames when it has side cameras
-        self.OUTPUTS = (OUTPUTS if self.measured_speed else OUTPUTS[:-1]) + \
-            (SIDE_OUTPUTS if self.side_cameras is not None else ())
         self.frame_seed = int(seed)
         self.time = 0.0  # simulated seconds since the part was made
         self.steps = 0

@@ -32,11 +32,14 @@ IMAGES = "images"
 IMAGE_CRCS = "image_crc32.jsonl"
 CATALOG_RE = re.compile(r"^catalog_(\d+)\.catalog$")
 
-# Declared types DonkeyCar writes; "gray16_array" is stored as a 16-bit PNG (broken in DonkeyCar).
-SCALAR_TYPES = frozenset({"float", "int", "str", "boolean"})
-LIST_TYPES = frozenset({"nparray", "list", "vector"})
-IMAGE_TYPES = frozenset({"image_array", "gray16_array"})
-ALL_TYPES = SCALAR_TYPES | LIST_TYPES | IMAGE_TYPES
+# The value types a tub declares per input, DonkeyCar's names, declared here only (TUB_TYPES takes
+# them as its valid values; docs/data-format.md's table lists them, a test compares). Scalars are
+# JSON values, lists JSON lists, images files in images/: "image_array" a JPEG, "gray16_array" a
+# 16-bit PNG (broken in DonkeyCar).
+SCALAR_TYPES: tuple[str, ...] = ("float", "int", "str", "boolean")
+LIST_TYPES: tuple[str, ...] = ("nparray", "list", "vector")
+IMAGE_TYPES: tuple[str, ...] = ("image_array", "gray16_array")
+ALL_TYPES: tuple[str, ...] = SCALAR_TYPES + LIST_TYPES + IMAGE_TYPES
 
 # Private fields every record carries (DonkeyCar's names).
 INDEX = "_index"
@@ -85,7 +88,7 @@ def check_schema(inputs: list[str], types: list[str]) -> None:
             raise TubSchemaError(f"input name {key!r} is invalid: use a non-empty string not starting "
                                  "with '_' (names starting with '_' are the tub's private fields)")
         if tp not in ALL_TYPES:
-            raise TubSchemaError(f"input {key!r} has unknown type {tp!r}; use one of {sorted(ALL_TYPES)}")
+            raise TubSchemaError(f"input {key!r} has unknown type {tp!r}; use one of {list(ALL_TYPES)}")
 
 
 def encode_value(key: str, tp: str, value: Any) -> Any:

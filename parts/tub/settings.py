@@ -7,9 +7,10 @@ comment lines above a setting document it, ``# == Title ==`` starts a section of
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
-from vehicle.config_checks import Length, Problem, Range, Rule
+from parts.tub.format import ALL_TYPES
+from vehicle.config_checks import Length, OneOf, Problem, Range, Rule
 
 # == Recording ==
 
@@ -17,13 +18,12 @@ from vehicle.config_checks import Length, Problem, Range, Rule
 # to the one tub DATA_PATH (False, DonkeyCar's default). One tub per drive makes a bad drive easy
 # to throw away; training reads a tub or a folder of tubs either way.
 AUTO_CREATE_NEW_TUB: bool = True
-# Memory keys recorded into the tub and their tub types (float, int, str, boolean, nparray, list,
-# vector, image_array). With RECORD_DURING_AI, pilot/angle and pilot/throttle are added. The
-# camera's cam/timestamp, when some part produces it, becomes each record's _timestamp_ms.
+# Memory keys recorded into the tub, each with its tub type in TUB_TYPES. With RECORD_DURING_AI,
+# pilot/angle and pilot/throttle are added. The camera's cam/timestamp, when some part produces
+# it, becomes each record's _timestamp_ms.
 TUB_INPUTS: Annotated[list[str], Length(min=1)] = ["cam/image_array", "user/angle", "user/throttle", "user/mode"]
-# Tub type of each TUB_INPUTS key, in the same order.
-TUB_TYPES: list[Literal["float", "int", "str", "boolean", "nparray", "list", "vector", "image_array",
-                        "gray16_array"]] = ["image_array", "float", "float", "str"]
+# Tub type of each TUB_INPUTS key, in the same order (how it is stored: docs/data-format.md).
+TUB_TYPES: Annotated[list[str], OneOf(ALL_TYPES)] = ["image_array", "float", "float", "str"]
 # User metadata stored in the tub's manifest, "key:value" items (DonkeyCar's --meta), e.g.
 # ["driver:ann", "track:garage"].
 METADATA: list[str] = []

@@ -81,8 +81,8 @@ class Tub:
 
     Args:
         path: the tub folder; created when writable and missing.
-        inputs, types: the record schema (memory keys and their types: float, int, str, boolean,
-            nparray, list, vector, image_array, gray16_array). Needed for a new tub; for an existing
+        inputs, types: the record schema (memory keys and their types, one of
+            :data:`parts.tub.format.ALL_TYPES` each). Needed for a new tub; for an existing
             tub they must equal the stored ones or be omitted (then the stored schema is used).
         metadata: user metadata (dict or DonkeyCar's ``["k:v"]``), merged into manifest line 3.
         max_catalog_len: records per catalog file for a new tub.

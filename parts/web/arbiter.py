@@ -16,7 +16,7 @@ Rules:
 from __future__ import annotations
 
 import logging
-from typing import Any, Final
+from typing import Any, ClassVar, Final
 
 from vehicle.keys import MODES
 
@@ -43,10 +43,10 @@ class ControllerArbiter:
         initial_mode: mode until a source changes it. Default ``"user"``.
     """
 
-    INPUTS: Final = ("js/angle", "js/throttle", "js/mode", "js/recording", "js/estop",
-                     "web/angle", "web/throttle", "web/mode", "web/recording", "web/estop")
-    OUTPUTS: Final = ("user/angle", "user/throttle", "user/mode", "recording", "estop",
-                      "controller/active")
+    INPUTS: ClassVar[tuple[str, ...]] = ("js/angle", "js/throttle", "js/mode", "js/recording", "js/estop",
+                                         "web/angle", "web/throttle", "web/mode", "web/recording", "web/estop")
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("user/angle", "user/throttle", "user/mode", "recording", "estop",
+                                          "controller/active")
 
     def __init__(self, priority: str = "gamepad", deadzone: float = 0.02,
                  initial_mode: str = "user") -> None:

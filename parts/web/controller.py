@@ -20,7 +20,7 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, Final
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -70,18 +70,19 @@ class WebController(ThreadedPart):
     """
 
     #: memory keys the part reads (telemetry for the page), in this order
-    INPUTS: Final = ("cam/image_array", "user/mode", "recording", "estop", "tub/num_records",
-                     "angle", "throttle", "pilot/angle", "pilot/throttle", "pilot/model",
-                     "sim/speed", "enc/speed", "loop/rate_hz", "loop/overruns", "behavior/label",
-                     "run_pilot", "pilot/load_error", "sim/cte", "sim/lap", "sim/off_track", "js/status",
-                     "enc/ok", "imu/ok", "gps/ok", "lidar/ok", "obstacle/stop", "obstacle/distance")
+    INPUTS: ClassVar[tuple[str, ...]] = (
+        "cam/image_array", "user/mode", "recording", "estop", "tub/num_records", "angle", "throttle", "pilot/angle",
+        "pilot/throttle", "pilot/model", "sim/speed", "enc/speed", "loop/rate_hz", "loop/overruns", "behavior/label",
+        "run_pilot", "pilot/load_error", "sim/cte", "sim/lap", "sim/off_track", "js/status", "enc/ok", "imu/ok",
+        "gps/ok", "lidar/ok", "obstacle/stop", "obstacle/distance",
+    )
     #: every input is telemetry for the page: it may be absent (None) and is the last loop's value
     #: when a part added after the controller produces it (drive mode, pilot, tub writer ...)
-    OPTIONAL_INPUTS: Final = INPUTS
-    FEEDBACK: Final = INPUTS
+    OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = INPUTS
+    FEEDBACK: ClassVar[tuple[str, ...]] = INPUTS
     #: memory keys the part writes, in this order
-    OUTPUTS: Final = ("user/angle", "user/throttle", "user/mode", "recording", "estop",
-                      "user/speed_limit", "pilot/model_request", "web/behavior_step")
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("user/angle", "user/throttle", "user/mode", "recording", "estop",
+                                          "user/speed_limit", "pilot/model_request", "web/behavior_step")
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8887, token: str | None = None, *,
                  deadman_s: float = 0.5, init_mode: str = "user", max_throttle: float = 0.5,

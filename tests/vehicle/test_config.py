@@ -175,6 +175,8 @@ OUT_OF_RANGE = [
     ("JOYSTICK_SILENCE_TIMEOUT_S = 3600.0", "JOYSTICK_SILENCE_TIMEOUT_S = 3600.0", "None switches it off"),
     ("THROTTLE_CHANNEL = 1", "STEERING_CHANNEL and THROTTLE_CHANNEL are both 1", "two different channels"),
     ("TUB_TYPES = ['image_array', 'float']", "TUB_TYPES = ['image_array', 'float']", "one type per TUB_INPUTS"),
+    ("TUB_TYPES = ['image_array', 'float', 'double', 'str']", "TUB_TYPES = ['image_array', 'float', 'double', "
+     "'str'] holds 'double', which is unknown", 'one of "float", "int", "str", "boolean", "nparray"'),
     ("BEHAVIOR_INITIAL = 5", "BEHAVIOR_INITIAL = 5", "0 to 1"),
 ]
 

@@ -109,13 +109,26 @@ class Lent:
         self.pilot = pilot
         self.name = part_name(pilot)
         self.run = pilot.run
-        inputs = getattr(pilot, "INPUTS", None)
+
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("pilot/angle", "pilot/throttle")
+
+    @property
+    def INPUTS(self) -> tuple[str, ...]:  # noqa: N802 - the part declaration read by Vehicle.add
+        """The pilot's inputs (``INPUTS``, else a loaded model's ``inputs``, else the frame)."""
+        inputs = getattr(self.pilot, "INPUTS", None)
         if inputs is None:
-            inputs = getattr(pilot, "inputs", None)
-        self.INPUTS = tuple(DEFAULT_PILOT_INPUTS if inputs is None else inputs)  # noqa: N815
-        self.OPTIONAL_INPUTS = tuple(getattr(pilot, "OPTIONAL_INPUTS", ()))  # noqa: N815
-        self.FEEDBACK = tuple(getattr(pilot, "FEEDBACK", ()))  # noqa: N815
-        self.OUTPUTS = ("pilot/angle", "pilot/throttle")  # noqa: N815
+            inputs = getattr(self.pilot, "inputs", None)
+        return tuple(DEFAULT_PILOT_INPUTS if inputs is None else inputs)
+
+    @property
+    def OPTIONAL_INPUTS(self) -> tuple[str, ...]:  # noqa: N802 - the part declaration
+        """The pilot's optional inputs."""
+        return tuple(getattr(self.pilot, "OPTIONAL_INPUTS", ()))
+
+    @property
+    def FEEDBACK(self) -> tuple[str, ...]:  # noqa: N802 - the part declaration
+        """The pilot's feedback inputs."""
+        return tuple(getattr(self.pilot, "FEEDBACK", ()))
 
 
 def _default_config() -> Any:

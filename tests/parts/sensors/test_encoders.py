@@ -185,7 +185,7 @@ def test_a_stale_encoder_takes_the_speed_away_from_the_speed_limit() -> None:
     clock = Clock()
     source = Ticks()
     encoder, odo = Encoder(source, max_age=0.2, clock=clock), Odometer(0.01)
-    limit = SpeedLimit("enc/speed", dt=0.05)
+    limit = SpeedLimit(dt=0.05)
     throttles = []
     for step in range(20):
         clock.t = step * 0.05

@@ -11,7 +11,8 @@ from vehicle.config import Config
 
 def test_side_frames_are_the_centre_camera_moved_left_and_right():
     sim = SimCar([3], world={"res": 0.02}, side_cameras=0.12, realtime=False)
-    assert sim.OUTPUTS == OUTPUTS + SIDE_OUTPUTS and SimCar.OUTPUTS == OUTPUTS  # per car, not per class
+    assert sim.OUTPUTS == OUTPUTS + SIDE_OUTPUTS  # per car, not per class
+    assert SimCar([3], world={"res": 0.02}, realtime=False).OUTPUTS == OUTPUTS
     values = dict(zip(sim.OUTPUTS, sim.run(0.0, 0.5), strict=True))
     x, y, heading = sim.car.state.x, sim.car.state.y, sim.car.state.heading
     left, right = values["cam/image_array_left"], values["cam/image_array_right"]

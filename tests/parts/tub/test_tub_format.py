@@ -105,7 +105,7 @@ def test_schema_errors_say_what_to_do(tmp_path):
     assert not (tmp_path / "new").exists()  # no empty folder left behind
     with pytest.raises(TubSchemaError, match="same length"):
         Tub(tmp_path / "x", ["a", "b"], ["float"])
-    with pytest.raises(TubSchemaError, match="unknown type"):
+    with pytest.raises(TubSchemaError, match="unknown type 'double'; use one of \\['float', 'int'"):
         Tub(tmp_path / "x", ["a"], ["double"])
     Tub(tmp_path / "t", ["a"], ["float"]).close()
     with pytest.raises(TubSchemaError, match="Record into a new tub"):
@@ -268,3 +268,18 @@ def test_folders_left_by_killed_exports_are_removed_on_the_next_run(tmp_path):
     with building_folder(tmp_path / "next") as tmp:
         (tmp / "x").write_text("x")
     assert not dead.exists() and live.is_dir() and keep.is_dir() and (tmp_path / "next" / "x").is_file()
+
+
+def test_the_value_types_are_declared_once_and_documented():
+    """parts/tub/format.py declares the tub value types; TUB_TYPES and docs/data-format.md follow."""
+    from pathlib import Path
+
+    from parts.tub.format import ALL_TYPES, IMAGE_TYPES, LIST_TYPES, SCALAR_TYPES
+    from vehicle.config import constraints
+
+    assert ALL_TYPES == SCALAR_TYPES + LIST_TYPES + IMAGE_TYPES and len(set(ALL_TYPES)) == 9
+    assert [c.names() for c in constraints("TUB_TYPES")] == [list(ALL_TYPES)]
+    doc = (Path(__file__).resolve().parents[3] / "docs" / "data-format.md").read_text()
+    table = doc[doc.index("| Type | Stored as |"):].split("\n\n")[0]
+    documented = [t for row in table.splitlines()[2:] for t in re.findall(r"`(\w+)`", row.split("|")[1])]
+    assert documented == list(ALL_TYPES)

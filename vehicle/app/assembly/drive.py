@@ -7,6 +7,7 @@ from typing import Any
 
 from vehicle.config import Config
 from vehicle.errors import UserError
+from vehicle.keys import rename
 
 logger = logging.getLogger(__name__)
 
@@ -38,8 +39,8 @@ def add_speed_limit(V: Any, cfg: Config) -> Any:
     speed_key = speed_key_of(V, cfg)
     if not V.produces("user/speed_limit") or not V.produces(speed_key) or V.find(SpeedLimit):
         return None
-    part = SpeedLimit(speed_key, dt=1.0 / cfg.DRIVE_LOOP_HZ, kp=cfg.PILOT_SPEED_KP, ki=cfg.PILOT_SPEED_KI)
-    V.add(part)
+    part = SpeedLimit(dt=1.0 / cfg.DRIVE_LOOP_HZ, kp=cfg.PILOT_SPEED_KP, ki=cfg.PILOT_SPEED_KI)
+    V.add(part, inputs=rename(SpeedLimit.INPUTS, {"sim/speed": speed_key}))
     return part
 
 
