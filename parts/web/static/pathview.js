@@ -79,7 +79,7 @@ class PathView {
     if (this.els.state.textContent !== label) this.els.state.textContent = label;  // a live region: on change only
     this.els.state.className = "pathstate " + (state || "");
     const rec = state === "recording";
-    this.els.record.textContent = rec ? "■ Stop recording" : "● Record path";
+    // a toggle: its name stays, aria-pressed and its colour say whether it records
     this.els.record.setAttribute("aria-pressed", String(rec));
     this.els.record.classList.toggle("on", rec);
     this.draw();
