@@ -163,16 +163,17 @@ class PathView {
         ctx.beginPath(); ctx.arc(px, py, r, 0, 2 * Math.PI); ctx.fill(); ctx.stroke();
         drawn.stdPx = r;
       }
-      const a = t.angle || 0, len = 9 * dpr;
+      const a = t.angle, len = 9 * dpr;
       const tip = (da, l) => [px + Math.cos(a + da) * l, py - Math.sin(a + da) * l];  // y up on the map
       const lost = t.ok === false;
       ctx.fillStyle = lost ? PATH_COLORS.carLost : PATH_COLORS.car;
       ctx.strokeStyle = "#ffffff"; ctx.lineWidth = 1.5 * dpr;
       if (lost) ctx.setLineDash([3 * dpr, 2 * dpr]);
       ctx.beginPath();
-      ctx.moveTo(...tip(0, len * 1.4)); ctx.lineTo(...tip(2.5, len)); ctx.lineTo(...tip(-2.5, len)); ctx.closePath();
+      if (a === null || a === undefined) ctx.arc(px, py, len * 0.7, 0, 2 * Math.PI);  // heading unknown: a dot
+      else { ctx.moveTo(...tip(0, len * 1.4)); ctx.lineTo(...tip(2.5, len)); ctx.lineTo(...tip(-2.5, len)); ctx.closePath(); }
       ctx.fill(); ctx.stroke(); ctx.setLineDash([]);
-      drawn.car = [px, py]; drawn.heading = a;
+      drawn.car = [px, py]; drawn.heading = a === undefined ? null : a;
     }
     // a metre scale bar: 1, 2 or 5 times a power of ten, about a quarter of the width
     const target = (w / 4) / scale, p = Math.pow(10, Math.floor(Math.log10(target)));

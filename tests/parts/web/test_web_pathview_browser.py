@@ -117,6 +117,9 @@ def test_the_pose_updates_live_and_a_lost_pose_is_shown(path_car, open_page):
     assert page.get_attribute("#pathrecord", "aria-pressed") == "true"
     assert page.evaluate("document.getElementById('pathrecord').classList.contains('on')")
     page.wait_for_function(f"{DRAWN}.target === null")  # no target while not following
+    car.fp.heading_known = False  # no heading: a dot, not a triangle pointing anywhere
+    page.wait_for_function(f"{DRAWN}.heading === null")
+    assert "heading" not in page.get_attribute("#pathmap", "aria-label")
 
 
 def test_the_path_is_sent_again_only_when_its_version_changes(path_car, open_page):
