@@ -103,7 +103,7 @@ def encode_path(xy: Any, version: int | None, max_points: int = MAX_PATH_POINTS)
         if len(arr) and not np.array_equal(arr[-1], last[0]):
             arr = np.concatenate([arr[: max_points - 1], last])
     flat = np.round(arr, PATH_DECIMALS).ravel()
-    return {"version": version, "xy": [float(v) for v in flat], "points": n, "step": step}
+    return {"version": version, "xy": flat.tolist(), "points": n, "step": step}
 
 
 class PathSlot:
