@@ -61,7 +61,7 @@ def test_the_map_draws_the_path_the_car_and_the_target_where_they_are(path_car, 
     car = path_car
     page = open_page(car.web.url)
     page.wait_for_function(f"{DRAWN} && {DRAWN}.points === 80 && {DRAWN}.car && {DRAWN}.target")
-    car.fp.frozen, car.fp.s = True, 20.0  # the car stands at point 20 of the oval
+    car.fp.hold_at(20.0)  # the car stands at point 20 of the oval
     page.wait_for_function("webStats.state.telemetry.path.x === "
                            f"{round(float(oval()[20][0]), 3)}")
     page.wait_for_function(f"{DRAWN}.car && Math.abs({DRAWN}.car[0] - "
