@@ -11,7 +11,8 @@ The keys are the path-follow contract's (``parts/path/keys.py``): the pose ``loc
   connect, never with every state message: a recorded lap is kilobytes.
 
 Everything here is plain Python over numbers: no socket, no thread (:class:`PathSlot` is the one
-lock-protected hand-over from the loop thread to the web thread).
+lock-protected hand-over from the loop thread to the web thread; :class:`PathSender` decides in the
+web thread which browsers get the path, and when).
 """
 
 from __future__ import annotations
@@ -156,3 +157,48 @@ class PathSlot:
             if changes >= self._encoded_at:
                 self._encoded, self._encoded_at = encoded, changes
         return encoded, changes
+
+
+class PathSender:
+    """Which browsers get the ``path`` message, and when (web thread).
+
+    A browser gets the path when it connects (:meth:`for_new`) and then whenever it lacks the
+    latest version, at most ``send_hz`` times a second (:meth:`due`: a path that grows while it is
+    recorded goes out as its newest version, the ones in between skipped).
+
+    Args:
+        slot: the path handed over by the loop.
+        send_hz: most path messages per second. Default :data:`PATH_SEND_HZ`.
+    """
+
+    def __init__(self, slot: PathSlot, send_hz: float = PATH_SEND_HZ) -> None:
+        self.slot = slot
+        self.period = 1.0 / send_hz
+        self.sent = 0  # path messages handed out (one per browser)
+        self._seen: dict[str, int] = {}  # browser -> the slot's change counter it was sent
+        self._sent_at = -math.inf
+
+    def for_new(self, sid: str) -> dict[str, Any] | None:
+        """The path for a browser that just connected (None: no path yet)."""
+        path, changes = self.slot.message()
+        if path is not None:
+            self._seen[sid] = changes
+            self.sent += 1
+        return path
+
+    def due(self, sids: Any, now: float) -> tuple[dict[str, Any] | None, list[str]]:
+        """The path and the browsers among ``sids`` to send it to now (``now``: seconds, monotonic)."""
+        changes = self.slot.changes
+        behind = [sid for sid in sids if self._seen.get(sid) != changes]
+        if not changes or not behind or now - self._sent_at < self.period:
+            return None, []
+        path, changes = self.slot.message()
+        self._sent_at = now
+        for sid in behind:
+            self._seen[sid] = changes
+        self.sent += len(behind)
+        return path, behind
+
+    def forget(self, sid: str) -> None:
+        """A browser left."""
+        self._seen.pop(sid, None)

@@ -21,7 +21,7 @@ import numpy as np
 from parts.web import protocol
 from parts.web.limits import HARD_LIMIT_BYTES, REFUSED_EVENT, BoundedLog, make_bounded_packet
 from parts.web.pairing import FailureGuard, allowed_hosts, host_allowed, token_ok
-from parts.web.pathview import PATH_SEND_HZ, PathSlot
+from parts.web.pathview import PathSender, PathSlot
 from parts.web.state import ControlState
 from vehicle.errors import VehicleError
 
@@ -159,7 +159,7 @@ class WebServer:
             403: a page of another site made to resolve to this machine (DNS rebinding) gets
             nothing.
         paths: the latest path of a path-following car, sent as the ``path`` event on connect and
-            when it changes. Default: an empty slot (no path is ever sent).
+            when it changes (:class:`~parts.web.pathview.PathSender`). Default: an empty slot.
     """
 
     def __init__(self, state: ControlState, frames: LatestFrame, *, host: str = "127.0.0.1",
@@ -175,9 +175,7 @@ class WebServer:
         self.host, self.port, self.token = host, port, token
         self.models_dir, self.max_speed_limit = models_dir, max_speed_limit
         self.telemetry_hz, self.static_dir = telemetry_hz, static_dir
-        self.paths = paths if paths is not None else PathSlot()
-        self.path_messages = 0  # path events sent (one per browser)
-        self._path_seen: dict[str, int] = {}  # browser -> the path's change counter it was sent
+        self.paths = PathSender(paths if paths is not None else PathSlot())
         self.allowed_hosts = allowed_hosts(host, extra_hosts)
         self._refused_hosts: set[str] = set()  # each logged once
         # what clients can make the server log: rejections, refused connections, library errors
@@ -354,14 +352,14 @@ class WebServer:
             role = self.state.connect(sid)
             self._senders[sid] = asyncio.create_task(self._send_frames(sid))
             await sio.emit("hello", self._hello(sid, role), to=sid)
-            path, changes = self.paths.message()
+            path = self.paths.for_new(sid)
             if path is not None:
-                await self._send_path(sid, path, changes)
+                await sio.emit("path", path, to=sid)
             logger.info("web: %s connected as %s", environ.get("REMOTE_ADDR", "?"), role)
 
         @sio.event
         async def disconnect(sid: str, reason: Any = None) -> None:
-            self._path_seen.pop(sid, None)
+            self.paths.forget(sid)
             task = self._senders.pop(sid, None)
             if task is not None:
                 task.cancel()
@@ -459,31 +457,16 @@ class WebServer:
 
     async def _telemetry(self) -> None:
         period = 1.0 / self.telemetry_hz
-        path_at = -float("inf")  # loop.time() the path was last sent
         loop = asyncio.get_running_loop()
         while True:
             if self._senders:
                 await self._sio.emit("state", self.state.snapshot())
-                # the path only to browsers that lack its latest version, at most PATH_SEND_HZ
-                # times a second (the newest version then)
-                changes = self.paths.changes
-                behind = [sid for sid in self._senders if self._path_seen.get(sid) != changes]
-                if changes and behind and loop.time() - path_at >= 1.0 / PATH_SEND_HZ:
-                    path, changes = self.paths.message()
-                    path_at = loop.time()
-                    for sid in behind:
-                        await self._send_path(sid, path, changes)
+                path, sids = self.paths.due(list(self._senders), loop.time())  # changed, at most 2/s
+                for sid in sids:
+                    await self._sio.emit("path", path, to=sid)
             self.log.flush()
             self._library_log.flush()
             await asyncio.sleep(period)
-
-    async def _send_path(self, sid: str, path: dict[str, Any] | None, changes: int) -> None:
-        """Send the ``path`` message to one browser and remember which version it has."""
-        if path is None or sid not in self._senders:
-            return
-        self._path_seen[sid] = changes
-        self.path_messages += 1
-        await self._sio.emit("path", path, to=sid)
 
     async def _send_frames(self, sid: str) -> None:
         """Send each new frame to one browser, waiting for its acknowledgement before the next:

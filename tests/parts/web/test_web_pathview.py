@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from fixtures.load import scaled
 
-from parts.web.pathview import MAX_PATH_POINTS, PATH_INPUTS, PathSlot, encode_path, path_telemetry
+from parts.web.pathview import MAX_PATH_POINTS, PATH_INPUTS, PathSender, PathSlot, encode_path, path_telemetry
 from parts.web.protocol import ProtocolError, parse_path_command
 
 
@@ -105,6 +105,29 @@ def test_without_a_version_a_new_array_is_a_change():
     assert slot.changes == 2
 
 
+def test_the_sender_sends_each_browser_the_newest_path_at_most_twice_a_second():
+    slot = PathSlot()
+    sender = PathSender(slot, send_hz=2.0)
+    assert sender.for_new("a") is None and sender.due(["a"], 0.0) == (None, [])  # no path yet
+    slot.put(np.zeros((2, 2), np.float32), 1)
+    path, sids = sender.due(["a"], 10.0)
+    assert path["version"] == 1 and sids == ["a"]
+    assert sender.due(["a"], 10.6) == (None, [])  # a has it
+    assert sender.for_new("b")["version"] == 1 and sender.due(["a", "b"], 10.7) == (None, [])
+    for version in (2, 3, 4):  # a path growing while it is recorded
+        slot.put(np.zeros((version, 2), np.float32), version)
+    path, sids = sender.due(["a", "b"], 11.0)
+    assert path["version"] == 4 and sids == ["a", "b"]  # the newest, to both
+    slot.put(np.zeros((5, 2), np.float32), 5)
+    assert sender.due(["a", "b"], 11.4) == (None, [])  # within half a second of the last
+    path, sids = sender.due(["a", "b"], 11.5)
+    assert path["version"] == 5 and sids == ["a", "b"]
+    sender.forget("b")
+    slot.put(np.zeros((6, 2), np.float32), 6)
+    assert sender.due(["a"], 12.0)[1] == ["a"]
+    assert sender.sent == 7  # a: versions 1, 4, 5, 6; b: 1 (on connect), 4, 5
+
+
 # -- the server: the path event and the buttons ----------------------------------------------------
 PATH_A = np.array([[0, 0], [1, 0], [2, 1]], np.float32)
 POSE = {"loc/x": 0.5, "loc/y": 0.1, "loc/angle": 0.2, "loc/std": 0.3, "loc/ok": True, "loc/source": "odometry",
@@ -151,7 +174,7 @@ def test_the_path_is_sent_on_connect_and_again_only_when_its_version_changes(web
             await asyncio.sleep(0.02)
         await _until(lambda: len(c.states) > n_states + 10)
         assert len(paths) == 2
-        assert web.server.path_messages == 2
+        assert web.server.paths.sent == 2
         await c.close()
 
     arun(main())

@@ -134,7 +134,7 @@ def test_the_path_is_sent_again_only_when_its_version_changes(path_car, open_pag
     states = page.evaluate("webStats.state.telemetry.loops")
     page.wait_for_function(f"webStats.state.telemetry.loops > {states} + 60")
     assert page.evaluate("webStats.paths") == 2
-    assert car.web.server.path_messages == 2
+    assert car.web.server.paths.sent == 2
 
 
 def test_each_button_makes_exactly_one_path_command(path_car, open_page):
