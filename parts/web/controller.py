@@ -25,6 +25,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from parts.web.pairing import is_loopback, page_url, resolve_token, terminal_qr
+from parts.web.pathview import PathSlot, path_telemetry
 from parts.web.server import LatestFrame, ListenError, WebServer
 from parts.web.state import ControlState, Telemetry
 from vehicle.part import ThreadedPart, run_event_loop
@@ -75,6 +76,9 @@ class WebController(ThreadedPart):
         "pilot/throttle", "pilot/model", "sim/speed", "enc/speed", "loop/rate_hz", "loop/overruns", "behavior/label",
         "run_pilot", "pilot/load_error", "sim/cte", "sim/lap", "sim/off_track", "js/status", "enc/ok", "imu/ok",
         "gps/ok", "lidar/ok", "obstacle/stop", "obstacle/distance",
+        # the path-follow view's (parts.web.pathview.PATH_INPUTS; a test keeps the two equal)
+        "loc/x", "loc/y", "loc/angle", "loc/std", "loc/ok", "loc/source", "path/xy", "path/version",
+        "path/target_x", "path/target_y", "path/cte", "path/state",
     )
     #: every input is telemetry for the page: it may be absent (None) and is the last loop's value
     #: when a part added after the controller produces it (drive mode, pilot, tub writer ...)
@@ -82,7 +86,8 @@ class WebController(ThreadedPart):
     FEEDBACK: ClassVar[tuple[str, ...]] = INPUTS
     #: memory keys the part writes, in this order
     OUTPUTS: ClassVar[tuple[str, ...]] = ("user/angle", "user/throttle", "user/mode", "recording", "estop",
-                                          "user/speed_limit", "pilot/model_request", "web/behavior_step")
+                                          "user/speed_limit", "pilot/model_request", "web/behavior_step",
+                                          "web/path_command")
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8887, token: str | None = None, *,
                  deadman_s: float = 0.5, init_mode: str = "user", max_throttle: float = 0.5,
@@ -96,7 +101,9 @@ class WebController(ThreadedPart):
         self.state = ControlState(deadman_s=deadman_s, init_mode=init_mode,
                                   max_throttle=max_throttle, clock=clock)
         self.frames = LatestFrame(jpeg_quality)
+        self.paths = PathSlot()
         self.server = WebServer(self.state, self.frames, host=host, port=port, token=self.token,
+                                paths=self.paths,
                                 models_dir=Path(models_dir) if models_dir is not None else None,
                                 max_speed_limit=max_speed_limit, telemetry_hz=telemetry_hz,
                                 extra_hosts=tuple(allowed_hosts))
@@ -186,7 +193,7 @@ class WebController(ThreadedPart):
     def run_threaded(self, *inputs: Any) -> tuple[Any, ...]:
         """Hand this loop's telemetry and frame to the page; return the browsers' commands:
         ``(user/angle, user/throttle, user/mode, recording, estop, user/speed_limit,
-        pilot/model_request, web/behavior_step)``."""
+        pilot/model_request, web/behavior_step, web/path_command)``."""
         if self.error is not None:
             raise RuntimeError(f"web controller thread failed: {self.error!r}") from self.error
         values = dict(zip(self.INPUTS, inputs, strict=False))
@@ -207,6 +214,7 @@ class WebController(ThreadedPart):
         run_pilot, load_error = values.get("run_pilot"), values.get("pilot/load_error")
         lap, off_track = values.get("sim/lap"), values.get("sim/off_track")
         pad = values.get("js/status")
+        self.paths.put(values.get("path/xy"), values.get("path/version"))
         self.state.report(Telemetry(
             mode=mode if isinstance(mode, str) else None,
             recording=bool(recording) if isinstance(recording, bool | np.bool_) else None,
@@ -228,10 +236,11 @@ class WebController(ThreadedPart):
             sensors={name: bool(ok) for name in ("enc", "imu", "gps", "lidar")
                      if isinstance(ok := values.get(f"{name}/ok"), bool | np.bool_)},
             obstacle_stop=bool(stop) if isinstance(stop := values.get("obstacle/stop"), bool | np.bool_) else None,
-            obstacle_distance=_num(values.get("obstacle/distance"))))
+            obstacle_distance=_num(values.get("obstacle/distance")),
+            path=path_telemetry(values)))
         cmd = self.state.outputs()
         return (cmd.angle, cmd.user_throttle(), cmd.mode, cmd.recording, cmd.estop,
-                cmd.speed_limit, cmd.model_request, cmd.behavior_step)
+                cmd.speed_limit, cmd.model_request, cmd.behavior_step, cmd.path_command)
 
     def run(self, *inputs: Any) -> tuple[Any, ...]:
         """Non-threaded use: start the server on first call, then as :meth:`run_threaded`."""

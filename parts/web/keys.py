@@ -17,4 +17,7 @@ KEYS: dict[str, KeyInfo] = {
     "web/estop": KeyInfo("bool", "emergency stop latched on the web page"),
     "web/behavior_step": KeyInfo("int", "behaviour steps asked on the web page this loop (change lane)"),
     "controller/active": KeyInfo("str: gamepad | web", "which controller's stick drives (arbitration)"),
+    "web/path_command": KeyInfo(
+        "str | None", "a path button of the web page, for one loop: record, save, load, clear or "
+                      "reset_origin (merged into path/command by the path_follow template)"),
 }

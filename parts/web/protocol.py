@@ -14,6 +14,8 @@ Client → server events (all payloads are JSON objects):
 ``take_control``  no payload — this browser becomes the driver.
 ``models``        no payload — list the model files again.
 ``behavior``      ``{"step": 1 | -1}`` — select the next / previous behaviour (e.g. change lane).
+``path_command``  ``{"command": "record" | "save" | "load" | "clear" | "reset_origin"}`` — a path
+                  button (path follow): handed to the loop once, as ``web/path_command``.
 
 Each handler answers with an acknowledgement ``{"ok": true}`` or ``{"ok": false, "error": "..."}``.
 """
@@ -23,6 +25,7 @@ from __future__ import annotations
 import math
 from typing import Any, Final
 
+from parts.web.pathview import PATH_COMMANDS
 from vehicle.keys import MODES
 
 #: drive modes, DonkeyCar's names: human drives, pilot steers, pilot drives.
@@ -147,3 +150,13 @@ def parse_behavior(payload: Any) -> int:
     if isinstance(step, bool) or step not in (1, -1):
         raise ProtocolError(f"behavior: step must be 1 (next) or -1 (previous), got {short(step)}")
     return int(step)
+
+
+def parse_path_command(payload: Any) -> str:
+    """Validate a ``path_command`` message; return the command, one of :data:`PATH_COMMANDS`."""
+    msg = _require_object(payload, "path_command")
+    _no_extra(msg, ("command",), "path_command")
+    command = msg.get("command")
+    if not isinstance(command, str) or command not in PATH_COMMANDS:
+        raise ProtocolError(f"path_command: command={short(command)} is not one of {', '.join(PATH_COMMANDS)}")
+    return command

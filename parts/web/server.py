@@ -21,6 +21,7 @@ import numpy as np
 from parts.web import protocol
 from parts.web.limits import HARD_LIMIT_BYTES, REFUSED_EVENT, BoundedLog, make_bounded_packet
 from parts.web.pairing import FailureGuard, allowed_hosts, host_allowed, token_ok
+from parts.web.pathview import PathSender, PathSlot
 from parts.web.state import ControlState
 from vehicle.errors import VehicleError
 
@@ -157,12 +158,15 @@ class WebServer:
             ``host`` that a request may name (WEB_ALLOWED_HOSTS). Any other Host is refused with
             403: a page of another site made to resolve to this machine (DNS rebinding) gets
             nothing.
+        paths: the latest path of a path-following car, sent as the ``path`` event on connect and
+            when it changes (:class:`~parts.web.pathview.PathSender`). Default: an empty slot.
     """
 
     def __init__(self, state: ControlState, frames: LatestFrame, *, host: str = "127.0.0.1",
                  port: int = 8887, token: str | None = None, models_dir: Path | None = None,
                  max_speed_limit: float = 5.0, telemetry_hz: float = 20.0,
-                 static_dir: Path = STATIC_DIR, extra_hosts: tuple[str, ...] = ()) -> None:
+                 static_dir: Path = STATIC_DIR, extra_hosts: tuple[str, ...] = (),
+                 paths: PathSlot | None = None) -> None:
         if not 0 <= port <= 65535:
             raise ValueError(f"port must be in [0, 65535], got {port}")
         if not telemetry_hz > 0:
@@ -171,6 +175,7 @@ class WebServer:
         self.host, self.port, self.token = host, port, token
         self.models_dir, self.max_speed_limit = models_dir, max_speed_limit
         self.telemetry_hz, self.static_dir = telemetry_hz, static_dir
+        self.paths = PathSender(paths if paths is not None else PathSlot())
         self.allowed_hosts = allowed_hosts(host, extra_hosts)
         self._refused_hosts: set[str] = set()  # each logged once
         # what clients can make the server log: rejections, refused connections, library errors
@@ -347,10 +352,14 @@ class WebServer:
             role = self.state.connect(sid)
             self._senders[sid] = asyncio.create_task(self._send_frames(sid))
             await sio.emit("hello", self._hello(sid, role), to=sid)
+            path = self.paths.for_new(sid)
+            if path is not None:
+                await sio.emit("path", path, to=sid)
             logger.info("web: %s connected as %s", environ.get("REMOTE_ADDR", "?"), role)
 
         @sio.event
         async def disconnect(sid: str, reason: Any = None) -> None:
+            self.paths.forget(sid)
             task = self._senders.pop(sid, None)
             if task is not None:
                 task.cancel()
@@ -423,6 +432,20 @@ class WebServer:
             self.state.step_behavior(step)
             return {"ok": True}
 
+        @sio.on("path_command")
+        async def path_command(sid: str, data: Any = None) -> dict[str, Any]:
+            if not self.state.is_driver(sid):
+                return self._reject(sid, "path_command: this browser watches; press 'Take control' first")
+            try:
+                command = protocol.parse_path_command(data)
+            except protocol.ProtocolError as exc:
+                return self._reject(sid, str(exc))
+            refused = self.state.path_command(command)
+            if refused:
+                return self._reject(sid, refused)
+            logger.info("web: path command %r from %s", command, sid)
+            return {"ok": True}
+
         @sio.on(REFUSED_EVENT)
         async def refused(sid: str, data: Any = None) -> dict[str, Any]:
             return self._reject(sid, protocol.short(data, 200) if not isinstance(data, str) else data[:200])
@@ -430,13 +453,17 @@ class WebServer:
         @sio.on("*")
         async def unknown(event: str, sid: str, data: Any = None) -> dict[str, Any]:
             return self._reject(sid, f"unknown event {protocol.short(event)}; the page sends drive, set, "
-                                "estop, take_control, models, behavior")
+                                "estop, take_control, models, behavior, path_command")
 
     async def _telemetry(self) -> None:
         period = 1.0 / self.telemetry_hz
+        loop = asyncio.get_running_loop()
         while True:
             if self._senders:
                 await self._sio.emit("state", self.state.snapshot())
+                path, sids = self.paths.due(list(self._senders), loop.time())  # changed, at most 2/s
+                for sid in sids:
+                    await self._sio.emit("path", path, to=sid)
             self.log.flush()
             self._library_log.flush()
             await asyncio.sleep(period)

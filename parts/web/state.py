@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import Any
@@ -21,6 +22,8 @@ logger = logging.getLogger(__name__)
 
 #: |value| below this counts as zero for the dead-man rule
 NEUTRAL_EPS = 1e-3
+#: path buttons that may wait for the loop (it takes one per loop); more are refused
+MAX_PATH_COMMANDS = 4
 
 
 @dataclass
@@ -37,6 +40,7 @@ class Commands:
     speed_limit: float | None = None  # m/s, for the speed controller; None = no limit
     model_request: str | None = None  # path of the model file asked for (handed to the loop once)
     behavior_step: int = 0  # behaviour steps asked since the loop last read them (+ next, - previous)
+    path_command: str | None = None  # a path button for this loop only (web/path_command), else None
 
     def user_throttle(self) -> float:
         """The throttle the controller outputs: scaled, or constant when that mode is on."""
@@ -73,6 +77,7 @@ class Telemetry:
     sensors: dict[str, bool] = field(default_factory=dict)  # sensor family (enc, imu ...) -> fresh
     obstacle_stop: bool | None = None  # the obstacle stop cuts the throttle now (None: no obstacle stop)
     obstacle_distance: float | None = None  # m, nearest LiDAR return ahead
+    path: dict[str, Any] | None = None  # pose, target, state of path follow (pathview.path_telemetry)
     off_track_events: int = 0  # times the car left the road since the controller started
     loops: int = 0  # loops seen by the controller
 
@@ -114,6 +119,7 @@ class ControlState:
         self._reported_at: float | None = None  # clock() of the loop's latest report
         self._armed = False  # the driving browser holds a command the dead-man must guard
         self._dirty: set[str] = set()  # fields the browser changed since the loop read them
+        self._path_commands: deque[str] = deque()  # path buttons pressed, one handed out per loop
         self.deadman_trips = 0
 
     # -- server thread ----------------------------------------------------------------------------
@@ -220,6 +226,21 @@ class ControlState:
         with self._lock:
             self._cmd.behavior_step += step
 
+    def path_command(self, command: str) -> str | None:
+        """Queue a (validated) path button for the loop, which gets one per loop as
+        ``web/path_command``; returns why it is refused, in words for the page, or None. Refused
+        in a car without path follow (known once the loop has reported) and when
+        :data:`MAX_PATH_COMMANDS` are already waiting. None of them moves the car, so the
+        emergency stop does not refuse them."""
+        with self._lock:
+            if self._tel.loops and self._tel.path is None:
+                return ("This car has no path follow (nothing writes path/state or loc/x): make it "
+                        "with vehicle createcar --template path_follow.")
+            if len(self._path_commands) >= MAX_PATH_COMMANDS:
+                return f"path_command: {MAX_PATH_COMMANDS} path commands are already waiting for the car's loop"
+            self._path_commands.append(command)
+            return None
+
     def set_estop(self, on: bool) -> None:
         """Latch (True) or release (False) the emergency stop. Latching stops the car (throttle 0,
         user mode, recording off); releasing leaves it so: a pilot mode or recording has to be
@@ -276,6 +297,7 @@ class ControlState:
                     self._stop_locked("dead-man")
             self._dirty.clear()
             out = Commands(**asdict(cmd))
+            out.path_command = self._path_commands.popleft() if self._path_commands else None
             cmd.behavior_step = 0  # a step is applied once
             cmd.model_request = None  # handed over once: asking for the same file again reloads it
             return out

@@ -17,7 +17,7 @@ const STALE_S = 1.0;           // no news from the car's loop for this long: wha
 
 const params = new URLSearchParams(location.search);
 const stats = { frames: 0, sent: 0, rejected: 0, role: "none", connected: false, state: null,
-  lastError: null, angle: 0, throttle: 0, stale: true, stops: 0 };
+  lastError: null, angle: 0, throttle: 0, stale: true, stops: 0, paths: 0, pathCommands: 0 };
 window.webStats = stats;  // read by the tests and the benchmark
 
 const input = {
@@ -41,6 +41,17 @@ const NO_PILOT = "Auto steer and Full auto need a pilot, and this car has no pil
   + "(manage.py drive --model models/NAME.pt).";
 
 const sock = new SioClient(params.get("token") ? { token: params.get("token") } : {});
+
+// the path view (pathview.js): shown on a car with path follow; its buttons go to the car as
+// path_command (the driver only, like every other control)
+const pathView = new PathView({ section: $("pathview"), canvas: $("pathmap"), state: $("pathstate"),
+  info: $("pathinfo"), record: $("pathrecord"), buttons: document.querySelectorAll("[data-path]"),
+  note: $("path-note") }, (command, onError) => {
+  if (role !== "driver") return;
+  stats.pathCommands++;
+  send("path_command", { command }, onError);
+});
+stats.pathView = pathView;
 
 function setRole(r) {
   role = r;
@@ -117,6 +128,7 @@ sock.on("disconnect", () => {
   stats.connected = false;
   setOnline(false);
   pending.clear();  // no reply comes for what was in flight
+  pathView.setPath(null);  // sent again on connect: the car may have restarted with another path
   if (!refused) setConn("disconnected — retrying", "bad");
   setRole("none");
   updateStale();
@@ -132,6 +144,7 @@ sock.on("hello", (h) => {
 });
 sock.on("roles", (r) => setRole(r.driver === sock.id ? "driver" : "viewer"));
 sock.on("state", onState);
+sock.on("path", (p) => { stats.paths++; pathView.setPath(p); });
 
 // -- camera: draw each frame, then acknowledge it so the car sends the next (latest) one ------
 const cam = $("cam");
@@ -232,6 +245,7 @@ function onState(s) {
     }
     trips = s.deadman_trips;
   }
+  pathView.update(t.path === undefined ? null : t.path);
   $("behaviorrow").hidden = t.behavior === null;  // a car without behaviours has no lanes to show
   $("behavior").textContent = t.behavior === null ? "–" : t.behavior.replace(/_/g, " ");
   if (c.estop && role === "driver") notice("Emergency stop latched: press the STOP button again to release");
@@ -280,6 +294,7 @@ function updateControls() {
   $("model").disabled = !driver;
   $("load").disabled = !driver || !$("model").value;
   $("behaviornext").disabled = !driver;
+  pathView.setEnabled(driver);
 }
 
 function fillModels(models) {

@@ -322,15 +322,21 @@ class Car:
 
 
 def build_car(car_path: Path, browser: Any = None, *, sim: bool = False, model: Path | None = None,
-              tub: bool = False, **settings: Any) -> Car:
+              tub: bool = False, path_follow: bool = False, **settings: Any) -> Car:
     """The car as manage.py drive assembles it (not started): the simulator or a fake camera, the
-    web page, a pilot when ``model`` is given, the drive mode, a tub writer with ``tub``."""
+    web page, a pilot when ``model`` is given, the path-follow parts with ``path_follow`` (in the
+    simulator: its simulated sensors, as the path_follow template's ``drive --sim``), the drive
+    mode, a tub writer with ``tub``."""
     from vehicle import Vehicle
     from vehicle.app import assembly
     from vehicle.config import Config
 
     settings = {"WEB_CONTROL_PORT": 0, "WEB_MAX_THROTTLE": 1.0, "PILOT_BACKEND": "torch", **settings}
     cfg = Config.defaults(CAR_PATH=str(car_path), **settings)
+    if path_follow:
+        from vehicle.app.path_sim import sensor_config
+
+        cfg = sensor_config(cfg, cfg.PATH_LOCALIZER)
     V = Vehicle()
     if sim:
         assembly.add_simulator(V, cfg)
@@ -339,6 +345,8 @@ def build_car(car_path: Path, browser: Any = None, *, sim: bool = False, model: 
     web = assembly.add_controller(V, cfg)
     if model is not None:
         assembly.add_pilot(V, cfg, model)
+    if path_follow:
+        assembly.add_path_follow(V, cfg)
     assembly.add_drive_mode(V, cfg)
     if tub:
         assembly.add_tub_writer(V, cfg)
@@ -347,7 +355,7 @@ def build_car(car_path: Path, browser: Any = None, *, sim: bool = False, model: 
 
 @pytest.fixture
 def make_car(tmp_path: Path) -> Iterator[Callable[..., Car]]:
-    """``make_car(sim=False, model=None, tub=False, **settings)``: a started car (see
+    """``make_car(sim=False, model=None, tub=False, path_follow=False, **settings)``: a started car (see
     :func:`build_car`), stopped after the test."""
     cars: list[Car] = []
 

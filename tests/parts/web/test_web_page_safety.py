@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from fixtures.browser import CONTRAST
 
 pytestmark = pytest.mark.browser  # chromium missing: the browser fixture skips, with the reason
 
@@ -19,25 +20,6 @@ DESKTOP = {"width": 1280, "height": 800}
 IPHONE13 = {"width": 390, "height": 664}  # Safari's viewport: the screen less its bars
 IPHONE13_LANDSCAPE = {"width": 844, "height": 340}
 PHONE_LANDSCAPE = {"width": 844, "height": 390}
-
-#: WCAG contrast of an element's text against the background painted under it, and the product of
-#: its ancestors' opacities (a dimmed parent dims the text with it)
-CONTRAST = """sel => {
-  const el = document.querySelector(sel);
-  const rgba = (s) => { const v = s.match(/[\\d.]+/g).map(Number); return v.length === 3 ? [...v, 1] : v; };
-  const over = (top, under) => [0, 1, 2].map((i) => top[i] * top[3] + under[i] * (1 - top[3]));
-  const layers = []; let opacity = 1;
-  for (let e = el; e; e = e.parentElement) {
-    const cs = getComputedStyle(e); opacity *= Number(cs.opacity); layers.push(rgba(cs.backgroundColor));
-  }
-  let bg = [255, 255, 255];
-  for (const c of layers.reverse()) bg = over(c, bg);
-  const fg = over(rgba(getComputedStyle(el).color), bg);
-  const lum = (c) => c.map((x) => { x /= 255; return x <= 0.03928 ? x / 12.92 : ((x + 0.055) / 1.055) ** 2.4; })
-    .reduce((s, x, i) => s + x * [0.2126, 0.7152, 0.0722][i], 0);
-  const a = lum(fg), b = lum(bg);
-  return { ratio: (Math.max(a, b) + 0.05) / (Math.min(a, b) + 0.05), opacity };
-}"""
 
 #: the element is fully inside the viewport as the page is now (no scrolling)
 ON_SCREEN = """sel => { const r = document.querySelector(sel).getBoundingClientRect();
