@@ -5,9 +5,13 @@ from __future__ import annotations
 import logging
 from typing import Any, ClassVar
 
-from vehicle.errors import UserError
+from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
+
+class PathButtonError(VehicleError):
+    """A path button setting names a button the gamepad does not have."""
+
 
 #: command -> the setting naming its button (DonkeyCar's names)
 BUTTON_SETTINGS: dict[str, str] = {"record": "TOGGLE_RECORDING_BTN", "save": "SAVE_PATH_BTN",
@@ -24,7 +28,7 @@ def resolve_button(name: str, buttons: set[str], setting: str) -> str:
     position (a PS pad's "square" is an Xbox pad's "x").
 
     Raises:
-        UserError: the layout has no such button (the message names the setting and the buttons).
+        PathButtonError: the layout has no such button (the message names the setting and the buttons).
     """
     if name in buttons:
         return name
@@ -32,7 +36,7 @@ def resolve_button(name: str, buttons: set[str], setting: str) -> str:
     for candidate in POSITION_NAMES.get(position, ()):
         if candidate in buttons:
             return candidate
-    raise UserError(f"{setting} = {name!r}: this gamepad has no such button; use one of {', '.join(sorted(buttons))} "
+    raise PathButtonError(f"{setting} = {name!r}: this gamepad has no such button; use one of {', '.join(sorted(buttons))} "
                     "or None")
 
 
