@@ -36,8 +36,8 @@ def resolve_button(name: str, buttons: set[str], setting: str) -> str:
     for candidate in POSITION_NAMES.get(position, ()):
         if candidate in buttons:
             return candidate
-    raise PathButtonError(f"{setting} = {name!r}: this gamepad has no such button; use one of {', '.join(sorted(buttons))} "
-                    "or None")
+    raise PathButtonError(f"{setting} = {name!r}: this gamepad has no such button; use one of "
+                          f"{', '.join(sorted(buttons))} or None")
 
 
 class PathCommands:

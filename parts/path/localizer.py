@@ -281,7 +281,9 @@ class Localizer:
         if v["gps/ok"] and v["gps/x"] is not None and v["gps/y"] is not None:
             gx, gy, new = self.gps.fix(v["gps/x"], v["gps/y"], self.time)
             if new:
-                self.fit.add((gx, gy), (ox, oy))
+                # pairs with the fused position: once GPS corrects the pose, the frame keeps the
+                # relation found while odometry had not drifted yet, and averages the GPS's error
+                self.fit.add((gx, gy), (ox + self.e[0], oy + self.e[1]))
                 if not self.fit_ready and self.odometry.distance >= self.fit_dist and self.fit.spread() >= 1.0:
                     self.fit_ready = True
                     logger.info("path: GPS frame fitted over %.1f m; GPS fixes now correct the odometry",

@@ -118,7 +118,7 @@ class PathRecorder:
             self.command(command)
         if self.recording and ok and x is not None and y is not None:
             last = self._points[-1] if self._points else None
-            if last is None or math.hypot(x - last[0], y - last[1]) >= self.min_dist:
+            if last is None or math.hypot(x - last[0], y - last[1]) >= self.min_dist - 1e-9:
                 v = float(speed) if speed is not None and math.isfinite(speed) else 0.0
                 self._points.append((float(x), float(y), abs(v)))
                 pts = np.array(self._points)
