@@ -4,8 +4,9 @@ Uncomment and edit a line to override a default. Loading checks every name and t
 reported with the closest valid name. docs/path_follow.md explains the workflow and the tuning.
 """
 
-# -- sensors: the localiser needs an encoder (odometry), a GPS, or both (fused)
-HAVE_ODOM = True                 # wheel encoder (in the simulator: its simulated encoder)
+# -- sensors on the car: the localiser needs an encoder (odometry), a GPS, or both (fused);
+#    `manage.py drive --sim` switches on the simulated ones it needs
+# HAVE_ODOM = True               # wheel encoder
 # HAVE_GPS = True                # NMEA receiver on GPS_SERIAL
 # MM_PER_TICK = 9.9              # roll 1 m, divide 1000 by the ticks counted
 # GPS_ORIGIN = (48.1351, 11.5820)   # keeps a GPS path valid between runs
