@@ -39,8 +39,10 @@ class PathRecorder:
         load: read ``filename`` at start when it exists (as DonkeyCar's path_follow car does).
     """
 
+    #: the speed key is the constructor's ``speed_key`` (an instance's INPUTS say which)
+    INPUTS: tuple[str, ...] = ("loc/x", "loc/y", "loc/ok", "enc/speed", "path/command")
+    OPTIONAL_INPUTS: tuple[str, ...] = ("path/command", "enc/speed")
     OUTPUTS: ClassVar[tuple[str, ...]] = ("path/xy", "path/speed", "path/version", "path/recording")
-    OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("path/command",)
 
     def __init__(self, filename: str | os.PathLike[str], min_dist: float = 0.2, *, speed_key: str = "enc/speed",
                  load: bool = True) -> None:
