@@ -3,11 +3,11 @@
 For every track seed the expert drives one lap while the car records its path from the simulated
 sensors (SIM_SEED + 1000: other noise than the runs that follow it), then the path follower drives
 ``--laps`` laps from odometry alone, GPS alone (a consumer receiver, SIM_GPS_NOISE = 1 m, and an RTK
-one, 5 cm) and both fused; ``--pilot`` adds a trained model on the same tracks. One row per driver:
+one, 5 cm) and both fused; ``--pilot`` adds trained models on the same tracks. One row per driver:
 the metrics of ``vehicle sim eval`` plus the true distance to the recorded path. ``--png`` draws
 recorded vs driven path of the first track.
 
-Usage: .venv/bin/python bench/path_follow.py [--tracks 1,2,3] [--laps 3] [--pilot models/x.pt]
+Usage: .venv/bin/python bench/path_follow.py [--tracks 1,2,3] [--laps 3] [--pilot models/x.pt ...]
        [--png docs/img/path_follow.png]
 """
 
@@ -67,7 +67,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--tracks", default="1,2,3")
     ap.add_argument("--laps", type=int, default=3)
-    ap.add_argument("--pilot", help="a trained model file to compare")
+    ap.add_argument("--pilot", nargs="*", default=[], help="trained model files to compare")
     ap.add_argument("--png", help="draw recorded vs driven path of the first track here")
     args = ap.parse_args()
     seeds = [int(s) for s in args.tracks.split(",")]
@@ -90,8 +90,8 @@ def main() -> None:
         reports.append(merged)
     cfg = Config.defaults()
     reports.insert(0, evaluate("expert", seeds, args.laps, cfg=cfg))
-    if args.pilot:
-        reports.insert(1, evaluate(args.pilot, seeds, args.laps, cfg=cfg))
+    for i, model in enumerate(args.pilot):
+        reports.insert(1 + i, evaluate(model, seeds, args.laps, cfg=cfg))
     print(format_comparison(reports))  # noqa: T201
     if args.png:
         plot(drawn, seeds[0], args.png, args.laps)

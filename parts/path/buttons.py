@@ -13,6 +13,8 @@ class PathButtonError(VehicleError):
     """A path button setting names a button the gamepad does not have."""
 
 
+#: the pad's own actions a path button may share in a path-follow car (no tub, no behaviours)
+HARMLESS = ("record_toggle", "erase_records", "behavior_next", "behavior_prev")
 #: command -> the setting naming its button (DonkeyCar's names)
 BUTTON_SETTINGS: dict[str, str] = {"record": "TOGGLE_RECORDING_BTN", "save": "SAVE_PATH_BTN",
                                    "load": "LOAD_PATH_BTN", "clear": "ERASE_PATH_BTN",
@@ -70,7 +72,7 @@ class PathCommands:
                 if cfg[setting]:
                     button = resolve_button(cfg[setting], names, setting)
                     buttons[command] = button
-                    if button in bound and bound[button] not in ("record_toggle", "erase_records"):
+                    if button in bound and bound[button] not in HARMLESS:
                         logger.warning("%s = %r also does the pad's %s", setting, button, bound[button])
         return cls(pad, buttons)
 

@@ -93,7 +93,7 @@ TOGGLE_RECORDING_BTN: str | None = "circle"
 # Save the path to PATH_FILENAME (SAVE_PATH_BTN).
 SAVE_PATH_BTN: str | None = "square"
 # (Re)load the path from PATH_FILENAME (LOAD_PATH_BTN).
-LOAD_PATH_BTN: str | None = "triangle"
+LOAD_PATH_BTN: str | None = "dpad_left"
 # Erase the path in memory (ERASE_PATH_BTN).
 ERASE_PATH_BTN: str | None = "dpad_down"
 # Make the car's current pose the origin (0, 0, heading 0) of the localiser (RESET_ORIGIN_BTN).

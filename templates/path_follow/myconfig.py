@@ -35,6 +35,6 @@ reported with the closest valid name. docs/path_follow.md explains the workflow 
 # USE_JOYSTICK_AS_DEFAULT = True
 # TOGGLE_RECORDING_BTN = "circle"
 # SAVE_PATH_BTN = "square"
-# LOAD_PATH_BTN = "triangle"
+# LOAD_PATH_BTN = "dpad_left"
 # ERASE_PATH_BTN = "dpad_down"
 # RESET_ORIGIN_BTN = "dpad_up"

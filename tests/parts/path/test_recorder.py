@@ -88,7 +88,8 @@ def test_every_press_of_a_path_button_is_one_command_and_the_page_follows(xbox_p
     os.write(w, stream.init_burst())
     pad.run()
     cmds = PathCommands.from_config(Config.defaults(), pad)
-    assert cmds.buttons == {"record": "b", "save": "x", "load": "y", "clear": "dpad_down", "reset_origin": "dpad_up"}
+    assert cmds.buttons == {"record": "b", "save": "x", "load": "dpad_left", "clear": "dpad_down",
+                            "reset_origin": "dpad_up"}
     os.write(w, stream.press("b") + stream.press("x") + stream.press("x"))  # three presses within one loop
     pad.run()
     assert [cmds.run(None) for _ in range(3)] == ["record", "save", "save"]
