@@ -164,3 +164,52 @@ def test_path_geometry_of_the_simulator_frames():
     sim = SimCar.from_config(cfg, seeds=[SEED], realtime=False, render=False)
     start = sim.car.state
     assert math.hypot(path.xy[0][0] - start.x, path.xy[0][1] - start.y) < 0.05
+
+
+class _Script:
+    """Part: the driver page's path buttons at given loops (``web/path_command``)."""
+
+    OUTPUTS = ("web/path_command",)
+
+    def __init__(self, at: dict[int, str]) -> None:
+        self.at, self.loop = at, 0
+
+    def run(self):
+        self.loop += 1
+        return self.at.get(self.loop)
+
+
+def test_real_car_records_a_path_from_its_encoder_and_saves_it(tmp_path):
+    # the template's drive() on the car: sensors from the sensor tables (an Arduino encoder on a
+    # pty, written from DonkeyCar's sketch protocol), the page, the path parts, a MOCK drivetrain
+    import sys
+    from pathlib import Path
+
+    from vehicle.app import assembly
+
+    sys.path.insert(0, str(Path(__file__).parents[2] / "parts" / "sensors"))
+    from sensor_fakes import ArduinoEncoder
+
+    encoder = ArduinoEncoder()
+    try:
+        cfg = Config.defaults(CAR_PATH=str(tmp_path), HAVE_ODOM=True, ENCODER_TYPE="arduino",
+                              ODOM_SERIAL=encoder.path, MM_PER_TICK=10.0, DRIVE_TRAIN_TYPE="MOCK",
+                              WEB_CONTROL_PORT=0, PATH_MIN_DIST=0.1)
+        V = Vehicle()
+        assembly.add_sensors(V, cfg)
+        V.add(_Script({5: "record", 120: "record", 121: "save"}))
+        assembly.add_controller(V, cfg)
+        assembly.add_path_follow(V, cfg)
+        assembly.add_drive_mode(V, cfg)
+        assembly.add_drivetrain(V, cfg)
+        encoder.step = 3  # the wheel turns: 3 ticks of 10 mm per reading
+        states = []
+        V.add(lambda s: states.append(s), inputs=["path/state"], outputs=[])
+        V.start(rate_hz=50, max_loop_count=130)
+    finally:
+        encoder.close()
+    from parts.path.pathfile import load_path
+
+    path = load_path(tmp_path / "donkey_path.csv")
+    assert "recording" in states and states[-1] == "ready"
+    assert len(path) >= 3 and path.xy[-1][0] > 0.2 and abs(float(path.xy[-1][1])) < 1e-3  # straight ahead
