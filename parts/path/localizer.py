@@ -6,16 +6,21 @@
   (the start, or the last ``reset_origin`` command: x forward, y left there). Its uncertainty grows
   by LOC_ODOM_DRIFT per metre driven; it is lost when the encoder is stale.
 - ``"gps"``: ``gps/x, gps/y`` (x east, y north) minus the origin (the GPS part's origin, or the
-  position at the last ``reset_origin``). The heading is the direction between the newest fix and
-  the last fix at least LOC_GPS_HEADING_DIST behind it (None until the car has moved that far).
+  position at the last ``reset_origin``). Between fixes (a few per second) the pose is carried
+  along the arc of the course speed and the previous loop's steering command (bicycle model); at
+  each fix the position is the fix and the heading is pulled towards the course between the fix
+  and the last one at least LOC_GPS_HEADING_DIST behind it (None until the car has moved that far).
   Its uncertainty is ``gps/accuracy``; it is lost at once when the fix is (``gps/ok`` False).
 - ``"fused"``: odometry corrected by GPS fixes, in odometry's frame. Each GPS fix is carried into
-  that frame by the rotation and offset that best map all fixes since the origin onto the odometry
-  positions at the same times (least squares, Umeyama/Procrustes in 2-D, updated from running
-  sums); after LOC_FUSE_FIT_DIST metres a Kalman filter on the position correction takes each fix
-  with the GPS's variance against odometry's variance, which grows with the distance driven
-  (Thrun et al., Probabilistic Robotics, ch. 3). While the fix is lost the pose runs on odometry
-  and ``loc/std`` grows; LOC_MAX_STD makes it lost beyond a bound. The heading is odometry's.
+  that frame by the rotation and offset that best map the fixes onto the fused positions at the
+  same times (least squares, Umeyama/Procrustes in 2-D, from running sums); after
+  LOC_FUSE_FIT_DIST metres a Kalman filter takes each fix. Per axis its state is odometry's error
+  (variance growing by LOC_ODOM_DRIFT per metre driven) and the GPS's own slowly wandering error
+  (first-order Gauss-Markov over LOC_GPS_TAU seconds: coloured measurement noise as an augmented
+  state, Gelb, Applied Optimal Estimation; Thrun et al., Probabilistic Robotics, ch. 3), so a GPS
+  that wanders for seconds does not drag the pose. While the fix is lost the pose runs on
+  odometry and ``loc/std`` grows; LOC_MAX_STD makes it lost beyond a bound. The heading is
+  odometry's.
 """
 
 from __future__ import annotations
