@@ -128,6 +128,13 @@ class Gamepad(ThreadedPart):
                 return "lost"
             return "silent" if self.logic.silent else "connected"
 
+    def presses(self) -> dict[str, int]:
+        """How often each button (by the layout's name) was pressed since the start: a part that
+        maps buttons to its own commands (path follow) compares counts, so no press is lost between
+        two loops."""
+        with self._lock:
+            return dict(self.logic.presses)
+
     # -- loop side ------------------------------------------------------------------------------
     def run_threaded(self, *inputs: Any) -> GamepadOutput:
         """This loop's outputs (see OUTPUTS); never blocks on the device."""

@@ -100,6 +100,7 @@ class GamepadLogic:
         self._raw: dict[tuple[str, int], int] = {}
         self._rest: dict[int, int] = {}
         self._pressed: dict[str, bool] = {}
+        self.presses: dict[str, int] = {}  # button name -> presses so far (for parts that map buttons)
         self._erase = False
         self._behavior_step = 0
         self._last_event = clock()
@@ -185,6 +186,7 @@ class GamepadLogic:
             before = self._pressed.get(name, False)
             self._pressed[name] = now
             if now and not before:
+                self.presses[name] = self.presses.get(name, 0) + 1
                 for action in self._button_actions.get(name, ()):
                     self._do(action)
 

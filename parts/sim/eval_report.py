@@ -28,6 +28,9 @@ _COLUMNS: tuple[tuple[str, str, str], ...] = (
 )
 
 
+#: a path follower's column: its true distance to the path it recorded
+_PATH = ("path|d| m", "mean_path_distance", "{:.3f}")
+
 #: the theme column of built-in simulator reports
 _THEME = ("theme", "theme", "{}")
 #: lane table columns (commanded lane changes): (header, key of the "lanes" section, format)
@@ -44,8 +47,9 @@ _LANE_COLUMNS: tuple[tuple[str, str, str], ...] = (
 )
 
 
-def _table(rows_in: list[tuple[str, dict[str, Any]]], columns: tuple[tuple[str, str, str], ...]) -> list[str]:
-    headers = ["track", *(c[0] for c in columns)]
+def _table(rows_in: list[tuple[str, dict[str, Any]]], columns: tuple[tuple[str, str, str], ...],
+           first: str = "track") -> list[str]:
+    headers = [first, *(c[0] for c in columns)]
     rows = []
     for name, res in rows_in:
         row = [name]
@@ -83,7 +87,8 @@ def format_table(report: dict[str, Any]) -> str:
     track, then the overall row; with commanded lane changes, a second table of the lane metrics."""
     tracks = [(str(t["seed"]), t) for t in report["tracks"]] + [("all", report["overall"])]
     themed = bool(report.get("conditions"))
-    lines = ([describe(report)] if themed else []) + _table(tracks, (_THEME, *_COLUMNS) if themed else _COLUMNS)
+    columns = (*_COLUMNS, _PATH) if report["overall"].get("mean_path_distance") is not None else _COLUMNS
+    lines = ([describe(report)] if themed else []) + _table(tracks, (_THEME, *columns) if themed else columns)
     o = report["overall"]
     simulator = report.get("simulator", "builtin")
     success = "-" if o.get("success_rate") is None else f"{o['success_rate'] * 100:.0f} %"
@@ -107,6 +112,16 @@ def format_table(report: dict[str, Any]) -> str:
         lines.append(f"commanded lane changes: {lanes['lane_changes_ok']} of {lanes['lane_changes']} done "
                      f"({'-' if rate is None else f'{rate:.0%}'}), lane error and wrong-lane time measured between "
                      f"changes, {o['interventions']} off-track")
+    return "\n".join(lines)
+
+
+def format_comparison(reports: list[dict[str, Any]]) -> str:
+    """Several drivers on the same tracks (learned pilots, path followers), one overall row each."""
+    rows = [(str(r["pilot"]), r["overall"]) for r in reports]
+    lines = _table(rows, (*_COLUMNS, _PATH), first="driver")
+    seeds = ",".join(str(s) for s in reports[0]["seeds"]) if reports else ""
+    lines.append(f"tracks {seeds}, {reports[0]['laps'] if reports else 0} lap(s) each; path|d|: a path follower's "
+                 "true distance to its recorded path")
     return "\n".join(lines)
 
 

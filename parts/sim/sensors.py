@@ -11,7 +11,8 @@ speed controller, obstacle stop and a path follower run unchanged in simulation.
 - GPS: a fix every 1 / rate seconds; the error is a first-order Gauss-Markov process (correlated
   over ``gps_tau`` seconds, like a real receiver's wander) of standard deviation ``gps_noise``
   metres; latitude/longitude around ``gps_origin``; x/y in a local frame with its origin at the
-  first fix, as :class:`parts.sensors.gps.GPS` does.
+  first fix, or at ``gps_origin`` with ``gps_fixed_origin`` (GPS_ORIGIN set), as
+  :class:`parts.sensors.gps.GPS` does.
 - LiDAR: one ray per bin from a point ``lidar_forward`` metres ahead of the rear axle against the
   world's walls (the backdrop's box) and distractors (their bounding circles) and any extra
   segments given; nearest hit per bin, 0.0 beyond ``lidar_range``.
@@ -70,7 +71,8 @@ class SimSensors:
         encoder: publish ``enc/ticks, enc/timestamp, enc/ok``; ``m_per_tick`` metres per tick.
         imu: publish ``imu/acl_*, imu/gyr_*, imu/ok``; noise ``imu_accel_noise`` m/s^2 and
             ``imu_gyro_noise`` rad/s (standard deviations per reading).
-        gps: publish ``gps/*`` as :class:`parts.sensors.gps.GPS` does, ``gps_hz`` fixes per second.
+        gps: publish ``gps/*`` as :class:`parts.sensors.gps.GPS` does, ``gps_hz`` fixes per second;
+            ``gps_fixed_origin``: x/y around ``gps_origin`` (the track's (0, 0)), not the first fix.
         lidar: publish ``lidar/dist_array, lidar/ok`` with ``lidar_bins`` bins.
         obstacles: extra wall segments ((x0, y0), (x1, y1)) in track coordinates, metres.
         seed: seed of the noise (SIM_SEED).
@@ -79,7 +81,8 @@ class SimSensors:
     def __init__(self, sim: Any, *, encoder: bool = True, m_per_tick: float = 0.005, imu: bool = False,
                  imu_accel_noise: float = 0.05, imu_gyro_noise: float = 0.005, gps: bool = False,
                  gps_hz: float = 5.0, gps_noise: float = 0.5, gps_tau: float = 10.0,
-                 gps_origin: tuple[float, float] = (48.1351, 11.5820), lidar: bool = False, lidar_bins: int = 360,
+                 gps_origin: tuple[float, float] = (48.1351, 11.5820), gps_fixed_origin: bool = False,
+                 lidar: bool = False, lidar_bins: int = 360,
                  lidar_range: float = 12.0, lidar_noise: float = 0.01, lidar_forward: float = 0.15,
                  obstacles: Sequence[Segment] = (), seed: int = 0) -> None:
         if not m_per_tick > 0:
@@ -114,7 +117,8 @@ class SimSensors:
         self._prev: tuple[float, float, float, float, int, int] | None = None  # x, y, heading, speed, resets, seed
         self._gps_error = np.zeros(2)
         self._gps_next = 0.0
-        self._gps_frame: LocalFrame | None = None
+        self._gps_frame: LocalFrame | None = self.geo if gps_fixed_origin else None
+        self._gps_started = False
         self._gps_values: tuple[Any, ...] = (None,) * 6
         self._walls_of: Any = self  # the world the walls below belong to (self: none computed yet)
         self._walls = np.zeros((0, 4))
@@ -136,6 +140,7 @@ class SimSensors:
         return cls(sim, encoder=cfg.HAVE_ODOM, m_per_tick=cfg.MM_PER_TICK / 1000.0, imu=cfg.HAVE_IMU,
                    imu_accel_noise=cfg.SIM_IMU_ACCEL_NOISE, imu_gyro_noise=cfg.SIM_IMU_GYRO_NOISE, gps=cfg.HAVE_GPS,
                    gps_hz=cfg.SIM_GPS_HZ, gps_noise=cfg.SIM_GPS_NOISE, gps_origin=origin,  # type: ignore[arg-type]
+                   gps_fixed_origin=cfg.GPS_ORIGIN is not None,
                    lidar=cfg.USE_LIDAR, lidar_bins=cfg.LIDAR_BINS, lidar_range=cfg.LIDAR_MAX_RANGE,
                    lidar_noise=cfg.SIM_LIDAR_NOISE, seed=cfg.SIM_SEED)
 
@@ -164,7 +169,8 @@ class SimSensors:
         if t + 1e-9 >= self._gps_next:
             self._gps_next = t + self.gps_period
             draw = self.rng.normal(0.0, self.gps_noise, 2)
-            if self._gps_frame is None:  # the first fix: the error's stationary distribution
+            if not self._gps_started:  # the first fix: the error's stationary distribution
+                self._gps_started = True
                 self._gps_error = draw
             else:  # Gauss-Markov: keeps the standard deviation, correlated over gps_tau seconds
                 a = math.exp(-self.gps_period / self.gps_tau)

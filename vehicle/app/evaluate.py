@@ -306,10 +306,22 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
         "conditions": describe_conditions(cfg, themes) if sim == "builtin" else None,
         "settings": settings,
         "tracks": results,
-        "overall": {**overall(results, penalty, np.concatenate(pooled)),
+        "overall": {**overall(results, penalty, np.concatenate(pooled)), **_path_overall(results),
                     **({"lanes": overall_lane_metrics([r["lanes"] for r in results])} if lanes_on else {})},
         "wall_time_s": round(time.perf_counter() - started, 3),
     }
+
+
+def _path_overall(results: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """A path follower's distance to its recorded path over all tracks (mean weighted by frames);
+    nothing for a pilot."""
+    rows = [r for r in results if r.get("mean_path_distance") is not None]
+    if not rows:
+        return {}
+    frames = sum(r["autonomous_frames"] for r in rows) or len(rows)
+    mean = sum(r["mean_path_distance"] * (r["autonomous_frames"] or 1) for r in rows) / frames
+    return {"mean_path_distance": round(mean, 4), "max_path_distance": max(r["max_path_distance"] for r in rows),
+            "localizer": rows[0].get("localizer")}
 
 
 def describe_conditions(cfg: Any, themes: Sequence[str] | None = None) -> dict[str, Any]:
@@ -340,6 +352,8 @@ def _builtin_episode(driver: Any, seed: int, laps: int, cfg: Any, episode_args: 
     res = metrics.result()
     if lane_part is not None:
         res["lanes"] = lane_part.result()
+    if hasattr(driver, "episode_result"):
+        res = driver.episode_result(res)
     return res, metrics.autonomous_abs_cte()
 
 
@@ -507,13 +521,19 @@ def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float,
     """
     # image effects stay as configured: a pilot is judged on the images it will get; the expert
     # drives from the map, so its episodes draw no images
+    # a driver with its own sensors (a path follower) drives with the settings that switch them on
+    episode_cfg = driver.episode_config(cfg) if hasattr(driver, "episode_config") else cfg
     sim = SimCar.from_config(cfg, seeds=[seed], themes=[theme or theme_list(cfg.SIM_THEME)[0]],
-                             reset_off_track=True, reset_to="nearest", realtime=False, render=driver != "expert")
+                             reset_off_track=True, reset_to="nearest", realtime=False,
+                             render=driver != "expert" and getattr(driver, "needs_camera", True),
+                             measured_speed=not episode_cfg.HAVE_ODOM)
     V = Vehicle(clock=SimulatedClock())
     V.mem.update(extra_inputs or {})  # seeded: keys the simulator does not make
     V.add(sim)
     # as add_simulator: the pilot sees what the car drives with
     add_undistort(V, cfg, (cfg.SIM_CAMERA_W, cfg.SIM_CAMERA_H), "SIM_CAMERA_W x SIM_CAMERA_H")
+    if hasattr(driver, "prepare_episode"):  # its sensors and localiser, after the simulated car
+        driver.prepare_episode(V, cfg, sim)
     if lanes is not None:
         cfg = cfg.replace(TRAIN_BEHAVIORS=True)
         times = periodic_change_times(max_time, tuple(cfg.SIM_EVAL_LANE_CHANGE_EVERY),
@@ -545,6 +565,8 @@ def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float,
     V.add(metrics)
     if lanes is not None:
         V.add(lanes)
+    if hasattr(driver, "add_metrics"):  # a path follower: the distance to its recorded path
+        driver.add_metrics(V)
     V.start(rate_hz=cfg.DRIVE_LOOP_HZ, log_summary=False)
     return metrics
 

@@ -33,6 +33,7 @@ HELPERS: dict[str, str] = {
     "add_odometry": "sensors",
     "add_obstacle_stop": "drive",
     "add_sim_sensors": "sim",
+    "add_path_follow": "path",
     "add_pilot": "pilot",
     "add_tub_writer": "tub",
 }

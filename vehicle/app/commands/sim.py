@@ -34,7 +34,11 @@ def register(subparsers: Any) -> None:
     track.set_defaults(func=cmd_track)
 
     ev = sub.add_parser("eval", help="closed-loop evaluation of a pilot on simulated tracks", formatter_class=fmt)
-    ev.add_argument("--pilot", required=True, help="'expert' or a trained model file")
+    ev.add_argument("--pilot", help="'expert' or a trained model file")
+    ev.add_argument("--path", metavar="CSV", help="follow this recorded path (docs/path_follow.md) on its track; "
+                                                  "with --pilot too, both drive and one table compares them")
+    ev.add_argument("--localizer", choices=["odometry", "gps", "fused"],
+                    help="with --path: the pose from the simulated encoder, GPS or both (default PATH_LOCALIZER)")
     ev.add_argument("--tracks", type=_seeds, help="comma-separated track seeds (default SIM_EVAL_TRACK_SEEDS)")
     ev.add_argument("--laps", type=int, help="laps per track (default SIM_EVAL_LAPS)")
     ev.add_argument("--max-time", type=float, help="simulated seconds per track at most")
@@ -65,6 +69,15 @@ def register(subparsers: Any) -> None:
                           "random; the expert changes lanes and the records carry the behaviour")
     _world_options(rec)
     rec.set_defaults(func=cmd_record)
+
+    rp = sub.add_parser("record-path", help="the expert drives one lap; save it as a path file (path follow)",
+                        formatter_class=fmt)
+    rp.add_argument("--track", type=int, default=1, help="track seed")
+    rp.add_argument("--localizer", choices=["odometry", "gps", "fused"],
+                    help="record the pose from the simulated encoder, GPS or both (default PATH_LOCALIZER)")
+    rp.add_argument("--out", required=True, metavar="CSV", help="path file to write")
+    _world_options(rp)
+    rp.set_defaults(func=cmd_record_path)
 
     serve = sub.add_parser("serve", formatter_class=fmt,
                            help="serve the simulator over the Donkey simulator's protocol (gym-donkeycar, DonkeyCar)",
@@ -207,6 +220,13 @@ def cmd_eval(args: argparse.Namespace) -> int:
     workers = args.workers if args.workers is not None else cfg.SIM_EVAL_WORKERS
     if workers < 0:
         raise UserError(f"--workers {workers}: give 1 or more processes, or 0 for one per core")
+    if args.pilot is None and args.path is None:
+        raise UserError("give --pilot ('expert' or a model file) or --path (a recorded path), or both")
+    path_driver = None
+    if args.path is not None:
+        path_driver = _path_driver(args, cfg, seeds)
+        if args.pilot is None:
+            return _eval_path(args, cfg, seeds, laps, path_driver)
     if args.pilot != "expert" and not Path(args.pilot).exists():
         raise UserError(f"--pilot {args.pilot}: no such model file; pass 'expert' or a trained model "
                         "(e.g. models/mypilot.pt)")
@@ -229,6 +249,11 @@ def cmd_eval(args: argparse.Namespace) -> int:
     except PartError as exc:  # e.g. a model made for another image size: the loop stopped safely
         raise UserError(f"evaluation stopped: {exc}") from exc
     print(format_table(report))  # noqa: T201 - CLI output
+    if path_driver is not None:
+        path_report = _eval_path(args, cfg, seeds, laps, path_driver, quiet=True)
+        from parts.sim.eval_report import format_comparison
+
+        print("\n" + format_comparison([report, path_report]))  # noqa: T201
     if args.json:
         print(f"wrote {write_json(report, args.json)}")  # noqa: T201
     if args.png:
@@ -244,6 +269,57 @@ def cmd_eval(args: argparse.Namespace) -> int:
         except RegistryError as exc:
             raise UserError(f"--store: {exc}") from exc
         print(f"stored as evaluation {ev.id} of {ev.model}")  # noqa: T201
+    return 0
+
+
+def _path_driver(args: argparse.Namespace, cfg: Any, seeds: list[int]) -> Any:
+    """The path follower of ``--path`` / ``--localizer`` (a path belongs to the track it was recorded on)."""
+    from parts.path.pathfile import load_path
+    from vehicle.app.path_sim import PathDriver
+
+    if args.sim != "builtin":
+        raise UserError("--path follows a path in the built-in simulator: drop --sim " + args.sim)
+    if len(seeds) != 1:
+        raise UserError(f"--path: a path belongs to the track it was recorded on; give one --tracks seed, not "
+                        f"{len(seeds)}")
+    localizer = args.localizer or cfg.PATH_LOCALIZER
+    return PathDriver(load_path(args.path), localizer, cfg, name=f"path {Path(args.path).name} ({localizer})")
+
+
+def _eval_path(args: argparse.Namespace, cfg: Any, seeds: list[int], laps: int, driver: Any,
+               quiet: bool = False) -> Any:
+    """Evaluate the path follower (serially: it is no model file); print its table unless ``quiet``."""
+    from parts.sim.eval_report import format_table, write_json
+    from vehicle.app.evaluate import evaluate
+
+    if args.store and not quiet:
+        raise UserError("--store keeps evaluations of registered models; a path is not one")
+    try:
+        report = evaluate(driver, seeds, laps, cfg=cfg, max_time=args.max_time, fixed_throttle=args.throttle)
+    except ValueError as exc:
+        raise UserError(str(exc)) from exc
+    if quiet:
+        return report
+    print(format_table(report))  # noqa: T201 - CLI output
+    if args.json:
+        print(f"wrote {write_json(report, args.json)}")  # noqa: T201
+    if args.png:
+        from parts.sim.eval_report import write_png
+
+        print(f"wrote {write_png(report, args.png, cfg)}")  # noqa: T201
+    return 0
+
+
+def cmd_record_path(args: argparse.Namespace) -> int:
+    """Record one expert lap of --track in the localiser's frame and write it as CSV."""
+    from parts.path.pathfile import save_path
+    from vehicle.app.path_sim import record_path
+
+    cfg = load_world_config(args)
+    localizer = args.localizer or cfg.PATH_LOCALIZER
+    path = record_path(cfg, args.track, localizer)
+    print(f"recorded {len(path)} points ({path.length:.1f} m) on track {args.track} with {localizer}: "  # noqa: T201
+          f"wrote {save_path(path, args.out)}")
     return 0
 
 

@@ -44,12 +44,28 @@ def sim_car(tmp_path: Path) -> Vehicle:
     return V
 
 
+def path_car(tmp_path: Path, localizer: str = "fused") -> Vehicle:
+    """The path_follow template's drive --sim."""
+    from vehicle.app.path_sim import sensor_config
+
+    cfg = sensor_config(Config.defaults(CAR_PATH=str(tmp_path), SIM_TEXTURE_RES=0.02, PATH_LOCALIZER=localizer),
+                        localizer)
+    V = Vehicle(clock=SimulatedClock())
+    assembly.add_simulator(V, cfg, seeds=[3])
+    assembly.add_controller(V, cfg)
+    assembly.add_path_follow(V, cfg)
+    assembly.add_drive_mode(V, cfg)
+    return V
+
+
 @pytest.mark.parametrize("build", [
     lambda p: basic_car(p),
     lambda p: basic_car(p, USE_JOYSTICK_AS_DEFAULT=True, CONTROLLER_TYPE="generic",
                         JOYSTICK_DEVICE_FILE=str(p / "no-js0")),
     sim_car,
-], ids=["basic", "basic+gamepad", "simulator"])
+    path_car,
+    lambda p: path_car(p, "gps"),
+], ids=["basic", "basic+gamepad", "simulator", "path_follow", "path_follow+gps"])
 def test_assembled_cars_use_standard_or_namespaced_keys_and_wire_cleanly(tmp_path, build):
     V = build(tmp_path)
     V.check_wiring()

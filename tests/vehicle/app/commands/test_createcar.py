@@ -17,10 +17,10 @@ REPO = Path(__file__).resolve().parents[4]
 
 
 def test_templates_include_basic_and_simulator():
-    assert {"basic", "simulator"} <= set(templates())
+    assert {"basic", "simulator", "path_follow"} <= set(templates())
 
 
-@pytest.mark.parametrize("template", ["basic", "simulator"])
+@pytest.mark.parametrize("template", ["basic", "simulator", "path_follow"])
 def test_createcar_writes_car_folder(tmp_path, template):
     car = tmp_path / "car"
     result = create_car(car, template)
@@ -54,7 +54,7 @@ def test_bad_template_and_path(tmp_path):
         create_car(tmp_path / "file", "basic")
 
 
-@pytest.mark.parametrize("template", ["basic", "simulator"])
+@pytest.mark.parametrize("template", ["basic", "simulator", "path_follow"])
 def test_commented_settings_in_templates_are_valid(template):
     """Every `# NAME = value` suggestion in a template's myconfig.py would load if uncommented."""
     text = (resources.files("templates") / template / "myconfig.py").read_text()
