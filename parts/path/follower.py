@@ -64,6 +64,10 @@ class PathFollower:
             MAX_STEERING_ANGLE).
     """
 
+    #: the measured speed is ``enc/speed``; a car measuring it elsewhere renames it at ``V.add``
+    INPUTS: ClassVar[tuple[str, ...]] = ("loc/x", "loc/y", "loc/angle", "loc/ok", "path/xy", "path/speed",
+                                         "path/version", "path/recording", "user/mode", "enc/speed")
+    OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("enc/speed",)
     OUTPUTS: ClassVar[tuple[str, ...]] = ("pilot/angle", "pilot/throttle", "path/target_x", "path/target_y",
                                           "path/cte", "path/state")
 
@@ -71,8 +75,7 @@ class PathFollower:
                  look_behind: int = 1, search_length: int | None = None, wheel_base: float = 0.26,
                  max_steering_angle: float = 0.436, constant_throttle: float | None = None,
                  speed_pi: PIController | None = None, speed_scale: float = 1.0, min_speed: float = 0.3,
-                 max_speed: float | None = None, loop: bool | None = None, close_dist: float = 1.0,
-                 speed_key: str = "enc/speed") -> None:
+                 max_speed: float | None = None, loop: bool | None = None, close_dist: float = 1.0) -> None:
         if not dt > 0:
             raise ValueError(f"dt must be > 0 s, got {dt!r}")
         self.dt = float(dt)
@@ -85,9 +88,6 @@ class PathFollower:
         self.speed_pi = speed_pi or PIController(0.3, 0.6)
         self.speed_scale, self.min_speed, self.max_speed = float(speed_scale), float(min_speed), max_speed
         self.loop, self.close_dist = loop, float(close_dist)
-        self.INPUTS = ("loc/x", "loc/y", "loc/angle", "loc/ok", "path/xy", "path/speed", "path/version",
-                       "path/recording", "user/mode", speed_key)
-        self.OPTIONAL_INPUTS = (speed_key,)
         self._version: Any = object()
         self.index: int | None = None
         self.closed = False
@@ -96,7 +96,7 @@ class PathFollower:
         self._no_speed_warned = False
 
     @classmethod
-    def from_config(cls, cfg: Any, speed_key: str = "enc/speed") -> PathFollower:
+    def from_config(cls, cfg: Any) -> PathFollower:
         """PATH_*, PID_*, USE_CONSTANT_THROTTLE, PID_THROTTLE, PILOT_SPEED_KP/KI/MAX_THROTTLE,
         WHEEL_BASE, MAX_STEERING_ANGLE and DRIVE_LOOP_HZ."""
         return cls(1.0 / cfg.DRIVE_LOOP_HZ, pid=PID(cfg.PID_P, cfg.PID_I, cfg.PID_D),
@@ -106,7 +106,7 @@ class PathFollower:
                    constant_throttle=cfg.PID_THROTTLE if cfg.USE_CONSTANT_THROTTLE else None,
                    speed_pi=PIController(cfg.PILOT_SPEED_KP, cfg.PILOT_SPEED_KI, 0.0, cfg.PILOT_SPEED_MAX_THROTTLE),
                    speed_scale=cfg.PATH_SPEED_SCALE, min_speed=cfg.PATH_MIN_SPEED, max_speed=cfg.PATH_MAX_SPEED,
-                   loop=cfg.PATH_LOOP, close_dist=cfg.PATH_LOOP_CLOSE_DIST, speed_key=speed_key)
+                   loop=cfg.PATH_LOOP, close_dist=cfg.PATH_LOOP_CLOSE_DIST)
 
     def _new_path(self, xy: np.ndarray) -> None:
         self.index = None

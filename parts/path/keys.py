@@ -24,5 +24,4 @@ KEYS: dict[str, KeyInfo] = {
     "path/state": KeyInfo("str", "'empty' | 'recording' | 'ready' | 'following' | 'done' | 'lost'"),
     # -- commands (parts.path.buttons)
     "path/command": KeyInfo("str | None", "one-shot: 'record' (toggle), 'save', 'load', 'clear', 'reset_origin'"),
-    "web/path_command": KeyInfo("str | None", "the driver page's path buttons (one-shot, as path/command)"),
 }

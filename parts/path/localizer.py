@@ -206,16 +206,26 @@ class Localizer:
         self.dt, self.gps_tau, self.time = float(dt), float(gps_tau), 0.0
         self.odom_drift, self.fit_dist, self.max_std, self.gps_std = odom_drift, fit_dist, max_std, gps_std
         self.gps_sigma = gps_std  # the receiver's latest reported accuracy
-        odo = ("pos/x", "pos/y", "pos/angle")
-        gps = ("gps/x", "gps/y", "gps/ok", "gps/accuracy")
-        self.INPUTS: tuple[str, ...] = (*(odo if source != "gps" else ()), *(gps if source != "odometry" else ()),
-                                        *(("angle",) if source == "gps" else ()), "path/command")
-        #: the GPS localiser's motion model reads the steering command of the previous loop
-        self.FEEDBACK: tuple[str, ...] = ("angle",) if source == "gps" else ()
-        self.OPTIONAL_INPUTS: tuple[str, ...] = tuple(k for k in self.INPUTS if k in ("path/command", "gps/accuracy"))
         self.odometry = _OdometryFrame()
         self.gps = _GpsFrame(gps_heading_dist, wheel_base, max_steering_angle)
         self._reset_fused()
+
+    @property
+    def INPUTS(self) -> tuple[str, ...]:  # noqa: N802 - the part protocol's name
+        """The sensors' keys of ``source``, then ``path/command`` (its reset origin)."""
+        odo = ("pos/x", "pos/y", "pos/angle") if self.source != "gps" else ()
+        gps = ("gps/x", "gps/y", "gps/ok", "gps/accuracy") if self.source != "odometry" else ()
+        return (*odo, *gps, *self.FEEDBACK, "path/command")
+
+    @property
+    def FEEDBACK(self) -> tuple[str, ...]:  # noqa: N802 - the part protocol's name
+        """The GPS localiser's motion model reads the steering command of the previous loop."""
+        return ("angle",) if self.source == "gps" else ()
+
+    @property
+    def OPTIONAL_INPUTS(self) -> tuple[str, ...]:  # noqa: N802 - the part protocol's name
+        """The reset command and the receiver's accuracy may have no producer."""
+        return tuple(k for k in self.INPUTS if k in ("path/command", "gps/accuracy"))
 
     @classmethod
     def from_config(cls, cfg: Any, source: str | None = None) -> Localizer:

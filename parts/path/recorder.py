@@ -35,23 +35,19 @@ class PathRecorder:
     Args:
         filename: the path file (PATH_FILENAME).
         min_dist: metres between recorded points (PATH_MIN_DIST).
-        speed_key: the key of the measured speed.
         load: read ``filename`` at start when it exists (as DonkeyCar's path_follow car does).
     """
 
-    #: the speed key is the constructor's ``speed_key`` (an instance's INPUTS say which)
-    INPUTS: tuple[str, ...] = ("loc/x", "loc/y", "loc/ok", "enc/speed", "path/command")
-    OPTIONAL_INPUTS: tuple[str, ...] = ("path/command", "enc/speed")
+    #: the measured speed is ``enc/speed``; a car measuring it elsewhere renames it at ``V.add``
+    INPUTS: ClassVar[tuple[str, ...]] = ("loc/x", "loc/y", "loc/ok", "enc/speed", "path/command")
+    OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("path/command", "enc/speed")
     OUTPUTS: ClassVar[tuple[str, ...]] = ("path/xy", "path/speed", "path/version", "path/recording")
 
-    def __init__(self, filename: str | os.PathLike[str], min_dist: float = 0.2, *, speed_key: str = "enc/speed",
-                 load: bool = True) -> None:
+    def __init__(self, filename: str | os.PathLike[str], min_dist: float = 0.2, *, load: bool = True) -> None:
         if not min_dist > 0:
             raise ValueError(f"PATH_MIN_DIST must be > 0 m, got {min_dist!r}")
         self.filename = FilePath(filename)
         self.min_dist = float(min_dist)
-        self.INPUTS = ("loc/x", "loc/y", "loc/ok", speed_key, "path/command")
-        self.OPTIONAL_INPUTS = ("path/command", speed_key)
         self.path = Path()
         self.version = 0
         self.recording = False
@@ -60,9 +56,9 @@ class PathRecorder:
             self.load()
 
     @classmethod
-    def from_config(cls, cfg: Any, speed_key: str = "enc/speed") -> PathRecorder:
+    def from_config(cls, cfg: Any) -> PathRecorder:
         """PATH_FILENAME (relative to the car folder) and PATH_MIN_DIST."""
-        return cls(cfg.path("PATH_FILENAME"), cfg.PATH_MIN_DIST, speed_key=speed_key)
+        return cls(cfg.path("PATH_FILENAME"), cfg.PATH_MIN_DIST)
 
     def _set(self, path: Path) -> None:
         self.path = path

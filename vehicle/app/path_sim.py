@@ -72,6 +72,7 @@ def record_path(cfg: Any, seed: int, localizer: str = "odometry", laps: int = 1)
     from parts.sim.simulator import SimCar
     from vehicle import Vehicle
     from vehicle.app.assembly.drive import add_drive_mode
+    from vehicle.app.assembly.path import speed_wiring
     from vehicle.app.assembly.pilot import speed_key_of
     from vehicle.app.assembly.sim import add_expert, add_sim_sensors
     from vehicle.clock import SimulatedClock
@@ -85,8 +86,8 @@ def record_path(cfg: Any, seed: int, localizer: str = "odometry", laps: int = 1)
     add_expert(V, cfg, sim)
     V.add(_Once("record"))
     V.add(Localizer.from_config(cfg, localizer))
-    recorder = PathRecorder("unsaved.csv", cfg.PATH_MIN_DIST, speed_key=speed_key_of(V, cfg), load=False)
-    V.add(recorder)
+    recorder = PathRecorder("unsaved.csv", cfg.PATH_MIN_DIST, load=False)
+    V.add(recorder, **speed_wiring(PathRecorder, speed_key_of(V, cfg)))
     add_drive_mode(V, cfg)
     V.add(_StopAfterLaps(laps, V.stop))
     V.start(rate_hz=cfg.DRIVE_LOOP_HZ, max_loop_count=int(120 * laps * cfg.DRIVE_LOOP_HZ), log_summary=False)
@@ -118,6 +119,11 @@ class PathDriver:
     ``localizer``.
     """
 
+    #: the follower's (parts.path.follower.PathFollower; a test keeps them equal)
+    INPUTS: ClassVar[tuple[str, ...]] = ("loc/x", "loc/y", "loc/angle", "loc/ok", "path/xy", "path/speed",
+                                         "path/version", "path/recording", "user/mode", "enc/speed")
+    OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("enc/speed",)
+
     def __init__(self, path: Path, localizer: str, cfg: Any, name: str | None = None) -> None:
         from parts.path.follower import PathFollower
 
@@ -126,9 +132,7 @@ class PathDriver:
         self.path, self.localizer = path, localizer
         self.cfg = sensor_config(cfg, localizer)
         self.name = name or f"path ({localizer})"
-        self.follower = PathFollower.from_config(self.cfg, speed_key="enc/speed")
-        self.INPUTS = self.follower.INPUTS
-        self.OPTIONAL_INPUTS = self.follower.OPTIONAL_INPUTS
+        self.follower = PathFollower.from_config(self.cfg)
         self.distance: PathDistance | None = None
 
     def episode_config(self, cfg: Any) -> Any:
@@ -144,7 +148,7 @@ class PathDriver:
         add_sim_sensors(V, cfg, sim)
         V.add(Localizer.from_config(cfg, self.localizer))
         V.add(_StaticPath(self.path))
-        self.follower = PathFollower.from_config(cfg, speed_key="enc/speed")
+        self.follower = PathFollower.from_config(cfg)
         st = sim.car.state
         if self.localizer == "gps":
             world = self.path.xy  # GPS_ORIGIN is the track's (0, 0): east/north = the track's x/y

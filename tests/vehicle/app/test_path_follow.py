@@ -197,8 +197,9 @@ def test_real_car_records_a_path_from_its_encoder_and_saves_it(tmp_path):
                               WEB_CONTROL_PORT=0, PATH_MIN_DIST=0.1)
         V = Vehicle()
         assembly.add_sensors(V, cfg)
-        V.add(_Script({5: "record", 120: "record", 121: "save"}))
         assembly.add_controller(V, cfg)
+        # after the page's controller, which writes web/path_command too (None: no button pressed)
+        V.add(_Script({5: "record", 120: "record", 121: "save"}))
         assembly.add_path_follow(V, cfg)
         assembly.add_drive_mode(V, cfg)
         assembly.add_drivetrain(V, cfg)
@@ -213,3 +214,11 @@ def test_real_car_records_a_path_from_its_encoder_and_saves_it(tmp_path):
     path = load_path(tmp_path / "donkey_path.csv")
     assert "recording" in states and states[-1] == "ready"
     assert len(path) >= 3 and path.xy[-1][0] > 0.2 and abs(float(path.xy[-1][1])) < 1e-3  # straight ahead
+
+
+def test_the_path_driver_reads_what_its_follower_reads():
+    from parts.path.follower import PathFollower
+    from vehicle.app.path_sim import PathDriver
+
+    assert PathDriver.INPUTS == PathFollower.INPUTS
+    assert PathDriver.OPTIONAL_INPUTS == PathFollower.OPTIONAL_INPUTS

@@ -46,8 +46,16 @@ def add_path_follow(V: Any, cfg: Config, localizer: str | None = None) -> Any:
     V.add(PathCommands.from_config(cfg, pads[0] if pads else None))
     V.add(Localizer.from_config(cfg, source))
     speed_key = speed_key_of(V, cfg)
-    V.add(PathRecorder.from_config(cfg, speed_key=speed_key))
-    follower = PathFollower.from_config(cfg, speed_key=speed_key)
-    V.add(follower)
+    V.add(PathRecorder.from_config(cfg), **speed_wiring(PathRecorder, speed_key))
+    follower = PathFollower.from_config(cfg)
+    V.add(follower, **speed_wiring(PathFollower, speed_key))
     logger.info("path follow: %s localiser, path file %s", source, cfg.path("PATH_FILENAME"))
     return follower
+
+
+def speed_wiring(part: type, speed_key: str) -> dict[str, tuple[str, ...]]:
+    """``V.add`` arguments reading the measured speed from ``speed_key`` instead of ``enc/speed``."""
+    from vehicle.keys import rename
+
+    mapping = {"enc/speed": speed_key} if speed_key != "enc/speed" else {}
+    return {"inputs": rename(part.INPUTS, mapping), "optional_inputs": rename(part.OPTIONAL_INPUTS, mapping)}
