@@ -142,6 +142,10 @@ def test_the_range_folds_into_the_pilot_file_exactly(small, tmp_path):
             assert thr == pytest.approx(throttle_from_action(float(np.clip(action[1], -1, 1)), rng), abs=1e-5)
             obs = env.step(action)[0]
     assert thr == pytest.approx(0.8)
+    from training.export import export_model  # the ONNX export clamps the same way
+
+    onnx = load_pilot(export_model(tmp_path / "rl.pt", "onnx"), backend="onnx")
+    assert onnx.run(env._image)[1] == pytest.approx(0.8, abs=1e-5)
     venv.close()
 
 
