@@ -116,6 +116,11 @@ def evaluate_all(car: Path, pilots: dict[str, Path], tracks: list[int], laps: in
     from vehicle.app.evaluate import evaluate
     from vehicle.config import load_config
 
+    import torch
+
+    # one frame per step: on a busy machine a thread pool waits for every thread at every operation
+    # (a 2-thread forward pass measured 25x slower than 1 thread at load ~25; docs/benchmarks.md#rl)
+    torch.set_num_threads(1)
     cfg = load_config(str(car / "myconfig.py"))
     rows = []
     for name, path in pilots.items():
