@@ -112,11 +112,11 @@ def main() -> None:
 
 
 def evaluate_all(car: Path, pilots: dict[str, Path], tracks: list[int], laps: int) -> list[dict]:
+    import torch
+
     from parts.pilots.modelfile import read_meta
     from vehicle.app.evaluate import evaluate
     from vehicle.config import load_config
-
-    import torch
 
     # one frame per step: on a busy machine a thread pool waits for every thread at every operation
     # (a 2-thread forward pass measured 25x slower than 1 thread at load ~25; docs/benchmarks.md#rl)
@@ -127,7 +127,7 @@ def evaluate_all(car: Path, pilots: dict[str, Path], tracks: list[int], laps: in
         if not path.is_file():
             continue
         t0 = time.perf_counter()
-        o = evaluate(str(path), tracks, laps, cfg=cfg)["overall"]
+        o = evaluate(str(path), tracks, laps, cfg=cfg, workers=2)["overall"]  # a process per core, 1 thread each
         m = read_meta(path).get("metrics", {})
         rows.append({"pilot": name, "file": path.name, "autonomy": o["autonomy"], "laps": o["laps_completed"],
                      "mean_lap_s": o["mean_lap_s"], "mean_speed": o["mean_speed"], "mean_abs_cte": o["mean_abs_cte"],
