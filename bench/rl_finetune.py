@@ -13,8 +13,8 @@ then drives each pilot closed loop in the Vehicle loop on the held-out tracks
 (:func:`vehicle.app.evaluate.evaluate`) and prints the table (autonomy, laps, mean lap time, speed,
 |CTE|, lap time against BC's), writes it as JSON, and plots both RL learning curves to one PNG.
 
-An RL stage gets ``--minutes`` of wall time and is then stopped with Ctrl-C (SIGINT), which keeps
-its best pilot (``vehicle rl train`` exits 130); ``--steps`` caps it otherwise.
+An RL stage gets ``--minutes`` of wall time and is then stopped with SIGTERM, which (as Ctrl-C) keeps
+its best pilot (``vehicle rl train`` exits 143); ``--steps`` caps it otherwise.
 
 Usage: python bench/rl_finetune.py [--car .bench/rlcar] [--minutes 25] [--steps 60000]
        [--tracks 1,2,3,4,5,6] [--eval-tracks 101,102,103,104,105] [--laps 2] [--stages all]
@@ -58,7 +58,9 @@ def run(cmd: list[str], log: Path, minutes: float | None = None) -> int:
         try:
             p.wait(timeout=None if minutes is None else minutes * 60)
         except subprocess.TimeoutExpired:
-            p.send_signal(signal.SIGINT)  # keeps the best pilot and the state
+            # SIGTERM, not SIGINT: a shell starts background jobs ignoring SIGINT, and rl train stops
+            # on SIGTERM as on Ctrl-C (the best pilot and the state kept)
+            p.send_signal(signal.SIGTERM)
             p.wait()
     return p.returncode
 
