@@ -50,6 +50,10 @@ FINETUNE = ["--throttle-range", "0.3,0.9", "--reward", "speed", "--n-steps", "12
             "--vf-warmup", "2048", "--eval-every", "2000"]
 
 
+#: per-track figures kept in the JSON
+PER_TRACK = ("autonomy", "interventions", "mean_lap_s", "mean_speed")
+
+
 def run(cmd: list[str], log: Path, minutes: float | None = None) -> int:
     """Run a CLI command with its output in ``log``; after ``minutes`` stop it with SIGINT."""
     print("$", " ".join(cmd[2:]), flush=True)  # noqa: T201
@@ -129,12 +133,14 @@ def evaluate_all(car: Path, pilots: dict[str, Path], tracks: list[int], laps: in
         if not path.is_file():
             continue
         t0 = time.perf_counter()
-        o = evaluate(str(path), tracks, laps, cfg=cfg, workers=2)["overall"]  # a process per core, 1 thread each
+        report = evaluate(str(path), tracks, laps, cfg=cfg, workers=2)  # a process per core, 1 thread each
+        o = report["overall"]
         m = read_meta(path).get("metrics", {})
         rows.append({"pilot": name, "file": path.name, "autonomy": o["autonomy"], "laps": o["laps_completed"],
                      "mean_lap_s": o["mean_lap_s"], "mean_speed": o["mean_speed"], "mean_abs_cte": o["mean_abs_cte"],
                      "interventions": o["interventions"], "rl_steps": m.get("rl_timesteps"),
-                     "eval_s": round(time.perf_counter() - t0, 1)})
+                     "eval_s": round(time.perf_counter() - t0, 1),
+                     "tracks": {t["seed"]: {k: t.get(k) for k in PER_TRACK} for t in report["tracks"]}})
     bc = next((r["mean_lap_s"] for r in rows if r["pilot"].startswith("BC (")), None)
     for r in rows:
         r["lap_vs_bc"] = None if not (bc and r["mean_lap_s"]) else round(100.0 * (bc / r["mean_lap_s"] - 1.0), 1)
