@@ -195,3 +195,25 @@ def test_a_short_run_with_the_throttle_learns_to_speed_up(small, tmp_path):
     curve = train_rl(small, tmp_path / "rl.pt", s)
     rewards = [r["mean_reward"] for r in curve["rollouts"] if r["mean_reward"] is not None]
     assert rewards[-1] > 1.2 * rewards[0], rewards  # measured: 1.53 -> 1.98 (seed 3)
+
+
+def test_rl_train_refuses_a_throttle_range_it_cannot_honour(small, tmp_path):
+    from vehicle.app.rl_train import RLSettings, train_rl
+    from vehicle.errors import UserError
+
+    with pytest.raises(UserError, match="not both"):
+        train_rl(small, tmp_path / "rl.pt", RLSettings(throttle=0.3, throttle_range=(0.2, 0.8)))
+    with pytest.raises(UserError, match="for PPO"):
+        train_rl(small, tmp_path / "rl.pt", RLSettings(algo="sac", throttle_range=(0.2, 0.8)))
+    assert not (tmp_path / "rl.pt").exists()
+
+
+def test_cli_refuses_a_bad_throttle_range():
+    import argparse
+
+    from vehicle.app.commands.rl import _range
+
+    assert _range("0.2,0.8") == (0.2, 0.8)
+    for bad in ("0.8,0.2", "0.2", "a,b", "0,2"):
+        with pytest.raises(argparse.ArgumentTypeError, match="LOW,HIGH"):
+            _range(bad)
