@@ -10,6 +10,12 @@ computes (PPO: the Gaussian's mean; SAC: its tanh, the ``linear_tanh`` type), so
 ONNX/int8 exports take. :func:`load_pilot_weights` starts a policy from a behaviour-cloned pilot of
 the same network.
 
+With a throttle range (``TrackEnv(throttle_range=(low, high))``) the policy's throttle action a in
+[-1, 1] drives the throttle ``mid + half * a`` (mid, half: the range's centre and half-width).
+That affine map is folded into the throttle row of the last layer on export, and the model's
+``throttle_limits`` clamps it to [low, high] as the environment does, so the file still drives
+exactly the policy's deterministic action; starting from a pilot unfolds it.
+
 This module imports stable-baselines3: import it only where RL runs.
 """
 
@@ -81,16 +87,24 @@ class PilotTrunk(BaseFeaturesExtractor):
         return self.hidden(self.features(x))
 
 
-def policy_kwargs(algo: str, model_type: str, options: dict[str, Any], normalize: str) -> dict[str, Any]:
-    """SB3 ``policy_kwargs`` that make the actor the pilot model (no extra actor layers)."""
+def policy_kwargs(algo: str, model_type: str, options: dict[str, Any], normalize: str, *,
+                  log_std_init: float = -0.5, share_trunk: bool = True) -> dict[str, Any]:
+    """SB3 ``policy_kwargs`` that make the actor the pilot model (no extra actor layers).
+
+    PPO: ``log_std_init`` is the log of the exploration noise's starting standard deviation (in
+    action units); ``share_trunk=False`` gives the critic its own copy of the trunk, so that value
+    updates cannot move the actor's features (fine-tuning a behaviour-cloned pilot).
+    """
+    trunk_options = {k: v for k, v in options.items() if k != "throttle_limits"}  # the export sets them
     kwargs: dict[str, Any] = {
         "features_extractor_class": PilotTrunk,
-        "features_extractor_kwargs": {"model_type": model_type, "options": options, "normalize": normalize},
+        "features_extractor_kwargs": {"model_type": model_type, "options": trunk_options, "normalize": normalize},
         "normalize_images": False,
     }
     if algo == "ppo":
         kwargs["net_arch"] = {"pi": [], "vf": [64]}
-        kwargs["log_std_init"] = -0.5
+        kwargs["log_std_init"] = float(log_std_init)
+        kwargs["share_features_extractor"] = bool(share_trunk)
     else:
         kwargs["net_arch"] = {"pi": [], "qf": [256, 256]}
     return kwargs
@@ -104,27 +118,47 @@ def _actor_parts(policy: Any) -> tuple[PilotTrunk, nn.Linear]:
     return trunk, policy.action_net
 
 
-def policy_model(policy: Any) -> PilotModel:
-    """The policy's actor as a pilot model (a copy of its weights, eval mode)."""
+def _mid_half(throttle_range: tuple[float, float]) -> tuple[float, float]:
+    low, high = throttle_range
+    return (high + low) / 2.0, (high - low) / 2.0
+
+
+def policy_model(policy: Any, throttle_range: tuple[float, float] | None = None) -> PilotModel:
+    """The policy's actor as a pilot model (a copy of its weights, eval mode); with the
+    environment's ``throttle_range``, the model drives the throttle that range makes of the action."""
     trunk, last = _actor_parts(policy)
     if not isinstance(trunk, PilotTrunk):
         raise TypeError("the policy was not built on a pilot model (policy_kwargs of training.rl)")
-    model = create_model(trunk.model_type, trunk.input_shape, **trunk.options)
+    options = dict(trunk.options)
+    if throttle_range is not None:
+        if trunk.n_actions != 2:
+            raise ValueError("a throttle range needs a policy that drives the throttle (no fixed throttle)")
+        options["throttle_limits"] = [float(v) for v in throttle_range]
+    model = create_model(trunk.model_type, trunk.input_shape, **options)
     model.features.load_state_dict(trunk.features.state_dict())
     model.head[:-1].load_state_dict(trunk.hidden.state_dict())
     model.head[-1].load_state_dict(last.state_dict())
+    if throttle_range is not None:
+        mid, half = _mid_half(throttle_range)
+        with torch.no_grad():  # throttle = mid + half * action
+            model.head[-1].weight[1].mul_(half)
+            model.head[-1].bias[1].mul_(half).add_(mid)
     return model.eval()
 
 
-def export_pilot(policy: Any, path: str | os.PathLike[str], meta: dict[str, Any]) -> Path:
+def export_pilot(policy: Any, path: str | os.PathLike[str], meta: dict[str, Any],
+                 throttle_range: tuple[float, float] | None = None) -> Path:
     """Save the policy's actor as an ordinary pilot model file (``meta`` as training writes it:
-    type, preprocess, training, camera ...)."""
-    model = policy_model(policy)
+    type, preprocess, training, camera ...); ``throttle_range`` as the environment's."""
+    model = policy_model(policy, throttle_range)
     return save_model(path, model, {**meta, "type": model.type_name})
 
 
-def load_pilot_weights(policy: Any, model: PilotModel) -> None:
-    """Start the policy's actor from a trained pilot of the same type and input shape.
+def load_pilot_weights(policy: Any, model: PilotModel, throttle_range: tuple[float, float] | None = None) -> None:
+    """Start the policy's actor from a trained pilot of the same type and input shape; with the
+    environment's ``throttle_range``, the action that drives the pilot's throttle (the inverse of
+    :func:`policy_model`'s map; a throttle beyond the range becomes an action beyond [-1, 1],
+    which the environment clips to the range's end, as the exported pilot's limits do).
 
     Raises:
         ValueError: the pilot's type or input shape differs from the policy's network.
@@ -136,6 +170,27 @@ def load_pilot_weights(policy: Any, model: PilotModel) -> None:
     trunk.features.load_state_dict(model.features.state_dict())
     trunk.hidden.load_state_dict(model.head[:-1].state_dict())
     last.load_state_dict(model.head[-1].state_dict())
+    if throttle_range is not None:
+        mid, half = _mid_half(throttle_range)
+        with torch.no_grad():  # action = (throttle - mid) / half
+            last.weight[1].div_(half)
+            last.bias[1].sub_(mid).div_(half)
     critic = getattr(policy, "vf_features_extractor", None)
     if isinstance(critic, PilotTrunk) and critic is not trunk:
         critic.load_state_dict(trunk.state_dict())
+
+
+def actor_parameters(policy: Any) -> list[nn.Parameter]:
+    """The parameters that make a PPO policy's actions: its trunk (shared with the critic unless
+    ``share_trunk=False``), the action layer and the exploration noise's log std."""
+    trunk, last = _actor_parts(policy)
+    params = [*trunk.parameters(), *last.parameters()]
+    log_std = getattr(policy, "log_std", None)
+    return params + ([log_std] if isinstance(log_std, nn.Parameter) else [])
+
+
+def freeze_actor(policy: Any, frozen: bool) -> None:
+    """Freeze (or free) the actor: while frozen only the critic learns (value-function warm-up
+    before a behaviour-cloned actor is fine-tuned; the optimiser skips parameters without grads)."""
+    for p in actor_parameters(policy):
+        p.requires_grad_(not frozen)

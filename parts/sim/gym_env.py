@@ -9,7 +9,9 @@ DriveMode does for a pilot), then the camera renders the next observation.
 - Observation: the camera frame, uint8 HxWx3 (or, with ``frame``, what that function makes of it,
   e.g. a pilot's stage-1 preprocessing ``Preprocess.frame``: crop, resize, colour), optionally
   with a vector ``[speed m/s, last angle, last throttle]`` (``vector_obs=True``: a Dict observation).
-- Action: ``[angle, throttle]`` in [-1, 1], or ``[angle]`` with a fixed ``throttle``.
+- Action: ``[angle, throttle]`` in [-1, 1], or ``[angle]`` with a fixed ``throttle``. With
+  ``throttle_range=(low, high)`` the throttle action's [-1, 1] spans [low, high]
+  (:func:`throttle_from_action`): exploration cannot reverse or floor it, and 0 is mid-range.
 - ``reset(seed=...)`` draws a track of ``tracks``, a theme of ``themes`` and one of
   ``randomize_draws`` randomisation draws (with SIM_RANDOMIZE set) from the environment's generator.
 - terminated: the car left the road, or drove ``laps`` laps (states of the task that end it);
@@ -43,6 +45,28 @@ ENV_ID = "vehicle/Track-v0"
 SECONDS_PER_LAP = 60.0
 
 
+def throttle_from_action(a: float, throttle_range: tuple[float, float] | None) -> float:
+    """The throttle of a throttle action ``a`` in [-1, 1]: ``a`` itself, or with ``(low, high)`` the
+    affine map of [-1, 1] onto [low, high]."""
+    if throttle_range is None:
+        return float(a)
+    low, high = throttle_range
+    return low + (float(a) + 1.0) * 0.5 * (high - low)
+
+
+def check_throttle_range(value: Any) -> tuple[float, float] | None:
+    """``throttle_range`` checked: None or ``(low, high)`` with ``-1 <= low < high <= 1``."""
+    if value is None:
+        return None
+    try:
+        low, high = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"throttle_range must be None or (low, high), got {value!r}") from None
+    if not -1.0 <= low < high <= 1.0:
+        raise ValueError(f"throttle_range must have -1 <= low < high <= 1, got {value!r}")
+    return low, high
+
+
 def register() -> None:
     """Register ``vehicle/Track-v0`` with gymnasium (idempotent)."""
     if ENV_ID not in gym.registry:
@@ -69,6 +93,8 @@ class TrackEnv(gym.Env):
         randomize_draws: distinct randomisation draws per track (SIM_RANDOMIZE + 0 .. n-1);
             each new draw costs a few tenths of a second to paint. Ignored without SIM_RANDOMIZE.
         throttle: None: the agent drives the throttle; a number: steering only at this throttle.
+        throttle_range: None, or ``(low, high)``: the throttle action's [-1, 1] spans this range
+            (e.g. (0.2, 0.7): never reversing, never stopping, never flat out while exploring).
         laps: laps that complete an episode (terminated).
         max_steps: steps before truncation (default SECONDS_PER_LAP s per lap).
         reward: a reward file (``reward_function(params)``), a callable, or None for the default.
@@ -83,7 +109,8 @@ class TrackEnv(gym.Env):
 
     def __init__(self, config: Any = None, *, tracks: Sequence[int] | None = None,
                  themes: Sequence[str] | str | None = None, randomize_draws: int = 1,
-                 throttle: float | None = None, laps: int = 1, max_steps: int | None = None,
+                 throttle: float | None = None, throttle_range: Sequence[float] | None = None,
+                 laps: int = 1, max_steps: int | None = None,
                  reward: Any = None, frame: Any = None, vector_obs: bool = False,
                  render_mode: str | None = None) -> None:
         self.cfg = _config(config)
@@ -98,6 +125,9 @@ class TrackEnv(gym.Env):
         if throttle is not None and not -1.0 <= float(throttle) <= 1.0:
             raise ValueError(f"throttle must be in [-1, 1] or None, got {throttle}")
         self.fixed_throttle = None if throttle is None else float(throttle)
+        self.throttle_range = check_throttle_range(throttle_range)
+        if self.throttle_range is not None and self.fixed_throttle is not None:
+            raise ValueError("give throttle (steering only) or throttle_range (the agent's throttle), not both")
         if laps < 1:
             raise ValueError(f"laps must be >= 1, got {laps}")
         self.laps = int(laps)
@@ -159,7 +189,8 @@ class TrackEnv(gym.Env):
         if a.shape != self.action_space.shape:
             raise ValueError(f"action must have shape {self.action_space.shape}, got {np.shape(action)}")
         angle = float(a[0])
-        throttle = self.fixed_throttle if self.fixed_throttle is not None else float(a[1])
+        throttle = self.fixed_throttle if self.fixed_throttle is not None \
+            else throttle_from_action(a[1], self.throttle_range)
         applied = throttle * self.throttle_mult  # what DriveMode sends for a pilot
         frame = self.sim.step(angle, applied)
         self.steps += 1

@@ -4,7 +4,8 @@ A reward file is plain Python that defines ``reward_function(params) -> float``;
 DeepRacer's documented input parameters, computed from the simulator's own telemetry
 (:func:`reward_params`), plus a few of ours (``laps``, ``lap_time``, ``cte``, ``heading_error``,
 ``throttle``, ``dt``). docs/rl.md is the reference. :func:`default_reward` is used when no file is
-given. :func:`load_reward_function` reads a user's file; what it returns raises
+given; :func:`speed_reward` (``--reward speed``) also pays for speed itself, for a policy that
+drives the throttle. :func:`load_reward_function` reads a user's file (or a built-in's name); what it returns raises
 :class:`RewardError` (one line naming the file and line) when the function raises or returns
 something that is not a finite number.
 """
@@ -27,6 +28,8 @@ from vehicle.errors import VehicleError
 CAR_HALF_WIDTH = 0.1
 #: spacing of the waypoints handed to reward functions, metres (DeepRacer's are ~0.3-0.6 m apart)
 WAYPOINT_SPACING = 0.2
+#: speed at which :func:`speed_reward` pays what :func:`default_reward` does, m/s
+SPEED_REWARD_REF = 1.0
 
 RewardFn = Callable[[dict[str, Any]], float]
 
@@ -120,9 +123,26 @@ def default_reward(params: dict[str, Any]) -> float:
     return centre * max(0.0, along) * params["dt"]
 
 
+def speed_reward(params: dict[str, Any]) -> float:
+    """:func:`default_reward` times the speed along the track over SPEED_REWARD_REF (1 m/s).
+
+    A lap's total is then about the track's length times the mean speed in m/s: a lap driven
+    twice as fast earns twice as much, while leaving the road forfeits the rest of the lap (0
+    off the road, and the episode ends). With :func:`default_reward` a lap earns about the same
+    at any speed, so only the discount favours the faster one.
+    """
+    along = params["speed"] * math.cos(math.radians(params["heading_error"]))
+    return default_reward(params) * max(0.0, along) / SPEED_REWARD_REF
+
+
+#: reward functions chosen by name (``--reward speed``) instead of a file
+BUILTIN_REWARDS: dict[str, RewardFn] = {"default": default_reward, "speed": speed_reward}
+
+
 def load_reward_function(path: str | Path | None) -> RewardFn:
-    """The reward function of a user's file (None: :func:`default_reward`), wrapped so that an
-    exception or a value that is not a finite number raises :class:`RewardError` naming the line.
+    """The reward function of a user's file (None: :func:`default_reward`; a name of
+    BUILTIN_REWARDS that is not a file: that function), wrapped so that an exception or a value
+    that is not a finite number raises :class:`RewardError` naming the line.
 
     Raises:
         RewardError: the file is missing, does not compile, or defines no ``reward_function``.
@@ -131,7 +151,10 @@ def load_reward_function(path: str | Path | None) -> RewardFn:
         return default_reward
     file = Path(path).expanduser().resolve()
     if not file.is_file():
-        raise RewardError(f"{path}: no such reward file; give a Python file that defines reward_function(params)")
+        if str(path) in BUILTIN_REWARDS:
+            return BUILTIN_REWARDS[str(path)]
+        raise RewardError(f"{path}: no such reward file; give a Python file that defines reward_function(params), "
+                          f"or one of the built-in rewards {', '.join(BUILTIN_REWARDS)}")
     source = file.read_text()
     try:
         code = compile(source, str(file), "exec")

@@ -47,6 +47,7 @@ class RLSettings:
     eval_laps: int = 1
     reward: str | None = None  # reward file; None: parts.sim.reward.default_reward
     throttle: float | None = None  # steering only at this throttle
+    throttle_range: tuple[float, float] | None = None  # the throttle action's [-1, 1] spans (low, high)
     laps: int = 1  # laps that end an episode
     max_steps: int | None = None
     randomize_draws: int = 1
@@ -57,6 +58,11 @@ class RLSettings:
     batch_size: int = 64
     n_epochs: int = 4
     learning_rate: float = 3e-4
+    gamma: float = 0.99
+    clip_range: float = 0.2  # PPO: how far one update may move the policy's probability ratio
+    target_kl: float | None = None  # PPO: stop an update's epochs once the KL to the old policy passes this
+    log_std_init: float | None = None  # PPO: log of the starting exploration std (None: -0.5, with init -1.6)
+    vf_warmup: int = 0  # PPO: steps during which only the critic learns (the actor frozen)
     comment: str = ""
     extra: dict[str, Any] = field(default_factory=dict)  # more SB3 algorithm arguments
 
@@ -130,6 +136,8 @@ def train_rl(cfg: Any, out: str | Path, s: RLSettings, *, progress: bool = False
     except ValueError as exc:
         raise UserError(str(exc)) from None
     load_reward_function(s.reward)  # a bad file fails now, in one line, not in a worker
+    if s.throttle_range is not None and algo != "ppo":
+        raise UserError("--throttle-range is for PPO (SAC's actions are already bounded by tanh)")
     if cfg.CAMERA_UNDISTORT and cfg.SIM_CAMERA_DISTORTION:
         raise UserError("rl train renders frames without undistortion: set CAMERA_UNDISTORT = False or "
                         "SIM_CAMERA_DISTORTION = None")
@@ -155,14 +163,18 @@ def train_rl(cfg: Any, out: str | Path, s: RLSettings, *, progress: bool = False
     if set(tracks) & set(eval_tracks):
         logger.warning("evaluation tracks %s are also training tracks: the evaluation is not held out",
                        sorted(set(tracks) & set(eval_tracks)))
-    env_kwargs = {"tracks": tracks, "throttle": s.throttle, "laps": s.laps, "max_steps": s.max_steps,
+    if s.throttle_range is not None and s.throttle is not None:
+        raise UserError("give --throttle (steering only) or --throttle-range (the policy's throttle), not both")
+    env_kwargs = {"tracks": tracks, "throttle": s.throttle, "throttle_range": s.throttle_range,
+                  "laps": s.laps, "max_steps": s.max_steps,
                   "reward": s.reward, "frame": prep.frame, "randomize_draws": s.randomize_draws}
     n_envs = s.envs or os.cpu_count() or 1
     meta = {"preprocess": {**prep.to_dict(), "image_shape": list(image_shape)}, "camera": camera_meta(cfg),
             "datasets": [], "transfer": str(s.init) if s.init else None, "comment": s.comment,
-            "training": {"method": "rl", **{k: v for k, v in asdict(s).items() if k not in ("extra", "comment")},
+            "training": {"method": "rl", **{k: list(v) if isinstance(v, tuple) else v for k, v in asdict(s).items()
+                                            if k not in ("extra", "comment")},
                          "tracks": tracks, "eval_tracks": eval_tracks, "envs": n_envs,
-                         "reward": str(Path(s.reward).resolve()) if s.reward else "default"}}
+                         "reward": _reward_name(s.reward)}}
     curve: dict[str, Any] = {"rollouts": [], "evaluations": [], "best": None}
     if s.resume:
         if not files["state"].is_file():
@@ -183,16 +195,20 @@ def train_rl(cfg: Any, out: str | Path, s: RLSettings, *, progress: bool = False
         if s.resume:
             model = Algo.load(files["state"], env=venv, device="cpu")
         else:
-            args: dict[str, Any] = {"learning_rate": s.learning_rate, "batch_size": s.batch_size,
-                                    "seed": s.seed, "device": "cpu", "verbose": 0,
-                                    "policy_kwargs": policy_kwargs(algo, mtype, options, prep.normalize)}
+            log_std = s.log_std_init if s.log_std_init is not None else (-0.5 if init_model is None else -1.6)
+            # a fine-tuned actor keeps its own trunk: the critic's early, large value errors would
+            # otherwise rewrite the behaviour-cloned features through the shared layers
+            kwargs = policy_kwargs(algo, mtype, options, prep.normalize, log_std_init=log_std,
+                                   share_trunk=init_model is None)
+            args: dict[str, Any] = {"learning_rate": s.learning_rate, "batch_size": s.batch_size, "gamma": s.gamma,
+                                    "seed": s.seed, "device": "cpu", "verbose": 0, "policy_kwargs": kwargs}
             if algo == "ppo":
-                args.update(n_steps=s.n_steps, n_epochs=s.n_epochs)
+                args.update(n_steps=s.n_steps, n_epochs=s.n_epochs, clip_range=s.clip_range, target_kl=s.target_kl)
             else:
                 args.update(buffer_size=10_000, learning_starts=1_000)  # 10k frames of 120x160: 1.2 GB with next frames
             model = Algo("CnnPolicy", venv, **{**args, **s.extra})
             if init_model is not None:
-                load_pilot_weights(model.policy, init_model)
+                load_pilot_weights(model.policy, init_model, s.throttle_range)
         trainer = _Trainer(model, cfg, out, files, meta, s, eval_tracks, curve, progress, on_event)
         remaining = max(0, s.timesteps - model.num_timesteps) if s.resume else s.timesteps
         try:
@@ -222,6 +238,17 @@ def train_rl(cfg: Any, out: str | Path, s: RLSettings, *, progress: bool = False
     return curve
 
 
+def _reward_name(reward: str | None) -> str:
+    """What the pilot's metadata says of the reward: a file's absolute path or a built-in's name."""
+    from parts.sim.reward import BUILTIN_REWARDS
+
+    if reward is None:
+        return "default"
+    if reward in BUILTIN_REWARDS and not Path(reward).is_file():
+        return reward
+    return str(Path(reward).resolve())
+
+
 def _stopped(signum: int, _frame: Any) -> None:
     raise VehicleStopped(signum, signal.Signals(signum).name)
 
@@ -237,6 +264,14 @@ class _Trainer:
         self.next_eval = (model.num_timesteps // s.eval_every + 1) * s.eval_every if s.eval_every else math.inf
         self.started = time.perf_counter()
         self.steps0 = model.num_timesteps
+        self.throttle_range = s.throttle_range
+        self.warming = model.num_timesteps < s.vf_warmup
+        if self.warming:
+            from training.rl import freeze_actor
+
+            freeze_actor(model.policy, True)
+            logger.info("rl train: value-function warm-up: only the critic learns for the first %d steps",
+                        s.vf_warmup)
         self.bar = None
         if progress:
             from tqdm import tqdm
@@ -272,6 +307,13 @@ class _Trainer:
         return True
 
     def on_rollout_end(self) -> None:
+        # the update that follows learns from this rollout: the actor joins once it has steps past the warm-up
+        if self.warming and self.model.num_timesteps > self.s.vf_warmup:
+            from training.rl import freeze_actor
+
+            freeze_actor(self.model.policy, False)
+            self.warming = False
+            logger.info("rl train: value-function warm-up done at %d steps: the actor learns", self.model.num_timesteps)
         reward, length = self.episode_stats()
         elapsed = time.perf_counter() - self.started
         fps = (self.model.num_timesteps - self.steps0) / elapsed if elapsed > 0 else 0.0
@@ -293,7 +335,7 @@ class _Trainer:
         from vehicle.app.evaluate import evaluate
 
         steps = int(self.model.num_timesteps)
-        export_pilot(self.model.policy, self.files["eval"], self.meta)
+        export_pilot(self.model.policy, self.files["eval"], self.meta, self.throttle_range)
         report = evaluate(str(self.files["eval"]), self.eval_tracks, self.s.eval_laps, cfg=self.cfg)
         o = report["overall"]
         reward, length = self.episode_stats()
@@ -317,7 +359,7 @@ class _Trainer:
             meta = {**self.meta, "created": datetime.now(UTC).isoformat(timespec="seconds"),
                     "metrics": {"rl_timesteps": steps, "eval_tracks": self.eval_tracks,
                                 "eval_laps": self.s.eval_laps, **{k: v for k, v in row.items() if k != "timesteps"}}}
-            export_pilot(self.model.policy, self.out, meta)
+            export_pilot(self.model.policy, self.out, meta, self.throttle_range)
             _register(self.out, meta)
         _write_curve(self.files, self.curve)
         if self.on_event is not None:

@@ -11,15 +11,21 @@ from parts.pilots.models.base import PilotModel, check_option, dense_head, donke
 
 
 class LinearModel(PilotModel):
-    """DonkeyCar's default: core CNN, dense 100, 50, two continuous outputs (angle, throttle); MSE."""
+    """DonkeyCar's default: core CNN, dense 100, 50, two continuous outputs (angle, throttle); MSE.
+
+    Option ``throttle_limits``: None, or ``[low, high]`` within [-1, 1]: the throttle it drives with
+    is clamped to that range (an RL policy's throttle range, ``vehicle rl train --throttle-range``,
+    or a cap on a trained pilot's throttle through MODEL_OPTIONS).
+    """
 
     type_name = "linear"
-    defaults: dict[str, Any] = {"dropout": 0.2, "batch_norm": False}
+    defaults: dict[str, Any] = {"dropout": 0.2, "batch_norm": False, "throttle_limits": None}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         super().__init__(input_shape, options)
         dropout = check_option(self.options, "dropout", float, 0.0)
         batch_norm = check_option(self.options, "batch_norm", bool)
+        self.throttle_limits = _limits(self.options.get("throttle_limits"))
         self.features = donkey_convs(input_shape[0], dropout, batch_norm)
         self.head = dense_head(flat_size(self.features, input_shape) + self.extra_size, (100, 50),
                                self.n_outputs(), dropout)
@@ -35,6 +41,25 @@ class LinearModel(PilotModel):
                                  f"({self.extra_size} values per sample)")
             x = torch.cat([x, extra], dim=1)
         return self.head(x)
+
+    def controls(self, output: torch.Tensor) -> torch.Tensor:
+        if self.throttle_limits is None:
+            return output
+        low, high = self.throttle_limits
+        return torch.stack([output[:, 0], output[:, 1].clamp(low, high)], dim=1)
+
+
+def _limits(value: Any) -> tuple[float, float] | None:
+    """``throttle_limits`` checked: None or two numbers ``-1 <= low <= high <= 1``."""
+    if value is None:
+        return None
+    try:
+        low, high = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"model option throttle_limits={value!r} must be None or [low, high]") from None
+    if not -1.0 <= low <= high <= 1.0:
+        raise ValueError(f"model option throttle_limits={value!r} needs -1 <= low <= high <= 1")
+    return low, high
 
 
 class LinearTanhModel(LinearModel):
