@@ -135,6 +135,20 @@ TRAIN_SIDE_CAMERAS: Annotated[dict[str, float], Range(-1, 1)] = {}
 SEQUENCE_LENGTH: Annotated[int, Range(1, 100),
                            Form("seq_length", "Sequence length", "Model",
                                 why="a sequence holds at least one frame")] = 3
+# What the model's throttle output learns: "throttle" = the recorded throttle (user/throttle);
+# "speed" = the recorded speed (sim/speed, else enc/speed) / TRAIN_SPEED_SCALE: the pilot then
+# predicts a target speed from the frame and a PI controller (PILOT_SPEED_KP, PILOT_SPEED_KI)
+# drives to it with the measured speed. A throttle depends on the speed the frame does not show
+# (the expert brakes or accelerates against it), so a throttle-trained pilot learns an average and
+# drives slower than its teacher; a speed target is what the frame does show (docs/pilot.md).
+TRAIN_THROTTLE_LABEL: Annotated[Literal["throttle", "speed"],
+                                Form("throttle_label", "Throttle label", "Data",
+                                     why="only these labels are implemented")] = "throttle"
+# Speed in m/s that a throttle output of 1 stands for when TRAIN_THROTTLE_LABEL = "speed"
+# (stored in the model file; speeds above it are clipped).
+TRAIN_SPEED_SCALE: Annotated[float, Range(0, 100, lo_open=True, unit="m/s"),
+                             Form("speed_scale", "Speed scale", "Data",
+                                  why="a speed scale must be a positive number of m/s")] = 4.0
 # Throttle range of the categorical model's throttle bins: [0, this].
 MODEL_CATEGORICAL_MAX_THROTTLE_RANGE: Annotated[float, Range(0, 1, lo_open=True)] = 0.8
 

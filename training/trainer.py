@@ -319,7 +319,8 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
         type_name = model_type_name or cfg.DEFAULT_MODEL_TYPE
         model_type(type_name)  # unknown types fail before reading any data
         phase("reading")
-        data = read_drive_data(tubs, modes=cfg.TRAIN_MODES, record_filter=cfg.TRAIN_FILTER)
+        speed_scale = cfg.TRAIN_SPEED_SCALE if cfg.TRAIN_THROTTLE_LABEL == "speed" else None
+        data = read_drive_data(tubs, modes=cfg.TRAIN_MODES, record_filter=cfg.TRAIN_FILTER, speed_scale=speed_scale)
         if len(model_type(type_name).image_inputs) > 1:  # three_camera: every record needs every view
             require_views(type_name, model_type(type_name).image_inputs, data.records)
         image_shape = tuple(int(v) for v in data.records[0].image(IMAGE_KEY).shape)
@@ -362,6 +363,8 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
                     cfg.EARLY_STOP_PATIENCE if cfg.USE_EARLY_STOP else None, "min_delta": cfg.MIN_DELTA,
                     "train_test_split": cfg.TRAIN_TEST_SPLIT, "split_by": cfg.TRAIN_SPLIT_BY,
                     "flip_copy": cfg.TRAIN_FLIP_COPY,
+                    # the throttle output is a target speed of speed_scale m/s per unit (the Pilot drives to it)
+                    **({"throttle_label": "speed", "speed_scale": speed_scale} if speed_scale else {}),
                     "split_block": cfg.TRAIN_SPLIT_BLOCK, "seed": cfg.TRAIN_SEED, "modes": list(cfg.TRAIN_MODES),
                     "filter": getattr(cfg.TRAIN_FILTER, "__name__", None) if cfg.TRAIN_FILTER else None,
                     "balance": {"bins": cfg.TRAIN_BALANCE_BINS, "max_per_bin": cfg.TRAIN_BALANCE_MAX_PER_BIN}
