@@ -15,6 +15,7 @@ mean and worst autonomy per theme, interventions, pilot speed / expert speed, tr
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import sys
 import time
@@ -53,7 +54,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--tub", type=Path, required=True, help="tub the demo's expert recorded")
     parser.add_argument("--out", type=Path, default=Path("/tmp/robust"))
-    parser.add_argument("--variant", action="append", required=True)
+    parser.add_argument("--variant", action="append", default=[])
+    parser.add_argument("--cost", action="store_true", help="only measure each augmentation's ms per batch")
     parser.add_argument("--draws", type=int, nargs="+", default=[2, 3, 777], help="hidden randomisation seeds")
     parser.add_argument("--eval-tracks", type=int, nargs="+", default=DEFAULTS["eval_tracks"])
     parser.add_argument("--laps", type=int, default=2)
@@ -71,6 +73,9 @@ def main() -> int:
     from vehicle.config import Config
 
     logging.basicConfig(level=logging.WARNING)
+    if args.cost:
+        print(json.dumps({"ms_per_batch": augmentation_cost(args.tub), "load": os.getloadavg()}))
+        return 0
     torch.set_num_threads(1)
     out = args.out.resolve()
     path = out / "ablation.json"
@@ -105,6 +110,40 @@ def main() -> int:
         print(json.dumps({name: summary(row, expert)}), flush=True)
     print(table(results))
     return 0
+
+
+def _per_frame(aug: Any, frames: list[Any], rng: Any) -> list[Any]:
+    return [aug.apply(f, aug.draw(rng)) for f in frames]
+
+
+def augmentation_cost(tub: Path, repeats: int = 20) -> dict[str, float]:
+    """Milliseconds per batch of BATCH_SIZE demo frames: each per-frame augmentation (OpenCV, in
+    the data loader) and each batch augmentation (torch, on the cropped batch), always applied."""
+    import numpy as np
+    import torch
+
+    from parts.pilots.preprocess import Preprocess
+    from parts.tub.reader import load_records
+    from training.augment import BATCH_AUGMENTATIONS, SAMPLE_AUGMENTATIONS, Augmenter, AugmentSettings
+    from training.batch_augment import BatchAugmenter
+
+    torch.set_num_threads(1)
+    n = DEMO_SETTINGS["BATCH_SIZE"]
+    frames = [r.image() for r in list(load_records([str(tub)]))[:n]]
+    pre = Preprocess(crop=(DEMO_SETTINGS["ROI_CROP_TOP"], 0, 0, 0), image_shape=frames[0].shape)
+    batch = torch.stack([Preprocess.to_chw(pre.frame(f)) for f in frames])
+    rng = np.random.default_rng(0)
+    out: dict[str, float] = {}
+    for name in (*SAMPLE_AUGMENTATIONS, *BATCH_AUGMENTATIONS):
+        settings = AugmentSettings(names=(name,), **{f"{name}_p": 1.0})
+        run = functools.partial(BatchAugmenter(settings), batch) if name in BATCH_AUGMENTATIONS else \
+            functools.partial(_per_frame, Augmenter(settings), frames, rng)
+        run()
+        t = time.perf_counter()
+        for _ in range(repeats):
+            run()
+        out[name] = round((time.perf_counter() - t) / repeats * 1000, 2)
+    return out
 
 
 def summary(row: dict[str, Any], expert: dict[str, Any]) -> dict[str, Any]:

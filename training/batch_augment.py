@@ -4,7 +4,8 @@ They run on the uint8 batch tensor after preprocessing (cropped and resized, so 
 than the camera frame), on the training device, just before the batch becomes floats
 (:func:`training.fit.fit`), as a handful of tensor operations for the whole batch instead of one
 OpenCV call per frame. Every sample gets its own random draw (each operation with its probability);
-the frames of one sample (a sequence model's clip, a three-camera model's views) share it.
+the frames of one sample (a sequence model's clip, a three-camera model's views) share it. They
+run in a fixed order whatever the order of AUGMENTATIONS: light, colour, noise, cutout.
 Geometric augmentations that change the steering label (flip, shift) stay per sample
 (:class:`training.augment.Augmenter`). Validation and driving never augment.
 
@@ -17,6 +18,8 @@ from __future__ import annotations
 import logging
 import math
 
+import cv2
+import numpy as np
 import torch
 
 from training.augment import BATCH_AUGMENTATIONS, AugmentSettings
@@ -75,28 +78,42 @@ class BatchAugmenter:
             raise ValueError(f"batch augmentations need RGB batches (N, 3, H, W) or (N, T, 3, H, W), got "
                              f"{tuple(shape)}")
         n, dev = x.shape[0], x.device
-        y = x.float().div_(255.0)
-        for name in self.names:
-            y = getattr(self, f"_{name}")(y, n, dev)
-        return y.mul_(255.0).round_().clamp_(0.0, 255.0).to(torch.uint8).reshape(shape)
+        # light is a pointwise map: a 256-entry table per sample on the uint8 values; colour and
+        # noise need floats (one conversion for both); cutout writes into the uint8 result
+        if "light" in self.names:
+            x = self._light(x, n)
+        floats = [name for name in ("colour", "noise") if name in self.names]
+        if floats:
+            y = x.float().div_(255.0)
+            for name in floats:
+                y = getattr(self, f"_{name}")(y, n, dev)
+            x = y.mul_(255.0).round_().clamp_(0.0, 255.0).to(torch.uint8)
+        if "cutout" in self.names:
+            x = self._cutout(x, n, dev)
+        return x.reshape(shape)
 
-    # each operation: y float (N, T, 3, H, W) in [0, 1] (not clipped between operations)
-
-    def _light(self, y: torch.Tensor, n: int, dev: torch.device) -> torch.Tensor:
+    def _light(self, x: torch.Tensor, n: int) -> torch.Tensor:
         """A tone curve, then contrast around mid-grey, then brightness: a camera's exposure and
-        response. The curve ``y + a * y * (1 - y)`` keeps black and white and lifts (a > 0) or
-        lowers (a < 0) the mid-tones like a gamma of about 1 / (1 + a) would, at the cost of two
-        multiplications instead of a power."""
+        response. The curve ``v + a * v * (1 - v)`` (values in [0, 1]) keeps black and white and
+        lifts (a > 0) or lowers (a < 0) the mid-tones like a gamma of about 1 / (1 + a) would.
+        Applied as one 256-entry table per sample (exact, and no float copy of the batch)."""
         s = self.settings
         on = self._on(n, s.light_p)
-        curve = torch.where(on, self._u(n, -s.light_curve, s.light_curve), 0.0)
-        contrast = torch.where(on, 1.0 + self._u(n, -s.light_contrast, s.light_contrast), 1.0)
-        bright = torch.where(on, self._u(n, -s.light_brightness, s.light_brightness), 0.0)
-        view = (n, 1, 1, 1, 1)
-        a, c, b = (v.to(dev, y.dtype).view(view) for v in (curve, contrast, bright))
-        y = y.clamp_(0.0, 1.0)
-        y = y.addcmul_(y * (1.0 - y), a)
-        return y.sub_(0.5).mul_(c).add_(0.5 + b)
+        a = torch.where(on, self._u(n, -s.light_curve, s.light_curve), 0.0).view(n, 1)
+        c = torch.where(on, 1.0 + self._u(n, -s.light_contrast, s.light_contrast), 1.0).view(n, 1)
+        b = torch.where(on, self._u(n, -s.light_brightness, s.light_brightness), 0.0).view(n, 1)
+        v = torch.arange(256, dtype=torch.float32).view(1, 256) / 255.0
+        lut = ((v + a * v * (1.0 - v) - 0.5) * c + 0.5 + b).mul_(255.0).round_().clamp_(0.0, 255.0)
+        lut = lut.to(torch.uint8)
+        if x.device.type == "cpu":
+            out = np.empty(tuple(x.shape), np.uint8)
+            xs = x.numpy()
+            for i in range(n):
+                frame = np.ascontiguousarray(xs[i]).reshape(-1, xs.shape[-1])
+                out[i] = cv2.LUT(frame, lut[i].numpy()).reshape(xs.shape[1:])
+            return torch.from_numpy(out)
+        lut = lut.to(x.device)
+        return torch.stack([lut[i][x[i].long()] for i in range(n)])
 
     def _colour(self, y: torch.Tensor, n: int, dev: torch.device) -> torch.Tensor:
         """Hue turned round the grey axis and saturation scaled: one 3x3 matrix per sample."""
@@ -129,17 +146,17 @@ class BatchAugmenter:
         noise = self._noise_bank.index_select(0, pick)
         return y.addcmul_(noise, sigma.to(dev, y.dtype).view(n, 1, 1, 1, 1))
 
-    def _cutout(self, y: torch.Tensor, n: int, dev: torch.device) -> torch.Tensor:
+    def _cutout(self, x: torch.Tensor, n: int, dev: torch.device) -> torch.Tensor:
         """One rectangle per sample (up to AUG_CUTOUT_SIZE of each side) filled with a flat grey:
         something in front of the camera, or a patch of the view that tells nothing."""
         s = self.settings
-        h, w = y.shape[-2:]
+        h, w = x.shape[-2:]
         on = self._on(n, s.cutout_p)
         fh, fw = self._u(n, 0.1, 1.0) * s.cutout_size, self._u(n, 0.1, 1.0) * s.cutout_size
         cy, cx = self._u(n, 0.0, 1.0), self._u(n, 0.0, 1.0)
-        grey = self._u(n, 0.0, 1.0).to(dev, y.dtype).view(n, 1, 1, 1, 1)
+        grey = torch.randint(0, 256, (n,), generator=self._generator()).to(dev, torch.uint8).view(n, 1, 1, 1, 1)
         ys = torch.arange(h).float().view(1, h, 1) / h
         xs = torch.arange(w).float().view(1, 1, w) / w
         inside = ((ys - cy.view(n, 1, 1)).abs() < fh.view(n, 1, 1) / 2) & \
             ((xs - cx.view(n, 1, 1)).abs() < fw.view(n, 1, 1) / 2) & on.view(n, 1, 1)
-        return torch.where(inside.to(dev).view(n, 1, 1, h, w), grey, y)
+        return torch.where(inside.to(dev).view(n, 1, 1, h, w), grey, x)
