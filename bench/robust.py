@@ -103,6 +103,7 @@ def main() -> int:
                     e = evaluate("expert", args.eval_tracks, args.laps, cfg=c, workers=args.workers)["overall"]
                     expert[key] = {k: e.get(k) for k in ("autonomy", "interventions", "mean_speed")}
                 row["runs"][key] = {k: o.get(k) for k in ("autonomy", "interventions", "mean_abs_cte", "mean_speed")}
+                print(name, key, row["runs"][key], "expert", expert[key], flush=True)
         results[name] = row
         results["_expert"] = expert
         path.parent.mkdir(parents=True, exist_ok=True)
