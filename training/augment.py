@@ -15,7 +15,12 @@ from typing import Any
 import cv2
 import numpy as np
 
-AUGMENTATION_NAMES = ("flip", "brightness", "multiply", "shadow", "shift", "zoom", "blur", "hue")
+#: augmentations of one frame at a time (OpenCV), in the order listed
+SAMPLE_AUGMENTATIONS = ("flip", "brightness", "multiply", "shadow", "shift", "zoom", "blur", "hue")
+#: augmentations of the whole batch tensor at once (:mod:`training.batch_augment`), after the
+#: per-frame ones and the preprocessing, in the order listed
+BATCH_AUGMENTATIONS = ("light", "colour", "noise", "cutout")
+AUGMENTATION_NAMES = SAMPLE_AUGMENTATIONS + BATCH_AUGMENTATIONS
 BORDERS = ("replicate", "constant")
 _CV2_BORDER = {"replicate": cv2.BORDER_REPLICATE, "constant": cv2.BORDER_CONSTANT}
 
@@ -45,6 +50,17 @@ class AugmentSettings:
     hue_p: float = 0.3
     hue_range: float = 180.0
     border: str = "replicate"
+    light_p: float = 0.5
+    light_brightness: float = 0.25
+    light_contrast: float = 0.3
+    light_curve: float = 0.5
+    colour_p: float = 0.5
+    colour_hue: float = 30.0
+    colour_saturation: float = 0.5
+    noise_p: float = 0.3
+    noise_sigma: float = 12.0
+    cutout_p: float = 0.3
+    cutout_size: float = 0.3
 
     def __post_init__(self) -> None:
         names = tuple(str(n).lower() for n in self.names)
@@ -65,6 +81,15 @@ class AugmentSettings:
             p = getattr(self, f"{name}_p")
             if not 0.0 <= p <= 1.0:
                 raise ValueError(f"AUG_{name.upper()}_P = {p} must be a probability in [0, 1]")
+        for setting, value, hi in (("AUG_LIGHT_CURVE", self.light_curve, 1.0),
+                                   ("AUG_LIGHT_BRIGHTNESS", self.light_brightness, 1.0),
+                                   ("AUG_LIGHT_CONTRAST", self.light_contrast, 1.0),
+                                   ("AUG_COLOUR_HUE", self.colour_hue, 180.0),
+                                   ("AUG_COLOUR_SATURATION", self.colour_saturation, 1.0),
+                                   ("AUG_NOISE_SIGMA", self.noise_sigma, 128.0),
+                                   ("AUG_CUTOUT_SIZE", self.cutout_size, 1.0)):
+            if not 0.0 <= value <= hi:
+                raise ValueError(f"{setting} = {value} must be in [0, {hi:g}]")
         if not 0.0 <= self.shadow_darkness <= 1.0:
             raise ValueError(f"AUG_SHADOW_DARKNESS = {self.shadow_darkness} must be in [0, 1]")
         if not 0.0 <= self.hue_range <= 180.0:
@@ -86,7 +111,11 @@ class AugmentSettings:
                    shift_steering=cfg.AUG_SHIFT_STEERING, zoom_p=cfg.AUG_ZOOM_P,
                    zoom_range=cfg.AUG_ZOOM_RANGE, blur_p=cfg.AUG_BLUR_P,
                    blur_range=tuple(cfg.AUG_BLUR_RANGE), hue_p=cfg.AUG_HUE_P, hue_range=cfg.AUG_HUE_RANGE,
-                   border=cfg.AUG_BORDER)
+                   border=cfg.AUG_BORDER, light_p=cfg.AUG_LIGHT_P, light_brightness=cfg.AUG_LIGHT_BRIGHTNESS,
+                   light_contrast=cfg.AUG_LIGHT_CONTRAST, light_curve=cfg.AUG_LIGHT_CURVE,
+                   colour_p=cfg.AUG_COLOUR_P, colour_hue=cfg.AUG_COLOUR_HUE,
+                   colour_saturation=cfg.AUG_COLOUR_SATURATION, noise_p=cfg.AUG_NOISE_P,
+                   noise_sigma=cfg.AUG_NOISE_SIGMA, cutout_p=cfg.AUG_CUTOUT_P, cutout_size=cfg.AUG_CUTOUT_SIZE)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain values (stored in the model file's training config)."""
@@ -109,6 +138,8 @@ class Augmenter:
         s = self.settings
         ops: Draw = []
         for name in s.names:
+            if name in BATCH_AUGMENTATIONS:  # drawn per batch (training.batch_augment)
+                continue
             if rng.random() >= getattr(s, f"{name}_p"):
                 continue
             if name == "flip":

@@ -35,6 +35,8 @@ logger = logging.getLogger(__name__)
 IMAGE_KEY = "cam/image_array"
 ANGLE_KEYS = ("user/angle", "user/steering")
 THROTTLE_KEY = "user/throttle"
+#: where a record's measured speed (m/s) is, in the order looked up (TRAIN_THROTTLE_LABEL = "speed")
+SPEED_KEYS = ("sim/speed", "enc/speed")
 
 
 @dataclass
@@ -65,7 +67,7 @@ def _angle(data: dict[str, Any]) -> Any:
 
 def read_drive_data(paths: Sequence[str | os.PathLike[str]], *, modes: Iterable[str] | None = ("user",),
                     record_filter: Callable[[dict[str, Any]], bool] | None = None,
-                    records: list[Any] | None = None) -> DriveData:
+                    records: list[Any] | None = None, speed_scale: float | None = None) -> DriveData:
     """Records of ``paths`` (tubs or folders of tubs) kept for training.
 
     Args:
@@ -73,6 +75,9 @@ def read_drive_data(paths: Sequence[str | os.PathLike[str]], *, modes: Iterable[
             None keeps all.
         record_filter: the car's TRAIN_FILTER, called with each record's fields.
         records: already loaded records (skips ``load_records``; for tests and tools).
+        speed_scale: when given, the throttle label is the record's measured speed
+            (:data:`SPEED_KEYS`) divided by this (m/s), not its throttle (TRAIN_THROTTLE_LABEL =
+            "speed"); records without a speed are skipped.
     """
     if records is None:
         from parts.tub.reader import load_records
@@ -95,6 +100,9 @@ def read_drive_data(paths: Sequence[str | os.PathLike[str]], *, modes: Iterable[
             dropped["filter"] += 1
             continue
         angle, throttle = _angle(data), data.get(THROTTLE_KEY)
+        if speed_scale is not None:
+            speed = next((data[k] for k in SPEED_KEYS if data.get(k) is not None), None)
+            throttle = None if speed is None else float(speed) / speed_scale
         try:
             a, t = float(angle), float(throttle)
         except (TypeError, ValueError):
@@ -110,8 +118,11 @@ def read_drive_data(paths: Sequence[str | os.PathLike[str]], *, modes: Iterable[
         logger.info("kept %d records; skipped %d not in modes %s, %d by TRAIN_FILTER, %d without labels",
                     len(kept), dropped["mode"], sorted(modes or []), dropped["filter"], dropped["label"])
     if not kept:
+        hint = (f"TRAIN_THROTTLE_LABEL = 'speed' needs a measured speed ({' or '.join(SPEED_KEYS)}) in every "
+                "record: record with the simulator or an encoder, or train on the throttle"
+                if speed_scale is not None and dropped["label"] else "record some driving in user mode first")
         raise ValueError(f"no training records in {', '.join(map(str, paths)) or 'the given records'} "
-                         f"(skipped: {dropped}); record some driving in user mode first")
+                         f"(skipped: {dropped}); {hint}")
     seg_ids: dict[tuple[str, Any], int] = {}
     segments = np.empty(len(kept), np.int64)
     prev = np.full(len(kept), -1, np.int64)

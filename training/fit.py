@@ -133,12 +133,15 @@ def _passes(loader: DataLoader, epoch: int, epochs: int):
 
 
 def _batches(loader: Any, device: torch.device, pre: Preprocess, needs_extra: bool,
-             plan: TrainPlan):
-    # uint8 images travel to the device (4x fewer bytes than floats), are laid out there, then
-    # become floats in one pass that keeps the layout
+             plan: TrainPlan, augment: Callable[[torch.Tensor], torch.Tensor] | None = None):
+    # uint8 images travel to the device (4x fewer bytes than floats), are augmented and laid out
+    # there, then become floats in one pass that keeps the layout
     nb = plan.non_blocking
     for x, extra, y in loader:
-        x = pre.normalize_batch(to_layout(x.to(device, non_blocking=nb), plan))
+        x = x.to(device, non_blocking=nb)
+        if augment is not None:
+            x = augment(x)
+        x = pre.normalize_batch(to_layout(x, plan))
         e = extra.to(device, non_blocking=nb) if needs_extra else None
         yield x, e, y.to(device, non_blocking=nb)
 
@@ -179,7 +182,8 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
         device: torch.device, settings: FitSettings, info: DistInfo = _SINGLE,
         on_best: Callable[[int, History], None] | None = None,
         optimizer: torch.optim.Optimizer | None = None, plan: TrainPlan | None = None,
-        on_event: EventSink | None = None, should_stop: Callable[[], bool] | None = None) -> History:
+        on_event: EventSink | None = None, should_stop: Callable[[], bool] | None = None,
+        augment: Any = None) -> History:
     """Train ``model`` (a PilotModel, or DDP around one) and return the history.
 
     ``plan`` (:func:`training.acceleration.plan_for`; default fp32 eager) sets the precision,
@@ -199,6 +203,10 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
     ``should_stop()`` is asked after every step (single process only): when it says yes, training
     ends at once, the unfinished epoch is dropped and ``history.cancelled`` is set; the best model
     so far has already been handed to ``on_best``.
+
+    ``augment`` (:class:`training.batch_augment.BatchAugmenter`, training batches only) changes
+    each uint8 training batch on the device before it becomes floats; its ``set_epoch`` is called
+    at the start of every epoch.
     """
     core: PilotModel = model.module if isinstance(model, nn.parallel.DistributedDataParallel) else model
     needs_extra = core.extra_size > 0
@@ -221,6 +229,8 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
     patience = Patience(settings.min_delta)
     for epoch in range(1, settings.epochs + 1):
         _set_epoch(train_loader, epoch)
+        if augment is not None:
+            augment.set_epoch(epoch)
         model.train()
         total, count = 0.0, 0
         start = time.perf_counter()
@@ -230,8 +240,8 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
 
             bar = tqdm(total=n_batches, desc=f"epoch {epoch}/{settings.epochs}", unit="batch",
                        leave=False, dynamic_ncols=True)
-        batches = islice(_batches(_passes(train_loader, epoch, settings.epochs), device, pre, needs_extra, plan),
-                         n_batches)
+        batches = islice(_batches(_passes(train_loader, epoch, settings.epochs), device, pre, needs_extra, plan,
+                                  augment), n_batches)
         source = Prefetcher(batches, settings.prefetch) if settings.prefetch > 0 else None
         data_wait = 0.0
         clock = time.perf_counter

@@ -135,6 +135,20 @@ TRAIN_SIDE_CAMERAS: Annotated[dict[str, float], Range(-1, 1)] = {}
 SEQUENCE_LENGTH: Annotated[int, Range(1, 100),
                            Form("seq_length", "Sequence length", "Model",
                                 why="a sequence holds at least one frame")] = 3
+# What the model's throttle output learns: "throttle" = the recorded throttle (user/throttle);
+# "speed" = the recorded speed (sim/speed, else enc/speed) / TRAIN_SPEED_SCALE: the pilot then
+# predicts a target speed from the frame and a PI controller (PILOT_SPEED_KP, PILOT_SPEED_KI)
+# drives to it with the measured speed. A throttle depends on the speed the frame does not show
+# (the expert brakes or accelerates against it), so a throttle-trained pilot learns an average and
+# drives slower than its teacher; a speed target is what the frame does show (docs/pilot.md).
+TRAIN_THROTTLE_LABEL: Annotated[Literal["throttle", "speed"],
+                                Form("throttle_label", "Throttle label", "Data",
+                                     why="only these labels are implemented")] = "throttle"
+# Speed in m/s that a throttle output of 1 stands for when TRAIN_THROTTLE_LABEL = "speed"
+# (stored in the model file; speeds above it are clipped).
+TRAIN_SPEED_SCALE: Annotated[float, Range(0, 100, lo_open=True, unit="m/s"),
+                             Form("speed_scale", "Speed scale", "Data",
+                                  why="a speed scale must be a positive number of m/s")] = 4.0
 # Throttle range of the categorical model's throttle bins: [0, this].
 MODEL_CATEGORICAL_MAX_THROTTLE_RANGE: Annotated[float, Range(0, 1, lo_open=True)] = 0.8
 
@@ -168,9 +182,11 @@ PREPROCESS_INTERPOLATION: Literal["area", "linear"] = "area"
 
 # Training-only augmentations, each applied with its probability AUG_<NAME>_P, in the order listed:
 # flip (mirror, steering negated), brightness (and contrast, additive), multiply (brightness as a
-# factor), shadow, shift (pan with steering correction), zoom, blur, hue. `vehicle train preview-aug`
-# shows them.
-AUGMENTATIONS: Annotated[list[Literal["flip", "brightness", "multiply", "shadow", "shift", "zoom", "blur", "hue"]],
+# factor), shadow, shift (pan with steering correction), zoom, blur, hue; and on the whole batch at
+# once, after those and the preprocessing (RGB models only): light (gamma, contrast, brightness),
+# colour (hue and saturation), noise, cutout. `vehicle train preview-aug` shows the per-frame ones.
+AUGMENTATIONS: Annotated[list[Literal["flip", "brightness", "multiply", "shadow", "shift", "zoom", "blur", "hue",
+                                      "light", "colour", "noise", "cutout"]],
                          Form("augmentations", "Augmentations", "Augmentation",
                               why="only these augmentations exist", flag="--aug")] = [
     "flip", "shift", "brightness", "shadow"]
@@ -239,6 +255,49 @@ AUG_HUE_P: Annotated[float, Range(0, 1),
 AUG_HUE_RANGE: Annotated[float, Range(0, 180, unit="degrees"),
                          Form("aug_hue_range", "Hue range", "Augmentation",
                               why="half the colour wheel reaches every colour")] = 180.0
+
+# Probability of the batch "light" augmentation: a camera's exposure and response (a tone curve,
+# then contrast around mid-grey, then brightness), drawn per sample.
+AUG_LIGHT_P: Annotated[float, Range(0, 1),
+                       Form("aug_light_p", "Light probability", "Augmentation", why="it is a probability")] = 0.5
+# Largest brightness change of "light", fraction of full scale (0.25 = +-25 %).
+AUG_LIGHT_BRIGHTNESS: Annotated[float, Range(0, 1),
+                                Form("aug_light_brightness", "Light brightness", "Augmentation",
+                                     why="it is a fraction of full scale")] = 0.25
+# Largest contrast change of "light" (0.3 = x0.7..1.3 around mid-grey).
+AUG_LIGHT_CONTRAST: Annotated[float, Range(0, 1),
+                              Form("aug_light_contrast", "Light contrast", "Augmentation",
+                                   why="a contrast below 0 inverts the image")] = 0.3
+# Largest tone curve of "light": v + a * v * (1 - v) on values in [0, 1], a drawn in [-this, this]
+# (0.5 lifts mid-grey to 0.625 or lowers it to 0.375, about gamma 0.7 or 1.5; black and white stay).
+AUG_LIGHT_CURVE: Annotated[float, Range(0, 1),
+                           Form("aug_light_curve", "Light curve", "Augmentation",
+                                why="beyond 1 the curve is no longer monotonic")] = 0.5
+# Probability of the batch "colour" augmentation (hue turn and saturation change), per sample.
+AUG_COLOUR_P: Annotated[float, Range(0, 1),
+                        Form("aug_colour_p", "Colour probability", "Augmentation", why="it is a probability")] = 0.5
+# Largest hue turn of "colour" in degrees (a colour cast or white balance; "hue" turns further).
+AUG_COLOUR_HUE: Annotated[float, Range(0, 180, unit="degrees"),
+                          Form("aug_colour_hue", "Colour hue", "Augmentation",
+                               why="half the colour wheel reaches every colour")] = 30.0
+# Largest saturation change of "colour" (0.5 = x0.5..1.5; 0 = grey is reachable at 1).
+AUG_COLOUR_SATURATION: Annotated[float, Range(0, 1),
+                                 Form("aug_colour_saturation", "Colour saturation", "Augmentation",
+                                      why="a saturation below 0 inverts the colours")] = 0.5
+# Probability of Gaussian sensor noise on a sample ("noise").
+AUG_NOISE_P: Annotated[float, Range(0, 1),
+                       Form("aug_noise_p", "Noise probability", "Augmentation", why="it is a probability")] = 0.3
+# Strongest noise of "noise": standard deviation drawn up to this, in 0-255 units.
+AUG_NOISE_SIGMA: Annotated[float, Range(0, 128),
+                           Form("aug_noise_sigma", "Noise sigma", "Augmentation",
+                                why="a standard deviation in 0-255 units")] = 12.0
+# Probability of one flat grey rectangle over a sample ("cutout": occlusion).
+AUG_CUTOUT_P: Annotated[float, Range(0, 1),
+                        Form("aug_cutout_p", "Cutout probability", "Augmentation", why="it is a probability")] = 0.3
+# Largest side of the cutout rectangle, fraction of the frame's height and width.
+AUG_CUTOUT_SIZE: Annotated[float, Range(0, 1),
+                           Form("aug_cutout_size", "Cutout size", "Augmentation",
+                                why="it is a fraction of the frame")] = 0.3
 
 
 #: rules across this module's settings, run after every setting passed its own range

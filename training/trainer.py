@@ -29,6 +29,7 @@ from parts.pilots.preprocess import Preprocess, preprocess_from_config
 from training.acceleration import TrainPlan, apply_layout, plan_for
 from training.augment import Augmenter, AugmentSettings
 from training.balance import balance_by_steering
+from training.batch_augment import BatchAugmenter
 from training.dataset import (
     IMAGE_KEY,
     DriveData,
@@ -119,6 +120,7 @@ class PreparedData:
     preprocess: Preprocess
     image_shape: tuple[int, int, int]
     info: dict[str, Any]
+    batch_augment: BatchAugmenter | None = None  # the batch-tensor augmentations (training only)
 
 
 def prepare_data(cfg: Any, data: DriveData, model: PilotModel, preprocess: Preprocess,
@@ -171,6 +173,11 @@ def prepare_data(cfg: Any, data: DriveData, model: PilotModel, preprocess: Prepr
             train_s, val_s = train_s.with_mirrored_copies(), val_s.with_mirrored_copies()
     aug_settings = AugmentSettings.from_config(cfg, names)
     augmenter = Augmenter(aug_settings) if aug_settings.names else None
+    batch_augment = BatchAugmenter(aug_settings, cfg.TRAIN_SEED)
+    if batch_augment and (preprocess.color != "rgb" or preprocess.lanes is not None):
+        logger.warning("augmentations %s left out: they work on RGB frames and this model takes %s%s input",
+                       ", ".join(batch_augment.names), preprocess.color, " + lanes" if preprocess.lanes else "")
+        batch_augment = None
     common = {"frames": model.frames, "command_history": model.command_history,
               "extra_key": model.extra_inputs[0] if model.extra_inputs else None,
               "extra_size": model.extra_size, "extra_mirror": mirror, "extra_values": extra_values,
@@ -183,7 +190,7 @@ def prepare_data(cfg: Any, data: DriveData, model: PilotModel, preprocess: Prepr
             "side_camera_offsets": side, "frames_cached": cache.cached, "cache_mb": round(cache.nbytes / 1e6, 1),
             "augmentations": aug_settings.to_dict(), "behaviors": behaviors}
     return PreparedData(data, train_ds, val_ds, preprocess, tuple(cache.get(int(train_s.chain[0, 0])).shape),
-                        info)
+                        info, batch_augment or None)
 
 
 def _check_side_cameras(data: DriveData, side: dict[str, float]) -> None:
@@ -312,7 +319,8 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
         type_name = model_type_name or cfg.DEFAULT_MODEL_TYPE
         model_type(type_name)  # unknown types fail before reading any data
         phase("reading")
-        data = read_drive_data(tubs, modes=cfg.TRAIN_MODES, record_filter=cfg.TRAIN_FILTER)
+        speed_scale = cfg.TRAIN_SPEED_SCALE if cfg.TRAIN_THROTTLE_LABEL == "speed" else None
+        data = read_drive_data(tubs, modes=cfg.TRAIN_MODES, record_filter=cfg.TRAIN_FILTER, speed_scale=speed_scale)
         if len(model_type(type_name).image_inputs) > 1:  # three_camera: every record needs every view
             require_views(type_name, model_type(type_name).image_inputs, data.records)
         image_shape = tuple(int(v) for v in data.records[0].image(IMAGE_KEY).shape)
@@ -355,6 +363,8 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
                     cfg.EARLY_STOP_PATIENCE if cfg.USE_EARLY_STOP else None, "min_delta": cfg.MIN_DELTA,
                     "train_test_split": cfg.TRAIN_TEST_SPLIT, "split_by": cfg.TRAIN_SPLIT_BY,
                     "flip_copy": cfg.TRAIN_FLIP_COPY,
+                    # the throttle output is a target speed of speed_scale m/s per unit (the Pilot drives to it)
+                    **({"throttle_label": "speed", "speed_scale": speed_scale} if speed_scale else {}),
                     "split_block": cfg.TRAIN_SPLIT_BLOCK, "seed": cfg.TRAIN_SEED, "modes": list(cfg.TRAIN_MODES),
                     "filter": getattr(cfg.TRAIN_FILTER, "__name__", None) if cfg.TRAIN_FILTER else None,
                     "balance": {"bins": cfg.TRAIN_BALANCE_BINS, "max_per_bin": cfg.TRAIN_BALANCE_MAX_PER_BIN}
@@ -389,7 +399,7 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
         if dist_info.is_main and not (progress if progress is not None else _tty()):
             sink = ProgressLog(on_event)  # no progress bar: a log line at a steady interval instead
         history = fit(train_model, train_loader, val_loader, preprocess, dev, settings, dist_info, save_best,
-                      plan=plan, on_event=sink, should_stop=should_stop)
+                      plan=plan, on_event=sink, should_stop=should_stop, augment=prep.batch_augment)
         # every rank got through the last collective: from here each leaves through the barrier,
         # rank 0 even when its own file writing below fails, so no peer waits for it in vain
         clean = True

@@ -13,6 +13,11 @@ the model's throttle by one that drives to its target speed (PILOT_SPEED_LIMIT);
 then appended to ``inputs``. The web page's speed limit is not a target: it caps the car's final
 throttle in every mode (:class:`parts.drive.speed.SpeedLimit`).
 
+A model trained on speeds (TRAIN_THROTTLE_LABEL = "speed": its metadata says ``throttle_label``
+"speed" and ``speed_scale``) predicts a target speed, ``throttle output x speed_scale`` m/s; the
+pilot then drives to it with ``target_control`` (a PI :class:`parts.drive.speed.SpeedControl`,
+capped by PILOT_SPEED_LIMIT when speed control is on) and takes the measured speed as its last input.
+
 Hot switch: :meth:`Pilot.request_model` loads another file in a background thread and swaps it in
 with one reference assignment; the loop never waits for a load, and a file that fails to load, or
 does not fit the car (:mod:`parts.pilots.compat`: behaviour order, undistortion), leaves the
@@ -101,8 +106,10 @@ class Pilot:
                  speed_key: str = "sim/speed", onnx_threads: int = 1,
                  models_dir: str | Path | None = None, frame_shape: tuple[int, ...] | None = None,
                  frame_hint: str = "give it frames of the training size or re-train",
-                 extra_sizes: Mapping[str, int] | None = None, car: CarInputs | None = None) -> None:
+                 extra_sizes: Mapping[str, int] | None = None, car: CarInputs | None = None,
+                 target_control: Any = None) -> None:
         self.backend = backend
+        self.target_control = target_control
         self.car = car
         self.onnx_threads = onnx_threads
         self.speed_control = speed_control
@@ -127,6 +134,10 @@ class Pilot:
         self.lock_inputs = False
         self.nonfinite_count = 0  # predictions that were NaN or infinite
         runner = self._active.runner
+        if speed_scale(runner.meta) is not None and self.target_control is None:
+            from parts.drive.speed import SpeedControl
+
+            self.target_control = SpeedControl("pi")  # the default loop period and gains
         logger.info("pilot: %s (%s, %s backend)", runner.name, runner.model_type, runner.backend)
 
     # -- description ----------------------------------------------------------------------------
@@ -150,9 +161,12 @@ class Pilot:
         """Memory keys ``run`` takes, in order: the model's camera frames, its extra inputs, then
         (with speed control) the measured speed."""
         keys = [*self._active.runner.image_inputs, *self._active.runner.extra_inputs]
-        if self.speed_control is not None:
+        if self._needs_speed(self._active.runner):
             keys.append(self.speed_key)
         return keys
+
+    def _needs_speed(self, runner: Runner) -> bool:
+        return self.speed_control is not None or speed_scale(runner.meta) is not None
 
     @property
     def INPUTS(self) -> tuple[str, ...]:  # noqa: N802 - the part declaration read by Vehicle.add
@@ -171,8 +185,9 @@ class Pilot:
         """Forget the frames and commands remembered for sequence models: a new episode starts
         (an evaluation track, a car put back on the start line). Also resets the speed controller."""
         self._active = _Active(self._active.runner)
-        if self.speed_control is not None and callable(getattr(self.speed_control, "reset", None)):
-            self.speed_control.reset()
+        for control in (self.speed_control, self.target_control):
+            if control is not None and callable(getattr(control, "reset", None)):
+                control.reset()
 
     # -- the loop -------------------------------------------------------------------------------
     def run(self, image: np.ndarray | None, *rest: Any) -> tuple[float, float]:
@@ -180,7 +195,8 @@ class Pilot:
         active = self._active  # one read: a swap during this call does not mix two models
         runner = active.runner
         n_views, n_extra = len(runner.image_inputs), len(runner.extra_inputs)
-        expected = n_views + n_extra + (1 if self.speed_control is not None else 0)
+        scale = speed_scale(runner.meta)
+        expected = n_views + n_extra + (1 if self._needs_speed(runner) else 0)
         if len(rest) + 1 != expected:
             raise TypeError(f"Pilot.run takes {expected} inputs {self.inputs}, got {len(rest) + 1}; "
                             "wire the part with inputs=pilot.inputs")
@@ -191,7 +207,13 @@ class Pilot:
             self.frame_shape = image.shape  # what a model switched to must take
             self._check_frames(runner)
         angle, throttle = self._predict(active, images, rest[:n_extra])
-        if self.speed_control is not None:
+        if scale is not None:  # the model's target speed, driven to by the PI controller
+            target = max(0.0, throttle * scale)
+            limit = getattr(self.speed_control, "default_limit", None)
+            throttle = self.target_control.run(None, rest[n_extra], min(target, limit) if limit else target)
+            if throttle is None or not math.isfinite(throttle):
+                throttle = 0.0
+        elif self.speed_control is not None:
             throttle = self.speed_control.run(throttle, rest[n_extra], None)  # its own target speed
             if throttle is None or not math.isfinite(throttle):
                 throttle = 0.0
@@ -307,8 +329,8 @@ class Pilot:
             self._refuse(path, str(exc))
             return
         old = self._active
-        if self.lock_inputs and (runner.image_inputs, runner.extra_inputs) != \
-                (old.runner.image_inputs, old.runner.extra_inputs):
+        if self.lock_inputs and (runner.image_inputs, runner.extra_inputs, self._needs_speed(runner)) != \
+                (old.runner.image_inputs, old.runner.extra_inputs, self._needs_speed(old.runner)):
             runner.close()
             self._refuse(path, f"the model needs inputs {[*runner.image_inputs, *runner.extra_inputs]} but the "
                          f"pilot was wired with {[*old.runner.image_inputs, *old.runner.extra_inputs]}; restart "
@@ -367,3 +389,12 @@ class ModelSwitch:
         if self._pending and self.pilot.request_model(self._pending):
             self._pending = None
         return self.pilot.model_name, self.pilot.load_error
+
+
+def speed_scale(meta: Mapping[str, Any]) -> float | None:
+    """m/s per unit of throttle output of a model trained on speeds (TRAIN_THROTTLE_LABEL =
+    "speed"); None for a model whose throttle output is a throttle."""
+    training = meta.get("training") or {}
+    if training.get("throttle_label") != "speed":
+        return None
+    return float(training["speed_scale"])

@@ -174,3 +174,25 @@ def test_the_demo_says_at_its_start_what_to_expect_on_this_cpu(monkeypatch, tmp_
     main(["demo", "--out", str(tmp_path / "d"), "--threads", "1", *(["--lanes"] if lanes else [])])
     lines = capsys.readouterr().out.splitlines()
     assert lines[0] == "torch threads: 1 (--threads)" and lines[1].startswith(expected), lines[1]
+
+
+def test_robust_demo_trains_with_the_batch_augmentations(monkeypatch, tmp_path):
+    from vehicle.app import demo, record
+
+    seen = {}
+    monkeypatch.setattr(demo, "run_demo", lambda out, **kw: seen.update(kw) or (_ for _ in ()).throw(ValueError("x")))
+    assert main(["demo", "--out", str(tmp_path / "d"), "--threads", "1", "--robust"]) == 2
+    assert seen["robust"] is True
+    monkeypatch.undo()
+
+    def stop(cfg, *args, **kw):
+        seen["augmentations"] = list(cfg.AUGMENTATIONS)
+        raise ValueError("stopped before recording")
+
+    monkeypatch.setattr(record, "record_expert", stop)
+    for robust in (False, True):
+        with pytest.raises(ValueError, match="stopped"):
+            demo.run_demo(tmp_path / f"r{robust}", **{**demo.DEFAULTS, "robust": robust})
+        extra = [a for a in seen["augmentations"] if a not in demo.DEMO_SETTINGS["AUGMENTATIONS"]]
+        assert extra == (demo.ROBUST_AUGMENTATIONS if robust else [])
+        assert ("'cutout'" in (tmp_path / f"r{robust}" / "myconfig.py").read_text()) is robust

@@ -149,23 +149,25 @@ def make_pilot(cfg: Config, model_path: str | Path, measured_speed_key: str = "e
     path = Path(model_path)
     if not path.is_absolute() and not path.exists():
         path = Path(cfg.CAR_PATH) / path
-    speed_control = None
-    speed_key = "enc/speed"
-    if cfg.PILOT_SPEED_CONTROL != "off":
-        from parts.drive.speed import SpeedControl
+    from parts.drive.speed import SpeedControl
 
+    speed_control = None
+    speed_key = cfg.PILOT_SPEED_KEY or measured_speed_key
+    # drives to the target speed of a model trained on speeds (TRAIN_THROTTLE_LABEL = "speed")
+    target_control = SpeedControl("pi", dt=1.0 / cfg.DRIVE_LOOP_HZ, kp=cfg.PILOT_SPEED_KP, ki=cfg.PILOT_SPEED_KI,
+                                  max_throttle=cfg.PILOT_SPEED_MAX_THROTTLE)
+    if cfg.PILOT_SPEED_CONTROL != "off":
         speed_control = SpeedControl(cfg.PILOT_SPEED_CONTROL, dt=1.0 / cfg.DRIVE_LOOP_HZ,
                                      kp=cfg.PILOT_SPEED_KP, ki=cfg.PILOT_SPEED_KI,
                                      max_throttle=cfg.PILOT_SPEED_MAX_THROTTLE,
                                      default_limit=cfg.PILOT_SPEED_LIMIT,
                                      headroom=cfg.PILOT_SPEED_LIMIT_HEADROOM)
-        speed_key = cfg.PILOT_SPEED_KEY or measured_speed_key
     try:
         return load_pilot(path, backend=cfg.PILOT_BACKEND, speed_control=speed_control, speed_key=speed_key,
                           onnx_threads=cfg.PILOT_ONNX_THREADS, models_dir=cfg.path("MODELS_PATH"),
                           frame_shape=frame_shape, frame_hint=frame_hint,
                           extra_sizes={"behavior/one_hot_state_array": len(cfg.BEHAVIOR_LIST)},
-                          car=CarInputs.from_config(cfg))
+                          car=CarInputs.from_config(cfg), target_control=target_control)
     except (ValueError, ImportError, OSError) as exc:
         raise UserError(f"cannot drive with {path}: {exc}") from exc
 

@@ -62,6 +62,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--unseen-theme", default=DEFAULTS["unseen_theme"], metavar="THEME",
                    help="a theme the pilot is not trained on, evaluated as well")
     p.add_argument("--type", dest="model_type", default="linear", help="model type to train")
+    p.add_argument("--robust", action="store_true",
+                   help="train with the light, colour, noise and cutout batch augmentations as well: steadier "
+                        "under light, colours and themes never seen, some training time more (docs/pilot.md)")
     p.add_argument("--threads", type=int, default=None,
                    help="torch threads (default: one per core, or 1 when the machine is already busy)")
     p.add_argument("--lanes", action="store_true",
@@ -98,7 +101,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         result = run_demo(Path(args.out), records=args.records, epochs=args.epochs, noise=args.noise,
                           train_tracks=args.train_tracks, eval_tracks=args.eval_tracks, laps=args.laps,
                           model_type=args.model_type, eval_randomize=args.eval_randomize,
-                          unseen_theme=args.unseen_theme)
+                          unseen_theme=args.unseen_theme, robust=args.robust)
     except ValueError as exc:
         raise UserError(f"demo: {exc}") from exc
     total = time.perf_counter() - started
