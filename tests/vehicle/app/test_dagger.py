@@ -125,3 +125,21 @@ def test_ctrl_c_keeps_finished_rounds_and_leaves_the_throttle_at_neutral(car_cfg
     table = json.loads((tmp_path / "models" / "dg.dagger.json").read_text())
     assert [r["round"] for r in table["rounds"]] == [0]  # round 0 finished; round 1 was cut short
     assert len(records_of(tmp_path / "data" / "dagger_dg_r1")) == 29  # the frames labelled before the 30th raised
+
+
+def test_training_keeps_corrections_whatever_train_modes_says(tmp_path):
+    from training.dataset import read_drive_data
+
+    tub = Tub(tmp_path / "tub", inputs=["cam/image_array", "user/angle", "user/throttle", "user/mode",
+                                        "user/correction"],
+              types=["image_array", "float", "float", "str", "boolean"])
+    img = np.zeros((120, 160, 3), np.uint8)
+    for mode, correction in [("user", None), ("local", True), ("local", False), ("local", None)]:
+        rec = {"cam/image_array": img, "user/angle": 0.1, "user/throttle": 0.2, "user/mode": mode}
+        if correction is not None:
+            rec["user/correction"] = correction
+        tub.write_record(rec)
+    tub.close()
+    data = read_drive_data([tmp_path / "tub"], modes=["user"])
+    assert [(r.data["user/mode"], r.data.get("user/correction")) for r in data.records] == [
+        ("user", None), ("local", True)]
