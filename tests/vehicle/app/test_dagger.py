@@ -143,3 +143,21 @@ def test_training_keeps_corrections_whatever_train_modes_says(tmp_path):
     data = read_drive_data([tmp_path / "tub"], modes=["user"])
     assert [(r.data["user/mode"], r.data.get("user/correction")) for r in data.records] == [
         ("user", None), ("local", True)]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--dagger", "0"], "--dagger 0: give at least 1 round"),
+    (["--dagger", "1", "--dagger-tracks", "1-x"], "--dagger-tracks 1-x: give track seeds"),
+    (["--dagger", "1", "--dagger-tracks", "100-102", "--eval-tracks", "101"], "also evaluation tracks"),
+    (["--dagger", "1", "--eval-themes", "moon"], "unknown theme 'moon'"),
+    (["--dagger", "1", "--dagger-beta", "1.5"], "--dagger-beta 1.5"),
+])
+def test_dagger_options_are_checked_before_any_work(tmp_path, capsys, make_model_file, args, message):
+    from vehicle.app.cli import main
+    from vehicle.app.commands.train import seed_list
+
+    assert seed_list("1-3,7", "--x") == [1, 2, 3, 7]
+    start = make_model_file("linear", name="start")
+    assert main(["train", "--car", str(tmp_path), "--transfer", str(start), *args]) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "data").exists()  # nothing recorded
