@@ -238,6 +238,10 @@ def run_dagger(cfg: Any, base_tubs: Sequence[str], model_path: Path, plan: Dagge
         options["epochs"] = plan.epochs
     rounds: list[dict[str, Any]] = []
     reference: dict[str, Any] | None = None
+    tubs = [Path(cfg.path("DATA_PATH")) / f"dagger_{model_path.stem}_r{i}" for i in range(1, plan.rounds + 1)]
+    taken = [str(p) for p in tubs if p.exists()]
+    if taken:  # refused before any work, not after round 0's evaluation
+        raise ValueError(f"{', '.join(taken)} exist(s) from an earlier run: move them away or write another --model")
 
     def save() -> None:
         table_path.write_text(json.dumps({"plan": plan.__dict__, "draws": draws, "rounds": rounds}, indent=1) + "\n")
@@ -251,7 +255,7 @@ def run_dagger(cfg: Any, base_tubs: Sequence[str], model_path: Path, plan: Dagge
                                 max_time=plan.max_time)
         by_theme = _with_expert(report["by_theme"], reference)
         reference = reference or by_theme
-        rounds.append({"round": i, "model": str(model), "rollout": roll, "train_s": round(train_s, 1),
+        rounds.append({"round": i, "model": str(model), "rollout": roll, "rollout_and_training_s": round(train_s, 1),
                        "by_theme": by_theme})
         save()
         say(format_rounds(rounds[-1:]))
@@ -267,9 +271,7 @@ def run_dagger(cfg: Any, base_tubs: Sequence[str], model_path: Path, plan: Dagge
         evaluate_round(0, current, None, time.perf_counter() - t)
         for i in range(1, plan.rounds + 1):
             t = time.perf_counter()
-            tub = Path(cfg.path("DATA_PATH")) / f"dagger_{model_path.stem}_r{i}"
-            if tub.exists():
-                raise ValueError(f"{tub} exists from an earlier run: move it away or write another --model")
+            tub = tubs[i - 1]
             beta = plan.beta_of(i)
             say(f"round {i}: the pilot {current.name} drives {plan.records} frames on tracks "
                 f"{plan.tracks[0]}..{plan.tracks[-1]} (draw {ROLLOUT_DRAW_BASE + i}, beta {beta:g}); the expert "

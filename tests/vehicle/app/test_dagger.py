@@ -125,6 +125,10 @@ def test_ctrl_c_keeps_finished_rounds_and_leaves_the_throttle_at_neutral(car_cfg
     table = json.loads((tmp_path / "models" / "dg.dagger.json").read_text())
     assert [r["round"] for r in table["rounds"]] == [0]  # round 0 finished; round 1 was cut short
     assert len(records_of(tmp_path / "data" / "dagger_dg_r1")) == 29  # the frames labelled before the 30th raised
+    # run again into the same names: refused before any work, the kept round untouched
+    with pytest.raises(ValueError, match="exist"):
+        run_dagger(car_cfg, [], tmp_path / "models" / "dg.pt", plan, start_model=start, say=lambda s: None)
+    assert len(records_of(tmp_path / "data" / "dagger_dg_r1")) == 29
 
 
 def test_training_keeps_corrections_whatever_train_modes_says(tmp_path):
