@@ -43,6 +43,10 @@ logger = logging.getLogger(__name__)
 
 #: roll-out round i is randomised with seed ROLLOUT_DRAW_BASE + i (never a hidden evaluation draw)
 ROLLOUT_DRAW_BASE = 100
+#: roll-out frames per track at least (~10 s, about a lap): the car starts every track standing, and
+#: with a few dozen frames per track most labels were the expert accelerating from standstill (a
+#: throttle a pilot that cannot see its speed learns as "always faster": measured, docs/pilot.md)
+FRAMES_PER_TRACK = 200
 #: what a DAgger record holds (memory key, tub type)
 RECORD_FIELDS: tuple[tuple[str, str], ...] = (
     ("cam/image_array", "image_array"),
@@ -88,6 +92,13 @@ class DaggerPlan:
                              "evaluation tracks: evaluate on tracks the pilot never drove")
         if self.eval_draws < 1 or self.laps < 1:
             raise ValueError("evaluation needs at least 1 draw and 1 lap")
+
+    def tracks_of(self, round_: int) -> list[int]:
+        """The roll-out tracks of round ``round_`` (1-based): at least FRAMES_PER_TRACK frames each,
+        the next ones of ``tracks`` in every round (round-robin), so the rounds see other tracks."""
+        k = max(1, min(len(self.tracks), self.records // FRAMES_PER_TRACK))
+        start = (round_ - 1) * k
+        return [self.tracks[(start + j) % len(self.tracks)] for j in range(k)]
 
     def beta_of(self, round_: int) -> float:
         """β of roll-out round ``round_`` (1-based)."""
@@ -273,12 +284,13 @@ def run_dagger(cfg: Any, base_tubs: Sequence[str], model_path: Path, plan: Dagge
             t = time.perf_counter()
             tub = tubs[i - 1]
             beta = plan.beta_of(i)
+            tracks = plan.tracks_of(i)
             say(f"round {i}: the pilot {current.name} drives {plan.records} frames on tracks "
-                f"{plan.tracks[0]}..{plan.tracks[-1]} (draw {ROLLOUT_DRAW_BASE + i}, beta {beta:g}); the expert "
-                f"labels every frame into {tub} ...")
+                f"{','.join(map(str, tracks))} (draw {ROLLOUT_DRAW_BASE + i}, beta {beta:g}); the expert labels "
+                f"every frame into {tub} ...")
             driver, _, owned = resolve_pilot(current, cfg)
             try:
-                roll = rollout(cfg, driver, tub, records=plan.records, tracks=plan.tracks,
+                roll = rollout(cfg, driver, tub, records=plan.records, tracks=tracks,
                                draw=ROLLOUT_DRAW_BASE + i, beta=beta, seed=cfg.SIM_SEED + i, add_parts=add_parts)
             finally:
                 if owned and callable(getattr(driver, "shutdown", None)):

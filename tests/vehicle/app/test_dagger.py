@@ -81,6 +81,12 @@ def test_beta_mixing_lets_the_expert_drive_that_share_of_frames():
     assert DaggerPlan(rounds=3, beta=0.8).beta_of(3) == pytest.approx(0.2)
 
 
+def test_each_round_drives_whole_stretches_of_a_few_tracks_in_turn():
+    plan = DaggerPlan(rounds=3, records=600, tracks=list(range(1, 8)))
+    assert [plan.tracks_of(i) for i in (1, 2, 3)] == [[1, 2, 3], [4, 5, 6], [7, 1, 2]]  # 200 frames per track
+    assert DaggerPlan(rounds=1, records=50, tracks=[5, 6]).tracks_of(1) == [5]
+
+
 def test_one_round_writes_a_correction_tub_a_fine_tuned_model_and_the_round_table(car_cfg, make_model_file,
                                                                                   tmp_path, torch_one_thread):
     start = make_model_file("linear", name="start")
