@@ -37,6 +37,9 @@ ANGLE_KEYS = ("user/angle", "user/steering")
 THROTTLE_KEY = "user/throttle"
 #: where a record's measured speed (m/s) is, in the order looked up (TRAIN_THROTTLE_LABEL = "speed")
 SPEED_KEYS = ("sim/speed", "enc/speed")
+#: True on a record the pilot drove whose label is a correction (the simulator's expert in DAgger,
+#: the person in correction mode): trained on whatever TRAIN_MODES says
+CORRECTION_KEY = "user/correction"
 
 
 @dataclass
@@ -71,8 +74,8 @@ def read_drive_data(paths: Sequence[str | os.PathLike[str]], *, modes: Iterable[
     """Records of ``paths`` (tubs or folders of tubs) kept for training.
 
     Args:
-        modes: keep records whose ``user/mode`` is in this list (records without a mode are kept);
-            None keeps all.
+        modes: keep records whose ``user/mode`` is in this list (records without a mode, and
+            corrections, ``user/correction`` True, are kept); None keeps all.
         record_filter: the car's TRAIN_FILTER, called with each record's fields.
         records: already loaded records (skips ``load_records``; for tests and tools).
         speed_scale: when given, the throttle label is the record's measured speed
@@ -93,7 +96,9 @@ def read_drive_data(paths: Sequence[str | os.PathLike[str]], *, modes: Iterable[
     dropped = {"mode": 0, "filter": 0, "label": 0}
     for rec in records:
         data = rec.data
-        if modes is not None and data.get("user/mode", "user") not in modes:
+        # a correction (DAgger, correction mode) was driven by the pilot but carries the expert's or
+        # the person's label: kept whatever the mode
+        if modes is not None and data.get("user/mode", "user") not in modes and data.get(CORRECTION_KEY) is not True:
             dropped["mode"] += 1
             continue
         if record_filter is not None and not record_filter(data):

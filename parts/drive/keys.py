@@ -19,4 +19,6 @@ KEYS: dict[str, KeyInfo] = {
     "behavior/one_hot_state_array": KeyInfo("list[float]", "one-hot encoding of behavior/state"),
     "behavior/step": KeyInfo("int", "+1 / -1 for one loop: select the next / previous behaviour"),
     "tune/done": KeyInfo("bool", "the speed step test has finished"),
+    "user/correction": KeyInfo("bool", "the pilot drove and the label (user/angle, user/throttle) is a correction: "
+                                       "the simulator's expert (DAgger) or the person's override (CORRECTION_MODE)"),
 }

@@ -4,6 +4,7 @@
   dead zone) and stops when it is released: no standing-still records.
 - Outside user mode nothing is recorded unless ``record_during_ai`` (RECORD_DURING_AI): records
   of a pilot driving would teach the next pilot its own mistakes.
+- A correction (``user/correction``, correction mode) is recorded whatever the mode.
 - An emergency stop stops recording.
 """
 
@@ -16,11 +17,11 @@ logger = logging.getLogger(__name__)
 
 
 class RecordingRules:
-    """Inputs: ``user/mode, recording, throttle[, estop]``; output: ``recording``."""
+    """Inputs: ``user/mode, recording, throttle[, estop, user/correction]``; output: ``recording``."""
 
-    INPUTS: ClassVar[tuple[str, ...]] = ("user/mode", "recording", "throttle", "estop")
-    #: a car may have no e-stop button
-    OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("estop",)
+    INPUTS: ClassVar[tuple[str, ...]] = ("user/mode", "recording", "throttle", "estop", "user/correction")
+    #: a car may have no e-stop button, and only correction mode writes user/correction
+    OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("estop", "user/correction")
     #: without a record button (no controller writes ``recording``) it reads its own last decision
     FEEDBACK: ClassVar[tuple[str, ...]] = ("recording",)
     OUTPUTS: ClassVar[tuple[str, ...]] = ("recording",)
@@ -35,7 +36,7 @@ class RecordingRules:
         self.last: bool | None = None
 
     def run(self, mode: str | None, recording: bool | None, throttle: float | None,
-            estop: bool | None = None) -> bool:
+            estop: bool | None = None, correction: bool | None = None) -> bool:
         """Whether to record this loop."""
         wanted = bool(recording)
         if self.auto_record_on_throttle:
@@ -43,6 +44,8 @@ class RecordingRules:
         in_user_mode = mode in (None, "user")
         if not in_user_mode and not self.record_during_ai:
             wanted = False
+        if correction:  # the person overrode the pilot: the frame is what correction mode records
+            wanted = True
         if estop:
             wanted = False
         if wanted != self.last:

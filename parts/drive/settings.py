@@ -34,6 +34,16 @@ RECORD_DURING_AI: bool = False
 # ESC_REVERSE_MODE = "double_tap" does the same.
 USE_THROTTLE_FILTER: bool = True
 
+# == Correction mode ==
+
+# Correction mode (DAgger with a person as the expert, docs/dagger.md): while a pilot drives
+# ("local" or "local_angle", entered from the web page or the gamepad's mode button as usual), the
+# person's steering (and, in "local", throttle) overrides the pilot's while the stick is moved, and
+# only those frames are recorded, labelled with what the car did and marked user/correction.
+CORRECTION_MODE: bool = False
+# Stick travel (fraction of full) beyond which the person's steering or throttle overrides the pilot.
+CORRECTION_DEADZONE: Annotated[float, Range(0, 0.99)] = 0.05
+
 # == Behaviour ==
 
 # Drive with behaviour states (e.g. which lane to keep): adds behavior/state, behavior/label and

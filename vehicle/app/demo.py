@@ -95,12 +95,14 @@ def say(text: str) -> None:
 def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks: list[int],
              eval_tracks: list[int], laps: int, model_type: str = "linear",
              eval_randomize: int | None = DEFAULTS["eval_randomize"],
-             unseen_theme: str = DEFAULTS["unseen_theme"], robust: bool = False) -> dict[str, Any]:
+             unseen_theme: str = DEFAULTS["unseen_theme"], robust: bool = False, draws: int = 0) -> dict[str, Any]:
     """Run the four steps in ``out``; returns ``{"reports": {theme: {"pilot": report, "expert":
     report}}, "trained_themes": [...], "unseen_theme": name, "model": path, "seconds": {step: s},
     "cpu_seconds": {step: s}, "metrics": {...}}`` (wall time, and CPU time of this process and its
     finished workers: on a shared machine the two differ). ``robust`` adds :data:`ROBUST_AUGMENTATIONS`.
-    Raises ValueError on bad arguments."""
+    With ``draws`` > 0 the pilot is also driven under that many hidden randomisation draws per theme
+    (``vehicle sim eval --draws``) and the result holds ``"draws"``: that report, whose ``by_theme``
+    gives the mean and the worst draw. Raises ValueError on bad arguments."""
     from parts.sim.eval_report import describe, format_table, write_json
     from parts.sim.themes import theme_list
     from vehicle.app.evaluate import evaluate
@@ -166,6 +168,14 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
             "expert": evaluate("expert", eval_tracks, laps, cfg=c_theme, workers=cfg.SIM_EVAL_WORKERS)}
         for who, report in reports[theme].items():
             write_json(report, out / "eval" / f"{who}_{theme}.json")
+    robust = None
+    if draws:
+        from vehicle.app.eval_draws import evaluate_draws, format_draws_table, hidden_draws
+
+        say(f"      and under {draws} hidden randomisation draw(s) per theme (mean and worst draw) ...")
+        robust = evaluate_draws(model_path, eval_tracks, laps, cfg=cfg, draws=hidden_draws(draws, cfg.SIM_RANDOMIZE),
+                                themes=[*trained, unseen_theme], workers=cfg.SIM_EVAL_WORKERS)
+        write_json(robust, out / "eval" / "pilot_draws.json")
     seconds["evaluate"] = time.perf_counter() - t
     cpu["evaluate"] = cpu_seconds() - c
     say(f"      evaluated in {seconds['evaluate']:.0f} s")
@@ -177,8 +187,12 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
         say(f"the expert on the same tracks, for comparison: autonomy {e['autonomy']:.1f} %, "
             f"{e['laps_completed']} laps, {e['interventions']} interventions, mean |cte| {e['mean_abs_cte']:.3f} m "
             f"({describe(pair['expert'])[len('conditions: '):]})")
+    if robust is not None:
+        say("\ntrained pilot on unseen tracks under hidden randomisation draws (robustness):")
+        say(format_draws_table(robust))
     return {"reports": reports, "trained_themes": trained, "unseen_theme": unseen_theme, "model": model_path,
-            "seconds": seconds, "cpu_seconds": cpu, "metrics": metrics}
+            "seconds": seconds, "cpu_seconds": cpu, "metrics": metrics,
+            **({"draws": robust} if robust is not None else {})}
 
 
 def train_or_stop(cfg: Any, tubs: list[Path], model_path: Path, **options: Any) -> dict[str, Any]:

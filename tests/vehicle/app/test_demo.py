@@ -14,7 +14,8 @@ from vehicle.app.cli import main
 def test_tiny_demo_writes_model_export_reports_and_registry(tmp_path, capsys):
     out = tmp_path / "demo"
     code = main(["demo", "--out", str(out), "--records", "200", "--epochs", "1", "--train-tracks", "1,2",
-                 "--eval-tracks", "101", "--laps", "1", "--threads", "1", "--eval-randomize", "2"])
+                 "--eval-tracks", "101", "--laps", "1", "--threads", "1", "--eval-randomize", "2",
+                 "--draws", "1"])
     assert code == 0
     printed = capsys.readouterr().out
     for step in ("[1/4]", "themes road, indoor, randomised with seed 1", "[2/4]", "[3/4] exporting to ONNX",
@@ -22,8 +23,11 @@ def test_tiny_demo_writes_model_export_reports_and_registry(tmp_path, capsys):
                  "trained pilot on unseen tracks, theme indoor (a trained theme):",
                  "trained pilot on unseen tracks, theme park (a theme the pilot never saw):",
                  "conditions: theme park, randomised with seed 2", "the expert on the same tracks",
-                 "demo finished in", "park (theme never seen in training): the trained pilot"):
+                 "demo finished in", "park (theme never seen in training): the trained pilot",
+                 "under hidden randomisation draws (robustness):", "park under 1 hidden draws: autonomy mean"):
         assert step in printed
+    draws = json.loads((out / "eval" / "pilot_draws.json").read_text())
+    assert list(draws["by_theme"]) == ["road", "indoor", "park"] and draws["draws"] == [1001]
     model = out / "models" / "demo_linear.pt"
     assert model.is_file() and model.with_suffix(".onnx").is_file()
     for theme in ("road", "indoor", "park"):
@@ -53,6 +57,7 @@ def test_tiny_demo_writes_model_export_reports_and_registry(tmp_path, capsys):
     (["--unseen-theme", "road"], "is a training theme"),
     (["--unseen-theme", "moon"], "unknown theme 'moon'"),
     (["--eval-randomize", "1"], "training draw"),
+    (["--draws", "-1"], "--draws -1"),
 ])
 def test_demo_refuses_bad_arguments(tmp_path, capsys, args, message):
     assert main(["demo", "--out", str(tmp_path / "d"), *args]) == 2

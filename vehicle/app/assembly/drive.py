@@ -13,7 +13,8 @@ logger = logging.getLogger(__name__)
 
 
 def add_drive_mode(V: Any, cfg: Config) -> Any:
-    """Add DriveMode: ``user/*`` and ``pilot/*`` commands -> ``angle``, ``throttle``.
+    """Add DriveMode: ``user/*`` and ``pilot/*`` commands -> ``angle``, ``throttle``; with
+    CORRECTION_MODE the person's stick overrides the pilot while moved (:mod:`parts.drive.correction`).
 
     Add it after the controller (and the pilot, when there is one): it reads their commands of
     this loop. A car without a pilot or an e-stop button reads None there (no pilot command, no
@@ -23,6 +24,11 @@ def add_drive_mode(V: Any, cfg: Config) -> Any:
 
     part = DriveMode(ai_throttle_mult=cfg.AI_THROTTLE_MULT)
     V.add(part)
+    if getattr(cfg, "CORRECTION_MODE", False):
+        from parts.drive.correction import Correction
+
+        # before the speed limit and the obstacle stop: they act on the person's override too
+        V.add(Correction(cfg.CORRECTION_DEADZONE))
     add_speed_limit(V, cfg)
     add_obstacle_stop(V, cfg)
     return part

@@ -27,6 +27,8 @@ SENSOR_FIELDS: dict[str, tuple[tuple[str, str], ...]] = {
 
 #: cameras beside the centre one, recorded when a part makes them (the three_camera model's views)
 SIDE_CAMERA_KEYS = ("cam/image_array_left", "cam/image_array_right")
+#: what a car in correction mode (CORRECTION_MODE) records besides TUB_INPUTS
+CORRECTION_FIELDS = (("user/correction", "boolean"), ("pilot/angle", "float"), ("pilot/throttle", "float"))
 
 
 def new_tub_path(data_path: Path) -> Path:
@@ -79,6 +81,11 @@ def add_tub_writer(V: Any, cfg: Any, inputs: list[str] | None = None, types: lis
             if key not in inputs and _produced(V, key):
                 inputs.append(key)
                 types.append("image_array")
+        if getattr(cfg, "CORRECTION_MODE", False):  # the flag, and what the pilot wanted beside the label
+            for key, tp in CORRECTION_FIELDS:
+                if key not in inputs and _produced(V, key):
+                    inputs.append(key)
+                    types.append(tp)
         if getattr(cfg, "TRAIN_BEHAVIORS", False):  # as DonkeyCar: behaviour drives record it
             for key, tp in BEHAVIOR_FIELDS:
                 if key not in inputs and _produced(V, key):

@@ -61,6 +61,9 @@ def register(subparsers: Any) -> None:
                         "theme's plain look")
     p.add_argument("--unseen-theme", default=DEFAULTS["unseen_theme"], metavar="THEME",
                    help="a theme the pilot is not trained on, evaluated as well")
+    p.add_argument("--draws", type=int, default=0, metavar="N",
+                   help="also drive under N hidden randomisation draws per theme and report the mean and the worst "
+                        "draw (vehicle sim eval --draws; costs about N times the evaluation step)")
     p.add_argument("--type", dest="model_type", default="linear", help="model type to train")
     p.add_argument("--robust", action="store_true",
                    help="train with the light, colour, noise and cutout batch augmentations as well: steadier "
@@ -94,6 +97,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     for name, value in (LANE_DEFAULTS if args.lanes else DEFAULTS).items():
         if getattr(args, name, "") is None:
             setattr(args, name, value)
+    if args.draws < 0:
+        raise UserError(f"--draws {args.draws}: give 0 (off) or more hidden randomisation draws")
     if args.lanes:
         return _cmd_lanes(args)
     started = time.perf_counter()
@@ -101,7 +106,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         result = run_demo(Path(args.out), records=args.records, epochs=args.epochs, noise=args.noise,
                           train_tracks=args.train_tracks, eval_tracks=args.eval_tracks, laps=args.laps,
                           model_type=args.model_type, eval_randomize=args.eval_randomize,
-                          unseen_theme=args.unseen_theme, robust=args.robust)
+                          unseen_theme=args.unseen_theme, robust=args.robust, draws=args.draws)
     except ValueError as exc:
         raise UserError(f"demo: {exc}") from exc
     total = time.perf_counter() - started
@@ -119,6 +124,10 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         _say(f"{theme} ({kind}): the trained pilot {verdict} its {laps_needed} laps on unseen tracks on its own "
              f"({overall['laps_completed']} laps, {overall['interventions']} interventions, "
              f"autonomy {overall['autonomy']:.1f} %)")
+    for theme, s in result.get("draws", {}).get("by_theme", {}).items():
+        _say(f"{theme} under {len(s['draws'])} hidden draws: autonomy mean {s['mean']['autonomy']:.1f} %, worst "
+             f"{s['worst']['autonomy']:.1f} % (draw {s['worst']['randomize']}), speed "
+             f"{s['speed_vs_expert_pct'] if s.get('speed_vs_expert_pct') is not None else '-'} % of the expert's")
     out = Path(args.out)
     _say(f"next: vehicle models --car {out}  |  vehicle sim eval --pilot {result['model']} --theme "
          f"{args.unseen_theme} --randomize {'off' if args.eval_randomize is None else args.eval_randomize}  |  "

@@ -56,6 +56,10 @@ def register(subparsers: Any) -> None:
                     help="command lane changes and score them (default: for a behaviour pilot when SIM_LANES = 2)")
     ev.add_argument("--store", action="store_true",
                     help="keep the result in the car's model registry (the leaderboard ranks stored results)")
+    ev.add_argument("--draws", type=int, metavar="N",
+                    help="robustness: drive the tracks in each theme of --theme (default SIM_THEME) under N hidden "
+                         "randomisation draws (seeds 1001..1000+N, never used for training) and report per theme "
+                         "the mean and the worst draw, beside the expert's speed (docs/simulator.md)")
     _world_options(ev)
     ev.set_defaults(func=cmd_eval)
 
@@ -209,7 +213,7 @@ def cmd_track(args: argparse.Namespace) -> int:
 
 def cmd_eval(args: argparse.Namespace) -> int:
     """Evaluate a pilot and print the table; write JSON / PNG on request."""
-    from parts.sim.eval_report import format_table, write_json, write_png
+    from parts.sim.eval_report import format_table
     from vehicle.app.evaluate import evaluate
 
     cfg = load_world_config(args)
@@ -236,6 +240,11 @@ def cmd_eval(args: argparse.Namespace) -> int:
         raise UserError("--scenes names Donkey simulator scenes: use it with --sim donkey")
     if args.sim == "udacity" and args.tracks:
         raise UserError("--tracks: the Udacity simulator drives the track it shows (choose it in its menu)")
+    if args.draws is not None:
+        if path_driver is not None:
+            raise UserError("--draws compares pilots under hidden draws; a path is followed in the track's own "
+                            "look: drop --path or --draws")
+        return _eval_draws(args, cfg, seeds, laps, workers)
     scenes = None
     if args.sim == "donkey":
         scenes = [x.strip() for x in args.scenes.split(",") if x.strip()] if args.scenes else (
@@ -254,6 +263,34 @@ def cmd_eval(args: argparse.Namespace) -> int:
         from parts.sim.eval_report import format_comparison
 
         print("\n" + format_comparison([report, path_report]))  # noqa: T201
+    _write_and_store(args, cfg, report)
+    return 0
+
+
+def _eval_draws(args: argparse.Namespace, cfg: Any, seeds: list[int], laps: int, workers: int) -> int:
+    """``vehicle sim eval --draws N``: every theme under N hidden draws, mean and worst per theme."""
+    from parts.sim.themes import theme_list
+    from vehicle.app.eval_draws import evaluate_draws, format_draws_table, hidden_draws
+
+    if args.sim != "builtin" or args.randomize is not None:
+        raise UserError("--draws draws the built-in simulator's randomisation itself: drop --sim and --randomize")
+    try:
+        draws = hidden_draws(args.draws, cfg.SIM_RANDOMIZE)
+        report = evaluate_draws(args.pilot, seeds, laps, cfg=cfg, draws=draws, themes=theme_list(cfg.SIM_THEME),
+                                workers=workers, max_time=args.max_time)
+    except (ValueError, FileNotFoundError) as exc:
+        raise UserError(str(exc)) from exc
+    except PartError as exc:
+        raise UserError(f"evaluation stopped: {exc}") from exc
+    print(format_draws_table(report))  # noqa: T201 - CLI output
+    _write_and_store(args, cfg, report)
+    return 0
+
+
+def _write_and_store(args: argparse.Namespace, cfg: Any, report: dict[str, Any]) -> None:
+    """--json, --png and --store of ``vehicle sim eval``."""
+    from parts.sim.eval_report import write_json, write_png
+
     if args.json:
         print(f"wrote {write_json(report, args.json)}")  # noqa: T201
     if args.png:
@@ -269,7 +306,6 @@ def cmd_eval(args: argparse.Namespace) -> int:
         except RegistryError as exc:
             raise UserError(f"--store: {exc}") from exc
         print(f"stored as evaluation {ev.id} of {ev.model}")  # noqa: T201
-    return 0
 
 
 def _path_driver(args: argparse.Namespace, cfg: Any, seeds: list[int]) -> Any:

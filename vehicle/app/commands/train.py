@@ -100,6 +100,22 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
                              "(sets every value the document states; the options here still win; "
                              "docs/training.md, 'Recipes')")
     parser.add_argument("--no-register", action="store_true", help="do not add the model to the registry")
+    dagger = parser.add_argument_group("DAgger in the built-in simulator (docs/dagger.md)")
+    dagger.add_argument("--dagger", type=int, metavar="ROUNDS",
+                        help="after round 0 (--transfer, or a model trained on --tubs first), ROUNDS times: the pilot "
+                             "drives the training tracks, the expert labels every frame into a new tub, the pilot is "
+                             "fine-tuned on all the data and evaluated under hidden randomisation draws")
+    dagger.add_argument("--dagger-records", type=int, default=2000, metavar="N", help="roll-out frames per round")
+    dagger.add_argument("--dagger-beta", type=float, default=0.0, metavar="B",
+                        help="probability that the expert drives a roll-out frame in round 1, halved each round "
+                             "(0: the pilot drives every frame, re-centred when it leaves the road)")
+    dagger.add_argument("--dagger-tracks", metavar="SEEDS", help="roll-out track seeds, e.g. 1-64 or 1,2,3 "
+                                                                  "(default SIM_TRACK_SEEDS)")
+    dagger.add_argument("--eval-tracks", metavar="SEEDS", help="evaluation track seeds (default SIM_EVAL_TRACK_SEEDS)")
+    dagger.add_argument("--eval-draws", type=int, default=3, metavar="N", help="hidden randomisation draws per theme")
+    dagger.add_argument("--eval-themes", default="road,indoor,park", metavar="NAMES",
+                        help="themes evaluated (one the pilot never trained on shows transfer)")
+    dagger.add_argument("--eval-laps", type=int, metavar="N", help="laps per evaluation track (default SIM_EVAL_LAPS)")
     groups: dict[str, Any] = {}
     for p in HYPERPARAMS:
         group = groups.get(p.group) or groups.setdefault(
@@ -182,6 +198,8 @@ def run_from_args(cfg: Any, args: argparse.Namespace) -> int:
         if recipe.drive_settings:
             logger.info("to drive as the document does, set %s", ", ".join(
                 f"{k} = {v!r}" for k, v in recipe.drive_settings.items()))
+    if getattr(args, "dagger", None) is not None:
+        return _run_dagger(cfg, args, tubs, model_path, model_type_name, clean)
     with ctrl_c_stops_training() as interrupted:
         try:
             metrics = train(cfg, tubs, model_path, model_type_name=model_type_name, transfer=args.transfer,
@@ -202,6 +220,56 @@ def run_from_args(cfg: Any, args: argparse.Namespace) -> int:
         print(f"{stopped}saved {model_path} (best epoch {metrics['best_epoch']} of {metrics['epochs']}, "  # noqa: T201
               f"val_loss {loss}); metrics: {sidecar(model_path, '.metrics.json')}")
     return 130 if metrics.get("cancelled") else 0
+
+
+def seed_list(text: str | None, option: str) -> list[int] | None:
+    """``1-64`` or ``1,2,3`` (or a mix) as a list of ints; None for None; UserError otherwise."""
+    if text is None:
+        return None
+    out: list[int] = []
+    try:
+        for part in (p.strip() for p in text.split(",") if p.strip()):
+            lo, _, hi = part.partition("-")
+            out += list(range(int(lo), int(hi) + 1)) if hi else [int(lo)]
+    except ValueError:
+        raise UserError(f"{option} {text}: give track seeds as 1-64 or 1,2,3") from None
+    if not out:
+        raise UserError(f"{option} {text}: give at least one track seed")
+    return out
+
+
+def _run_dagger(cfg: Any, args: argparse.Namespace, tubs: list[str], model_path: Path, model_type_name: str | None,
+                clean: dict[str, Any]) -> int:
+    """``vehicle train --dagger ROUNDS``: :func:`vehicle.app.dagger.run_dagger`; 130 after Ctrl-C."""
+    from parts.sim.themes import ThemeError, theme_list
+    from training.fit import TrainingDiverged
+    from vehicle.app.dagger import DaggerPlan, format_rounds, run_dagger
+
+    try:
+        themes = theme_list(args.eval_themes)
+    except ThemeError as exc:
+        raise UserError(f"--eval-themes: {exc}") from None
+    plan = DaggerPlan(rounds=args.dagger, records=args.dagger_records, beta=args.dagger_beta,
+                      tracks=seed_list(args.dagger_tracks, "--dagger-tracks") or list(cfg.SIM_TRACK_SEEDS),
+                      eval_tracks=seed_list(args.eval_tracks, "--eval-tracks") or list(cfg.SIM_EVAL_TRACK_SEEDS),
+                      eval_draws=args.eval_draws, eval_themes=themes,
+                      laps=args.eval_laps if args.eval_laps is not None else cfg.SIM_EVAL_LAPS,
+                      workers=cfg.SIM_EVAL_WORKERS)
+    if args.transfer and not Path(args.transfer).exists():
+        raise UserError(f"--transfer {args.transfer}: no such model file (round 0 of DAgger)")
+    options: dict[str, Any] = {"register": not args.no_register}
+    if model_type_name is not None:
+        options["model_type_name"] = model_type_name
+    try:
+        result = run_dagger(cfg, tubs, model_path, plan, start_model=Path(args.transfer) if args.transfer else None,
+                            train_options=options, say=lambda text: print(text, flush=True))  # noqa: T201
+    except KeyboardInterrupt:
+        return 130
+    except (ValueError, TrainingDiverged) as exc:
+        raise UserError(f"DAgger: {exc}") from exc
+    print("\n" + format_rounds(result["rounds"]))  # noqa: T201 - the command's own output
+    print(f"last model {result['model']}; table {result['table']}")  # noqa: T201
+    return 0
 
 
 KERAS_SUFFIXES = (".h5", ".keras", ".tflite", ".hdf5")

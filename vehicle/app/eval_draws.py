@@ -1,0 +1,168 @@
+"""Evaluation over hidden randomisation draws: how robust a pilot is, as a number.
+
+One draw is one randomisation seed (SIM_RANDOMIZE): light, shadows, colours, camera, sensor,
+latency and distractors of every track (:mod:`parts.sim.randomize`). A pilot that drives well in
+the draw it was trained on may still fail in another; ``vehicle sim eval --draws N`` therefore
+drives the same unseen tracks in each theme under N draws the pilot never saw and reports, per
+theme, the **mean** over the draws and the **worst draw** (the one with the lowest autonomy; ties:
+more interventions, then larger mean |CTE|), beside the expert's speed on the same tracks and
+draws (the pilot's speed as a share of it).
+
+The hidden draws are the seeds ``HIDDEN_DRAW_BASE + 1 .. HIDDEN_DRAW_BASE + N``, far from the
+small seeds recordings use (the demo trains with draw 1; DAgger roll-outs use
+:data:`vehicle.app.dagger.ROLLOUT_DRAW_BASE` + round), so the same N always means the same draws
+and a report is reproducible.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+logger = logging.getLogger(__name__)
+
+#: hidden draws are the randomisation seeds HIDDEN_DRAW_BASE + 1, + 2, ...
+HIDDEN_DRAW_BASE = 1000
+#: per-draw figures summarised over the draws: (key of a report's "overall", worse when larger)
+SUMMARY_KEYS: dict[str, bool] = {"autonomy": False, "interventions": True, "laps_completed": False,
+                                 "mean_abs_cte": True, "mean_speed": False, "off_track_per_lap": True}
+
+
+def hidden_draws(n: int, training_draw: int | None = None) -> list[int]:
+    """The ``n`` hidden randomisation seeds; ValueError when ``n`` < 1 or the training draw is one."""
+    if not isinstance(n, int) or isinstance(n, bool) or n < 1:
+        raise ValueError(f"draws must be an int >= 1, got {n!r}")
+    draws = [HIDDEN_DRAW_BASE + k for k in range(1, n + 1)]
+    if training_draw in draws:
+        raise ValueError(f"randomisation seed {training_draw} (SIM_RANDOMIZE) is one of the hidden draws "
+                         f"{draws[0]}..{draws[-1]}: train with a seed below {HIDDEN_DRAW_BASE}")
+    return draws
+
+
+def worst_index(overalls: Sequence[dict[str, Any]]) -> int:
+    """Index of the worst draw: lowest autonomy, then most interventions, then largest mean |CTE|."""
+    def badness(o: dict[str, Any]) -> tuple[float, float, float]:
+        cte = o.get("mean_abs_cte")
+        return (-(o.get("autonomy") or 0.0), o.get("interventions") or 0, cte if cte is not None else np.inf)
+
+    return max(range(len(overalls)), key=lambda i: badness(overalls[i]))
+
+
+def summarise(overalls: Sequence[dict[str, Any]], draws: Sequence[int],
+              expert: Sequence[dict[str, Any]] | None = None) -> dict[str, Any]:
+    """Mean over the draws and the worst draw of the :data:`SUMMARY_KEYS` of each draw's overall,
+    with the expert's mean speed and the pilot's share of it (percent) when ``expert`` is given."""
+    if not overalls or len(overalls) != len(draws):
+        raise ValueError("summarise needs one overall result per draw")
+
+    def mean(key: str, rows: Sequence[dict[str, Any]]) -> float | None:
+        values = [r[key] for r in rows if r.get(key) is not None]
+        return round(float(np.mean(values)), 4) if values else None
+
+    w = worst_index(overalls)
+    out: dict[str, Any] = {
+        "draws": list(draws),
+        "mean": {k: mean(k, overalls) for k in SUMMARY_KEYS},
+        "worst": {"randomize": draws[w], **{k: overalls[w].get(k) for k in SUMMARY_KEYS}},
+        "per_draw": [{"randomize": d, **{k: o.get(k) for k in SUMMARY_KEYS}} for d, o in zip(draws, overalls,
+                                                                                             strict=True)],
+    }
+    if expert is not None:
+        speed = mean("mean_speed", expert)
+        out["expert_speed"] = speed
+        pilot = out["mean"]["mean_speed"]
+        out["speed_vs_expert_pct"] = round(100.0 * pilot / speed, 1) if speed and pilot is not None else None
+        out["expert_autonomy"] = mean("autonomy", expert)
+    return out
+
+
+def evaluate_draws(pilot: Any, seeds: Sequence[int], laps: int, *, cfg: Any, draws: Sequence[int],
+                   themes: Sequence[str], expert: bool = True, workers: int = 1,
+                   max_time: float | None = None) -> dict[str, Any]:
+    """Evaluate ``pilot`` on tracks ``seeds`` in each of ``themes`` under each randomisation seed of
+    ``draws`` (:func:`vehicle.app.evaluate.evaluate` for every pair), and the expert too when
+    ``expert``.
+
+    Returns a report shaped like ``evaluate``'s (so ``--json`` and ``--store`` keep it as they keep
+    one): ``tracks`` holds every episode (each with its ``theme`` and ``randomize``), ``overall``
+    pools them all, and ``by_theme`` maps each theme to :func:`summarise`'s dict.
+    """
+    from parts.sim.metrics import overall
+    from vehicle.app.evaluate import evaluate
+
+    draws, themes = list(draws), list(themes)
+    if not draws or not themes:
+        raise ValueError("evaluate_draws needs at least one draw and one theme")
+    tracks: list[dict[str, Any]] = []
+    by_theme: dict[str, Any] = {}
+    name = None
+    settings: dict[str, Any] = {}
+    for theme in themes:
+        pilot_overalls, expert_overalls = [], []
+        for draw in draws:
+            c = cfg.replace(SIM_THEME=theme, SIM_RANDOMIZE=draw)
+            report = evaluate(pilot, seeds, laps, cfg=c, workers=workers, max_time=max_time)
+            name, settings = report["pilot"], report["settings"]
+            for t in report["tracks"]:
+                t["randomize"] = draw
+            tracks += report["tracks"]
+            pilot_overalls.append(report["overall"])
+            if expert:
+                expert_overalls.append(evaluate("expert", seeds, laps, cfg=c, workers=workers,
+                                                max_time=max_time)["overall"])
+            o = report["overall"]
+            logger.info("draws: %s in %s under draw %d: autonomy %.1f %%, %d interventions", name, theme, draw,
+                        o["autonomy"], o["interventions"])
+        by_theme[theme] = summarise(pilot_overalls, draws, expert_overalls if expert else None)
+    penalty = settings.get("penalty_s", cfg.SIM_INTERVENTION_PENALTY)
+    return {
+        "pilot": name, "simulator": "builtin", "laps": laps, "seeds": list(seeds), "draws": draws,
+        "themes": themes,
+        "conditions": {"themes": themes, "randomize": draws, "distractors": "randomised", "lanes": cfg.SIM_LANES,
+                       "ranges": {k: list(v) for k, v in cfg.SIM_RANDOMIZE_RANGES.items()}},
+        "settings": {**settings, "draws": draws, "themes": themes},
+        "tracks": tracks,
+        # pooled over every episode (the p95 |CTE| needs the frames, which are not kept: None)
+        "overall": {**overall(tracks, penalty, np.empty(0)), "by_theme": by_theme},
+        "by_theme": by_theme,
+    }
+
+
+def _f(value: Any, fmt: str) -> str:
+    return "-" if value is None else fmt.format(value)
+
+
+def format_draws_table(report: dict[str, Any]) -> str:
+    """One row per theme: mean over the draws and the worst draw of autonomy, interventions, laps,
+    mean |CTE| and speed, and the expert's speed (the pilot's as a share of it)."""
+    headers = ["theme", "autonomy % mean", "worst (draw)", "interv. mean", "worst", "laps mean", "worst",
+               "|cte| m mean", "worst", "speed m/s mean", "worst", "expert m/s", "% of expert"]
+    rows = []
+    for theme, s in report["by_theme"].items():
+        m, w = s["mean"], s["worst"]
+        rows.append([theme, _f(m["autonomy"], "{:.1f}"), f"{_f(w['autonomy'], '{:.1f}')} ({w['randomize']})",
+                     _f(m["interventions"], "{:.1f}"), _f(w["interventions"], "{:d}"),
+                     _f(m["laps_completed"], "{:.1f}"), _f(w["laps_completed"], "{:d}"),
+                     _f(m["mean_abs_cte"], "{:.3f}"), _f(w["mean_abs_cte"], "{:.3f}"),
+                     _f(m["mean_speed"], "{:.2f}"), _f(w["mean_speed"], "{:.2f}"),
+                     _f(s.get("expert_speed"), "{:.2f}"), _f(s.get("speed_vs_expert_pct"), "{:.0f}")])
+    widths = [max(len(r[i]) for r in [headers, *rows]) for i in range(len(headers))]
+    lines = ["  ".join(h.rjust(wd) for h, wd in zip(headers, widths, strict=True)),
+             "  ".join("-" * wd for wd in widths)]
+    lines += ["  ".join(c.rjust(wd) for c, wd in zip(r, widths, strict=True)) for r in rows]
+    draws = report["draws"]
+    lines.append(f"pilot {report['pilot']}: tracks {','.join(map(str, report['seeds']))}, {report['laps']} lap(s) "
+                 f"each, under {len(draws)} hidden randomisation draw(s) ({', '.join(map(str, draws))}) per theme; "
+                 "worst = the draw with the lowest autonomy")
+    return "\n".join(lines)
+
+
+def write_draws(report: dict[str, Any], path: str | Path) -> Path:
+    """The report as JSON (as ``vehicle sim eval --json``)."""
+    from parts.sim.eval_report import write_json
+
+    return write_json(report, path)
