@@ -6,9 +6,11 @@ Runs in DonkeyCar's own virtual environment (bench/setup_donkey_venv.sh with WIT
 
 It builds what ``donkey train --type linear`` builds (donkeycar.pipeline.training.train): the tub's
 records through ``TubDataset``, DonkeyCar's random 80/20 split, ``BatchSequence`` tf.data pipelines
-(its image cache, the CROP transformation, ``normalize_image``), ``KerasLinear`` compiled with Adam
-and MSE, then waits on stdin. Each line ``epoch`` trains one epoch and validates (``model.fit`` with
-``initial_epoch``, as Keras continues a run), keeps the best weights by validation loss (DonkeyCar's
+(its image cache, ``normalize_image``) with the top CROP_TOP rows cut off (DonkeyCar's CROP
+transformation masks them instead, keeping 120x160 inputs: cutting matches our input size),
+``KerasLinear`` for that input compiled with Adam and MSE, then waits on stdin. Each line
+``epoch`` trains one epoch and validates (``model.fit`` with ``initial_epoch``, as Keras continues a
+run), keeps the best weights by validation loss (DonkeyCar's
 ModelCheckpoint ``save_best_only``), and answers one JSON line: samples, seconds, losses.
 ``save PATH`` writes the best weights as .npz (layer name/index -> arrays); ``quit`` ends.
 """
@@ -86,7 +88,7 @@ def main() -> int:
     cfg = Config()
     cfg.from_object(type("Defaults", (), {
         "IMAGE_H": 120, "IMAGE_W": 160, "IMAGE_DEPTH": 3, "BATCH_SIZE": batch, "TRAIN_TEST_SPLIT": 0.8,
-        "LEARNING_RATE": 0.001, "TRANSFORMATIONS": ["CROP"] if crop_top else [], "POST_TRANSFORMATIONS": [],
+        "LEARNING_RATE": 0.001, "TRANSFORMATIONS": [], "POST_TRANSFORMATIONS": [],
         "AUGMENTATIONS": [], "ROI_CROP_TOP": crop_top, "ROI_CROP_BOTTOM": 0, "ROI_CROP_LEFT": 0,
         "ROI_CROP_RIGHT": 0, "CACHE_IMAGES": True, "SEQUENCE_LENGTH": 3, "DEFAULT_MODEL_TYPE": "linear",
         "TRAIN_FILTER": None}))
@@ -95,8 +97,15 @@ def main() -> int:
     model = kl.interpreter.model
     dataset = TubDataset(config=cfg, tub_paths=[tub], seq_size=kl.seq_size())
     train_records, val_records = train_test_split(dataset.get_records(), shuffle=True, test_size=0.2)
-    train_pipe = BatchSequence(kl, cfg, train_records, is_train=True)
-    val_pipe = BatchSequence(kl, cfg, val_records, is_train=False)
+    class CroppedBatchSequence(BatchSequence):
+        """DonkeyCar's pipeline with the sky cut off (a view of the cached frame): its own CROP
+        transformation only masks the rows black and trains at the full 120x160."""
+
+        def image_processor(self, img_arr):
+            return super().image_processor(img_arr)[crop_top:]
+
+    train_pipe = CroppedBatchSequence(kl, cfg, train_records, is_train=True)
+    val_pipe = CroppedBatchSequence(kl, cfg, val_records, is_train=False)
     tune = tf.data.experimental.AUTOTUNE
     train_data = train_pipe.create_tf_data().prefetch(tune)
     val_data = val_pipe.create_tf_data().prefetch(tune)

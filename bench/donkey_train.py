@@ -188,7 +188,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--emulate-avx2", action="store_true", help="as on a CPU without AVX-512 and bf16")
     parser.add_argument("--out", type=Path, default=Path("/tmp/donkey_train"))
     parser.add_argument("--eval-tracks", type=int, nargs="+", default=[101, 102, 103, 104, 105])
-    parser.add_argument("--laps", type=int, default=2)
+    parser.add_argument("--laps", type=int, default=2, help="laps per evaluation track (0: no closed loop)")
     parser.add_argument("--ours-worker", nargs=4, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.ours_worker:
@@ -245,14 +245,15 @@ def main(argv: list[str] | None = None) -> int:
                        "precision": precision, "heldout_mse": heldout_mse(ours_model, args.heldout)}}
     result["ratio_samples_per_s"] = result["ours"]["samples_per_s"] / result["donkey"]["samples_per_s"]
     for who, path in (("donkey", donkey_model), ("ours", ours_model)):
-        result[who]["closed_loop"] = closed_loop(path, args.eval_tracks, args.laps)
+        result[who]["closed_loop"] = closed_loop(path, args.eval_tracks, args.laps) if args.laps else {}
     (out / "result.json").write_text(json.dumps(result, indent=1))
     d, o = result["donkey"], result["ours"]
     print(f"\nsamples/s (steady rounds): DonkeyCar {d['samples_per_s']:.0f}, ours {o['samples_per_s']:.0f} "
           f"({o['precision']}): {result['ratio_samples_per_s']:.2f}x; load average {load[0]:.1f} -> {load[-1]:.1f}")
     for who, r in (("DonkeyCar", d), ("ours", o)):
-        cl = " / ".join(f"{r['closed_loop'][t]['autonomy']:.0f} % ({r['closed_loop'][t]['laps']} laps)"
-                        for t in ("road", "indoor", "park"))
+        loop = r["closed_loop"]
+        cl = " / ".join(f"{loop[t]['autonomy']:.0f} % ({loop[t]['laps']} laps)" for t in ("road", "indoor", "park")) \
+            if loop else "not driven"
         print(f"{who} after {budget:.0f} s: held-out MSE {r['heldout_mse']:.4f}; road / indoor / park {cl}")
     return 0
 
