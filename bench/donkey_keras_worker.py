@@ -102,7 +102,9 @@ def main() -> int:
         transformation only masks the rows black and trains at the full 120x160."""
 
         def image_processor(self, img_arr):
-            return super().image_processor(img_arr)[crop_top:]
+            # the bottom rows: TubRecord caches the processed frame and processes it again on the
+            # next read, so the cut must be idempotent
+            return super().image_processor(img_arr)[-(120 - crop_top):]
 
     train_pipe = CroppedBatchSequence(kl, cfg, train_records, is_train=True)
     val_pipe = CroppedBatchSequence(kl, cfg, val_records, is_train=False)
