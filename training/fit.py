@@ -59,6 +59,8 @@ class FitSettings:
     # fit(generator, steps_per_epoch=...), which the source documents use)
     steps_per_epoch: int | None = None
     val_steps: int | None = None  # validation batches per epoch (None: the whole validation set)
+    lr_schedule: str = "constant"  # TRAIN_LR_SCHEDULE: "constant" or "one_cycle" (:func:`make_scheduler`)
+    warmup: float = 0.2  # TRAIN_WARMUP: share of the run's steps the one-cycle schedule warms up over
 
 
 @dataclass
@@ -178,6 +180,21 @@ def make_optimizer(model: nn.Module, settings: FitSettings, device: torch.device
                             fused=fused or None)
 
 
+def make_scheduler(optimizer: torch.optim.Optimizer, settings: FitSettings,
+                   steps: int) -> torch.optim.lr_scheduler.LRScheduler | None:
+    """The learning-rate schedule over a run of ``steps`` optimiser steps, stepped after each one:
+    None for "constant"; for "one_cycle", torch's OneCycleLR peaking at the learning rate after
+    ``warmup`` of the steps (from a 25th of it), then a cosine down to ~0 at the last step. Adam's
+    betas stay as they are (no momentum cycling)."""
+    if settings.lr_schedule == "constant":
+        return None
+    if settings.lr_schedule != "one_cycle":
+        raise ValueError(f"TRAIN_LR_SCHEDULE = {settings.lr_schedule!r}: use 'constant' or 'one_cycle'")
+    return torch.optim.lr_scheduler.OneCycleLR(optimizer, max_lr=settings.learning_rate, total_steps=max(steps, 2),
+                                               pct_start=settings.warmup, anneal_strategy="cos",
+                                               cycle_momentum=False)
+
+
 def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | None, pre: Preprocess,
         device: torch.device, settings: FitSettings, info: DistInfo = _SINGLE,
         on_best: Callable[[int, History], None] | None = None,
@@ -200,6 +217,8 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
     "loss", "samples", "samples_per_s"}`` after every step (on a GPU every ``SYNC_STEPS`` steps:
     reading the loss waits for the GPU) and ``{"event": "epoch", "epoch", "epochs", "train_loss",
     "val_loss", "seconds", "samples_per_s", "best", "best_epoch"}`` after every epoch.
+    ``settings.lr_schedule`` sets the learning rate step by step over the whole run
+    (:func:`make_scheduler`).
     ``should_stop()`` is asked after every step (single process only): when it says yes, training
     ends at once, the unfinished epoch is dropped and ``history.cancelled`` is set; the best model
     so far has already been handed to ``on_best``.
@@ -226,6 +245,7 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
         should_stop = None
     emit = on_event if info.is_main else None
     n_batches = len(train_loader) if settings.steps_per_epoch is None else settings.steps_per_epoch
+    scheduler = make_scheduler(optimizer, settings, settings.epochs * n_batches)
     patience = Patience(settings.min_delta)
     for epoch in range(1, settings.epochs + 1):
         _set_epoch(train_loader, epoch)
@@ -272,6 +292,8 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
                 else:
                     loss.backward()
                     optimizer.step()
+                if scheduler is not None:
+                    scheduler.step()
                 loss_sum += loss.detach() * len(y)
                 count += len(y)
                 step += 1

@@ -70,6 +70,18 @@ MIN_DELTA: Annotated[float, Range(0),
 LEARNING_RATE: Annotated[float, Range(0, lo_open=True),
                          Form("learning_rate", "Learning rate", "Optimisation",
                               why="a step of size 0 or less never learns", flag="--lr")] = 0.001
+# Learning-rate schedule over the whole run: "constant" keeps LEARNING_RATE; "one_cycle" warms up
+# from LEARNING_RATE/25 to LEARNING_RATE over the first TRAIN_WARMUP of the steps, then anneals on a
+# cosine to ~0 by the last step (Smith's one-cycle, torch's OneCycleLR): the same pilot in fewer
+# epochs (docs/benchmarks.md, "demo on a training budget"). The run's length is MAX_EPOCHS, so an
+# early stop ends it before the annealing.
+TRAIN_LR_SCHEDULE: Annotated[Literal["constant", "one_cycle"],
+                             Form("lr_schedule", "Learning-rate schedule", "Optimisation",
+                                  why="only these schedules are implemented")] = "constant"
+# Share of the run's steps that the one-cycle schedule warms up over.
+TRAIN_WARMUP: Annotated[float, Range(0, 1, lo_open=True, hi_open=True),
+                        Form("warmup", "Warm-up share", "Optimisation",
+                             why="the warm-up is a share of the run, above 0 and below 1")] = 0.2
 # Training steps (batches) per epoch; None = every training sample once. Fewer steps make epochs
 # shorter on a large data set (each epoch then sees a different random part of it); more than one
 # pass goes round the data again in a new order with new augmentations (Keras's steps_per_epoch).

@@ -370,6 +370,8 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
                     "balance": {"bins": cfg.TRAIN_BALANCE_BINS, "max_per_bin": cfg.TRAIN_BALANCE_MAX_PER_BIN}
                     if cfg.TRAIN_BALANCE else None,
                     "steps_per_epoch": cfg.TRAIN_STEPS_PER_EPOCH, "val_steps": cfg.TRAIN_VAL_STEPS,
+                    "lr_schedule": cfg.TRAIN_LR_SCHEDULE, "warmup": cfg.TRAIN_WARMUP
+                    if cfg.TRAIN_LR_SCHEDULE != "constant" else None,
                     "recipe": recipe.name if recipe is not None else None,
                     "model_options": dict(cfg.MODEL_OPTIONS),
                     "device": str(dev), **plan.to_dict(), "world_size": dist_info.world_size, "parameters": n_params,
@@ -387,7 +389,8 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
         settings = FitSettings(epochs=epochs, learning_rate=learning_rate, weight_decay=cfg.TRAIN_WEIGHT_DECAY,
                                patience=cfg.EARLY_STOP_PATIENCE if cfg.USE_EARLY_STOP else None,
                                min_delta=cfg.MIN_DELTA, progress=progress,
-                               steps_per_epoch=cfg.TRAIN_STEPS_PER_EPOCH, val_steps=cfg.TRAIN_VAL_STEPS)
+                               steps_per_epoch=cfg.TRAIN_STEPS_PER_EPOCH, val_steps=cfg.TRAIN_VAL_STEPS,
+                               lr_schedule=cfg.TRAIN_LR_SCHEDULE, warmup=cfg.TRAIN_WARMUP)
         if on_event is not None and dist_info.is_main:
             on_event({"event": "start", "type": type_name, "parameters": n_params, "device": str(dev),
                       "records": len(data), "train_samples": prep.info["train_samples"],

@@ -85,22 +85,24 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     from training.acceleration import cpu_caps
     from vehicle.app.demo import expected_time, run_demo, torch_threads
     from vehicle.app.demo import say as _say
+    from vehicle.app.demo_estimate import demo_expectation
 
     if args.threads is not None and args.threads < 1:
         raise UserError(f"--threads must be >= 1, got {args.threads}")
     threads, why = torch_threads(args.threads)
     torch.set_num_threads(threads)
     _say(f"torch threads: {threads} ({why})")
-    caps = cpu_caps()
-    _say(expected_time("lanes" if args.lanes else "plain", caps.native_bf16, caps.name))
-
     for name, value in (LANE_DEFAULTS if args.lanes else DEFAULTS).items():
         if getattr(args, name, "") is None:
             setattr(args, name, value)
     if args.draws < 0:
         raise UserError(f"--draws {args.draws}: give 0 (off) or more hidden randomisation draws")
     if args.lanes:
+        caps = cpu_caps()
+        _say(expected_time("lanes", caps.native_bf16, caps.name))
         return _cmd_lanes(args)
+    # the plain demo measures this host (about 2 s) instead of looking its CPU kind up
+    _say(demo_expectation(args.records, args.epochs, len(args.eval_tracks), args.laps, threads))
     started = time.perf_counter()
     try:
         result = run_demo(Path(args.out), records=args.records, epochs=args.epochs, noise=args.noise,
