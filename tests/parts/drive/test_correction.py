@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from parts.controllers.gamepad import OUTPUTS as PAD_OUTPUTS
+from parts.controllers.gamepad import Gamepad
 from parts.controllers.layouts import load_layout
 from parts.drive.correction import Correction
 from parts.drive.modes import PilotCondition
@@ -23,7 +23,7 @@ MOVE_AT, RELEASE_AT = 20, 31  # loops: the stick is pushed half right at loop 20
 class Pad:
     """The fake gamepad as the car's controller part: a PS4 js_event stream through a pipe."""
 
-    OUTPUTS = PAD_OUTPUTS
+    OUTPUTS = Gamepad.OUTPUTS
 
     def __init__(self, pipe_pad):
         self.pad = pipe_pad(load_layout("ps4"), initial_mode="local")
