@@ -19,7 +19,7 @@ from typing import Any
 
 from parts.actuators.drivetrain import Drivetrain, clamp
 from parts.actuators.pwm import map_range
-from parts.actuators.serial_port import open_serial
+from parts.actuators.serial_port import close_serial, open_serial
 
 logger = logging.getLogger(__name__)
 
@@ -87,11 +87,7 @@ class RoboHatMM1(Drivetrain):
 
     def _close_hardware(self) -> None:
         port, self._serial = self._serial, None
-        if port is not None:
-            try:
-                port.flush()
-            finally:
-                port.close()
+        close_serial(port)
 
     def _send(self, steering: int, throttle: int) -> None:
         port = self._serial

@@ -25,3 +25,13 @@ def open_serial(port: str, baudrate: int, setting: str) -> Any:
         else:
             hint = "check the cable and set it to the port that appears when you plug the board in (`ls /dev/tty*`)"
         raise DrivetrainError(f"{setting} = {port!r}: cannot open the serial port ({text}); {hint}") from exc
+
+
+def close_serial(port: Any) -> None:
+    """Send what is still buffered (the last neutral command), then close ``port``; None does nothing."""
+    if port is None:
+        return
+    try:
+        port.flush()
+    finally:
+        port.close()

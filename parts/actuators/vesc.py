@@ -24,7 +24,7 @@ from typing import Any, Literal
 
 from parts.actuators import vesc_protocol as vp
 from parts.actuators.drivetrain import Drivetrain, check_number, clamp
-from parts.actuators.serial_port import open_serial
+from parts.actuators.serial_port import close_serial, open_serial
 
 logger = logging.getLogger(__name__)
 
@@ -128,11 +128,7 @@ class VESC(Drivetrain):
 
     def _close_hardware(self) -> None:
         port, self._serial = self._serial, None
-        if port is not None:
-            try:
-                port.flush()
-            finally:
-                port.close()
+        close_serial(port)
 
     # -- the part ---------------------------------------------------------------------------------
     def run(self, angle: float | None, throttle: float | None) -> float | None:  # type: ignore[override]
