@@ -91,8 +91,19 @@ def test_measured_speed_from_erpm(vesc, clock):
     assert speed == pytest.approx(2.0, rel=1e-3)
     assert part.values.v_in == pytest.approx(11.1)
     vesc.answering = False
+    # a reply asked for by the loop above may still be in the pty: it arrives stamped with the
+    # advanced clock and is fresh for one more stale_s. With no new replies, the speed goes stale.
+    results = []
+    for _ in range(50):
+        clock.advance(0.6)
+        results.append(part.run(0.0, 0.0))
+        if results[-1] is None:
+            break
+        vesc.wait_for(lambda: False, timeout=0.01)
+    assert results[-1] is None  # stale: no reply for longer than stale_s
+    assert all(r == pytest.approx(2.0, rel=1e-3) for r in results[:-1])  # only late replies before it
     clock.advance(0.6)
-    assert part.run(0.0, 0.0) is None  # stale: no reply for longer than stale_s
+    assert part.run(0.0, 0.0) is None
     part.shutdown()
 
 
