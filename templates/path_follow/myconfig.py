@@ -21,7 +21,7 @@ reported with the closest valid name. docs/path_follow.md explains the workflow 
 # PATH_SPEED_SCALE = 1.0         # follow at this share of the recorded speed
 # PATH_MAX_SPEED = 1.5           # m/s cap
 # USE_CONSTANT_THROTTLE = True   # drive at PID_THROTTLE instead
-# LOC_ODOM_DRIFT = 0.005         # the simulated car does not slip: trust its odometry more
+# LOC_ODOM_DRIFT = 0.02          # odometry's error per metre driven (the simulator uses 0.005: no slip)
 
 # -- drivetrain (real car; `vehicle calibrate` finds these)
 # DRIVE_TRAIN_TYPE = "PWM_STEERING_THROTTLE"   # "MOCK" on the bench

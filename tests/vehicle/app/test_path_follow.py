@@ -50,8 +50,9 @@ def test_gps_alone_with_the_simulated_noise_of_an_rtk_receiver():
 
 
 def test_fused_with_a_consumer_gps_stays_on_the_road():
-    # SIM_GPS_NOISE 1 m: the fused filter follows odometry and takes the GPS's slow wander as its own
-    path, o = follow("fused", LOC_ODOM_DRIFT=0.005)
+    # SIM_GPS_NOISE 1 m: the fused filter follows odometry and takes the GPS's slow wander as its own;
+    # the simulator's defaults (its LOC_ODOM_DRIFT, path_sim.SIM_ODOM_DRIFT), as `vehicle sim eval` uses
+    path, o = follow("fused")
     print(f"fused: mean distance to the recorded path {o['mean_path_distance']:.3f} m")
     assert o["laps_completed"] == 3 and o["interventions"] == 0
     assert o["mean_path_distance"] < 0.1
@@ -222,3 +223,11 @@ def test_the_path_driver_reads_what_its_follower_reads():
 
     assert PathDriver.INPUTS == PathFollower.INPUTS
     assert PathDriver.OPTIONAL_INPUTS == PathFollower.OPTIONAL_INPUTS
+
+
+def test_the_simulated_car_has_its_own_odometry_drift_unless_the_user_sets_one():
+    from vehicle.app.path_sim import SIM_ODOM_DRIFT, sensor_config
+
+    assert Config.defaults().LOC_ODOM_DRIFT == 0.02
+    assert sensor_config(Config.defaults(), "fused").LOC_ODOM_DRIFT == SIM_ODOM_DRIFT == 0.005
+    assert sensor_config(Config.defaults(LOC_ODOM_DRIFT=0.03), "fused").LOC_ODOM_DRIFT == 0.03
