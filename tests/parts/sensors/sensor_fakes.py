@@ -16,6 +16,7 @@ import os
 import select
 import struct
 import threading
+import time
 import tty
 from collections.abc import Callable
 
@@ -140,12 +141,19 @@ class ArduinoEncoder(PtyDevice):
         self.millis = 0
         self._line = b""
         self.silent = False  # a hung microcontroller
-        self.step = 0  # ticks added to every encoder about every 20 ms (a turning wheel)
+        self.step = 0  # ticks added to every encoder per 20 ms of wall time (a turning wheel)
+        self._last_tick = time.monotonic()
         super().__init__()
 
     def tick(self) -> None:
-        if self.step:
-            self.ticks = [t + self.step for t in self.ticks]
+        # by elapsed time, not per call: the loop runs more often while the host polls, and a
+        # wheel's speed must not depend on how often it is asked
+        now = time.monotonic()
+        periods = int((now - self._last_tick) / 0.02)
+        if periods:
+            self._last_tick += periods * 0.02
+            if self.step:
+                self.ticks = [t + self.step * periods for t in self.ticks]
 
     def on_bytes(self, data: bytes) -> None:
         self._line += data

@@ -204,7 +204,7 @@ def test_real_car_records_a_path_from_its_encoder_and_saves_it(tmp_path):
         assembly.add_path_follow(V, cfg)
         assembly.add_drive_mode(V, cfg)
         assembly.add_drivetrain(V, cfg)
-        encoder.step = 3  # the wheel turns: 3 ticks of 10 mm per reading
+        encoder.step = 3  # the wheel turns: 3 ticks of 10 mm per 20 ms
         states = []
         V.add(lambda s: states.append(s), inputs=["path/state"], outputs=[])
         V.start(rate_hz=50, max_loop_count=130)

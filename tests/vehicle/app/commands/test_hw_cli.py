@@ -74,7 +74,8 @@ def test_tune_speed_on_a_real_car_path_mock_drivetrain_and_a_serial_encoder(tmp_
         (tmp_path / "myconfig.py").write_text(
             f"DRIVE_TRAIN_TYPE = 'MOCK'\nESC_ARM_TIME_S = 0.0\nHAVE_ODOM = True\nENCODER_TYPE = 'ARDUINO'\n"
             f"ODOM_SERIAL = {encoder.path!r}\nMM_PER_TICK = 10.0\nODOM_SMOOTHING = 5\n")
-        assert main(["hw", "tune-speed", "--car", str(tmp_path), "--duration", "1.5"]) == 0
+        assert main(["hw", "tune-speed", "--car", str(tmp_path), "--duration", "1.5",
+                     "--distance", "100"]) == 0  # 1.5 m/s for 1.5 s: time, not distance, ends it
     finally:
         encoder.close()
     out = capsys.readouterr().out
