@@ -8,8 +8,9 @@ Each variant trains the demo's ``linear`` pilot (DEMO_SETTINGS, the demo's epoch
 tub with the demo's augmentations plus (``+a,b``) or instead of (``=a,b``) the listed ones, then
 drives the unseen tracks in road, indoor and (never trained) park under each hidden randomisation
 draw (seeds never used in training), beside the expert. ``NAME:SPEC@TUB`` trains on another tub
-(e.g. one recorded with wider ranges). Writes ``OUT/ablation.json`` and prints one row per variant:
-mean and worst autonomy per theme, interventions, pilot speed / expert speed, training seconds.
+(e.g. one recorded with wider ranges; ``@A,B`` trains on both). Writes ``OUT/ablation.json`` and
+prints one row per variant: mean and worst autonomy per theme, interventions, pilot speed / expert
+speed, training seconds.
 """
 
 from __future__ import annotations
@@ -29,25 +30,25 @@ from vehicle.app.demo import DEFAULTS, DEMO_SETTINGS  # noqa: E402
 THEMES = ("road", "indoor", "park")
 
 
-def parse_variant(text: str, default_tub: Path) -> tuple[str, list[str], Path, dict[str, Any]]:
-    """``NAME[:+a,b|=a,b][@TUB][#SETTING=VALUE;...]`` -> (name, augmentations, tub, settings)."""
+def parse_variant(text: str, default_tub: Path) -> tuple[str, list[str], list[Path], dict[str, Any]]:
+    """``NAME[:+a,b|=a,b][@TUB[,TUB...]][#SETTING=VALUE;...]`` -> (name, augmentations, tubs, settings)."""
     settings: dict[str, Any] = {}
     if "#" in text:
         text, extra = text.split("#", 1)
         for item in extra.split(";"):
             key, value = item.split("=", 1)
             settings[key] = eval(value, {})  # noqa: S307 - a benchmark's own command line
-    tub = default_tub
+    tubs = [default_tub]
     if "@" in text:
         text, tub_text = text.split("@", 1)
-        tub = Path(tub_text)
+        tubs = [Path(t) for t in tub_text.split(",")]
     name, _, spec = text.partition(":")
     augs = list(DEMO_SETTINGS["AUGMENTATIONS"])
     if spec.startswith("+"):
         augs += [a for a in spec[1:].split(",") if a]
     elif spec.startswith("="):
         augs = [a for a in spec[1:].split(",") if a]
-    return name, augs, tub, settings
+    return name, augs, tubs, settings
 
 
 def main() -> int:
@@ -85,13 +86,13 @@ def main() -> int:
         raise SystemExit(f"draw {DEMO_SETTINGS['SIM_RANDOMIZE']} is the training draw")
     expert: dict[str, Any] = results.get("_expert", {})
     for text in args.variant:
-        name, augs, tub, settings = parse_variant(text, args.tub)
+        name, augs, tubs, settings = parse_variant(text, args.tub)
         model = out / "models" / f"{name}.pt"
         cfg = base.replace(AUGMENTATIONS=augs, **settings)
         t = time.perf_counter()
-        metrics = train(cfg, [tub], model, register=False, epochs=args.epochs)
-        row: dict[str, Any] = {"augmentations": augs, "tub": str(tub), "settings": {k: repr(v) for k, v in
-                                                                                settings.items()},
+        metrics = train(cfg, tubs, model, register=False, epochs=args.epochs)
+        row: dict[str, Any] = {"augmentations": augs, "tubs": [str(p) for p in tubs],
+                               "settings": {k: repr(v) for k, v in settings.items()},
                                "train_s": round(time.perf_counter() - t, 1), "epochs": metrics["epochs"],
                                "best_val_loss": metrics["best_val_loss"], "load": os.getloadavg()[0], "runs": {}}
         for theme in THEMES:

@@ -278,7 +278,8 @@ def run_dagger(cfg: Any, base_tubs: Sequence[str], model_path: Path, plan: Dagge
         if current is None:
             current = _round_model(model_path, 0)
             say(f"round 0: training {current.name} on {', '.join(map(str, base_tubs))} ...")
-            train_or_stop(cfg, [Path(p) for p in base_tubs], current, comment="dagger round 0", **options)
+            train_or_stop(cfg, [Path(p) for p in base_tubs], current, comment="dagger round 0",
+                          ends="DAgger ends here", **options)
         evaluate_round(0, current, None, time.perf_counter() - t)
         for i in range(1, plan.rounds + 1):
             t = time.perf_counter()
@@ -302,7 +303,7 @@ def run_dagger(cfg: Any, base_tubs: Sequence[str], model_path: Path, plan: Dagge
                 f"|angle| {roll['pilot_vs_expert_abs_angle']}; fine-tuning {new.name} from {current.name} on "
                 f"{len(data)} tub(s) ...")
             train_or_stop(cfg, [Path(p) for p in data], new, transfer=current, comment=f"dagger round {i}",
-                          **options)
+                          ends="DAgger ends here", **options)
             current = new
             evaluate_round(i, current, roll, time.perf_counter() - t)
     except KeyboardInterrupt:

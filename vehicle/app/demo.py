@@ -194,10 +194,12 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
             **({"draws": robust} if robust is not None else {})}
 
 
-def train_or_stop(cfg: Any, tubs: list[Path], model_path: Path, **options: Any) -> dict[str, Any]:
+def train_or_stop(cfg: Any, tubs: list[Path], model_path: Path, *, ends: str = "the demo ends here",
+                  **options: Any) -> dict[str, Any]:
     """``training.trainer.train`` as ``manage.py train`` runs it: the first Ctrl-C ends the
     training after the current step and keeps the best model so far with its metrics, loss plot
-    and registry entry; the demo then says what it kept and ends (KeyboardInterrupt: exit 130)."""
+    and registry entry; the caller then says what it kept and what ``ends`` (KeyboardInterrupt:
+    exit 130)."""
     from training.trainer import train
     from vehicle.app.interrupt import ctrl_c_stops_training
 
@@ -214,7 +216,7 @@ def train_or_stop(cfg: Any, tubs: list[Path], model_path: Path, **options: Any) 
         best = metrics.get("best_val_loss")
         loss = f"{best:.5f}" if isinstance(best, float) else "n/a"
         say(f"stopped by Ctrl-C: kept {model_path} (best epoch {metrics['best_epoch']} of {metrics['epochs']}, "
-            f"val_loss {loss}) with its metrics, loss plot and registry entry; the demo ends here")
+            f"val_loss {loss}) with its metrics, loss plot and registry entry; {ends}")
         raise KeyboardInterrupt
     return metrics
 

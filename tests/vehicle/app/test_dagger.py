@@ -171,3 +171,19 @@ def test_dagger_options_are_checked_before_any_work(tmp_path, capsys, make_model
     assert main(["train", "--car", str(tmp_path), "--transfer", str(start), *args]) == 2
     assert message in capsys.readouterr().err
     assert not (tmp_path / "data").exists()  # nothing recorded
+
+
+def test_ctrl_c_in_a_rounds_training_says_dagger_ends_not_the_demo(car_cfg, make_model_file, tmp_path, monkeypatch,
+                                                                    capsys):
+    import training.trainer
+
+    start = make_model_file("linear", name="start")
+    monkeypatch.setattr(training.trainer, "train", lambda *a, **k: {  # Ctrl-C during round 1's fine-tuning
+        "cancelled": True, "best_val_loss": 0.01, "best_epoch": 1, "epochs": 1})
+    plan = DaggerPlan(rounds=1, records=20, tracks=[3], eval_tracks=[101], eval_draws=1, eval_themes=["road"],
+                      laps=1, max_time=1.0)
+    with pytest.raises(KeyboardInterrupt):
+        run_dagger(car_cfg, [], tmp_path / "models" / "dg.pt", plan, start_model=start,
+                   train_options={"register": False}, say=lambda s: None)
+    out = capsys.readouterr().out
+    assert "stopped by Ctrl-C: kept" in out and "DAgger ends here" in out and "demo" not in out
