@@ -164,6 +164,9 @@ def main() -> int:
     e.add_argument("--laps", type=int, default=2)
     e.add_argument("--draw", type=int, default=777, help="the hidden randomisation seed")
     e.add_argument("--workers", type=int, default=1)
+    e.add_argument("--ours-only", action="store_true",
+                   help="drive only --ours, added to the car's comparison.json from an earlier run (every episode "
+                        "depends only on its seeds: DonkeyCar's rows stay valid for the same tracks, laps and draw)")
     for p in (t, e):
         p.add_argument("--venv", type=Path, default=DEFAULT_VENV)
     args = parser.parse_args()
@@ -175,12 +178,15 @@ def main() -> int:
 
     logging.basicConfig(level=logging.WARNING)
     results: dict[str, Any] = {}
-    donkey = DonkeyPilot(args.venv, car, car / "models" / "linear.h5")
-    try:
-        results["donkeycar-linear"] = drive(donkey, args.tracks, args.laps, args.draw, 1)
-        results["donkeycar-linear"]["_ms_per_frame"] = round(1000 * donkey.seconds / max(donkey.frames, 1), 2)
-    finally:
-        donkey.shutdown()
+    if args.ours_only:
+        results = json.loads((car / "comparison.json").read_text())
+    else:
+        donkey = DonkeyPilot(args.venv, car, car / "models" / "linear.h5")
+        try:
+            results["donkeycar-linear"] = drive(donkey, args.tracks, args.laps, args.draw, 1)
+            results["donkeycar-linear"]["_ms_per_frame"] = round(1000 * donkey.seconds / max(donkey.frames, 1), 2)
+        finally:
+            donkey.shutdown()
     for model in args.ours:
         results[model.name] = drive(model.resolve(), args.tracks, args.laps, args.draw, args.workers)
     (car / "comparison.json").write_text(json.dumps(results, indent=1))

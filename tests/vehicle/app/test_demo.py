@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 
@@ -205,3 +206,33 @@ def test_robust_demo_trains_with_the_batch_augmentations(monkeypatch, tmp_path):
         extra = [a for a in seen["augmentations"] if a not in demo.DEMO_SETTINGS["AUGMENTATIONS"]]
         assert extra == (demo.ROBUST_AUGMENTATIONS if robust else [])
         assert ("'cutout'" in (tmp_path / f"r{robust}" / "myconfig.py").read_text()) is robust
+
+
+def test_robust_demo_records_the_training_tracks_again_under_another_draw_and_wider_ranges(monkeypatch, tmp_path):
+    from vehicle.app import demo, record
+
+    recorded, trained = [], []
+
+    def fake_record(cfg, tracks, n, tub, noise):
+        recorded.append((cfg.SIM_RANDOMIZE, cfg.SIM_SEED, dict(cfg.SIM_RANDOMIZE_RANGES).get("light"), tracks, n,
+                         Path(tub).name))
+
+    def stop(cfg, tubs, model_path, **kw):
+        trained.append([Path(t).name for t in tubs])
+        raise ValueError("stopped before training")
+
+    monkeypatch.setattr(record, "record_expert", fake_record)
+    monkeypatch.setattr(demo, "train_or_stop", stop)
+    tracks = demo.DEFAULTS["train_tracks"]
+    default_light = None  # the demo overrides only the line wear: the default light range
+    for robust in (False, True):
+        recorded.clear()
+        with pytest.raises(ValueError, match="stopped"):
+            demo.run_demo(tmp_path / f"r{robust}", **{**demo.DEFAULTS, "records": 500, "robust": robust})
+        first = (1, 0, default_light, tracks, 500, "demo_tub")
+        more = [(11, 11, default_light, tracks, 500, "demo_tub_draw11"),
+                (1, 0, (0.35, 1.9), tracks, 500, "demo_tub_wide")]
+        assert recorded == ([first, *more] if robust else [first])
+    assert trained == [["demo_tub"], ["demo_tub", "demo_tub_draw11", "demo_tub_wide"]]
+    with pytest.raises(ValueError, match="seed 11 is a training draw"):  # never evaluated under a trained draw
+        demo.run_demo(tmp_path / "r", **{**demo.DEFAULTS, "robust": True, "eval_randomize": 11})

@@ -66,8 +66,10 @@ def register(subparsers: Any) -> None:
                         "draw (vehicle sim eval --draws; costs about N times the evaluation step)")
     p.add_argument("--type", dest="model_type", default="linear", help="model type to train")
     p.add_argument("--robust", action="store_true",
-                   help="train with the light, colour, noise and cutout batch augmentations as well: steadier "
-                        "under light, colours and themes never seen, some training time more (docs/pilot.md)")
+                   help="train with the light, colour, noise and cutout batch augmentations as well, on two more "
+                        "recordings of the training tracks (another randomisation draw, and wider ranges): steadier "
+                        "under light, colours and themes never seen, about three times the recording and training "
+                        "time (docs/pilot.md)")
     p.add_argument("--threads", type=int, default=None,
                    help="torch threads (default: one per core, or 1 when the machine is already busy)")
     p.add_argument("--lanes", action="store_true",
@@ -83,7 +85,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     import torch
 
     from training.acceleration import cpu_caps
-    from vehicle.app.demo import expected_time, run_demo, torch_threads
+    from vehicle.app.demo import ROBUST_RECORDINGS, expected_time, run_demo, torch_threads
     from vehicle.app.demo import say as _say
     from vehicle.app.demo_estimate import demo_expectation
 
@@ -102,7 +104,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         _say(expected_time("lanes", caps.native_bf16, caps.name))
         return _cmd_lanes(args)
     # the plain demo measures this host (about 2 s) instead of looking its CPU kind up
-    _say(demo_expectation(args.records, args.epochs, len(args.eval_tracks), args.laps, threads))
+    recorded = args.records * (1 + len(ROBUST_RECORDINGS) if args.robust else 1)  # --robust records again
+    _say(demo_expectation(recorded, args.epochs, len(args.eval_tracks), args.laps, threads))
     started = time.perf_counter()
     try:
         result = run_demo(Path(args.out), records=args.records, epochs=args.epochs, noise=args.noise,
