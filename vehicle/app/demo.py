@@ -207,7 +207,7 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
 
         say(f"      and under {draws} hidden randomisation draw(s) per theme (mean and worst draw) ...")
         by_draw = evaluate_draws(model_path, eval_tracks, laps, cfg=cfg, draws=hidden_draws(draws, cfg.SIM_RANDOMIZE),
-                                themes=[*trained, unseen_theme], workers=cfg.SIM_EVAL_WORKERS)
+                                 themes=[*trained, unseen_theme], workers=cfg.SIM_EVAL_WORKERS)
         write_json(by_draw, out / "eval" / "pilot_draws.json")
     seconds["evaluate"] = time.perf_counter() - t
     cpu["evaluate"] = cpu_seconds() - c
