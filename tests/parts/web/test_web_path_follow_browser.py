@@ -29,7 +29,12 @@ def test_record_a_path_from_the_page_see_it_drawn_and_save_it(make_car, open_pag
     page.wait_for_function("document.getElementById('pathstate').textContent === 'ready'")
     n = len(car.V.mem["path/xy"])
     page.wait_for_function(f"webStats.pathView.drawn.points === {n}")  # the whole path, drawn
-    assert page.evaluate("webStats.pathView.drawn.car") is not None
+    # the car is drawn on the map, oriented (the simulator gives its heading)
+    car_px, heading, size = page.evaluate(
+        "[webStats.pathView.drawn.car, webStats.pathView.drawn.heading,"
+        " [document.getElementById('pathmap').width, document.getElementById('pathmap').height]]")
+    assert 0 <= car_px[0] <= size[0] and 0 <= car_px[1] <= size[1], (car_px, size)
+    assert isinstance(heading, int | float) and abs(heading) <= 7, heading  # radians
     page.click("[data-path=save]")
     saved = tmp_path / "path.csv"
 
