@@ -11,7 +11,9 @@ to the lane of the active behaviour, and every record carries ``behavior/state``
 ``behavior/label`` and ``behavior/one_hot_state_array``: the thesis's lane-change data.
 
 With SIM_SIDE_CAMERAS_OFFSET every record also holds the side cameras' frames
-(``cam/image_array_left``, ``cam/image_array_right``): the three_camera model's data.
+(``cam/image_array_left``, ``cam/image_array_right``): the three_camera model's data. The sensors
+the car's settings switch on (HAVE_ODOM, HAVE_IMU, HAVE_GPS, USE_LIDAR) are recorded as
+``manage.py drive`` records them.
 """
 
 from __future__ import annotations
@@ -116,11 +118,6 @@ def record_expert(cfg: Any, seeds: Sequence[int] | None, n_records: int, tub_pat
     sim = add_simulator(V, cfg, seeds=seeds)
     if len(seeds) > 1:
         sim.switch_every = math.ceil(n_records / len(seeds))
-    fields = list(RECORD_FIELDS)
-    if cfg.SIM_SIDE_CAMERAS_OFFSET is not None:  # left and right frames, as `vehicle tub import-udacity` has them
-        from vehicle.app.assembly.tub import SIDE_CAMERA_KEYS
-
-        fields += [(key, "image_array") for key in SIDE_CAMERA_KEYS]
     if cfg.TRAIN_BEHAVIORS:
         from parts.drive.behavior import BehaviorSchedule, behavior_lane, random_change_times
         from vehicle.app.assembly.drive import add_behavior
@@ -132,9 +129,6 @@ def record_expert(cfg: Any, seeds: Sequence[int] | None, n_records: int, tub_pat
             raise UserError(f"--lane-changes {lane_changes}: {exc}") from None
         V.add(BehaviorSchedule(times, dt), outputs=list(BehaviorSchedule.OUTPUTS))
         part = add_behavior(V, cfg)
-        from vehicle.app.assembly.tub import BEHAVIOR_FIELDS
-
-        fields += BEHAVIOR_FIELDS
         lane = behavior_lane(part.behaviors[part.state])
         if lane is not None and cfg.SIM_LANES == 2:  # start in the lane of the initial behaviour
             sim.start_offset = sim.track.lane_offset(lane)
@@ -142,11 +136,15 @@ def record_expert(cfg: Any, seeds: Sequence[int] | None, n_records: int, tub_pat
     add_expert(V, cfg, sim)
     add_drive_mode(V, cfg)  # user mode: the expert's command, clamped, as on the car
     add_expert_noise(V, cfg)  # perturbs the executed command; the tub keeps the expert's label
+    from vehicle.app.assembly.tub import add_tub_writer, recorded_extras
+
+    # what a drive records beside the demonstration: the sensors switched on, the side cameras'
+    # frames (SIM_SIDE_CAMERAS_OFFSET), the behaviour keys (TRAIN_BEHAVIORS)
+    fields = [*RECORD_FIELDS, *recorded_extras(V, cfg, [k for k, _ in RECORD_FIELDS])]
     keys = [k for k, _ in fields]
     types = [t for _, t in fields]
     if tub_path is not None:  # record exactly there: the data folder is the tub
         cfg = cfg.replace(DATA_PATH=str(Path(tub_path).expanduser().absolute()), AUTO_CREATE_NEW_TUB=False)
-    from vehicle.app.assembly.tub import add_tub_writer
 
     writer = add_tub_writer(V, cfg, inputs=keys, types=types)
     # the writer is last in the loop: wait for it before the next loop's frame is queued

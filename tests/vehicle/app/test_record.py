@@ -91,3 +91,16 @@ def test_the_stop_report_names_no_internal_part(cfg, tmp_path, caplog):
     names = re.findall(r"^(\S+)\s+\d+\s", report, re.MULTILINE)
     assert "TubWriter" in names and "WaitForTubWriter" in names
     assert not [n for n in names if n.startswith("_")], names
+
+
+def test_an_expert_recording_records_the_cars_sensors(cfg, tmp_path):
+    # docs/sensors.md: a sensor's keys are recorded when it is present, by the expert recording too
+    sensed = cfg.replace(HAVE_ODOM=True, HAVE_IMU=True, HAVE_GPS=True, USE_LIDAR=True)
+    path = record_expert(sensed, [1], 12, tmp_path / "sensed")
+    with Tub(path, read_only=True) as tub:
+        inputs = set(tub.inputs)
+        records = [r for _, r in tub.records()]
+    assert {"enc/speed", "pos/x", "imu/acl_x", "imu/gyr_z", "gps/x", "gps/ok", "lidar/dist_array"} <= inputs
+    assert len(records) == 12
+    assert records[-1]["enc/distance"] > 0  # the simulated encoder counted the expert's metres
+    assert len(records[-1]["lidar/dist_array"]) > 0

@@ -50,13 +50,39 @@ def _produced(V: Any, key: str) -> bool:
     return V.produces(key) or key in V.mem
 
 
+def recorded_extras(V: Any, cfg: Any, inputs: list[str]) -> list[tuple[str, str]]:
+    """What a drive records beside ``inputs``, as (key, tub type), for the parts ``V`` holds.
+
+    pilot/angle and pilot/throttle with RECORD_DURING_AI (when a pilot part was added); the keys of
+    the sensors HAVE_ODOM, HAVE_IMU, HAVE_GPS, USE_LIDAR switch on (:data:`SENSOR_FIELDS`); the side
+    cameras' frames; the correction fields with CORRECTION_MODE; the behaviour keys with
+    TRAIN_BEHAVIORS. Each only while a part writes it. ``manage.py drive`` and the expert
+    recording both record through this, so a sensor present is recorded by either.
+    """
+    wanted: list[tuple[str, str]] = []
+    if getattr(cfg, "RECORD_DURING_AI", False):  # a drive without a model has no pilot
+        wanted += [("pilot/angle", "float"), ("pilot/throttle", "float")]
+    for switch, fields in SENSOR_FIELDS.items():  # a sensor's keys, while its part writes them
+        if getattr(cfg, switch, False):
+            wanted += fields
+    wanted += [(key, "image_array") for key in SIDE_CAMERA_KEYS]  # SIM_SIDE_CAMERAS_OFFSET
+    if getattr(cfg, "CORRECTION_MODE", False):  # the flag, and what the pilot wanted beside the label
+        wanted += CORRECTION_FIELDS
+    if getattr(cfg, "TRAIN_BEHAVIORS", False):  # as DonkeyCar: behaviour drives record it
+        wanted += BEHAVIOR_FIELDS
+    seen = set(inputs)
+    extras = []
+    for key, tp in wanted:
+        if key not in seen and _produced(V, key):
+            extras.append((key, tp))
+            seen.add(key)
+    return extras
+
+
 def add_tub_writer(V: Any, cfg: Any, inputs: list[str] | None = None, types: list[str] | None = None) -> Any:
     """Add a TubWriter (run_condition ``recording``, output ``tub/num_records``) and return it.
 
-    ``inputs``/``types`` default to TUB_INPUTS/TUB_TYPES (plus pilot/angle and pilot/throttle with
-    RECORD_DURING_AI, when a pilot part was added, the behaviour keys with TRAIN_BEHAVIORS, and the
-    keys of the sensors HAVE_ODOM, HAVE_IMU, HAVE_GPS, USE_LIDAR switch on: :data:`SENSOR_FIELDS`; the
-    side cameras' frames when a part makes them).
+    ``inputs``/``types`` default to TUB_INPUTS/TUB_TYPES plus :func:`recorded_extras`.
     When a part produces ``cam/timestamp`` it is recorded as ``_timestamp_ms``. When a part
     produces ``tub/erase``, a TubWiper deletes the last ERASE_LAST_N_RECORDS records on each press.
     """
@@ -67,30 +93,9 @@ def add_tub_writer(V: Any, cfg: Any, inputs: list[str] | None = None, types: lis
         raise UserError("add_tub_writer: give both inputs and types (one type per input), or neither")
     if inputs is None:
         inputs, types = list(cfg.TUB_INPUTS), list(cfg.TUB_TYPES)
-        if getattr(cfg, "RECORD_DURING_AI", False):
-            for key in ("pilot/angle", "pilot/throttle"):
-                if key not in inputs and _produced(V, key):  # a drive without a model has no pilot
-                    inputs.append(key)
-                    types.append("float")
-        for switch, fields in SENSOR_FIELDS.items():  # a sensor's keys, while its part writes them
-            for key, tp in fields:
-                if getattr(cfg, switch, False) and key not in inputs and _produced(V, key):
-                    inputs.append(key)
-                    types.append(tp)
-        for key in SIDE_CAMERA_KEYS:  # the simulator's side cameras (SIM_SIDE_CAMERAS_OFFSET)
-            if key not in inputs and _produced(V, key):
-                inputs.append(key)
-                types.append("image_array")
-        if getattr(cfg, "CORRECTION_MODE", False):  # the flag, and what the pilot wanted beside the label
-            for key, tp in CORRECTION_FIELDS:
-                if key not in inputs and _produced(V, key):
-                    inputs.append(key)
-                    types.append(tp)
-        if getattr(cfg, "TRAIN_BEHAVIORS", False):  # as DonkeyCar: behaviour drives record it
-            for key, tp in BEHAVIOR_FIELDS:
-                if key not in inputs and _produced(V, key):
-                    inputs.append(key)
-                    types.append(tp)
+        for key, tp in recorded_extras(V, cfg, inputs):
+            inputs.append(key)
+            types.append(tp)
     inputs, types = list(inputs), list(types or [])
     if len(inputs) != len(types):
         raise UserError(f"add_tub_writer: {len(inputs)} inputs {inputs} but {len(types)} types {types}; "
