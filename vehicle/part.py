@@ -28,6 +28,8 @@ import time
 from collections.abc import Coroutine
 from typing import TYPE_CHECKING, Any, Final
 
+from vehicle.errors import VehicleError
+
 if TYPE_CHECKING:
     import asyncio
 
@@ -117,9 +119,13 @@ class ThreadedPart:
                     self.publish(value)
                 if self.period is not None and self.stop_event.wait(self.period):
                     break
-        except BaseException as exc:  # the loop thread reports it; see check_alive()
+        except BaseException as exc:  # the parts reading ``error`` report it to the loop
             self.error = exc
-            logger.exception("%s: background thread failed", type(self).__name__)
+            if isinstance(exc, VehicleError):  # its message says the fix: one line, the traceback for -vv
+                logger.error("%s: background thread failed: %s", type(self).__name__, exc)
+                logger.debug("%s: traceback", type(self).__name__, exc_info=exc)
+            else:
+                logger.exception("%s: background thread failed", type(self).__name__)
 
     def run_threaded(self, *inputs: Any) -> Any:
         """Store the loop's inputs and return the latest value (never blocks on the work)."""

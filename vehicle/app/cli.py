@@ -133,7 +133,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``vehicle`` console script."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    configure_logging(args.verbose)
+    # a command's own --debug (e.g. hw check) logs as -vv does, tracebacks included
+    configure_logging(2 if getattr(args, "debug", False) else args.verbose)
     try:
         return int(args.func(args) or 0)
     except VehicleError as exc:

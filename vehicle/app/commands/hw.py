@@ -9,8 +9,11 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import logging
 import math
 import threading
+from collections.abc import Iterator
 from typing import Any
 
 from vehicle.app.carconfig import add_car_options, load_for_command
@@ -33,6 +36,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_car_options(c)
     c.add_argument("--only", choices=sorted(KINDS), help="check one kind of sensor")
     c.add_argument("--timeout", type=float, default=3.0, help="seconds to wait for each device (default 3)")
+    c.add_argument("--debug", action="store_true", help="log each device's failure with its traceback")
     c.set_defaults(func=_check)
     t = verbs.add_parser("tune-speed", help="drive a throttle step and suggest PI gains for the speed control",
                          description="Drive straight: 0.5 s neutral, a throttle step until --distance metres "
@@ -63,12 +67,29 @@ def _check(args: argparse.Namespace) -> int:
         print(f"no sensor to check: switch one on in myconfig.py ({which} = True)")  # noqa: T201
         return 1
     failed = 0
-    for table in enabled:
-        label = next(k for k, v in KINDS.items() if v == table.enabled_by)
-        ok, text = check_one(table, cfg, args.timeout)
-        failed += not ok
-        print(f"{label:<6} {cfg[table.setting]} {text}")  # noqa: T201
+    with _one_line_per_device(args.debug):
+        for table in enabled:
+            label = next(k for k, v in KINDS.items() if v == table.enabled_by)
+            ok, text = check_one(table, cfg, args.timeout)
+            failed += not ok
+            print(f"{label:<6} {cfg[table.setting]} {text}")  # noqa: T201
     return 1 if failed else 0
+
+
+@contextlib.contextmanager
+def _one_line_per_device(debug: bool) -> Iterator[None]:
+    """The check prints each device's failure in its line: the part threads' own error logs (and
+    their tracebacks) only with --debug."""
+    if debug:
+        yield
+        return
+    log = logging.getLogger("vehicle.part")
+    level = log.level
+    log.setLevel(logging.CRITICAL)
+    try:
+        yield
+    finally:
+        log.setLevel(level)
 
 
 def check_one(table: Any, cfg: Any, timeout: float) -> tuple[bool, str]:

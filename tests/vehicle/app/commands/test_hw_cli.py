@@ -81,3 +81,19 @@ def test_tune_speed_on_a_real_car_path_mock_drivetrain_and_a_serial_encoder(tmp_
     out = capsys.readouterr().out
     assert "(time reached)" in out and "PILOT_SPEED_KP = " in out
     assert b"p\n" in encoder.received  # the speed came from the encoder's answers
+
+
+def test_hw_check_says_one_line_per_missing_device_and_tracebacks_only_with_debug(tmp_path):
+    import subprocess
+
+    (tmp_path / "myconfig.py").write_text(
+        "HAVE_IMU = True\nIMU_I2C_BUSNUM = 9\nHAVE_GPS = True\nGPS_SERIAL = '/dev/ttyNOPE7'\n"
+        "USE_LIDAR = True\nLIDAR_SERIAL = '/dev/ttyNOPE8'\n")
+    cmd = [sys.executable, "-m", "vehicle.app.cli", "hw", "check", "--car", str(tmp_path), "--timeout", "0.5"]
+    run = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    lines = (run.stdout + run.stderr).splitlines()
+    assert run.returncode == 1
+    assert [line.split()[0] for line in lines] == ["imu", "gps", "lidar"], lines
+    assert "/dev/ttyNOPE7" in lines[1] and "GPS_SERIAL" in lines[1] and "LIDAR_SERIAL" in lines[2]
+    debug = subprocess.run([*cmd, "--debug"], capture_output=True, text=True, timeout=120)
+    assert debug.returncode == 1 and debug.stderr.count("Traceback (most recent call last)") >= 3
