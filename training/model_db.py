@@ -32,7 +32,6 @@ from __future__ import annotations
 import difflib
 import json
 import logging
-import math
 import re
 import sqlite3
 from collections.abc import Iterable, Iterator, Mapping, Sequence
@@ -589,20 +588,17 @@ class ModelRegistry:
 
     def leaderboard(self, tracks: Iterable[int], laps: int | None = None) -> list[Evaluation]:
         """Each model's latest evaluation on exactly ``tracks`` (and ``laps`` when given), best first:
-        by autonomy, then laps completed, then mean |CTE| (lower first), then mean speed."""
+        by :func:`parts.sim.metrics.rank_key` (autonomy times the share of the laps driven, then laps
+        completed, then mean |CTE|, then mean speed)."""
         key = json.dumps(sorted(int(t) for t in tracks))
         latest: dict[str, Evaluation] = {}
         for ev in self.evaluations():  # newest first: the first seen per model is its latest
             if json.dumps(list(ev.tracks)) == key and (laps is None or ev.laps == laps):
                 latest.setdefault(ev.model, ev)
 
-        def rank(ev: Evaluation) -> tuple[float, ...]:
-            o = ev.overall
-            cte = o.get("mean_abs_cte")
-            return (-(o.get("autonomy") or 0.0), -(o.get("laps_completed") or 0),
-                    cte if cte is not None else math.inf, -(o.get("mean_speed") or 0.0))
+        from parts.sim.metrics import rank_key
 
-        return sorted(latest.values(), key=rank)
+        return sorted(latest.values(), key=lambda ev: rank_key(ev.overall))
 
     def track_sets(self) -> list[tuple[tuple[int, ...], int, int]]:
         """(tracks, laps, number of models) of every track set evaluated, most models first."""

@@ -18,6 +18,7 @@ logger = logging.getLogger(__name__)
 _COLUMNS: tuple[tuple[str, str, str], ...] = (
     ("autonomy %", "autonomy", "{:.1f}"),
     ("laps", "laps_completed", "{:d}"),
+    ("driven %", "completion", "{:.0%}"),  # of the laps asked: a car that stands still has no interventions
     ("interv.", "interventions", "{:d}"),
     ("off/lap", "off_track_per_lap", "{:.2f}"),
     ("mean|cte| m", "mean_abs_cte", "{:.3f}"),

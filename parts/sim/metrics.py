@@ -46,7 +46,8 @@ SIGNALS: dict[str, tuple[str, tuple[str, ...]]] = {
     "cte": ("cross-track error", ("mean_abs_cte", "rms_cte", "p95_abs_cte", "max_abs_cte")),
     "lap": ("laps", ("laps_completed", "success", "timed_out", "lap_times_s", "best_lap_s", "mean_lap_s",
                      "std_lap_s")),
-    "progress": ("progress along the track", ("laps_driven", "progress", "off_track_per_lap")),
+    "progress": ("progress along the track", ("laps_driven", "progress", "off_track_per_lap", "completion",
+                                              "score")),
     "speed": ("speed", ("mean_speed", "distance_m", "off_track_per_km", "mean_distance_between_interventions_m")),
     "pos": ("position", ("trajectory", "off_track_at")),
 }
@@ -177,14 +178,19 @@ class EpisodeMetrics:
         step = max(1, math.ceil(len(tr.pos) / MAX_TRAJECTORY_POINTS))
         auto_speed = speed[auto & np.isfinite(speed)]
         lap_times = tr.lap_times
+        autonomy = max(0.0, 1.0 - n_int * self.penalty / t) * 100.0 if t > 0 else 0.0
         return {
             "seed": self.seed,
             "track_length_m": _r(self.track_length, 2),
             "elapsed_s": _r(t, 3),
             "interventions": n_int,
-            "autonomy": _r(max(0.0, 1.0 - n_int * self.penalty / t) * 100.0 if t > 0 else 0.0, 2),
+            "autonomy": _r(autonomy, 2),
             "laps_completed": tr.laps,
             "laps_driven": _r(tr.laps_driven, 3),
+            # a car that stands still has no intervention: autonomy means something only beside the
+            # share of the asked laps it drove, and the score (what pilots are ranked by) is both
+            "completion": _r(completion(tr.laps_driven, self.laps), 3),
+            "score": _r(score(autonomy, completion(tr.laps_driven, self.laps)), 2),
             "success": tr.laps >= self.laps and n_int == 0,
             "timed_out": tr.laps < self.laps,
             **cte_stats(cte[auto]),
@@ -204,6 +210,32 @@ class EpisodeMetrics:
             "trajectory": [[_r(x, 3), _r(y, 3)] for x, y in tr.pos[::step]],
             "off_track_at": [[_r(x, 3), _r(y, 3)] for x, y in tr.events],
         }
+
+
+def completion(laps_driven: float | None, laps: int) -> float:
+    """The share of ``laps`` asked that the car drove (0..1): its forward progress, capped at 1."""
+    return min(1.0, max(0.0, float(laps_driven or 0.0)) / laps) if laps > 0 else 0.0
+
+
+def score(autonomy: float | None, share: float | None) -> float:
+    """What pilots are ranked by: autonomy % times the share of the asked laps driven.
+
+    DAVE-2's autonomy counts interventions per time, so a car that stands still scores 100 %;
+    weighed by the laps it drove it scores 0.
+    """
+    return float(autonomy or 0.0) * float(share or 0.0)
+
+
+def rank_key(o: dict[str, Any]) -> tuple[float, float, float, float]:
+    """Sort key of an evaluation's overall (or one track's) result, best first: score, then laps
+    completed, then mean |CTE| (lower first), then mean speed. Results written before the score
+    existed rank by autonomy."""
+    cte = o.get("mean_abs_cte")
+    ranked = o.get("score")
+    if ranked is None:  # no progress signal (the Udacity simulator), or written before the score
+        ranked = o.get("autonomy")
+    return (-(ranked or 0.0), -(o.get("laps_completed") or 0), cte if cte is not None else math.inf,
+            -(o.get("mean_speed") or 0.0))
 
 
 def cte_stats(values: np.ndarray) -> dict[str, float | None]:
@@ -232,12 +264,17 @@ def overall(results: Sequence[dict[str, Any]], penalty: float, abs_cte: np.ndarr
         return _r(sum(v * w for v, w in pairs) / total) if total else None
 
     lap_times = [x for r in results for x in r["lap_times_s"] or []]
+    autonomy = max(0.0, 1.0 - n_int * penalty / t) * 100.0 if t > 0 else 0.0
+    shares = [r["completion"] for r in results if r.get("completion") is not None]
+    share = float(np.mean(shares)) if shares else None  # each track counts alike
     return {
         "tracks": len(results),
         "elapsed_s": _r(t, 3),
         "interventions": n_int,
-        "autonomy": _r(max(0.0, 1.0 - n_int * penalty / t) * 100.0 if t > 0 else 0.0, 2),
+        "autonomy": _r(autonomy, 2),
         "laps_completed": sum(r["laps_completed"] for r in with_laps) if with_laps else None,
+        "completion": _r(share, 3),
+        "score": _r(score(autonomy, share), 2) if share is not None else None,
         "success_rate": _r(sum(bool(r["success"]) for r in with_laps) / len(with_laps), 3) if with_laps else None,
         "mean_abs_cte": weighted("mean_abs_cte", "autonomous_frames"),
         "rms_cte": _r(math.sqrt(sum((r["rms_cte"] or 0) ** 2 * r["autonomous_frames"] for r in results)

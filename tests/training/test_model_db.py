@@ -197,6 +197,13 @@ def test_evaluations_and_the_leaderboard(car):
     assert ev.tracks == (1, 2) and ev.has_picture and reg.evaluation_picture(ev.id) == b"\x89PNG..."
     assert "trajectory" not in ev.per_track[0] and ev.per_track[0]["autonomy"] == 90.0
     assert reg.track_sets() == [((1, 2), 1, 3), ((7,), 1, 1)]
+    # a pilot that stood still (100 % autonomy, none of its laps) ranks below every one that drove
+    reg.register(car / "models" / "still.pt", model_type="linear")
+    still = _report(100.0, 0.0, completed=0)
+    still["overall"].update(completion=0.0, score=0.0)
+    reg.add_evaluation("still", still)
+    assert [e.model for e in reg.leaderboard([2, 1])] == ["b", "a", "c", "still"]
+    reg.remove("still")
     # retraining a model to the same name drops its evaluations (they judged other weights)
     reg.register(car / "models" / "c.pt", model_type="linear")
     assert reg.evaluations("c") == []

@@ -44,12 +44,12 @@ def hidden_draws(n: int, training_draw: int | None = None) -> list[int]:
 
 
 def worst_index(overalls: Sequence[dict[str, Any]]) -> int:
-    """Index of the worst draw: lowest autonomy, then most interventions, then largest mean |CTE|."""
-    def badness(o: dict[str, Any]) -> tuple[float, float, float]:
-        cte = o.get("mean_abs_cte")
-        return (-(o.get("autonomy") or 0.0), o.get("interventions") or 0, cte if cte is not None else np.inf)
+    """Index of the worst draw: the last by :func:`parts.sim.metrics.rank_key` (lowest autonomy
+    times the share of the laps driven, then fewest laps, then largest mean |CTE|), then most
+    interventions."""
+    from parts.sim.metrics import rank_key
 
-    return max(range(len(overalls)), key=lambda i: badness(overalls[i]))
+    return max(range(len(overalls)), key=lambda i: (rank_key(overalls[i]), overalls[i].get("interventions") or 0))
 
 
 def summarise(overalls: Sequence[dict[str, Any]], draws: Sequence[int],

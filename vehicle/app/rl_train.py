@@ -231,11 +231,23 @@ def train_rl(cfg: Any, out: str | Path, s: RLSettings, *, progress: bool = False
         files["eval"].unlink(missing_ok=True)
         _write_curve(files, curve)
     if curve["best"] is not None:
-        logger.info("rl train: best pilot %s (autonomy %.1f %% at %d steps)", out, curve["best"]["autonomy"],
+        logger.info("rl train: best pilot %s (%s at %d steps)", out, describe_best(curve["best"]),
                     curve["best"]["timesteps"])
+    elif curve["evaluations"]:
+        logger.warning("rl train: no pilot kept: none drove any of its evaluation laps (%s)",
+                       describe_best(curve["evaluations"][-1]))
     if interrupted is not None:
         raise interrupted
     return curve
+
+
+def describe_best(row: dict[str, Any]) -> str:
+    """An evaluation row in words, laps beside autonomy: "autonomy 100.0 %, 2 laps (100 % of the laps
+    asked), mean lap 14.2 s"."""
+    lap = f", mean lap {row['mean_lap_s']:.1f} s" if row.get("mean_lap_s") is not None else ""
+    share = row.get("completion")
+    driven = f" ({share:.0%} of the laps asked)" if share is not None else ""
+    return f"autonomy {row['autonomy']:.1f} %, {row.get('laps_completed') or 0} laps{driven}{lap}"
 
 
 def _reward_name(reward: str | None) -> str:
@@ -339,20 +351,18 @@ class _Trainer:
         report = evaluate(str(self.files["eval"]), self.eval_tracks, self.s.eval_laps, cfg=self.cfg)
         o = report["overall"]
         reward, length = self.episode_stats()
-        laps = self.s.eval_laps
-        # a pilot that stands still never leaves the road (100 % autonomy): weigh by the share of
-        # the laps it drove
-        completion = float(np.mean([min(1.0, (t["laps_driven"] or 0.0) / laps) for t in report["tracks"]]))
-        row = {"timesteps": steps, "score": round(o["autonomy"] * completion, 2), "completion": round(completion, 3),
+        # a pilot that stands still never leaves the road (100 % autonomy): the score weighs autonomy
+        # by the share of the laps it drove (parts.sim.metrics.score)
+        row = {"timesteps": steps, "score": o["score"], "completion": o["completion"],
                "autonomy": o["autonomy"], "laps_completed": o["laps_completed"],
                "mean_lap_s": o["mean_lap_s"], "mean_speed": o["mean_speed"], "mean_abs_cte": o["mean_abs_cte"],
                "interventions": o["interventions"], "mean_reward": reward, "mean_length": length}
         self.curve["evaluations"].append(row)
         best = self.curve["best"]
-        better = best is None or (row["score"], row["mean_speed"] or 0.0) > \
-            (best.get("score", best["autonomy"]), best["mean_speed"] or 0.0)
-        logger.info("rl train: evaluation at %d steps on tracks %s: autonomy %.1f %%, %s laps, mean lap %s s%s",
-                    steps, self.eval_tracks, o["autonomy"], o["laps_completed"], o["mean_lap_s"],
+        # a pilot that drove none of its laps is never kept as the best
+        better = (row["score"] or 0.0) > 0 and (best is None or (row["score"], row["mean_speed"] or 0.0) >
+                                                (best.get("score", best["autonomy"]), best["mean_speed"] or 0.0))
+        logger.info("rl train: evaluation at %d steps on tracks %s: %s%s", steps, self.eval_tracks, describe_best(row),
                     " (best so far: kept)" if better else "")
         if better:
             self.curve["best"] = row

@@ -27,3 +27,21 @@ def test_a_reset_jump_is_not_progress():
     r = m.result()
     assert r["interventions"] == 1
     assert r["laps_driven"] == pytest.approx(0.25)  # 0.1 + 0.05 + (jump skipped) + 0.1
+
+
+def test_a_car_that_stands_still_scores_nothing_whatever_its_autonomy():
+    from parts.sim.metrics import overall, rank_key
+
+    still = EpisodeMetrics(0.05, laps=2, max_time=100.0, penalty_s=6.0)
+    feed(still, [(0, 0.0, False)] * 40)  # never moves: no intervention, DAVE-2 autonomy 100 %
+    driver = EpisodeMetrics(0.05, laps=2, max_time=100.0, penalty_s=6.0)
+    # 1.5 laps in 15 s, off the road once
+    feed(driver, [(i // 100, (i % 100) / 100, i == 120) for i in range(150)] + [(1, 0.5, False)] * 150)
+    s, d = still.result(), driver.result()
+    assert s["autonomy"] == 100.0 and s["completion"] == 0.0 and s["score"] == 0.0
+    assert d["autonomy"] < 100.0 and 0 < d["completion"] == pytest.approx(d["laps_driven"] / 2, abs=1e-3)
+    assert d["score"] > 0 and d["score"] == pytest.approx(d["autonomy"] * d["completion"], abs=0.01)
+    assert sorted([s, d], key=rank_key) == [d, s]  # the car that drove ranks first
+    both = overall([s, d], 6.0, __import__("numpy").empty(0))
+    assert both["completion"] == pytest.approx(d["completion"] / 2, abs=1e-3)
+    assert both["score"] == pytest.approx(both["autonomy"] * both["completion"], abs=0.05)

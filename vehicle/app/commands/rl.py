@@ -100,7 +100,7 @@ def register(subparsers: Any) -> None:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
-    from vehicle.app.rl_train import RLSettings, train_rl
+    from vehicle.app.rl_train import RLSettings, describe_best, train_rl
 
     cfg = load_for_command(args)
     if args.steps < 1 or args.envs < 0 or args.eval_every < 0 or args.eval_laps < 1 or args.laps < 1:
@@ -120,9 +120,14 @@ def _cmd_train(args: argparse.Namespace) -> int:
                    log_std_init=args.log_std_init, vf_warmup=args.vf_warmup, comment=args.comment)
     curve = train_rl(cfg, out, s, progress=not args.no_progress)
     best = curve["best"]
+    tracks = s.eval_tracks or cfg.SIM_EVAL_TRACK_SEEDS
     if best is not None:
-        print(f"best pilot {out}: autonomy {best['autonomy']} % on tracks "  # noqa: T201 - the command's output
-              f"{s.eval_tracks or cfg.SIM_EVAL_TRACK_SEEDS} at {best['timesteps']} steps")
+        print(f"best pilot {out}: {describe_best(best)} on tracks "  # noqa: T201 - the command's output
+              f"{tracks} at {best['timesteps']} steps")
+    elif curve["evaluations"]:
+        print(f"no pilot kept: no evaluation on tracks {tracks} drove any of its laps "  # noqa: T201
+              f"(last: {describe_best(curve['evaluations'][-1])}); train longer or check the reward")
+        return 1
     return 0
 
 
