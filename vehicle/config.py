@@ -434,7 +434,7 @@ def load_config(myconfig: str | os.PathLike[str] | None = None,
 
     Args:
         myconfig: the override file; default ``<car_path>/myconfig.py``. A relative path is taken
-            relative to ``car_path``.
+            relative to ``car_path`` when that is given, else to the current directory.
         car_path: the car folder; default the folder of ``myconfig``, else the current directory.
 
     Raises:
@@ -442,10 +442,12 @@ def load_config(myconfig: str | os.PathLike[str] | None = None,
             or is out of range, or settings contradict each other (one line: file, line, setting,
             what is valid).
     """
-    if car_path is None:
-        car_path = Path(myconfig).resolve().parent if myconfig else Path.cwd()
-    car = Path(car_path).resolve()
-    path = car / (myconfig or "myconfig.py")
+    if car_path is None and myconfig:  # the file names its car: relative to the current folder
+        path = Path(myconfig).expanduser().resolve()
+        car = path.parent
+    else:
+        car = Path(car_path).expanduser().resolve() if car_path is not None else Path.cwd()
+        path = car / (myconfig or "myconfig.py")
     if not path.is_file():
         if myconfig is not None:
             raise ConfigError(f"{path}: no such config file. Pass an existing file to --myconfig.")

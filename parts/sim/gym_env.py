@@ -12,8 +12,9 @@ DriveMode does for a pilot), then the camera renders the next observation.
 - Action: ``[angle, throttle]`` in [-1, 1], or ``[angle]`` with a fixed ``throttle``. With
   ``throttle_range=(low, high)`` the throttle action's [-1, 1] spans [low, high]
   (:func:`throttle_from_action`): exploration cannot reverse or floor it, and 0 is mid-range.
-- ``reset(seed=...)`` draws a track of ``tracks``, a theme of ``themes`` and one of
-  ``randomize_draws`` randomisation draws (with SIM_RANDOMIZE set) from the environment's generator.
+- ``reset(seed=...)`` draws a track of ``tracks`` (by default the demo's 64 training tracks, so
+  different seeds give different episodes), a theme of ``themes`` and one of ``randomize_draws``
+  randomisation draws (with SIM_RANDOMIZE set) from the environment's generator.
 - terminated: the car left the road, or drove ``laps`` laps (states of the task that end it);
   truncated: ``max_steps`` steps passed first (a time limit, not part of the task).
 - Reward: a DeepRacer-style function (:mod:`parts.sim.reward`).
@@ -41,6 +42,11 @@ from parts.sim.world import world_params
 logger = logging.getLogger(__name__)
 
 ENV_ID = "vehicle/Track-v0"
+#: tracks episodes are drawn from when neither ``tracks`` nor the car's SIM_TRACK_SEEDS says: the
+#: demo's training tracks, so that ``reset(seed=...)`` gives different episodes for different seeds
+DEFAULT_TRACKS = tuple(range(1, 65))
+#: what ``reset(options=...)`` may fix
+RESET_OPTIONS = ("track", "theme", "draw")
 #: simulated seconds allowed per lap before an episode is truncated, when max_steps is not given
 SECONDS_PER_LAP = 60.0
 
@@ -67,6 +73,29 @@ def check_throttle_range(value: Any) -> tuple[float, float] | None:
     return low, high
 
 
+def check_options(options: dict[str, Any]) -> dict[str, Any]:
+    """``reset``'s options checked and converted; a bad one raises ValueError naming it."""
+    from parts.sim.themes import THEMES
+
+    unknown = sorted(set(options) - set(RESET_OPTIONS))
+    if unknown:
+        raise ValueError(f"reset(options=...): unknown option {unknown[0]!r}; the options are "
+                         f"{', '.join(RESET_OPTIONS)}")
+    out: dict[str, Any] = {}
+    for name, value in options.items():
+        if name == "theme":
+            if value not in THEMES:
+                raise ValueError(f"options['theme'] = {value!r}: give one of {', '.join(THEMES)}")
+            out[name] = str(value)
+            continue
+        limit = 2**32 - 1
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or not 0 <= int(value) <= limit:
+            what = "a track seed" if name == "track" else "a randomisation draw"
+            raise ValueError(f"options[{name!r}] = {value!r}: give {what}, an int from 0 to {limit}")
+        out[name] = int(value)
+    return out
+
+
 def register() -> None:
     """Register ``vehicle/Track-v0`` with gymnasium (idempotent)."""
     if ENV_ID not in gym.registry:
@@ -88,7 +117,8 @@ class TrackEnv(gym.Env):
 
     Args:
         config: the car's settings (a Config, a myconfig.py path, or None for the defaults).
-        tracks: track seeds episodes are drawn from (default SIM_TRACK_SEEDS).
+        tracks: track seeds episodes are drawn from (default: SIM_TRACK_SEEDS when the car's
+            myconfig.py sets it, else :data:`DEFAULT_TRACKS`, the demo's 64 training tracks).
         themes: themes episodes are drawn from (default SIM_THEME).
         randomize_draws: distinct randomisation draws per track (SIM_RANDOMIZE + 0 .. n-1);
             each new draw costs a few tenths of a second to paint. Ignored without SIM_RANDOMIZE.
@@ -115,7 +145,9 @@ class TrackEnv(gym.Env):
                  render_mode: str | None = None) -> None:
         self.cfg = _config(config)
         cfg = self.cfg
-        self.tracks = [int(s) for s in (tracks if tracks is not None else cfg.SIM_TRACK_SEEDS)]
+        if tracks is None:
+            tracks = cfg.SIM_TRACK_SEEDS if "SIM_TRACK_SEEDS" in cfg.overridden else DEFAULT_TRACKS
+        self.tracks = [int(s) for s in tracks]
         if not self.tracks:
             raise ValueError("tracks must name at least one track seed")
         self.themes = theme_list(themes if themes is not None else cfg.SIM_THEME)
@@ -134,7 +166,8 @@ class TrackEnv(gym.Env):
         self.dt = 1.0 / cfg.DRIVE_LOOP_HZ
         self.max_steps = int(max_steps) if max_steps is not None else int(round(laps * SECONDS_PER_LAP / self.dt))
         self.throttle_mult = float(getattr(cfg, "AI_THROTTLE_MULT", 1.0))
-        self.reward_fn: RewardFn = reward if callable(reward) else load_reward_function(reward)
+        self.reward_fn: RewardFn = reward if callable(reward) else \
+            load_reward_function(reward, cfg.RL_REWARD_TIME_LIMIT_S)
         if frame is not None and not callable(frame):
             raise TypeError(f"frame must be a function of a camera frame or None, got {type(frame).__name__}")
         self.frame = frame
@@ -161,13 +194,16 @@ class TrackEnv(gym.Env):
     # -- episodes ---------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
         """Start an episode on a track, theme and randomisation draw from the seeded generator;
-        ``options`` may fix ``track`` (a seed), ``theme`` and ``draw``."""
+        ``options`` may fix ``track`` (a seed), ``theme`` and ``draw`` (ValueError for any other key
+        or a bad value)."""
         super().reset(seed=seed)
-        options = options or {}
+        options = check_options(options or {})
         rng = self.np_random
-        track = int(options.get("track", self.tracks[int(rng.integers(len(self.tracks)))]))
-        theme = str(options.get("theme", self.themes[int(rng.integers(len(self.themes)))]))
-        draw = int(options.get("draw", rng.integers(self.randomize_draws)))
+        # drawn whether fixed or not, so that fixing one option does not change the others' draws
+        track = self.tracks[int(rng.integers(len(self.tracks)))]
+        theme = self.themes[int(rng.integers(len(self.themes)))]
+        draw = int(rng.integers(self.randomize_draws))
+        track, theme, draw = options.get("track", track), options.get("theme", theme), options.get("draw", draw)
         world = world_params(self.cfg)
         if world["randomize"] is not None:
             world["randomize"] = (int(world["randomize"]) + draw) % 2**32

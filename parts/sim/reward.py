@@ -12,9 +12,15 @@ something that is not a finite number.
 
 from __future__ import annotations
 
+import contextlib
+import copy
 import math
+import signal
+import sys
+import threading
 import traceback
-from collections.abc import Callable
+import types
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -22,7 +28,7 @@ import numpy as np
 
 from parts.sim.telemetry import TelemetryFrame
 from parts.sim.track import Track
-from vehicle.errors import VehicleError
+from vehicle.errors import VehicleError, VehicleStopped
 
 #: half the width of a 1:10 car between its wheels' outer edges, metres (all_wheels_on_track)
 CAR_HALF_WIDTH = 0.1
@@ -46,7 +52,10 @@ class TrackWaypoints:
         pts = track.points[::stride]
         self.track = track
         self.spacing = track.length / len(pts)
-        self.waypoints: list[list[float]] = [[round(float(x), 4), round(float(y), 4)] for x, y in pts]
+        # points as tuples: a reward function gets a fresh list of them each call (reward_params)
+        # and cannot edit one in place for the next call
+        self.waypoints: tuple[tuple[float, float], ...] = tuple((round(float(x), 4), round(float(y), 4))
+                                                                for x, y in pts)
         x, y = track.points[:, 0], track.points[:, 1]
         area = 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
         self.is_reversed = area < 0  # DeepRacer: True when the car drives clockwise
@@ -97,7 +106,7 @@ def reward_params(frame: TelemetryFrame, wp: TrackWaypoints, *, steer_rad: float
         "steps": int(steps),
         "track_length": float(track.length),
         "track_width": float(track.width),
-        "waypoints": wp.waypoints,
+        "waypoints": list(wp.waypoints),  # its own list each call (a shallow copy: ~1 µs)
         # ours, beyond DeepRacer's
         "laps": int(frame.lap),
         "lap_time": frame.lap_time,
@@ -139,9 +148,10 @@ def speed_reward(params: dict[str, Any]) -> float:
 BUILTIN_REWARDS: dict[str, RewardFn] = {"default": default_reward, "speed": speed_reward}
 
 
-def load_reward_function(path: str | Path | None) -> RewardFn:
+def load_reward_function(path: str | Path | None, time_limit: float | None = None) -> RewardFn:
     """The reward function of a user's file (None: :func:`default_reward`; a name of
-    BUILTIN_REWARDS that is not a file: that function), wrapped so that an exception or a value
+    BUILTIN_REWARDS that is not a file: that function), wrapped so that an exception, a call that
+    takes longer than ``time_limit`` seconds (RL_REWARD_TIME_LIMIT_S; None: no limit) or a value
     that is not a finite number raises :class:`RewardError` naming the line.
 
     Raises:
@@ -170,30 +180,89 @@ def load_reward_function(path: str | Path | None) -> RewardFn:
     if not callable(fn):
         raise RewardError(f"{file}: defines no reward_function(params); add `def reward_function(params): ... "
                           "return float(reward)`")
-    return _Checked(fn, file)
+    return _Checked(fn, file, time_limit)
+
+
+class _TimeUp(BaseException):
+    """Raised into a reward function that ran out of time (a BaseException: the function's own
+    ``except Exception`` cannot swallow it)."""
+
+
+@contextlib.contextmanager
+def _time_limit(seconds: float | None) -> Iterator[None]:
+    """Raise :class:`_TimeUp` in this block after ``seconds`` (SIGALRM). Only where a signal can
+    be delivered: in the main thread of a process on a POSIX system; elsewhere no limit."""
+    if seconds is None or threading.current_thread() is not threading.main_thread() \
+            or not hasattr(signal, "setitimer"):
+        yield
+        return
+
+    def time_up(_signum: int, _frame: Any) -> None:
+        raise _TimeUp
+
+    old = signal.signal(signal.SIGALRM, time_up)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
 
 
 class _Checked:
     """A user's reward_function that fails with a one-line RewardError instead of a traceback."""
 
-    def __init__(self, fn: Callable[[dict[str, Any]], Any], file: Path) -> None:
-        self.fn, self.file = fn, file
+    def __init__(self, fn: Callable[[dict[str, Any]], Any], file: Path, time_limit: float | None = None) -> None:
+        self.fn, self.file, self.time_limit = fn, file, time_limit
         self.line = getattr(getattr(fn, "__code__", None), "co_firstlineno", 0)
 
     def __call__(self, params: dict[str, Any]) -> float:
         try:
-            value = self.fn(params)
+            with _time_limit(self.time_limit):
+                value = self.fn(params)
+        except _TimeUp:
+            raise RewardError(f"{self.file}:{self.line}: reward_function did not return within {self.time_limit:g} s "
+                              "(RL_REWARD_TIME_LIMIT_S): look for a loop that never ends, or raise the limit in "
+                              "myconfig.py") from None
+        except VehicleStopped:  # a stop signal arrived during the call: not the function's fault
+            raise
         except Exception as exc:
             raise RewardError(f"{_where(self.file, exc, self.line)}: reward_function raised "
                               f"{type(exc).__name__}: {exc}") from None
         if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating) \
                 or not math.isfinite(float(value)):
-            raise RewardError(f"{self.file}:{self.line}: reward_function returned {value!r} "
-                              f"({type(value).__name__}); it must return a finite number, e.g. float(reward)")
+            raise RewardError(f"{self.file}:{_return_line(self.fn, params, self.line)}: reward_function returned "
+                              f"{value!r} ({type(value).__name__}); it must return a finite number, e.g. float(reward)")
         return float(value)
 
     def __reduce__(self) -> tuple[Any, ...]:  # vectorised environments send it to worker processes
-        return (load_reward_function, (str(self.file),))
+        return (load_reward_function, (str(self.file), self.time_limit))
+
+
+def _return_line(fn: Callable[[dict[str, Any]], Any], params: dict[str, Any], default: int) -> int:
+    """The line of ``fn``'s ``return`` statement for ``params``: the call is run again under a
+    tracer (only on this error path, so a normal call costs nothing)."""
+    code = getattr(fn, "__code__", None)
+    line = default
+
+    def tracer(frame: types.FrameType, event: str, _arg: Any) -> Any:
+        nonlocal line
+        if frame.f_code is not code:
+            return None
+        if event == "return" and frame.f_lineno is not None:
+            line = frame.f_lineno
+        return tracer
+
+    old = sys.gettrace()
+    sys.settrace(tracer)
+    try:
+        with _time_limit(1.0):
+            fn(copy.deepcopy(params))
+    except (Exception, _TimeUp):  # only looking for the line; the caller reports the value
+        pass
+    finally:
+        sys.settrace(old)
+    return line
 
 
 def _where(file: Path, exc: BaseException, default_line: int = 0) -> str:

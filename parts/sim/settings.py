@@ -179,6 +179,13 @@ SIM_EVAL_LANE_CHANGE_TIME_LIMIT: Annotated[float, Range(0, 3600, lo_open=True, u
 # Seconds the car must then stay that close to the new lane's centre.
 SIM_EVAL_LANE_CHANGE_HOLD: Annotated[float, Range(0, 3600, unit="s")] = 1.0
 
+# == Reinforcement learning ==
+
+# Seconds one call of a reward file's reward_function may take (`vehicle rl train`, `vehicle rl
+# reward-check`, the Gymnasium environment); a call that takes longer stops training with one line
+# naming the file. DeepRacer-style functions take microseconds.
+RL_REWARD_TIME_LIMIT_S: Annotated[float, Range(0.001, 600, unit="s")] = 1.0
+
 
 def _track(v: Mapping[str, Any]) -> Iterator[Problem]:
     radius, width, size = v["SIM_TRACK_MIN_RADIUS"], v["SIM_ROAD_WIDTH"], v["SIM_TRACK_SIZE"]

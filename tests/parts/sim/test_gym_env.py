@@ -140,10 +140,84 @@ def test_a_raising_reward_function_names_its_file_and_line(cfg, tmp_path):
 
 
 @pytest.mark.parametrize("value", ["None", "'1.0'", "True", "float('nan')", "[1.0]"])
-def test_a_reward_that_is_not_a_finite_number_is_refused(tmp_path, value):
-    fn = load_reward_function(_reward_file(tmp_path, f"    return {value}\n"))
-    with pytest.raises(RewardError, match=r"reward\.py:4: reward_function returned .* must return a finite number"):
+def test_a_reward_that_is_not_a_finite_number_is_refused_at_its_return_line(tmp_path, value):
+    fn = load_reward_function(_reward_file(tmp_path, f"    x = 1\n    if x:\n        return {value}\n    return 0.0\n"))
+    with pytest.raises(RewardError, match=r"reward\.py:7: reward_function returned .* must return a finite number"):
         fn({})
+
+
+def test_each_reward_call_gets_its_own_params(cfg, tmp_path):
+    """A function that appends to params["waypoints"] (or edits a point) changes nothing the next
+    call sees."""
+    path = _reward_file(tmp_path, "    n = len(params['waypoints'])\n    params['waypoints'].append([0, 0])\n"
+                                  "    params['closest_waypoints'].append(0)\n    return float(n)\n")
+    e = TrackEnv(cfg, tracks=[1], reward=str(path))
+    e.reset(seed=0)
+    counts = {e.step(np.array([0.0, 0.3], np.float32))[1] for _ in range(3)}
+    assert len(counts) == 1 and counts.pop() > 10
+    seen = []
+    e = TrackEnv(cfg, tracks=[1], reward=lambda p: seen.append(p["waypoints"]) or 1.0)
+    e.reset(seed=0)
+    e.step(np.zeros(2, np.float32))
+    e.step(np.zeros(2, np.float32))
+    assert seen[0] is not seen[1] and seen[0] == seen[1]
+    with pytest.raises(TypeError):  # a point cannot be edited in place
+        seen[0][0][0] = 99.0
+
+
+def test_a_reward_function_that_never_returns_is_stopped_in_one_line(cfg, tmp_path):
+    path = _reward_file(tmp_path, "    while True:\n        pass\n")
+    e = TrackEnv(cfg.replace(RL_REWARD_TIME_LIMIT_S=0.2), tracks=[1], reward=str(path))
+    e.reset(seed=0)
+    with pytest.raises(RewardError, match=rf"^{path}:4: reward_function did not return within 0.2 s "
+                                          r"\(RL_REWARD_TIME_LIMIT_S\)"):
+        e.step(np.zeros(2, np.float32))
+    assert e.step  # the env is still usable for a reset
+    e.reset(seed=0)
+
+
+def test_a_stop_signal_in_a_reward_function_is_not_blamed_on_it(tmp_path):
+    from vehicle.errors import VehicleStopped
+
+    fn = load_reward_function(_reward_file(tmp_path, "    raise KeyboardInterrupt\n"))
+    with pytest.raises(KeyboardInterrupt):
+        fn({})
+    path = tmp_path / "stopped.py"
+    path.write_text("from vehicle.errors import VehicleStopped\n\n\ndef reward_function(params):\n"
+                    "    raise VehicleStopped(15, 'SIGTERM')\n")
+    with pytest.raises(VehicleStopped):
+        load_reward_function(path)({})
+
+
+def test_bad_reset_options_are_refused_in_one_line_naming_the_option(cfg):
+    e = TrackEnv(cfg, tracks=[1])
+    with pytest.raises(ValueError, match=r"^options\['track'\] = 'nope': give a track seed, an int from 0"):
+        e.reset(options={"track": "nope"})
+    with pytest.raises(ValueError, match=r"^options\['draw'\] = -1"):
+        e.reset(options={"draw": -1})
+    with pytest.raises(ValueError, match=r"^options\['theme'\] = 'lava': give one of .*road"):
+        e.reset(options={"theme": "lava"})
+    with pytest.raises(ValueError, match=r"^reset\(options=\.\.\.\): unknown option 'trak'; the options are "
+                                         r"track, theme, draw"):
+        e.reset(options={"trak": 3})
+    assert e.reset(options={"track": 7, "theme": "indoor"})[1]["track"] == 7
+
+
+def test_the_default_env_varies_with_the_seed(cfg):
+    """RL users expect reset(seed=0) and reset(seed=1) to give different episodes: with the
+    defaults the env draws from several training tracks."""
+    e = gym.make(gym_env.ENV_ID, config=cfg)
+    tracks = {e.reset(seed=s)[1]["track"] for s in range(6)}
+    assert len(tracks) > 1
+
+
+def test_a_relative_config_path_is_taken_from_the_current_folder(tmp_path, monkeypatch):
+    car = tmp_path / "mycar"
+    car.mkdir()
+    (car / "myconfig.py").write_text("SIM_ROAD_WIDTH = 1.1\n")
+    monkeypatch.chdir(tmp_path)
+    e = gym.make(gym_env.ENV_ID, config="mycar/myconfig.py")
+    assert e.unwrapped.cfg.SIM_ROAD_WIDTH == 1.1
 
 
 def test_reward_files_that_cannot_load_say_why(tmp_path):
