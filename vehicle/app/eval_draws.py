@@ -44,12 +44,16 @@ def hidden_draws(n: int, training_draw: int | None = None) -> list[int]:
 
 
 def worst_index(overalls: Sequence[dict[str, Any]]) -> int:
-    """Index of the worst draw: the last by :func:`parts.sim.metrics.rank_key` (lowest autonomy
-    times the share of the laps driven, then fewest laps, then largest mean |CTE|), then most
-    interventions."""
+    """Index of the worst draw: lowest score (autonomy times the share of the laps driven, see
+    :func:`parts.sim.metrics.rank_key`), then most interventions, then fewest laps, then largest
+    mean |CTE|."""
     from parts.sim.metrics import rank_key
 
-    return max(range(len(overalls)), key=lambda i: (rank_key(overalls[i]), overalls[i].get("interventions") or 0))
+    def badness(o: dict[str, Any]) -> tuple[float, ...]:
+        score, *rest = rank_key(o)
+        return (score, o.get("interventions") or 0, *rest)
+
+    return max(range(len(overalls)), key=lambda i: badness(overalls[i]))
 
 
 def summarise(overalls: Sequence[dict[str, Any]], draws: Sequence[int],

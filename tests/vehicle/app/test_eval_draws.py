@@ -23,7 +23,7 @@ def test_summary_mean_and_worst_draw():
     overalls = [
         {"autonomy": 100.0, "interventions": 0, "laps_completed": 2, "mean_abs_cte": 0.05, "mean_speed": 1.5,
          "off_track_per_lap": 0.0},
-        {"autonomy": 88.0, "interventions": 2, "laps_completed": 1, "mean_abs_cte": 0.08, "mean_speed": 1.2,
+        {"autonomy": 88.0, "interventions": 2, "laps_completed": 2, "mean_abs_cte": 0.08, "mean_speed": 1.2,
          "off_track_per_lap": 1.0},
         {"autonomy": 88.0, "interventions": 2, "laps_completed": 2, "mean_abs_cte": 0.09, "mean_speed": 1.3,
          "off_track_per_lap": 1.0},
@@ -36,6 +36,9 @@ def test_summary_mean_and_worst_draw():
     assert s["worst"]["randomize"] == 1003 and s["worst"]["autonomy"] == 88.0 and s["worst"]["laps_completed"] == 2
     assert s["expert_speed"] == 2.0 and s["speed_vs_expert_pct"] == pytest.approx(66.7)
     assert [d["randomize"] for d in s["per_draw"]] == [1001, 1002, 1003]
+    # a draw where the car stood still (no intervention, 100 % autonomy) is the worst of all
+    still = {**overalls[0], "laps_completed": 0, "completion": 0.0, "score": 0.0}
+    assert summarise([*overalls, still], [1001, 1002, 1003, 1004])["worst"]["randomize"] == 1004
 
 
 def test_hidden_draws_are_fixed_and_never_the_training_draw():
