@@ -261,7 +261,7 @@ class Vehicle:
         if max_loop_count is not None and max_loop_count < 1:
             raise ValueError(f"max_loop_count must be >= 1 or None, got {max_loop_count}")
         self.check_wiring()
-        signals = contextlib.ExitStack()  # SIGTERM/SIGHUP raise VehicleStopped until the safe stop is done
+        signals = contextlib.ExitStack()  # SIGINT/SIGTERM/SIGHUP raise until the safe stop is done
         signals.enter_context(stop_signals_raise())
         loops, t0 = 0, self.clock.now()
         self._last_loop_start = t0
@@ -424,10 +424,14 @@ def _ignoring_interrupts() -> contextlib.AbstractContextManager[None]:
     return handling((signal.SIGINT, *STOP_SIGNALS), note)
 
 
-def stop_signals_raise() -> contextlib.AbstractContextManager[None]:
-    """While inside, SIGTERM and SIGHUP raise :class:`VehicleStopped` (main thread only), as in the
-    loop: for work outside a Vehicle that must clean up when a service manager stops it."""
-    return handling(STOP_SIGNALS, _raise_stopped)
+@contextlib.contextmanager
+def stop_signals_raise() -> Iterator[None]:
+    """While inside, SIGTERM and SIGHUP raise :class:`VehicleStopped` and SIGINT raises
+    KeyboardInterrupt (main thread only), as in the loop: for work outside a Vehicle that must clean
+    up when a service manager stops it. SIGINT is installed explicitly because a process started
+    with ``&`` from a script inherits it as ignored, and ``kill -INT`` must still stop the car."""
+    with handling((signal.SIGINT,), signal.default_int_handler), handling(STOP_SIGNALS, _raise_stopped):
+        yield
 
 
 def _raise_stopped(signum: int, _frame: Any) -> None:
