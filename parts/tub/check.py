@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from parts.tub.births import remove_stillborn, stillborn
+from parts.tub.births import remove_stillborn, set_aside, stillborn
 from parts.tub.catalog import parse_line, read_catalog_manifest, scan_catalog, write_catalog_manifest
 from parts.tub.codec import image_problem
 from parts.tub.format import (
@@ -42,18 +42,25 @@ class CheckReport:
     duplicate_indexes: list[int] = field(default_factory=list)
     orphan_images: int = 0
     stillborn: bool = False  # a tub an older version was killed while creating (parts.tub.births)
+    empty: bool = False  # no record at all: DonkeyCar's read-only open fails on its empty catalog
+    moved_to: Path | None = None  # where repair moved an empty tub (restorable)
     repaired: bool = False
 
     @property
     def ok(self) -> bool:
-        return not (self.stillborn or self.recovered or self.catalog_manifests or self.torn_bytes or self.unparsable
-                    or self.bad_records or self.duplicate_indexes)
+        return not (self.stillborn or self.empty or self.recovered or self.catalog_manifests or self.torn_bytes
+                    or self.unparsable or self.bad_records or self.duplicate_indexes)
 
     def lines(self) -> list[str]:
         if self.stillborn:
             return [f"{self.path}: a tub killed while it was created (by an older version): it holds no records "
                     "and DonkeyCar cannot open it",
                     "  removed" if self.repaired else "  run with --repair to remove it (nothing is lost)"]
+        if self.empty:
+            return [f"{self.path}: holds no records and DonkeyCar cannot open it (its read-only open fails on "
+                    "the empty catalog: cannot mmap an empty file)",
+                    f"  moved aside to {self.moved_to}; nothing was lost: mv {self.moved_to} {self.path} restores it"
+                    if self.repaired else "  run with --repair to move it aside (restorable)"]
         out = [f"{self.path}: {self.records} records checked"]
         out += [f"  manifest: {p}" for p in self.recovered]
         out += [f"  {p}" for p in self.catalog_manifests]
@@ -94,6 +101,13 @@ def check_tub(path: str | os.PathLike[str], repair: bool = False, decode: bool =
         return report
     ro = Tub(path, read_only=True)
     report = CheckReport(ro.path, recovered=list(ro.problems))
+    if ro.current_index == 0:  # not a line in any catalog
+        report.empty = True
+        ro.close()
+        if repair:
+            report.moved_to = set_aside(ro.path)
+            report.repaired = True
+        return report
     report.catalog_manifests = _catalog_manifest_problems(ro)
     report.torn_bytes = sum(_torn(p) for p in ro.catalog_paths)
     if repair:
