@@ -97,6 +97,7 @@ class Vehicle:
         self._stop_requested = threading.Event()
         self._shut_down = False
         self._last_loop_start = 0.0
+        self._longest_loop = 0.0  # seconds: the longest single loop of this start()
 
     # -- building ---------------------------------------------------------------------------------
     def add(self, part: Any, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None,
@@ -265,6 +266,7 @@ class Vehicle:
         signals.enter_context(stop_signals_raise())
         loops, t0 = 0, self.clock.now()
         self._last_loop_start = t0
+        self._longest_loop = 0.0
         rk = RateKeeper(rate_hz, self.clock)
         failure: BaseException | None = None
         self.on = True
@@ -274,6 +276,7 @@ class Vehicle:
             while not self._stop_requested.is_set():
                 self._last_loop_start = self.clock.now()
                 self._run_once()
+                self._longest_loop = max(self._longest_loop, self.clock.now() - self._last_loop_start)
                 loops += 1
                 rate_window_loops += 1
                 now = self.clock.now()
@@ -399,7 +402,7 @@ class Vehicle:
         # rate between loop starts, so a run that ends right after its last loop is not flattered
         span = self._last_loop_start - t0
         achieved = (loops - 1) / span if loops > 1 and span > 0 else 0.0
-        return LoopSummary(loops, elapsed, rate_hz, achieved, overruns, parts)
+        return LoopSummary(loops, elapsed, rate_hz, achieved, overruns, parts, self._longest_loop)
 
 
 @contextlib.contextmanager
