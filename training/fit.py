@@ -100,6 +100,7 @@ class History:
     best_loss: float = math.inf
     stopped_early: bool = False
     cancelled: bool = False  # stopped on request (should_stop); the partial epoch is not counted
+    stopped_in_epoch: int = 0  # the epoch a stop request ended (0: not stopped)
 
     def as_dict(self) -> dict[str, Any]:
         return {"train_loss": self.train_loss, "val_loss": self.val_loss, "epoch_seconds": self.seconds,
@@ -108,7 +109,7 @@ class History:
                 "best_epoch": self.best_epoch,
                 "best_loss": self.best_loss if math.isfinite(self.best_loss) else None,
                 "epochs": len(self.train_loss), "stopped_early": self.stopped_early,
-                "cancelled": self.cancelled}
+                "cancelled": self.cancelled, "stopped_in_epoch": self.stopped_in_epoch}
 
 
 def _set_epoch(loader: DataLoader, epoch: int) -> None:
@@ -314,7 +315,7 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
                         logger.info("torch.compile: the first training step took %.1f s (compiling)",
                                     clock() - t_step)
                 if should_stop is not None and should_stop():
-                    history.cancelled = True
+                    history.cancelled, history.stopped_in_epoch = True, epoch
                     break
             total = float(loss_sum)
             _check_finite(total, epoch, settings)
@@ -355,7 +356,7 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
                   "samples_per_s": history.samples_per_s[-1], "best": improved,
                   "best_epoch": history.best_epoch})
         if should_stop is not None and should_stop():
-            history.cancelled = True
+            history.cancelled, history.stopped_in_epoch = True, epoch
             if info.is_main:
                 logger.info("training cancelled after epoch %d/%d; the best model so far is kept (epoch %d)",
                             epoch, settings.epochs, history.best_epoch)

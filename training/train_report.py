@@ -62,3 +62,19 @@ def plot_losses(path: str | os.PathLike[str], train_loss: list[float], val_loss:
     path = Path(path)
     fig.savefig(path)
     return path
+
+
+def train_summary(metrics: dict[str, Any], model_path: Path) -> str:
+    """What a training run left, in one line: the file, its best epoch among the planned ones,
+    where a stop came, and the model the user had that was kept."""
+    best = metrics.get("best_val_loss")
+    loss = f"{best:.5f}" if isinstance(best, float) else "n/a"
+    saved = Path(metrics.get("model_file") or model_path)
+    planned = metrics.get("epochs_planned") or metrics["epochs"]
+    stopped = ""
+    if metrics.get("cancelled"):
+        stopped = f"stopped by Ctrl-C in epoch {metrics.get('stopped_in_epoch') or metrics['epochs']} of {planned}: "
+    kept = metrics.get("kept_model")
+    kept_text = f"; kept your {kept} (a stopped run does not replace it)" if kept else ""
+    return (f"{stopped}saved {saved} (best epoch {metrics['best_epoch']}, {metrics['epochs']} of {planned} epochs "
+            f"run, val_loss {loss}){kept_text}; metrics: {sidecar(saved, '.metrics.json')}")

@@ -63,6 +63,12 @@ def default_model_path(models_dir: Path) -> Path:
     return models_dir / f"pilot_{day}_{n}.pt"
 
 
+def interrupted_path(model_path: Path) -> Path:
+    """Where a run that would replace ``model_path`` keeps its best model until it finishes, and
+    where a stopped one leaves it (``pilot.pt`` -> ``pilot.interrupted.pt``)."""
+    return model_path.with_name(f"{model_path.stem}.interrupted{model_path.suffix}")
+
+
 def dataset_model_path(models_dir: Path, tub: str | os.PathLike[str]) -> Path:
     """``models/[dataset]_[N].pt`` with the first free N from 1 (Track Driver AI's naming), the
     dataset being the folder name of ``tub``."""
@@ -382,9 +388,16 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
                      "datasets": data.tubs, "transfer": str(transfer) if transfer else None,
                      "comment": comment, "created": datetime.now(UTC).isoformat(timespec="seconds")}
 
+        # A model the user already has is replaced only by a finished run: until then the best so
+        # far goes beside it, and a stopped run leaves it there (kept_model below).
+        had_model = model_path.exists()
+        best_path = interrupted_path(model_path) if had_model else model_path
+        if dist_info.is_main:
+            best_path.unlink(missing_ok=True)  # an older interrupted run's: never taken for this one's
+
         def save_best(epoch: int, history: Any) -> None:
             if dist_info.is_main:
-                save_model(model_path, model, {**base_meta, "metrics": _metrics(history, prep, started)})
+                save_model(best_path, model, {**base_meta, "metrics": _metrics(history, prep, started)})
 
         settings = FitSettings(epochs=epochs, learning_rate=learning_rate, weight_decay=cfg.TRAIN_WEIGHT_DECAY,
                                patience=cfg.EARLY_STOP_PATIENCE if cfg.USE_EARLY_STOP else None,
@@ -407,8 +420,16 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
         # rank 0 even when its own file writing below fails, so no peer waits for it in vain
         clean = True
         metrics = _metrics(history, prep, started)
+        metrics["epochs_planned"] = epochs
+        final = best_path
+        if had_model and not history.cancelled and best_path.exists():  # finished with a model: it replaces
+            final = model_path
+            if dist_info.is_main:
+                os.replace(best_path, model_path)
+        metrics["model_file"] = str(final)
+        metrics["kept_model"] = str(model_path) if final != model_path else None
         if dist_info.is_main:
-            _finish(model_path, base_meta, metrics, history, type_name, cfg.SHOW_PLOT, register, comment)
+            _finish(final, base_meta, metrics, history, type_name, cfg.SHOW_PLOT, register, comment)
         return metrics
     finally:
         shutdown_distributed(clean=clean)

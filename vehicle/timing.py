@@ -6,6 +6,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+#: a single loop longer than this many loop periods is reported as a stall
+STALL_PERIODS = 5
+
 
 class TimingRing:
     """Durations (seconds) of the last ``size`` calls, the all-time maximum and call count.
@@ -58,12 +61,22 @@ class LoopSummary:
     achieved_hz: float
     overruns: int
     parts: tuple[PartTiming, ...]
+    longest_loop_s: float = 0.0  # the longest single loop (its parts' run time), seconds
+
+    @property
+    def stalled(self) -> bool:
+        """Whether one loop took more than :data:`STALL_PERIODS` loop periods: the car went unsteered."""
+        return self.longest_loop_s * self.target_hz > STALL_PERIODS
 
     def format(self) -> str:
         """A small table for the log."""
         rows = [f"{self.loops} loops in {self.elapsed_s:.2f} s: {self.achieved_hz:.2f} Hz "
-                f"(target {self.target_hz:g} Hz), {self.overruns} overruns",
-                f"{'part':<28}{'calls':>8}{'p50 ms':>10}{'p99 ms':>10}{'max ms':>10}"]
+                f"(target {self.target_hz:g} Hz), {self.overruns} overruns, longest loop "
+                f"{self.longest_loop_s * 1e3:.1f} ms"]
+        if self.stalled:
+            rows.append(f"STALL: one loop took {self.longest_loop_s:.2f} s, {self.longest_loop_s * self.target_hz:.0f} "
+                        "loop periods: nothing was steered meanwhile (see the part with that max ms)")
+        rows += [f"{'part':<28}{'calls':>8}{'p50 ms':>10}{'p99 ms':>10}{'max ms':>10}"]
         rows += [f"{p.name:<28}{p.calls:>8}{p.p50_ms:>10.3f}{p.p99_ms:>10.3f}{p.max_ms:>10.3f}"
                  for p in self.parts]
         return "\n".join(rows)

@@ -97,6 +97,7 @@ class Vehicle:
         self._stop_requested = threading.Event()
         self._shut_down = False
         self._last_loop_start = 0.0
+        self._longest_loop = 0.0  # seconds: the longest single loop of this start()
 
     # -- building ---------------------------------------------------------------------------------
     def add(self, part: Any, inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None,
@@ -261,10 +262,11 @@ class Vehicle:
         if max_loop_count is not None and max_loop_count < 1:
             raise ValueError(f"max_loop_count must be >= 1 or None, got {max_loop_count}")
         self.check_wiring()
-        signals = contextlib.ExitStack()  # SIGTERM/SIGHUP raise VehicleStopped until the safe stop is done
+        signals = contextlib.ExitStack()  # SIGINT/SIGTERM/SIGHUP raise until the safe stop is done
         signals.enter_context(stop_signals_raise())
         loops, t0 = 0, self.clock.now()
         self._last_loop_start = t0
+        self._longest_loop = 0.0
         rk = RateKeeper(rate_hz, self.clock)
         failure: BaseException | None = None
         self.on = True
@@ -274,6 +276,7 @@ class Vehicle:
             while not self._stop_requested.is_set():
                 self._last_loop_start = self.clock.now()
                 self._run_once()
+                self._longest_loop = max(self._longest_loop, self.clock.now() - self._last_loop_start)
                 loops += 1
                 rate_window_loops += 1
                 now = self.clock.now()
@@ -399,7 +402,7 @@ class Vehicle:
         # rate between loop starts, so a run that ends right after its last loop is not flattered
         span = self._last_loop_start - t0
         achieved = (loops - 1) / span if loops > 1 and span > 0 else 0.0
-        return LoopSummary(loops, elapsed, rate_hz, achieved, overruns, parts)
+        return LoopSummary(loops, elapsed, rate_hz, achieved, overruns, parts, self._longest_loop)
 
 
 @contextlib.contextmanager
@@ -424,10 +427,14 @@ def _ignoring_interrupts() -> contextlib.AbstractContextManager[None]:
     return handling((signal.SIGINT, *STOP_SIGNALS), note)
 
 
-def stop_signals_raise() -> contextlib.AbstractContextManager[None]:
-    """While inside, SIGTERM and SIGHUP raise :class:`VehicleStopped` (main thread only), as in the
-    loop: for work outside a Vehicle that must clean up when a service manager stops it."""
-    return handling(STOP_SIGNALS, _raise_stopped)
+@contextlib.contextmanager
+def stop_signals_raise() -> Iterator[None]:
+    """While inside, SIGTERM and SIGHUP raise :class:`VehicleStopped` and SIGINT raises
+    KeyboardInterrupt (main thread only), as in the loop: for work outside a Vehicle that must clean
+    up when a service manager stops it. SIGINT is installed explicitly because a process started
+    with ``&`` from a script inherits it as ignored, and ``kill -INT`` must still stop the car."""
+    with handling((signal.SIGINT,), signal.default_int_handler), handling(STOP_SIGNALS, _raise_stopped):
+        yield
 
 
 def _raise_stopped(signum: int, _frame: Any) -> None:

@@ -24,6 +24,12 @@ import numpy as np
 from vehicle.errors import VehicleError
 
 HEADER = ("x", "y", "speed")
+#: a path file's limits: loading must stay short even off the loop thread, and a larger file is a
+#: mistake (200 000 points are 40 km at the default 0.2 m spacing; a line is about 25 bytes)
+MAX_POINTS = 200_000
+MAX_BYTES = 16 * 1024 * 1024
+#: metres from the localiser's origin a point may lie (1000 km; float32 keeps ~6 cm there)
+MAX_COORD_M = 1e6
 
 
 class PathFileError(VehicleError):
@@ -85,18 +91,33 @@ def load_path(filename: str | os.PathLike[str]) -> Path:
     """Read a path CSV (see the module docstring).
 
     Raises:
-        PathFileError: the file is missing, empty, or a line is not two or three numbers (the
-            message names the file and the line).
+        PathFileError: the file is missing, empty, over :data:`MAX_BYTES` or :data:`MAX_POINTS`,
+            or a line is not two or three numbers within :data:`MAX_COORD_M` (the message names
+            the file and the line).
     """
     source = FilePath(filename).expanduser()
     try:
+        size = source.stat().st_size
+        if size > MAX_BYTES:
+            raise PathFileError(f"path file {source}: {size / 2**20:.1f} MiB, larger than a path file may be "
+                                f"({MAX_BYTES // 2**20} MiB, {MAX_POINTS} points); record a shorter path or thin "
+                                "it out")
         text = source.read_text(encoding="utf-8", errors="replace")
     except OSError as exc:
         raise PathFileError(f"path file {source}: cannot read it ({exc.strerror or exc}); record and save a path "
                             "first (PATH_FILENAME)") from exc
     xy: list[tuple[float, float]] = []
     speed: list[float] = []
-    for number, row in enumerate(csv.reader(text.splitlines()), start=1):
+    rows = csv.reader(text.splitlines())
+    number = 0
+    while True:
+        number += 1
+        try:
+            row = next(rows)
+        except StopIteration:
+            break
+        except csv.Error as exc:  # a field over csv's limit (128 KiB), a NUL byte ...
+            raise PathFileError(f"{source}, line {number}: not a CSV line ({exc}); expected x,y,speed") from None
         cells = [c.strip() for c in row]
         if not cells or not any(cells) or cells[0].startswith("#"):
             continue
@@ -112,6 +133,12 @@ def load_path(filename: str | os.PathLike[str]) -> Path:
                                 "x,y,speed in metres and m/s)") from None
         if not all(math.isfinite(v) for v in values):
             raise PathFileError(f"{source}, line {number}: {','.join(cells)[:60]!r} is not finite")
+        if not all(abs(v) <= MAX_COORD_M for v in values):
+            raise PathFileError(f"{source}, line {number}: {','.join(cells)[:60]!r} is out of range: every value "
+                                f"within ±{MAX_COORD_M:g} (x, y in metres from the origin, speed in m/s)")
+        if len(xy) >= MAX_POINTS:
+            raise PathFileError(f"{source}, line {number}: more than {MAX_POINTS} points, more than a path file "
+                                "may hold; record a shorter path or thin it out")
         xy.append((values[0], values[1]))
         speed.append(values[2] if len(values) == 3 else 0.0)
     if not xy:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path as FilePath
 from typing import Any, ClassVar
 
@@ -25,7 +26,9 @@ class PathRecorder:
 
     - "record" toggles recording: starting clears the path in memory; while recording a point is
       added each time the car has moved ``min_dist`` metres from the last one (with the speed there);
-    - "save" writes the path to ``filename`` (CSV), "load" reads it back, "clear" empties it;
+    - "save" writes the path to ``filename`` (CSV), "load" reads it back (in a thread of its own:
+      the loop goes on meanwhile, and the path is swapped in by the first loop after it was read),
+      "clear" empties it;
     - "reset_origin" is the localiser's (the path stays).
 
     A failed save or load is logged as one line and changes nothing: the car keeps driving.
@@ -52,6 +55,8 @@ class PathRecorder:
         self.version = 0
         self.recording = False
         self._points: list[tuple[float, float, float]] = []
+        self._loader: ThreadPoolExecutor | None = None  # started by the first "load" command
+        self._loading: Future[Path] | None = None
         if load and self.filename.is_file():
             self.load()
 
@@ -65,14 +70,52 @@ class PathRecorder:
         self.version += 1
 
     def load(self) -> bool:
-        """Read the path file; False (logged) when it is missing or malformed."""
+        """Read the path file now; False (logged) when it is missing or malformed."""
         try:
-            self._set(load_path(self.filename))
+            path = load_path(self.filename)
         except PathFileError as exc:
             logger.error("path not loaded: %s", exc)
             return False
-        logger.info("path: loaded %d points (%.1f m) from %s", len(self.path), self.path.length, self.filename)
+        self._loaded(path)
         return True
+
+    def _loaded(self, path: Path) -> None:
+        self._set(path)
+        logger.info("path: loaded %d points (%.1f m) from %s", len(self.path), self.path.length, self.filename)
+
+    def start_load(self) -> None:
+        """Read the path file in the part's loader thread; :meth:`run` swaps it in when read."""
+        if self._loading is not None:
+            logger.info("path: already loading %s", self.filename)
+            return
+        if self._loader is None:
+            self._loader = ThreadPoolExecutor(1, thread_name_prefix="path-load")
+        self._loading = self._loader.submit(load_path, self.filename)
+
+    def _take_loaded(self) -> None:
+        """Swap in the path the loader read (or log why it could not)."""
+        job = self._loading
+        if job is None or not job.done():
+            return
+        self._loading = None
+        try:
+            path = job.result()
+        except PathFileError as exc:
+            logger.error("path not loaded: %s", exc)
+            return
+        except Exception as exc:  # a bug must not stop the car: the path stays as it was
+            logger.error("path not loaded from %s: %r", self.filename, exc)
+            return
+        if self.recording:
+            logger.warning("path: %s read, but recording started meanwhile: not loaded", self.filename)
+            return
+        self._loaded(path)
+
+    def shutdown(self) -> None:
+        """Stop the loader thread (a read still running is abandoned)."""
+        if self._loader is not None:
+            self._loader.shutdown(wait=False, cancel_futures=True)
+            self._loader = None
 
     def save(self) -> bool:
         """Write the path file; False (logged) when there is nothing to save or it cannot be written."""
@@ -100,7 +143,7 @@ class PathRecorder:
             self.save()
         elif command == "load":
             self.recording = False
-            self.load()
+            self.start_load()
         elif command == "clear":
             self.recording = False
             self._points = []
@@ -114,6 +157,7 @@ class PathRecorder:
         """(path/xy, path/speed, path/version, path/recording) after this loop."""
         if command:
             self.command(command)
+        self._take_loaded()
         if self.recording and ok and x is not None and y is not None:
             last = self._points[-1] if self._points else None
             if last is None or math.hypot(x - last[0], y - last[1]) >= self.min_dist - 1e-9:

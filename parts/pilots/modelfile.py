@@ -114,6 +114,7 @@ def _read(path: str | os.PathLike[str], map_location: Any) -> dict[str, Any]:
     if not zipfile.is_zipfile(path):  # torch.save has written zip archives since torch 1.6
         raise ModelFileError(f"{path}: not a model file (not a torch zip archive; corrupt, truncated or "
                              "another format). Train a model with `manage.py train` or `vehicle train`.")
+    _check_archive(path)
     try:
         data = torch.load(path, map_location=map_location, weights_only=True)
     except pickle.UnpicklingError as exc:
@@ -138,6 +139,20 @@ def _read(path: str | os.PathLike[str], map_location: Any) -> dict[str, Any]:
             or not isinstance(data["meta"].get("model"), dict):
         raise ModelFileError(f"{path}: model file is incomplete (no weights or no model description)")
     return data
+
+
+def _check_archive(path: Path) -> None:
+    """Refuse an archive whose members fail their CRC-32 (torch.load does not check them: bytes
+    flipped inside the weights load silently as other weights)."""
+    try:
+        with zipfile.ZipFile(path) as zf:
+            bad = zf.testzip()
+    except (zipfile.BadZipFile, OSError, EOFError, ValueError) as exc:
+        raise ModelFileError(f"{path}: not a readable model file (damaged zip archive: {exc}); copy it again "
+                             "or retrain") from exc
+    if bad is not None:
+        raise ModelFileError(f"{path}: damaged: {bad} fails its CRC-32 check (a bad copy or a failing "
+                             "disk); copy the model again or retrain it")
 
 
 def read_meta(path: str | os.PathLike[str]) -> dict[str, Any]:

@@ -1,10 +1,12 @@
 """How a tub and its catalogs come into being, so that a kill at any instant leaves each whole or
 absent, and what repair does with what a kill at birth left (issue 27).
 
-- A new tub is built in a hidden folder beside it (``.NAME.partial-PID``: manifest.json, the first
-  catalog and its ``.catalog_manifest``, ``images/``) and renamed into place: a kill leaves no tub
-  or a complete one; the hidden folders of killed runs are removed by the next creation in the
-  same folder (:func:`parts.tub.format.remove_stale_partials`).
+- A new tub grows in a hidden folder beside it (``.NAME.partial-PID``: manifest.json, the first
+  catalog and its ``.catalog_manifest``, ``images/``) and is renamed into place once its first
+  record is durable: a kill leaves no tub or one with records, never one whose catalog is empty
+  (DonkeyCar 5.3 cannot open that: its read-only open mmaps the catalog). A tub closed without a
+  record leaves nothing. The hidden folders of killed runs are removed by the next creation in
+  the same folder (:func:`parts.tub.format.remove_stale_partials`).
 - A new catalog (a roll-over every max_len records) is written with its first lines to a hidden
   ``.catalog_N.catalog.new``, then its ``.catalog_manifest``, then manifest.json, which lists it,
   and only then renamed into place. DonkeyCar reads the catalogs manifest.json lists: it never
@@ -24,7 +26,7 @@ import shutil
 from collections.abc import Callable
 from pathlib import Path
 
-from parts.tub.format import CATALOG_RE, IMAGES, fsync_dir, remove_stale_partials
+from parts.tub.format import CATALOG_RE, IMAGES, MANIFEST, fsync_dir, remove_stale_partials
 
 logger = logging.getLogger(__name__)
 
@@ -40,12 +42,14 @@ def absent_or_empty(path: Path) -> bool:
     return path.is_dir() and not any(path.iterdir())
 
 
-def create_whole(path: Path, build: Callable[[Path], None], durable: bool = True) -> None:
-    """Create the folder ``path`` (absent or empty) all at once: ``build(tmp)`` fills a hidden
-    folder beside it, which is then renamed to ``path``. A kill leaves ``path`` as it was.
+def start_nursery(path: Path, build: Callable[[Path], None], durable: bool = True) -> Path:
+    """Where a new tub for the folder ``path`` (absent or empty) grows until its first record:
+    ``build(tmp)`` fills a hidden folder beside it, returned; :func:`put_in_place` later renames it
+    to ``path``. A kill before leaves ``path`` as it was (the hidden folder goes with the next
+    creation in that folder).
 
-    Where that cannot be done (``path`` is an empty mount point, such as a USB stick's root, or its
-    parent is read-only) the folder is built in place, as before."""
+    Where no hidden folder can be made (``path``'s parent is read-only) the tub is built in place,
+    as before, and ``path`` is returned."""
     path.parent.mkdir(parents=True, exist_ok=True)
     remove_stale_partials(path.parent)
     tmp = path.parent / f".{path.name}.partial-{os.getpid()}"
@@ -54,25 +58,39 @@ def create_whole(path: Path, build: Callable[[Path], None], durable: bool = True
         tmp.mkdir()
     except OSError:  # a read-only parent
         build(path)
-        return
+        return path
     try:
         build(tmp)
         if durable:
             fsync_dir(tmp)
-        if os.name == "nt" and path.is_dir():
-            path.rmdir()  # Windows renames onto no folder, even an empty one
-        try:
-            os.replace(tmp, path)  # POSIX: replaces an empty folder atomically
-        except OSError as exc:  # EBUSY (a mount point), EXDEV
-            logger.debug("%s: built in place (%s)", path, exc)
-            shutil.rmtree(tmp, ignore_errors=True)
-            build(path)
-            return
-        if durable:
-            fsync_dir(path.parent)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+    return tmp
+
+
+def put_in_place(tmp: Path, path: Path, durable: bool = True) -> None:
+    """Rename the nursery ``tmp`` (:func:`start_nursery`), whose records are durable, to ``path``:
+    the tub appears whole, with its records.
+
+    Where ``path`` cannot be replaced by a rename (an empty mount point, such as a USB stick's root)
+    the files are moved into it one by one, manifest.json last: a kill in between leaves catalogs
+    with records that the next writable open or ``tub check --repair`` completes."""
+    if os.name == "nt" and path.is_dir():
+        path.rmdir()  # Windows renames onto no folder, even an empty one
+    try:
+        os.replace(tmp, path)  # POSIX: replaces an empty folder atomically
+    except OSError as exc:  # EBUSY (a mount point), EXDEV
+        logger.debug("%s: moved in file by file (%s)", path, exc)
+        path.mkdir(exist_ok=True)
+        names = sorted(os.listdir(tmp), key=lambda n: n == MANIFEST)
+        for name in names:
+            os.replace(tmp / name, path / name)
+        if durable:
+            fsync_dir(path)
+        tmp.rmdir()
+    if durable:
+        fsync_dir(path.parent)
 
 
 def staged_catalog(catalog: Path) -> Path:
@@ -125,3 +143,18 @@ def remove_stillborn(path: Path) -> None:
         raise ValueError(f"{path} is not a tub killed at its creation")
     shutil.rmtree(path)
     logger.info("%s: removed a tub killed while it was created (it held no records)", path)
+
+
+def set_aside(path: Path) -> Path:
+    """Rename the tub folder ``path`` to a hidden sibling ``.NAME.empty`` (``-2``, ``-3`` ... when
+    taken), which tub readers and DonkeyCar's ``data/*`` skip; returns it. Used for a tub without
+    records, which DonkeyCar cannot open; ``mv`` brings it back."""
+    aside = path.with_name(f".{path.name}.empty")
+    n = 1
+    while aside.exists():
+        n += 1
+        aside = path.with_name(f".{path.name}.empty-{n}")
+    os.rename(path, aside)
+    fsync_dir(path.parent)
+    logger.info("%s: holds no records; moved aside to %s", path, aside)
+    return aside

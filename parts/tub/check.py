@@ -11,10 +11,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from parts.tub.births import remove_stillborn, stillborn
+from parts.tub.births import remove_stillborn, set_aside, stillborn
 from parts.tub.catalog import parse_line, read_catalog_manifest, scan_catalog, write_catalog_manifest
 from parts.tub.codec import image_problem
 from parts.tub.format import (
+    ALL_TYPES,
     IMAGE_CRCS,
     IMAGE_TYPES,
     INDEX,
@@ -42,19 +43,34 @@ class CheckReport:
     duplicate_indexes: list[int] = field(default_factory=list)
     orphan_images: int = 0
     stillborn: bool = False  # a tub an older version was killed while creating (parts.tub.births)
+    empty: bool = False  # no record at all: DonkeyCar's read-only open fails on its empty catalog
+    moved_to: Path | None = None  # where repair moved an empty tub (restorable)
+    unknown_types: dict[str, str] = field(default_factory=dict)  # key -> a type manifest.json gives it
     repaired: bool = False
 
     @property
+    def settled(self) -> bool:
+        """Nothing is left to do: OK, or repaired with nothing repair cannot decide."""
+        return self.ok or (self.repaired and not self.unknown_types)
+
+    @property
     def ok(self) -> bool:
-        return not (self.stillborn or self.recovered or self.catalog_manifests or self.torn_bytes or self.unparsable
-                    or self.bad_records or self.duplicate_indexes)
+        return not (self.stillborn or self.empty or self.unknown_types or self.recovered or self.catalog_manifests
+                    or self.torn_bytes or self.unparsable or self.bad_records or self.duplicate_indexes)
 
     def lines(self) -> list[str]:
         if self.stillborn:
             return [f"{self.path}: a tub killed while it was created (by an older version): it holds no records "
                     "and DonkeyCar cannot open it",
                     "  removed" if self.repaired else "  run with --repair to remove it (nothing is lost)"]
+        if self.empty:
+            return [f"{self.path}: holds no records and DonkeyCar cannot open it (its read-only open fails on "
+                    "the empty catalog: cannot mmap an empty file)",
+                    f"  moved aside to {self.moved_to}; nothing was lost: mv {self.moved_to} {self.path} restores it"
+                    if self.repaired else "  run with --repair to move it aside (restorable)"]
         out = [f"{self.path}: {self.records} records checked"]
+        out += [f"  manifest.json line 2: {key}: unknown type {tp!r}, its values are not checked (known: "
+                f"{', '.join(ALL_TYPES)}); fix the type by hand" for key, tp in self.unknown_types.items()]
         out += [f"  manifest: {p}" for p in self.recovered]
         out += [f"  {p}" for p in self.catalog_manifests]
         if self.torn_bytes:
@@ -67,6 +83,8 @@ class CheckReport:
             out.append(f"  {self.orphan_images} image files belong to no record (harmless)")
         if self.ok:
             out.append("  OK")
+        elif self.repaired and self.unknown_types:
+            out.append("  repaired what repair can; the unknown types are left as they are")
         elif self.repaired:
             out.append("  repaired: manifest and catalog manifests rewritten, torn lines cut, bad records "
                        "marked deleted")
@@ -94,6 +112,14 @@ def check_tub(path: str | os.PathLike[str], repair: bool = False, decode: bool =
         return report
     ro = Tub(path, read_only=True)
     report = CheckReport(ro.path, recovered=list(ro.problems))
+    report.unknown_types = {k: t for k, t in zip(ro.inputs, ro.types, strict=True) if t not in ALL_TYPES}
+    if ro.current_index == 0:  # not a line in any catalog
+        report.empty = True
+        ro.close()
+        if repair:
+            report.moved_to = set_aside(ro.path)
+            report.repaired = True
+        return report
     report.catalog_manifests = _catalog_manifest_problems(ro)
     report.torn_bytes = sum(_torn(p) for p in ro.catalog_paths)
     if repair:

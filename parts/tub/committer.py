@@ -46,10 +46,10 @@ from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from parts.tub.births import staged_catalog
+from parts.tub.births import put_in_place, staged_catalog
 from parts.tub.catalog import CatalogFile, write_catalog_manifest
 from parts.tub.errors import TubError
-from parts.tub.format import IMAGE_CRCS, O_BINARY, atomic_write, fsync_dir, write_all
+from parts.tub.format import IMAGE_CRCS, IMAGES, O_BINARY, atomic_write, fsync_dir, write_all
 from parts.tub.image_files import ImageFiles
 
 logger = logging.getLogger(__name__)
@@ -84,8 +84,10 @@ class Committer:
     """
 
     def __init__(self, tub_path: Path, images: ImageFiles, catalog: CatalogFile, *, durable: bool,
-                 background: bool, fsync_ms: float = 500.0) -> None:
+                 background: bool, fsync_ms: float = 500.0, birth: Path | None = None) -> None:
         self.tub_path = tub_path
+        # a new tub in its nursery: renamed to ``birth`` by the first commit of a record
+        self.birth = birth
         self.images = images
         self.catalog: CatalogFile | None = catalog  # None between a rollover and its first lines
         self._next: tuple[Path, int] | None = None  # the catalog to create with the next lines
@@ -314,13 +316,31 @@ class Committer:
             else:
                 atomic_write(self.tub_path / "manifest.json", job.manifest, durable=self.durable)
             job.manifest = None
+        if self.birth is not None and self.catalog is not None and self.catalog.size:
+            self._be_born(self.birth)
+
+    def _be_born(self, final: Path) -> None:
+        """Rename a new tub's nursery, whose first records are durable now, to its path: the tub
+        appears with records, never with the empty catalog DonkeyCar cannot open (parts.tub.births).
+        A failure fails the job, which retries only this step."""
+        assert self.catalog is not None  # noqa: S101 - checked by the caller
+        self._sync_lines()
+        self.catalog.save_manifest(durable=self.durable)  # DonkeyCar seeks by its line lengths
+        with self.images.moving():  # no image lands in the old name meanwhile
+            put_in_place(self.tub_path, final, durable=self.durable)
+            self.images.folder = final / IMAGES
+            self.catalog.path = final / self.catalog.path.name
+            self.tub_path = final
+        self.birth = None
+        logger.debug("%s: created with its first records", final)
 
     def _start_catalog(self, job: _Job) -> None:
         """Create the next catalog holding ``job``'s lines (after their images): staged in a hidden
         file, then its ``.catalog_manifest``, then the manifest.json held back for it (which lists
         it), then renamed into place (parts.tub.births: DonkeyCar never silently reads fewer)."""
         assert self._next is not None  # noqa: S101 - a rollover job ran before
-        path, start = self._next
+        name, start = self._next
+        path = self.tub_path / name.name  # named before the tub's birth perhaps: its folder now
         if self.durable:
             self.images.sync()  # the images before their catalog lines
         data = "".join(job.lines).encode()

@@ -16,6 +16,7 @@ best effort (the kernel may have dropped its copy; a file whose size changed is 
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import logging
 import os
@@ -24,7 +25,7 @@ import re
 import sys
 import threading
 import weakref
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -99,12 +100,12 @@ class ImageFiles:
     False = fsync each file.
     """
 
-    def __init__(self, folder: Path, durable: bool, use_syncfs: bool | None = None) -> None:
+    def __init__(self, folder: Path, durable: bool, use_syncfs: bool | None = None, movable: bool = False) -> None:
         self.folder = folder
         self.durable = durable
         self._use_syncfs = use_syncfs
         self._syncfs: Callable[[int], int] | None | bool = False  # False: decided at the first sync
-        # files written, not yet synced (kept until a sync succeeds), with their bytes, or their
+        # names of files written, not yet synced (kept until a sync succeeds), with their bytes, or their
         # size once KEEP_BYTES are held (only a failed sync trims: the list is short otherwise)
         self._pending: list[tuple[str, bytes | int]] = []
         self._rewrite = False  # the last sync failed: write the pending files again first
@@ -115,6 +116,10 @@ class ImageFiles:
         self._folder_fd = -1
         self._folder_close: weakref.finalize | None = None
         self._folder_lock = threading.Lock()
+        # A new tub's folder is renamed once (parts.tub.births): until then writes take this lock,
+        # so none lands in the folder's old name while it moves.
+        self._movable = movable
+        self._move_lock = threading.Lock()
 
     def __len__(self) -> int:
         """Files written and not yet synced."""
@@ -138,10 +143,21 @@ class ImageFiles:
         return self._syncfs  # type: ignore[return-value]
 
     def write(self, name: str, data: bytes) -> None:
-        path = os.path.join(self.folder, name)
-        _write_file(path, data)
+        if self._movable:
+            with self._move_lock:
+                _write_file(os.path.join(self.folder, name), data)
+        else:
+            _write_file(os.path.join(self.folder, name), data)
         if self.durable:
-            self._pending.append((path, data))
+            self._pending.append((name, data))
+
+    @contextlib.contextmanager
+    def moving(self) -> Iterator[None]:
+        """While inside, no file is written: the caller renames the folder and sets :attr:`folder`
+        to its new path. A movable folder moves once."""
+        with self._move_lock:
+            yield
+            self._movable = False
 
     def sync(self) -> None:
         """Make every file written before this call (and not synced yet) durable, with its folder
@@ -164,7 +180,8 @@ class ImageFiles:
     def _sync(self, count: int) -> None:
         if self._rewrite:
             lost = []
-            for path, data in self._pending[:count]:
+            for name, data in self._pending[:count]:
+                path = os.path.join(self.folder, name)
                 if isinstance(data, int):
                     data = _read_back(path, data)
                 if data is None:
@@ -187,7 +204,8 @@ class ImageFiles:
         else:
             if self._pool is None:
                 self._pool = ThreadPoolExecutor(max_workers=FSYNC_THREADS, thread_name_prefix="tub-fsync")
-            jobs = [submit_or_run(self._pool, _fsync_file, path) for path, _data in self._pending[:count]]
+            jobs = [submit_or_run(self._pool, _fsync_file, os.path.join(self.folder, name))
+                    for name, _data in self._pending[:count]]
             errors = []
             for job in jobs:  # wait for every job, even after a failure
                 if (exc := job.exception()) is not None:
@@ -202,11 +220,11 @@ class ImageFiles:
         Runs in the syncing thread only; writers append meanwhile, which leaves items in place.
         """
         kept = 0
-        for i, (path, data) in enumerate(self._pending):
+        for i, (name, data) in enumerate(self._pending):
             if isinstance(data, bytes):
                 kept += len(data)
                 if kept > KEEP_BYTES:
-                    self._pending[i] = (path, len(data))
+                    self._pending[i] = (name, len(data))
 
     def close(self) -> None:
         """Forget pending files (not synced) and stop the fsync threads."""

@@ -16,6 +16,7 @@ import atexit
 import json
 import logging
 import os
+import shutil
 import time
 import weakref
 import zlib
@@ -24,7 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from parts.tub.births import absent_or_empty, complete_staged, create_whole
+from parts.tub.births import absent_or_empty, complete_staged, start_nursery
 from parts.tub.catalog import CatalogFile, parse_line, record_index, scan_catalog
 from parts.tub.codec import encode_image
 from parts.tub.committer import Committer
@@ -109,15 +110,16 @@ class Tub:
             raise ValueError("fsync_records and fsync_ms must be >= 0")
         if not 1 <= int(jpeg_quality) <= 100:
             raise ValueError(f"jpeg_quality must be within 1..100, got {jpeg_quality!r}")
-        self.path = Path(os.path.expanduser(os.fspath(path))).absolute()
+        self._final = Path(os.path.expanduser(os.fspath(path))).absolute()
         self.read_only = read_only
+        self._commit_thread = commit_thread
         self.fsync = fsync
         self.fsync_records = fsync_records
         self.fsync_ms = fsync_ms
         self.jpeg_quality = int(jpeg_quality)
         self._closed = False
         self._committer: Committer | None = None  # None: read-only
-        self._images = ImageFiles(self.path / IMAGES, fsync)
+        self._images = ImageFiles(self._final / IMAGES, fsync)  # the tub's folder is its parent (_dir)
         self._pending_lines: list[str] = []
         self._pending_crcs: list[str] = []  # lines of IMAGE_CRCS for the pending records
         self._pending_since: float | None = None
@@ -129,32 +131,34 @@ class Tub:
         if inputs is not None or types is not None:
             check_schema(list(inputs or []), list(types or []))
         user_meta = parse_metadata(metadata)
-        if not read_only and inputs is not None and not _skeleton and absent_or_empty(self.path):
-            # built whole in a hidden folder, then renamed: a kill leaves no tub or a complete one
-            create_whole(self.path, lambda tmp: Tub(tmp, inputs, types, metadata=user_meta,
-                                                    max_catalog_len=max_catalog_len, fsync=fsync,
-                                                    _skeleton=True).close(), durable=fsync)
-        completed = [] if read_only or not self.path.is_dir() else \
-            complete_staged(self.path, parse_manifest(self.path / MANIFEST).manifest.paths)
-        if not self.path.exists():
+        if not read_only and inputs is not None and not _skeleton and absent_or_empty(self._dir):
+            # grows in a hidden folder, renamed into place with its first record (parts.tub.births):
+            # a kill leaves no tub or one with records, never an empty catalog DonkeyCar cannot open
+            nursery = start_nursery(self._dir, lambda tmp: Tub(tmp, inputs, types, metadata=user_meta,
+                                                               max_catalog_len=max_catalog_len, fsync=fsync,
+                                                               _skeleton=True).close(), durable=fsync)
+            self._images = ImageFiles(nursery / IMAGES, fsync, movable=nursery != self._final)
+        completed = [] if read_only or not self._dir.is_dir() else \
+            complete_staged(self._dir, parse_manifest(self._dir / MANIFEST).manifest.paths)
+        if not self._dir.exists():
             if read_only:
-                raise TubError(f"{self.path}: no such tub folder")
+                raise TubError(f"{self._dir}: no such tub folder")
             if inputs is None:  # nothing to create a tub with: leave no empty folder behind
-                raise TubSchemaError(f"{self.path} is a new tub: give inputs and types")
-            self.path.mkdir(parents=True)
-        elif not self.path.is_dir():
-            raise TubError(f"{self.path} is a file, not a tub folder")
-        state = inspect_tub(self.path, max_catalog_len)
+                raise TubSchemaError(f"{self._dir} is a new tub: give inputs and types")
+            self._dir.mkdir(parents=True)
+        elif not self._dir.is_dir():
+            raise TubError(f"{self._dir} is a file, not a tub folder")
+        state = inspect_tub(self._dir, max_catalog_len)
         self.problems = completed + list(state.problems)
         self.torn = dict(state.torn)  # catalog name -> bytes of its torn last line (cut when writable)
         self._dropped = list(state.dropped)  # empty trailing catalogs, removed when writable
-        if read_only and not state.is_tub:
-            raise TubError(f"{self.path} is not a tub: it has no manifest.json and no catalog_*.catalog")
+        if read_only and not state.is_tub and inputs is None:  # with inputs: a tub to be, read as empty
+            raise TubError(f"{self._dir} is not a tub: it has no manifest.json and no catalog_*.catalog")
         m = state.manifest
         if not state.has_schema or not m.inputs and not m.paths:
             if inputs is None:
                 if not read_only:
-                    raise TubSchemaError(f"{self.path} is a new tub: give inputs and types")
+                    raise TubSchemaError(f"{self._dir} is a new tub: give inputs and types")
                 m.inputs, m.types = [], []
             else:
                 m.inputs, m.types = list(inputs), list(types or [])
@@ -163,7 +167,7 @@ class Tub:
                     m.manifest_metadata.setdefault("created_at", time.time())
         elif inputs is not None and (list(inputs) != m.inputs or list(types or []) != m.types):
             raise TubSchemaError(
-                f"{self.path} stores inputs {m.inputs} with types {m.types}, not {list(inputs)} "
+                f"{self._dir} stores inputs {m.inputs} with types {m.types}, not {list(inputs)} "
                 f"{list(types or [])}. Record into a new tub, or open this one without inputs/types.")
         new_meta = {k: v for k, v in user_meta.items() if m.metadata.get(k) != v}
         m.metadata.update(user_meta)
@@ -176,9 +180,24 @@ class Tub:
             self._atexit = _close_at_exit(self)
             atexit.register(self._atexit)
         if self.problems:
-            logger.warning("%s: recovered: %s", self.path, "; ".join(self.problems))
+            logger.warning("%s: recovered: %s", self._dir, "; ".join(self.problems))
 
     # -- properties --------------------------------------------------------------------------------
+    @property
+    def path(self) -> Path:
+        """The tub folder (a new tub appears there with its first record)."""
+        return self._final
+
+    @property
+    def _dir(self) -> Path:
+        """Where the tub's files are now: a new tub's hidden nursery until its first commit."""
+        return self._images.folder.parent
+
+    @property
+    def unborn(self) -> bool:
+        """Whether this new tub has no record yet and is still in its hidden nursery."""
+        return self._dir != self._final
+
     @property
     def inputs(self) -> list[str]:
         return self.manifest.inputs
@@ -206,17 +225,17 @@ class Tub:
 
     @property
     def catalog_paths(self) -> list[Path]:
-        return [self.path / p for p in self.manifest.paths]
+        return [self._dir / p for p in self.manifest.paths]
 
     @property
     def images_path(self) -> Path:
-        return self.path / IMAGES
+        return self._dir / IMAGES
 
     def __len__(self) -> int:
         return self.manifest.current_index - len(self.manifest.deleted_indexes)
 
     def __repr__(self) -> str:
-        return f"Tub({str(self.path)!r}, records={len(self)}, read_only={self.read_only})"
+        return f"Tub({str(self._dir)!r}, records={len(self)}, read_only={self.read_only})"
 
     def __enter__(self) -> Tub:
         return self
@@ -231,20 +250,21 @@ class Tub:
         if not m.paths:
             m.paths.append(catalog_name(0))
         start = (len(m.paths) - 1) * m.max_len
-        catalog = CatalogFile.open_append(self.path / m.paths[-1], start, durable=self.fsync)
+        catalog = CatalogFile.open_append(self._dir / m.paths[-1], start, durable=self.fsync)
         if not clean:
-            m.save(self.path, durable=self.fsync)
+            m.save(self._dir, durable=self.fsync)
         for name in self._dropped:  # no longer listed: now their files can go
-            for dropped in (self.path / name, self.path / catalog_manifest_name(name)):
+            for dropped in (self._dir / name, self._dir / catalog_manifest_name(name)):
                 dropped.unlink(missing_ok=True)
-        self._committer = Committer(self.path, self._images, catalog, durable=self.fsync,
-                                    background=commit_thread, fsync_ms=self.fsync_ms)
+        self._committer = Committer(self._dir, self._images, catalog, durable=self.fsync,
+                                    background=commit_thread, fsync_ms=self.fsync_ms,
+                                    birth=self._final if self.unborn else None)
 
     def _check_writable(self) -> None:
         if self.read_only:
-            raise TubError(f"{self.path} was opened read-only")
+            raise TubError(f"{self._dir} was opened read-only")
         if self._closed:
-            raise TubError(f"{self.path} is closed")
+            raise TubError(f"{self._dir} is closed")
 
     def write_images(self, index: int, record: MutableMapping[str, Any]) -> None:
         """Write the record's images as the files of record ``index``, replacing each value by its
@@ -276,10 +296,10 @@ class Tub:
         if index is None:
             index = m.current_index
         elif index < m.current_index:
-            raise ValueError(f"{self.path}: record index {index} is taken; the next one is {m.current_index}")
+            raise ValueError(f"{self._dir}: record index {index} is taken; the next one is {m.current_index}")
         for value in record.values():
             if isinstance(value, StoredImage) and value.index != index:
-                raise ValueError(f"{self.path}: image {value.name} belongs to record {value.index}, "
+                raise ValueError(f"{self._dir}: image {value.name} belongs to record {value.index}, "
                                  f"not {index}")
         values = dict(record)
         self.write_images(index, values)
@@ -307,7 +327,7 @@ class Tub:
         deleted indexes beyond the last record, which recovery drops."""
         m = self.manifest
         logger.warning("%s: records %d..%d could not be written; kept as deleted records",
-                       self.path, m.current_index, index - 1)
+                       self._dir, m.current_index, index - 1)
         m.deleted_indexes.update(range(m.current_index, index))
         self._submit(force_manifest=True)
         while m.current_index < index:
@@ -402,14 +422,14 @@ class Tub:
         m = self.manifest
         name = catalog_name(len(m.paths))
         m.paths.append(name)
-        self._submit(force_manifest=True, next_catalog=(self.path / name, m.current_index))
+        self._submit(force_manifest=True, next_catalog=(self._dir / name, m.current_index))
 
     # -- deleting ---------------------------------------------------------------------------------------
     def _check_indexes(self, indexes: int | Iterable[int]) -> set[int]:
         idx = {indexes} if isinstance(indexes, int) else {int(i) for i in indexes}
         bad = sorted(i for i in idx if not 0 <= i < self.current_index)
         if bad:
-            raise ValueError(f"{self.path}: indexes {bad[:5]} are outside 0..{self.current_index - 1}")
+            raise ValueError(f"{self._dir}: indexes {bad[:5]} are outside 0..{self.current_index - 1}")
         return idx
 
     def delete_records(self, indexes: int | Iterable[int]) -> None:
@@ -419,7 +439,7 @@ class Tub:
         self.manifest.deleted_indexes |= idx
         self.flush()
         if idx:
-            logger.info("%s: deleted %d records (%d..%d)", self.path, len(idx), min(idx), max(idx))
+            logger.info("%s: deleted %d records (%d..%d)", self._dir, len(idx), min(idx), max(idx))
 
     def restore_records(self, indexes: int | Iterable[int]) -> list[int]:
         """Undo soft deletes; returns the indexes kept deleted because their records have no input
@@ -434,7 +454,7 @@ class Tub:
         self.flush()
         if empty:
             # debug: callers get the indexes (the CLI prints them)
-            logger.debug("%s: %d records kept deleted: they have no input value, e.g. %d", self.path,
+            logger.debug("%s: %d records kept deleted: they have no input value, e.g. %d", self._dir,
                          len(empty), min(empty))
         return sorted(empty)
 
@@ -501,7 +521,18 @@ class Tub:
             if self._committer is not None:
                 self._committer.close()
             self._images.close()
-            logger.debug("%s: closed (%d records written this session)", self.path, self.written)
+            if self.unborn:
+                self._leave_nursery()
+            logger.debug("%s: closed (%d records written this session)", self._dir, self.written)
+
+    def _leave_nursery(self) -> None:
+        """At close: a new tub without records leaves nothing (never an empty tub); one whose
+        records could not be committed (a failing disk) is left where they are, and named."""
+        if self.manifest.current_index == 0:
+            shutil.rmtree(self._dir, ignore_errors=True)
+            logger.debug("%s: no record written, no tub created", self.path)
+        else:
+            logger.error("%s: its records could not be committed; what was written is in %s", self.path, self._dir)
 
     @property
     def closed(self) -> bool:

@@ -15,7 +15,6 @@ import atexit
 import logging
 import os
 import queue
-import shutil
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
@@ -168,8 +167,6 @@ class TubWriter:
         queue_size: records in flight (accepted by run(), not yet written) before new ones are
             dropped.
         fsync, fsync_records, fsync_ms, jpeg_quality: see :class:`parts.tub.tub.Tub`.
-        remove_if_empty: when the folder is created here and no record is written, remove it on
-            shutdown.
         encode_threads: threads sharing the JPEG encoding and image writes (the recording
             thread and ``encode_threads - 1`` helpers); default 2 on a machine with 2 or more
             cores. A batch is split only when records queued up (a burst, or the disk stalled),
@@ -189,7 +186,7 @@ class TubWriter:
     def __init__(self, base_path: str | os.PathLike[str], inputs: list[str], types: list[str],
                  metadata: Mapping[str, Any] | Iterable[str] | None = None, max_catalog_len: int = 1000,
                  *, queue_size: int = 100, fsync: bool = True, fsync_records: int = 20,
-                 fsync_ms: float = 500.0, jpeg_quality: int = 75, remove_if_empty: bool = False,
+                 fsync_ms: float = 500.0, jpeg_quality: int = 75,
                  encode_threads: int | None = None) -> None:
         inputs, types = list(inputs), list(types)
         if len(inputs) != len(types):
@@ -202,9 +199,6 @@ class TubWriter:
         if encode_threads < 1:
             raise ValueError(f"TubWriter: encode_threads must be >= 1, got {encode_threads}")
         self.inputs = inputs
-        # A tub folder this writer creates is removed again when no record was ever written to it
-        # (with remove_if_empty), so drives without recording leave no empty tubs behind.
-        self._remove_if_empty = remove_if_empty and not os.path.exists(base_path)
         self._ts_pos = inputs.index(TIMESTAMP_INPUT) if TIMESTAMP_INPUT in inputs else None
         keep = [i for i in range(len(inputs)) if i != self._ts_pos]
         self.tub = Tub(base_path, [inputs[i] for i in keep], [types[i] for i in keep], metadata,
@@ -337,9 +331,6 @@ class TubWriter:
         if recorder.error is not None:
             logger.error("%s: the recording thread failed (%r); %d accepted records were not written",
                          self.path, recorder.error, self.pending())
-        if self._remove_if_empty and self.tub.current_index == 0:
-            shutil.rmtree(self.tub.path, ignore_errors=True)
-            logger.info("%s: no record written; empty tub removed", self.path)
         if self.stats.dropped:
             logger.warning("%s: %d records were dropped (queue full)", self.path, self.stats.dropped)
         logger.info("%s: %d records written this session", self.path, self.stats.written)

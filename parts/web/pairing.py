@@ -127,9 +127,11 @@ def resolve_token(host: str, token: str | None) -> str | None:
 
 
 class FailureGuard:
-    """Slows a client that sends wrong pairing tokens: after :data:`FREE_FAILURES` it must wait
-    (1 s, then twice as long after each further failure, up to :data:`MAX_LOCKOUT_S`) before any
-    token of its is checked again. Failures are logged once per client per :data:`LOG_EVERY_S`.
+    """Slows a client that sends wrong pairing tokens: after :data:`FREE_FAILURES` its wrong tokens
+    must wait (1 s, then twice as long after each further failure, up to :data:`MAX_LOCKOUT_S`).
+    The right token is never made to wait: a client is an address, and a guesser behind the same
+    NAT as the driver must not keep the driver out. Failures are logged once per client per
+    :data:`LOG_EVERY_S`.
 
     Args:
         server: the name logs give the server (``console``, ``web``).
@@ -149,6 +151,12 @@ class FailureGuard:
         """Seconds ``client`` must wait before its token is checked again (0: check it now)."""
         entry = self._clients.get(client)
         return 0.0 if entry is None else max(0.0, entry[1] - self._clock())
+
+    def refusal_s(self, client: str, right: bool) -> int:
+        """Whole seconds (the Retry-After) ``client`` must wait before a token that is not
+        ``right`` is answered; 0: answer now. The right token never waits."""
+        wait = 0.0 if right else self.wait_s(client)
+        return max(1, math.ceil(wait)) if wait > 0 else 0
 
     def failed(self, client: str) -> None:
         """Count a wrong token from ``client``."""

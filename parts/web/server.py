@@ -301,6 +301,12 @@ class WebServer:
     async def _index(self, request: Any) -> Any:
         from aiohttp import web
 
+        if self.token is not None:  # while an address must wait, its page without the right token too
+            wait = self._guard.refusal_s(request.remote or "?", token_ok(self.token, dict(request.query)))
+            if wait:
+                return web.Response(status=429, headers={"Retry-After": str(wait), "Cache-Control": "no-store"},
+                                    text=f"too many wrong pairing tokens from this address: wait {wait} s, then "
+                                         "open the URL printed when the car started\n")
         return web.FileResponse(self.static_dir / "index.html",
                                 headers={"Cache-Control": "no-cache", "Content-Type": "text/html"})
 
@@ -339,11 +345,12 @@ class WebServer:
         @sio.event
         async def connect(sid: str, environ: dict[str, Any], auth: Any = None) -> None:
             client = environ.get("REMOTE_ADDR", "?")
-            wait = self._guard.wait_s(client) if self.token is not None else 0.0
-            if wait > 0:
+            right = token_ok(self.token, auth)
+            wait = self._guard.refusal_s(client, right) if self.token is not None else 0
+            if wait:
                 raise socketio.exceptions.ConnectionRefusedError(
-                    f"too many wrong pairing tokens from this address: wait {max(1, int(wait + 0.999))} s")
-            if not token_ok(self.token, auth):
+                    f"too many wrong pairing tokens from this address: wait {wait} s")
+            if not right:
                 if isinstance(auth, dict) and auth.get("token"):
                     self._guard.failed(client)  # a wrong token (a missing one is no guess): slowed, logged
                 raise socketio.exceptions.ConnectionRefusedError(

@@ -68,3 +68,33 @@ def test_a_validation_share_of_one_still_trains_on_one_block(cfg, tiny_tub, tmp_
     metrics = train(cfg.replace(TRAIN_TEST_SPLIT=0.0, TRAIN_STEPS_PER_EPOCH=1), [tiny_tub], tmp_path / "m.pt",
                     epochs=1, register=False)
     assert 0 < metrics["train_samples"] < metrics["val_samples"]
+
+
+def test_a_stopped_run_keeps_the_model_the_user_had(cfg, tiny_tub, tmp_path, torch_one_thread):
+    """Hardening item 27: Ctrl-C in epoch 2 of 3 replaced an existing models/pilot.pt with the
+    interrupted run's best and reported "best epoch 1 of 1"."""
+    model = tmp_path / "models" / "pilot.pt"
+    cfg = cfg.replace(TRAIN_STEPS_PER_EPOCH=2)
+    train(cfg, [tiny_tub], model, epochs=1, register=False)
+    before = model.read_bytes()
+    batches = []
+
+    def on_event(event):
+        if event["event"] == "batch":
+            batches.append(event["epoch"])
+
+    metrics = train(cfg, [tiny_tub], model, epochs=3, register=False, on_event=on_event,
+                    should_stop=lambda: len(batches) >= 3)  # in epoch 2, after its first batch
+    assert model.read_bytes() == before  # the user's model is kept
+    interrupted = tmp_path / "models" / "pilot.interrupted.pt"
+    assert metrics["model_file"] == str(interrupted) and metrics["kept_model"] == str(model)
+    assert load_model(interrupted)[1]["metrics"]["cancelled"] is True
+    assert (metrics["stopped_in_epoch"], metrics["epochs_planned"], metrics["epochs"], metrics["best_epoch"]) == \
+        (2, 3, 1, 1)
+    from training.train_report import train_summary
+
+    said = train_summary(metrics, model)
+    assert said.startswith(f"stopped by Ctrl-C in epoch 2 of 3: saved {interrupted} (best epoch 1, 1 of 3 epochs run")
+    assert f"kept your {model} (a stopped run does not replace it)" in said
+    finished = train(cfg, [tiny_tub], model, epochs=1, register=False)  # a finished run replaces it
+    assert model.read_bytes() != before and finished["model_file"] == str(model) and finished["kept_model"] is None

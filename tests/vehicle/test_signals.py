@@ -57,3 +57,22 @@ def test_signal_stops_safely_with_nonzero_exit(tmp_path, sig):
     assert log.read_text().splitlines() == ["neutral", "shutdown throttle", "shutdown camera"]
     if sig != signal.SIGINT:
         assert f"stopped by {signal.Signals(sig).name}" in err
+
+
+def _ignore_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # what a shell does to a job started with `&`
+
+
+def test_sigint_stops_a_car_that_inherited_it_ignored(tmp_path):
+    """A script's ``manage.py drive &`` starts with SIGINT ignored; ``kill -INT`` must still stop it."""
+    log = tmp_path / "log.txt"
+    proc = subprocess.Popen([sys.executable, "-c", SCRIPT, str(log)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, preexec_fn=_ignore_sigint)
+    assert proc.stdout.readline().strip() == "running"
+    proc.send_signal(signal.SIGINT)
+    try:
+        _, err = proc.communicate(timeout=20)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, err
+    assert log.read_text().splitlines() == ["neutral", "shutdown throttle", "shutdown camera"]

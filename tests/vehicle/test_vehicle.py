@@ -267,6 +267,23 @@ def test_summary_has_per_part_percentiles_in_bounded_memory():
     assert V.mem["loop/count"] == 5000 and V.mem["loop/rate_hz"] == pytest.approx(100.0)
 
 
+def test_summary_shows_a_stall_of_one_loop():
+    """Hardening item 13: a part that held one loop for seconds (a 43 MB path file read in run())
+    did not show in the summary's first lines; the longest loop and a STALL line now do."""
+    clock = SimulatedClock()
+    V = Vehicle(clock=clock)
+    V.add(lambda: clock.advance(8.0) if round(clock.now() * 20) == 3 else None)
+    V.start(rate_hz=20, max_loop_count=10, log_summary=False)
+    s = V.summary
+    assert s.longest_loop_s == pytest.approx(8.0) and s.stalled
+    text = s.format()
+    assert "longest loop 8000.0 ms" in text and "STALL: one loop took 8.00 s, 160 loop periods" in text
+    V2 = Vehicle(clock=SimulatedClock())
+    V2.add(lambda: None)
+    V2.start(rate_hz=20, max_loop_count=10, log_summary=False)
+    assert not V2.summary.stalled and "STALL" not in V2.summary.format()
+
+
 def test_simulated_time_loop_has_exact_deadlines():
     clock = SimulatedClock()
     V = Vehicle(clock=clock)

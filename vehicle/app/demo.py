@@ -247,10 +247,9 @@ def train_or_stop(cfg: Any, tubs: list[Path], model_path: Path, *, ends: str = "
                 raise KeyboardInterrupt from None
             raise
     if metrics.get("cancelled"):
-        best = metrics.get("best_val_loss")
-        loss = f"{best:.5f}" if isinstance(best, float) else "n/a"
-        say(f"stopped by Ctrl-C: kept {model_path} (best epoch {metrics['best_epoch']} of {metrics['epochs']}, "
-            f"val_loss {loss}) with its metrics, loss plot and registry entry; {ends}")
+        from training.train_report import train_summary
+
+        say(f"{train_summary(metrics, model_path)}, with its loss plot and registry entry; {ends}")
         raise KeyboardInterrupt
     return metrics
 

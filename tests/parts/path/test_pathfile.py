@@ -61,3 +61,26 @@ def test_transformed_sees_the_path_from_a_pose():
     path = Path([[1.0, 1.0], [1.0, 2.0]], [0, 0])
     seen = path.transformed(1.0, 1.0, np.pi / 2)  # standing at (1, 1) facing +y
     np.testing.assert_allclose(seen.xy, [[0, 0], [1, 0]], atol=1e-6)
+
+
+def test_a_huge_field_a_far_point_and_too_many_points_are_refused_in_one_line(tmp_path, monkeypatch):
+    """Hardening item 13: a field over csv's 128 KiB limit raised csv.Error (a traceback at start,
+    a stopped car when loaded while driving); 1e308 passed (float32: inf); 2 M points blocked."""
+    from parts.path import pathfile
+
+    big = tmp_path / "big.csv"
+    big.write_text("x,y,speed\n0,0,1\n1," + "9" * 140_000 + ",1\n")
+    with pytest.raises(pathfile.PathFileError, match=r"big.csv, line 3: not a CSV line \(field larger"):
+        pathfile.load_path(big)
+    far = tmp_path / "far.csv"
+    far.write_text("x,y,speed\n0,0,1\n1e308,0,1\n")
+    with pytest.raises(pathfile.PathFileError, match=r"far.csv, line 3: '1e308,0,1' is out of range"):
+        pathfile.load_path(far)
+    monkeypatch.setattr(pathfile, "MAX_POINTS", 3)
+    many = tmp_path / "many.csv"
+    many.write_text("x,y,speed\n" + "".join(f"{i},0,1\n" for i in range(4)))
+    with pytest.raises(pathfile.PathFileError, match=r"many.csv, line 5: more than 3 points"):
+        pathfile.load_path(many)
+    monkeypatch.setattr(pathfile, "MAX_BYTES", 20)
+    with pytest.raises(pathfile.PathFileError, match=r"larger than a path file may be"):
+        pathfile.load_path(many)

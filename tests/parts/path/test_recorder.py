@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import logging
 import os
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -36,7 +38,8 @@ def test_records_a_point_every_min_dist_with_the_speed_and_saves_and_loads(tmp_p
     assert len(load_path(tmp_path / "p.csv")) == 6
     xy3, _, version3, _ = rec.run(1.0, 0.0, True, 1.0, "clear")
     assert len(xy3) == 0 and version3 == version + 1 and xy3 is not xy2  # a new array for the view
-    xy4, *_ = rec.run(1.0, 0.0, True, 1.0, "load")
+    rec.run(1.0, 0.0, True, 1.0, "load")
+    xy4 = _loaded(rec, version3)
     np.testing.assert_allclose(xy4, xy2, atol=1e-4)
     assert PathRecorder(tmp_path / "p.csv").path.length == pytest.approx(1.0, abs=1e-3)  # loaded at start
 
@@ -56,6 +59,49 @@ def test_failed_load_and_save_keep_the_path_and_the_car_driving(tmp_path, caplog
     rec.filename = tmp_path / "no" / "such" / "dir" / "file.csv"
     (tmp_path / "no").write_text("a file, not a folder")
     assert rec.save() is False and "path not saved" in caplog.text
+
+
+def _loaded(rec: PathRecorder, version: int) -> np.ndarray:
+    """Run the part until the path read by its loader thread is swapped in; the new path/xy."""
+    for _ in range(2000):
+        xy, _, v, _ = rec.run(1.0, 0.0, True, 1.0, None)
+        if v != version:
+            return xy
+        time.sleep(0.005)
+    raise AssertionError("the path was never swapped in")
+
+
+def test_a_path_is_loaded_off_the_loop_and_a_bad_one_never_stops_the_car(tmp_path, monkeypatch, caplog):
+    """Hardening item 13: "load" read the file in run(): a 43 MB file held the loop for seconds and
+    a field over csv's limit raised out of run() (the car stopped). Now the loop goes on while a
+    thread reads, and a bad file is one logged line."""
+    from parts.path import recorder as recorder_module
+
+    good = tmp_path / "p.csv"
+    good.write_text("x,y,speed\n0,0,1\n1,0,1\n")
+    rec = PathRecorder(good, load=False)
+    gate, real = threading.Event(), recorder_module.load_path
+    monkeypatch.setattr(recorder_module, "load_path", lambda f: (gate.wait(10), real(f))[1])
+    xy, _, version, _ = rec.run(0.0, 0.0, True, 1.0, "load")  # returns while the file is being read
+    assert len(xy) == 0 and version == 0
+    assert rec.run(0.0, 0.0, True, 1.0, None)[2] == 0  # the loop goes on: still the old path
+    gate.set()
+    np.testing.assert_allclose(_loaded(rec, 0), [[0, 0], [1, 0]])
+    monkeypatch.setattr(recorder_module, "load_path", real)
+    good.write_text("x,y,speed\n0,0,1\n1," + "9" * 140_000 + ",1\n")
+    with caplog.at_level(logging.ERROR):
+        rec.run(0.0, 0.0, True, 1.0, "load")
+        for _ in range(2000):
+            if "path not loaded" in caplog.text:
+                break
+            rec.run(0.0, 0.0, True, 1.0, None)
+            time.sleep(0.005)
+    assert "p.csv, line 3: not a CSV line (field larger than field limit" in caplog.text
+    assert len(rec.run(0.0, 0.0, True, 1.0, None)[0]) == 2  # unchanged
+    caplog.clear()
+    assert len(PathRecorder(good).path) == 0  # present at start: logged, no traceback
+    assert "path not loaded" in caplog.text
+    rec.shutdown()
 
 
 def test_recorder_keeps_the_part_contract(tmp_path):

@@ -243,3 +243,74 @@ def test_a_tub_is_built_in_place_where_it_cannot_be_renamed_into_place(tmp_path,
         tub.write_record({"cam/image_array": _frame(1), "user/angle": 0.1})
     assert len(Tub(stick, read_only=True)) == 1 and check_tub(stick).ok
     assert [p.name for p in tmp_path.iterdir()] == ["stick"]
+
+
+def _record_one(path) -> None:
+    with Tub(path, INPUTS, TYPES, max_catalog_len=5) as tub:
+        tub.write_record({"cam/image_array": _frame(1), "user/angle": 0.5})
+
+
+def test_a_tub_is_never_visible_with_an_empty_catalog(tmp_path, donkeycar_opens):
+    """Hardening item 12: a kill right after a tub's birth, before its first record was committed,
+    left a 0-record tub that DonkeyCar 5.3 cannot open (its read-only open mmaps the catalog:
+    ``cannot mmap an empty file``). A tub now becomes visible with its first record."""
+    n, windows, visible = 0, 0, 0
+    while True:
+        n += 1
+        path = tmp_path / f"tub_{n}"
+        if not _killed_at(n, lambda p=path: _record_one(p)):
+            break
+        windows += 1
+        if path.exists():
+            visible += 1
+            assert donkeycar_opens(path) == [], f"call {n}: {sorted(os.listdir(path))}"
+            assert [r["user/angle"] for r in Tub(path, read_only=True)] == [0.5], f"call {n}"
+            assert check_tub(path).ok, f"call {n}"
+    assert windows > 5 and visible > 0
+    _record_one(tmp_path / "last")  # the hidden folders of the killed ones are removed
+    assert donkeycar_opens(tmp_path / "last") == []
+    assert [p.name for p in tmp_path.iterdir() if not p.name.startswith("tub_")] == ["last"]
+
+
+def test_a_tub_closed_without_records_leaves_nothing(tmp_path):
+    from parts.tub.writer import TubWriter
+
+    Tub(tmp_path / "plain", INPUTS, TYPES).close()
+    TubWriter(tmp_path / "writer", INPUTS, TYPES).shutdown()
+    assert list(tmp_path.iterdir()) == []
+
+
+def _donkeycar_empty_tub(path) -> None:
+    """What DonkeyCar 5.3 leaves after driving without recording (reference section 2.6, #815)."""
+    path.mkdir()
+    (path / "images").mkdir()
+    (path / "manifest.json").write_text(
+        '["cam/image_array", "user/angle"]\n["image_array", "float"]\n{}\n'
+        '{"created_at": 1795238373.33, "sessions": {"all_full_ids": [], "last_id": 0, "last_full_id": ""}}\n'
+        '{"paths": ["catalog_0.catalog"], "current_index": 0, "max_len": 1000, "deleted_indexes": []}')
+    (path / "catalog_0.catalog").write_bytes(b"")
+    (path / "catalog_0.catalog_manifest").write_text(
+        '{"created_at": 1795238373.33, "line_lengths": [], "path": "catalog_0.catalog_manifest", "start_index": 0}')
+
+
+def test_check_flags_an_empty_tub_and_repair_moves_it_aside_restorably(tmp_path, capsys, donkeycar_opens):
+    from vehicle.app.cli import main
+
+    data = tmp_path / "data"
+    data.mkdir()
+    empty = data / "tub_empty"
+    _donkeycar_empty_tub(empty)
+    assert donkeycar_opens(empty) == ["ValueError: cannot mmap an empty file (catalog_0.catalog)"]
+    manifest = (empty / "manifest.json").read_bytes()
+    report = check_tub(empty)
+    assert not report.ok and report.empty
+    assert main(["tub", "check", str(empty)]) == 1
+    out = capsys.readouterr().out
+    assert "no records" in out and "DonkeyCar cannot open it" in out and "--repair" in out
+    assert main(["tub", "check", "--repair", str(data)]) == 0
+    out = capsys.readouterr().out
+    aside = data / ".tub_empty.empty"
+    assert not empty.exists() and (aside / "manifest.json").read_bytes() == manifest
+    assert f"mv {aside} {empty}" in out
+    assert main(["tub", "check", str(data)]) == 2  # no tub left to check: said, not OK
+    assert "holds no tub" in capsys.readouterr().err

@@ -151,7 +151,7 @@ def test_ctrl_c_while_a_demo_trains_keeps_and_registers_the_best_model(tmp_path,
     presser.join()
     assert rc == 130
     printed = capsys.readouterr().out
-    assert f"stopped by Ctrl-C: kept {model} (best epoch" in printed
+    assert "stopped by Ctrl-C in epoch " in printed and f"of 10000: saved {model} (best epoch" in printed
     metrics = json.loads(model.with_suffix(".metrics.json").read_text())
     assert metrics["cancelled"] and 1 <= metrics["best_epoch"] < 10000
     assert ModelRegistry.for_models_dir(out / "models").get(model.stem).type == ("lanes" if lanes else "linear")

@@ -108,8 +108,7 @@ def add_tub_writer(V: Any, cfg: Any, inputs: list[str] | None = None, types: lis
         writer = TubWriter(path, inputs, types, metadata=list(cfg.METADATA),
                            max_catalog_len=cfg.TUB_MAX_CATALOG_LEN, queue_size=cfg.TUB_QUEUE_SIZE,
                            fsync=cfg.TUB_FSYNC, fsync_records=cfg.TUB_FSYNC_RECORDS,
-                           fsync_ms=cfg.TUB_FSYNC_MS, jpeg_quality=cfg.TUB_JPEG_QUALITY,
-                           remove_if_empty=True)  # a folder it creates and never records into goes again
+                           fsync_ms=cfg.TUB_FSYNC_MS, jpeg_quality=cfg.TUB_JPEG_QUALITY)
     except (TubError, ValueError) as exc:
         raise UserError(f"cannot record into {path}: {exc}") from exc
     V.add(writer, run_condition="recording")

@@ -97,7 +97,11 @@ def cmd_check(args: argparse.Namespace) -> int:
         raise UserError(f"--seconds {args.seconds}: give 0.05 to 10 seconds per step")
     cfg = load_for_command(args)
     if not args.yes:
-        answer = input(f"DRIVE_TRAIN_TYPE = {cfg.DRIVE_TRAIN_TYPE}: are the wheels off the ground? [y/N] ")
+        try:
+            answer = input(f"DRIVE_TRAIN_TYPE = {cfg.DRIVE_TRAIN_TYPE}: are the wheels off the ground? [y/N] ")
+        except EOFError:  # standard input is not a terminal (a script, a service): nobody can answer
+            raise UserError("no answer to 'are the wheels off the ground?' (standard input is not a terminal): "
+                            "put the car on a stand and add --yes; nothing was moved") from None
         if answer.strip().lower() not in ("y", "yes"):
             print("Put the car on a stand first; nothing was moved.")  # noqa: T201 - the command's output
             return 1

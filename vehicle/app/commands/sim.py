@@ -54,8 +54,9 @@ def register(subparsers: Any) -> None:
     ev.add_argument("--png", type=_png, help="write the driven trajectories over the track maps here (.png)")
     ev.add_argument("--lane-changes", action=argparse.BooleanOptionalAction, default=None,
                     help="command lane changes and score them (default: for a behaviour pilot when SIM_LANES = 2)")
-    ev.add_argument("--store", action="store_true",
-                    help="keep the result in the car's model registry (the leaderboard ranks stored results)")
+    ev.add_argument("--store", action=argparse.BooleanOptionalAction, default=None,
+                    help="keep the result in the car's model registry, where `vehicle models` shows it and the "
+                         "leaderboard ranks it (default: when the model is registered; --store: it must be)")
     ev.add_argument("--draws", type=int, metavar="N",
                     help="robustness: drive the tracks in each theme of --theme (default SIM_THEME) under N hidden "
                          "randomisation draws (seeds 1001..1000+N, never used for training) and report per theme "
@@ -295,17 +296,23 @@ def _write_and_store(args: argparse.Namespace, cfg: Any, report: dict[str, Any])
         print(f"wrote {write_json(report, args.json)}")  # noqa: T201
     if args.png:
         print(f"wrote {write_png(report, args.png, cfg)}")  # noqa: T201
-    if args.store:
-        from training.model_db import RegistryError
-        from vehicle.app.eval_store import store_report
+    if args.pilot in (None, "expert"):
+        if args.store:
+            raise UserError("--store keeps evaluations of registered models; the expert (or a path alone) is not one")
+        return
+    if args.store is False:
+        return
+    from training.model_db import RegistryError
+    from vehicle.app.eval_store import store_report
 
-        if args.pilot == "expert":
-            raise UserError("--store keeps evaluations of registered models; the expert is not one")
-        try:
-            ev = store_report(cfg, Path(args.pilot), report)
-        except RegistryError as exc:
+    try:
+        ev = store_report(cfg, Path(args.pilot), report)
+    except RegistryError as exc:
+        if args.store:
             raise UserError(f"--store: {exc}") from exc
-        print(f"stored as evaluation {ev.id} of {ev.model}")  # noqa: T201
+        print(f"not stored: {args.pilot} is not in the car's model registry ({cfg.path('MODELS_PATH')})")  # noqa: T201
+        return
+    print(f"stored as evaluation {ev.id} of {ev.model} (shown by `vehicle models`; --no-store leaves it out)")  # noqa: T201
 
 
 def _path_driver(args: argparse.Namespace, cfg: Any, seeds: list[int]) -> Any:

@@ -174,7 +174,6 @@ def run_from_args(cfg: Any, args: argparse.Namespace) -> int:
     """
     from training.fit import TrainingDiverged
     from training.hyperparams import settings_for
-    from training.train_report import sidecar
     from training.trainer import dataset_model_path, default_model_path, train
 
     clean = hyperparams_from_args(args)
@@ -214,11 +213,9 @@ def run_from_args(cfg: Any, args: argparse.Namespace) -> int:
                 return 130
             raise UserError(f"training failed: {exc}") from exc
     if int(os.environ.get("RANK", "0")) == 0:
-        best = metrics.get("best_val_loss")
-        loss = f"{best:.5f}" if isinstance(best, float) else "n/a"
-        stopped = "stopped by Ctrl-C: " if metrics.get("cancelled") else ""
-        print(f"{stopped}saved {model_path} (best epoch {metrics['best_epoch']} of {metrics['epochs']}, "  # noqa: T201
-              f"val_loss {loss}); metrics: {sidecar(model_path, '.metrics.json')}")
+        from training.train_report import train_summary
+
+        print(train_summary(metrics, model_path))  # noqa: T201 - the command's output
     return 130 if metrics.get("cancelled") else 0
 
 

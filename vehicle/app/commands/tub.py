@@ -213,7 +213,7 @@ def cmd_check(args: argparse.Namespace) -> int:
         except _errors() as exc:
             raise _user_error(exc) from exc
         _out("\n".join(report.lines()))
-        bad += 0 if report.ok or report.repaired else 1
+        bad += 0 if report.settled else 1
     return 1 if bad else 0
 
 

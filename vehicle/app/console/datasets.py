@@ -174,7 +174,9 @@ class DatasetStore:
             if cached is not None and cached.signature == sig:
                 return cached
         contained(path)
-        tub = Tub(path, read_only=True)
+        # a folder created to record into holds no tub until its first record: the car's schema
+        schema = () if any(path.iterdir()) else (list(self.cfg.TUB_INPUTS), list(self.cfg.TUB_TYPES))
+        tub = Tub(path, *schema, read_only=True)
         deleted_set = tub.manifest.deleted_indexes
         image_key = next((k for k, t in zip(tub.inputs, tub.types, strict=True) if t in IMAGE_TYPES), None)
         idx, ang, thr, dele, ts = [], [], [], [], []
@@ -300,12 +302,12 @@ class DatasetStore:
         return path
 
     def create(self, name: str, label: Any = None, comment: Any = None) -> DatasetEntry:
-        """An empty tub ``DATA_PATH/name`` with the car's recording schema (TUB_INPUTS/TUB_TYPES), to
-        record into later (``vehicle sim record --tub``, or DATA_PATH with AUTO_CREATE_NEW_TUB off).
+        """An empty folder ``DATA_PATH/name`` to record into later (``vehicle sim record --tub``, or
+        DATA_PATH with AUTO_CREATE_NEW_TUB off); the tub (with the car's TUB_INPUTS/TUB_TYPES) appears
+        there with its first record: a tub without records is one DonkeyCar cannot open.
         An existing tub of that name is registered instead (Track Driver AI's "not in the datasets folder"
         and "in the datasets folder" both work)."""
         from parts.tub.reader import is_tub
-        from parts.tub.tub import Tub
 
         name = check_folder_name(name)
         label, comment = check_label(label), check_comment(comment)
@@ -316,9 +318,8 @@ class DatasetStore:
             if is_tub(path):
                 return self._add(path, "registered", label, comment)
         try:
-            Tub(path, list(self.cfg.TUB_INPUTS), list(self.cfg.TUB_TYPES),
-                metadata=list(self.cfg.METADATA)).close()
-        except (TubError, ValueError, OSError) as exc:
+            path.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
             raise DatasetError(f"cannot create {path}: {exc}", "name") from exc
         return self._add(path, "created", label, comment)
 

@@ -140,12 +140,17 @@ class ConsoleApp:
             self._hosts = allowed_hosts(self.host)
         return host_allowed(request.host, self._hosts)
 
+    @staticmethod
+    def _given(request: Any) -> str | None:
+        """The token a request carries: by the cookie, a header or the URL."""
+        return request.cookies.get(COOKIE) or request.headers.get("X-Vehicle-Token") or request.query.get("token")
+
     def _token_ok(self, request: Any) -> bool:
         """The driver page's rule (parts.web.pairing.token_ok), the token carried by the cookie, a
         header or the URL. A wrong token (not a missing one) counts against the client."""
         from parts.web.pairing import token_ok
 
-        given = request.cookies.get(COOKIE) or request.headers.get("X-Vehicle-Token") or request.query.get("token")
+        given = self._given(request)
         ok = token_ok(self.token, {"token": given})
         if self.token is not None and given:
             client = request.remote or "?"
@@ -156,15 +161,17 @@ class ConsoleApp:
         return ok
 
     def _locked_out(self, request: Any) -> Any:
-        """A 429 answer while this client must wait after wrong tokens, else None."""
+        """A 429 answer while this client must wait after wrong tokens, else None. The right token
+        never waits (a guesser behind the same NAT must not keep the user out)."""
         from aiohttp import web
+
+        from parts.web.pairing import token_ok
 
         if self.token is None:
             return None
-        wait = self._guard.wait_s(request.remote or "?")
-        if wait <= 0:
+        seconds = self._guard.refusal_s(request.remote or "?", token_ok(self.token, {"token": self._given(request)}))
+        if not seconds:
             return None
-        seconds = max(1, int(wait + 0.999))
         return web.json_response({"error": f"too many wrong pairing tokens from this address: wait {seconds} s, "
                                            "then open the URL printed when the console started"},
                                  status=429, headers={"Retry-After": str(seconds), "Cache-Control": "no-store"})

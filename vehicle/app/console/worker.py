@@ -181,9 +181,11 @@ def run_train(job: dict[str, Any], events: Events, watcher: StopWatcher) -> dict
                     transfer=params.get("transfer"), comment=params.get("comment"), register=True,
                     progress=False, on_event=on_event, should_stop=watcher.stop.is_set, recipe=_recipe(job))
     watcher.interruptible = True
-    keys = ("best_epoch", "best_val_loss", "best_train_loss", "epochs", "stopped_early", "cancelled",
-            "train_loss", "val_loss", "wall_seconds", "train_samples", "val_samples")
-    return {"event": "result", "model": params["model_name"], "path": str(model_path),
+    keys = ("best_epoch", "best_val_loss", "best_train_loss", "epochs", "epochs_planned", "stopped_early",
+            "cancelled", "stopped_in_epoch", "kept_model", "train_loss", "val_loss", "wall_seconds",
+            "train_samples", "val_samples")
+    saved = Path(metrics.get("model_file") or model_path)  # a stopped run keeps a model of that name
+    return {"event": "result", "model": saved.stem, "path": str(saved),
             "metrics": {k: metrics.get(k) for k in keys}}
 
 

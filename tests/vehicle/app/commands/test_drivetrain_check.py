@@ -36,3 +36,16 @@ def test_nothing_moves_unless_the_wheels_are_off_the_ground(tmp_path, monkeypatc
 def test_too_much_throttle_is_refused(tmp_path, capsys):
     assert main(["drivetrain", "check", "--yes", "--throttle", "0.8", "--car", str(_car(tmp_path))]) == 2
     assert "--throttle 0.8: give 0 < throttle <= 0.5" in capsys.readouterr().err
+
+
+def test_a_standard_input_without_an_answer_names_yes(tmp_path, monkeypatch, capsys):
+    """Hardening item 16: stdin not a terminal (a script, `< /dev/null`): an EOFError traceback."""
+    import io
+
+    car = _car(tmp_path)
+    monkeypatch.setattr("sys.stdin", io.StringIO(""))  # input() meets end of file at once
+    assert main(["drivetrain", "check", "--car", str(car)]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert "--yes" in err and "wheels off the ground" in err
+    assert not (car / "pwm.txt").exists()

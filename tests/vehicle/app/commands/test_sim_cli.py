@@ -105,3 +105,28 @@ def test_sim_eval_of_a_behaviour_model_in_a_car_without_behaviours_says_what_to_
     (car / "myconfig.py").write_text("SIM_TEXTURE_RES = 0.02\nTRAIN_BEHAVIORS = True\n")
     assert main(["sim", "eval", "--pilot", str(model), "--tracks", "1", "--laps", "1", "--max-time", "2"]) == 0, \
         capsys.readouterr().err
+
+
+def test_sim_eval_of_a_registered_model_fills_its_evaluation_column(car, capsys, make_model_file):
+    """Hardening item 26: `vehicle models` showed an empty EVALUATION after `vehicle sim eval` of
+    that model (only --store kept it). A registered model's evaluation is now kept unless
+    --no-store."""
+    from parts.pilots.modelfile import read_meta
+    from training.model_db import ModelRegistry, register_model
+
+    model = make_model_file("linear")
+    register_model(model, read_meta(model))
+    base = ["sim", "eval", "--pilot", str(model), "--tracks", "1", "--laps", "1", "--max-time", "2"]
+    assert main([*base, "--no-store"]) == 0
+    registry = ModelRegistry.for_models_dir(car / "models")
+    assert registry.evaluations("linear") == []
+    assert main(base) == 0
+    assert "stored as evaluation" in capsys.readouterr().out
+    [ev] = registry.evaluations("linear")
+    assert list(ev.tracks) == [1]
+    assert main(["models"]) == 0
+    row = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("linear"))
+    assert f"{ev.overall['autonomy']:.1f}% on 1" in row
+    unregistered = make_model_file("linear", name="loose")
+    assert main(["sim", "eval", "--pilot", str(unregistered), "--tracks", "1", "--laps", "1", "--max-time", "2"]) == 0
+    assert "not stored" in capsys.readouterr().out

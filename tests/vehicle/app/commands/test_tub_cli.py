@@ -222,3 +222,19 @@ def test_movie_fps_and_hist_bins_below_one_are_named(donkey_tub, tmp_path, capsy
     assert "fps must be > 0 frames per second, got 0.0" in capsys.readouterr().err
     assert main(["tub", "hist", str(path), "--bins", "0", "--out", str(tmp_path / "h.png")]) == 2
     assert "bins must be a whole number >= 1, got 0" in capsys.readouterr().err
+
+
+def test_check_names_types_it_does_not_know(donkey_tub, capsys):
+    """Hardening item 17: a manifest whose line 2 has an unknown image type was reported OK while
+    none of the images were checked."""
+    path, _ = donkey_tub(4)
+    manifest = path / "manifest.json"
+    lines = manifest.read_text().split("\n")
+    lines[1] = json.dumps(["image_array_v9" if t == "image_array" else t for t in json.loads(lines[1])])
+    manifest.write_text("\n".join(lines))
+    assert main(["tub", "check", str(path)]) == 1
+    out = capsys.readouterr().out
+    assert "cam/image_array: unknown type 'image_array_v9'" in out and "not checked" in out
+    assert "OK" not in out
+    assert main(["tub", "check", "--repair", str(path)]) == 1  # nothing repair can decide: still said
+    assert "unknown type 'image_array_v9'" in capsys.readouterr().out

@@ -113,7 +113,7 @@ def test_to_datasets(page, url, car, console):
     page.click("#submit")
     expect(page.locator("tr[data-dataset=race] .ds-label")).to_have_text("2")
     expect(page.locator("tr[data-dataset=race] .ds-comment")).to_have_text("Almost always stayed in centre")
-    assert (car / "data" / "race" / "manifest.json").is_file()
+    assert (car / "data" / "race").is_dir()  # a new folder: the tub appears there with its first record
     # TO3a: the edit form holds the stored values; TO3b: updated in the table and renamed on disk
     page.locator("tr[data-dataset=race] [data-action=edit]").click()
     expect(page.locator("input[name=name]")).to_have_value("race")
