@@ -34,6 +34,10 @@ from vehicle.vehicle import STOP_SIGNALS, handling
 logger = logging.getLogger(__name__)
 
 
+#: with an off-policy algorithm (SAC), steps between two rows of the learning curve (and log lines)
+ROW_STEPS = 256
+
+
 @dataclass
 class RLSettings:
     """What ``vehicle rl train`` runs (its options)."""
@@ -81,7 +85,35 @@ def _make_env(config: tuple[Any, ...], kwargs: dict[str, Any]) -> Any:
     from vehicle.config import Config
 
     cv2.setNumThreads(1)  # one process per core already
-    return Monitor(TrackEnv(Config(*config), **kwargs))
+    return Monitor(_ReportErrors(TrackEnv(Config(*config), **kwargs)))
+
+
+def _ReportErrors(env: Any) -> Any:  # noqa: N802 - builds a gymnasium wrapper class lazily
+    """``env`` wrapped so that a user's error in a step (a reward function that raises, returns NaN or
+    runs out of time: a VehicleError) ends the episode with the message in ``info["error"]``
+    instead of killing a worker process; :meth:`_Trainer.on_step` raises it in the trainer. So the
+    message is the same one line for one environment or several."""
+    import gymnasium as gym
+
+    from vehicle.errors import VehicleError
+
+    class ReportErrors(gym.Wrapper):
+        def __init__(self, inner: Any) -> None:
+            super().__init__(inner)
+            self.last_obs: Any = None
+
+        def reset(self, **kwargs: Any) -> Any:
+            self.last_obs, info = self.env.reset(**kwargs)
+            return self.last_obs, info
+
+        def step(self, action: Any) -> Any:
+            try:
+                self.last_obs, *rest = self.env.step(action)
+            except VehicleError as exc:
+                return self.last_obs, 0.0, True, False, {"error": str(exc)}
+            return (self.last_obs, *rest)
+
+    return ReportErrors(env)
 
 
 @contextlib.contextmanager
@@ -188,8 +220,10 @@ def train_rl(cfg: Any, out: str | Path, s: RLSettings, *, progress: bool = False
     # a busy machine a thread pool waits for every thread at every operation (measured under load:
     # 520 ms per 120x160 frame with 2 threads, 20 ms with 1)
     torch.set_num_threads(max(1, (os.cpu_count() or 1) - n_envs))
+    existed = {name: path.exists() for name, path in {**files, "out": out}.items()}
     venv = make_vec_env(cfg, env_kwargs, n_envs, s.seed)
     interrupted: BaseException | None = None
+    failed = False
     try:
         Algo = _algorithm(algo)  # noqa: N806 - a class
         if s.resume:
@@ -219,23 +253,32 @@ def train_rl(cfg: Any, out: str | Path, s: RLSettings, *, progress: bool = False
             interrupted = exc
             logger.warning("rl train: stopped by %s at %d steps", "Ctrl-C" if isinstance(exc, KeyboardInterrupt)
                            else exc.signal_name, model.num_timesteps)
+        except BaseException:
+            failed = True
+            raise
         finally:
             trainer.close_bar()
-            model.save(files["state"])
+            if not failed:
+                model.save(files["state"])
         if not interrupted and (not curve["evaluations"]
                                 or curve["evaluations"][-1]["timesteps"] != model.num_timesteps):
             trainer.evaluate()
+    except BaseException:
+        failed = True
+        raise
     finally:
-        venv.close()
+        _close(venv)
         torch.set_num_threads(threads)
         files["eval"].unlink(missing_ok=True)
-        _write_curve(files, curve)
+        if not failed:
+            _write_curve(files, curve)
+        elif curve["best"] is None:  # a failed run that kept no pilot leaves nothing behind
+            for name, path in {**files, "out": out}.items():
+                if not existed[name]:
+                    path.unlink(missing_ok=True)
     if curve["best"] is not None:
         logger.info("rl train: best pilot %s (%s at %d steps)", out, describe_best(curve["best"]),
                     curve["best"]["timesteps"])
-    elif curve["evaluations"]:
-        logger.warning("rl train: no pilot kept: none drove any of its evaluation laps (%s)",
-                       describe_best(curve["evaluations"][-1]))
     if interrupted is not None:
         raise interrupted
     return curve
@@ -248,6 +291,14 @@ def describe_best(row: dict[str, Any]) -> str:
     share = row.get("completion")
     driven = f" ({share:.0%} of the laps asked)" if share is not None else ""
     return f"autonomy {row['autonomy']:.1f} %, {row.get('laps_completed') or 0} laps{driven}{lap}"
+
+
+def _close(venv: Any) -> None:
+    """Close the environments; a worker process that is already gone is not an error of its own."""
+    try:
+        venv.close()
+    except (EOFError, BrokenPipeError, ConnectionError) as exc:
+        logger.debug("rl train: an environment worker had already ended: %r", exc)
 
 
 def _reward_name(reward: str | None) -> str:
@@ -276,6 +327,8 @@ class _Trainer:
         self.next_eval = (model.num_timesteps // s.eval_every + 1) * s.eval_every if s.eval_every else math.inf
         self.started = time.perf_counter()
         self.steps0 = model.num_timesteps
+        # PPO's rollouts are n_steps per env (a row each); an off-policy algorithm's are one step
+        self.row_steps = 0 if s.algo.lower() == "ppo" else ROW_STEPS
         self.throttle_range = s.throttle_range
         self.warming = model.num_timesteps < s.vf_warmup
         if self.warming:
@@ -297,7 +350,7 @@ class _Trainer:
 
         class _Callback(BaseCallback):
             def _on_step(self) -> bool:
-                return trainer.on_step()
+                return trainer.on_step(self.locals.get("infos", ()))
 
             def _on_rollout_end(self) -> None:
                 trainer.on_rollout_end()
@@ -310,7 +363,10 @@ class _Trainer:
             return None, None
         return float(np.mean([e["r"] for e in buf])), float(np.mean([e["l"] for e in buf]))
 
-    def on_step(self) -> bool:
+    def on_step(self, infos: Any = ()) -> bool:
+        for info in infos:
+            if "error" in info:  # a user's error in an environment (see _ReportErrors)
+                raise UserError(info["error"])
         if self.bar is not None:
             self.bar.update(self.model.num_timesteps - self.bar.n)
         if self.model.num_timesteps >= self.next_eval:
@@ -326,6 +382,9 @@ class _Trainer:
             freeze_actor(self.model.policy, False)
             self.warming = False
             logger.info("rl train: value-function warm-up done at %d steps: the actor learns", self.model.num_timesteps)
+        steps = int(self.model.num_timesteps)
+        if self.curve["rollouts"] and steps - self.curve["rollouts"][-1]["timesteps"] < self.row_steps:
+            return  # SAC's "rollouts" are one step each: a row (and a log line) per ROW_STEPS steps
         reward, length = self.episode_stats()
         elapsed = time.perf_counter() - self.started
         fps = (self.model.num_timesteps - self.steps0) / elapsed if elapsed > 0 else 0.0
@@ -359,9 +418,8 @@ class _Trainer:
                "interventions": o["interventions"], "mean_reward": reward, "mean_length": length}
         self.curve["evaluations"].append(row)
         best = self.curve["best"]
-        # a pilot that drove none of its laps is never kept as the best
-        better = (row["score"] or 0.0) > 0 and (best is None or (row["score"], row["mean_speed"] or 0.0) >
-                                                (best.get("score", best["autonomy"]), best["mean_speed"] or 0.0))
+        better = best is None or (row["score"] or 0.0, row["mean_speed"] or 0.0) > \
+            (best.get("score", best["autonomy"]) or 0.0, best["mean_speed"] or 0.0)
         logger.info("rl train: evaluation at %d steps on tracks %s: %s%s", steps, self.eval_tracks, describe_best(row),
                     " (best so far: kept)" if better else "")
         if better:
