@@ -47,6 +47,12 @@ ANGLE_KEYS = ("user/angle", "user/steering")
 THROTTLE_KEY = "user/throttle"
 
 
+
+def _not_born(path: Path) -> bool:
+    """An empty folder: a dataset created in the console that nothing has recorded into yet (a tub
+    appears there with its first record)."""
+    return path.is_dir() and not any(path.iterdir())
+
 class DatasetError(UserError):
     """A dataset action cannot be done; the message says why and what to do."""
 
@@ -382,7 +388,10 @@ class DatasetStore:
         entry = self.get(dataset_id)
         if entry.deleted:
             return entry
-        with Tub(self._writable(entry)) as tub:
+        path = self._writable(entry)
+        if _not_born(path):  # a created dataset nothing recorded into yet: no record to mark
+            return self.registry.update_dataset(entry.id, deleted=_now(), kept_deleted=[])
+        with Tub(path) as tub:
             before = sorted(tub.manifest.deleted_indexes)
             if tub.current_index:
                 tub.delete_records(range(tub.current_index))
@@ -396,7 +405,10 @@ class DatasetStore:
         entry = self.get(dataset_id)
         if not entry.deleted:
             return entry
-        with Tub(self._writable(entry)) as tub:
+        path = self._writable(entry)
+        if _not_born(path):
+            return self.registry.update_dataset(entry.id, deleted=None, kept_deleted=[])
+        with Tub(path) as tub:
             keep = set(entry.kept_deleted)
             tub.restore_records([i for i in range(tub.current_index) if i not in keep])
         return self.registry.update_dataset(entry.id, deleted=None, kept_deleted=[])
@@ -411,9 +423,12 @@ class DatasetStore:
             path = self._writable(entry)
             from parts.tub.reader import is_tub
 
-            if not is_tub(path):
+            if _not_born(path):
+                path.rmdir()
+            elif not is_tub(path):
                 raise DatasetError(f"{path} is no longer a tub: not removing it", status=409)
-            shutil.rmtree(path)
+            else:
+                shutil.rmtree(path)
             logger.info("removed dataset folder %s", path)
         self.registry.forget_dataset(entry.id)
         with self._lock:
