@@ -186,4 +186,4 @@ def test_ctrl_c_in_a_rounds_training_says_dagger_ends_not_the_demo(car_cfg, make
         run_dagger(car_cfg, [], tmp_path / "models" / "dg.pt", plan, start_model=start,
                    train_options={"register": False}, say=lambda s: None)
     out = capsys.readouterr().out
-    assert "stopped by Ctrl-C: kept" in out and "DAgger ends here" in out and "demo" not in out
+    assert "stopped by Ctrl-C in epoch 1" in out and "DAgger ends here" in out and "demo" not in out
