@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
 from sensor_fakes import NmeaSource, gga, nmea, rmc, wait_for
 
@@ -74,3 +76,29 @@ def _next_fix(part: GPS, new=lambda v: True) -> tuple:
     out: list = []
     wait_for(lambda: out.append(part.run()) or (out[-1][-1] is True and new(out[-1])))
     return out[-1]
+
+
+@pytest.mark.parametrize("lat", [0.0, 47.0, 60.0, -60.0, -33.9])
+def test_local_frame_matches_an_independent_wgs84_reference(lat: float) -> None:
+    """The frame is WGS-84, not a sphere: against UTM (the `utm` package, independent of our code),
+    on a zone's central meridian where the grid's scale is exactly k0 = 0.9996 and its north is true
+    north, points up to 500 m away land within a millimetre."""
+    import utm
+
+    lon = 3.0  # central meridian of zone 31
+    frame = LocalFrame(lat, lon)
+
+    def ref(la: float, lo: float) -> tuple[float, float]:
+        e, n, _, _ = utm.from_latlon(la, lo, force_zone_number=31, force_northern=True)
+        e0, n0, _, _ = utm.from_latlon(lat, lon, force_zone_number=31, force_northern=True)
+        return (e - e0) / 0.9996, (n - n0) / 0.9996
+
+    for dlat, dlon in [(0.0045, 0.0), (0.0, 0.006), (-0.003, 0.004), (0.0025, -0.0035)]:
+        x, y = frame.to_xy(lat + dlat, lon + dlon)
+        rx, ry = ref(lat + dlat, lon + dlon)
+        assert math.hypot(rx, ry) < 700
+        assert (x, y) == pytest.approx((rx, ry), abs=1e-3), (dlat, dlon)
+        back = frame.to_latlon(x, y)
+        assert back == pytest.approx((lat + dlat, lon + dlon), abs=1e-9)  # 0.1 mm
+    x, y = frame.to_xy(lat + 100 / 111_000, lon)  # about 100 m north: the sphere read 100.56 m at the equator
+    assert y == pytest.approx(ref(lat + 100 / 111_000, lon)[1], abs=1e-4)
