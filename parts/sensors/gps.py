@@ -8,7 +8,8 @@ Against UTM (the ``utm`` package, scale k0 removed on a central meridian) points
 within a millimetre at the equator, 47 degrees and +-60 degrees (tests/parts/sensors/test_gps.py).
 
 A lost fix is honest: an RMC sentence with status V or a GGA with fix quality 0 makes ``gps/ok``
-False and the position None until the next valid fix; so does silence longer than ``max_age``.
+False and the position None until the next valid fix; so does silence longer than ``max_age``, and
+so does a sentence whose position fields are empty or impossible (pynmea2 would read them as 0.0).
 """
 
 from __future__ import annotations
@@ -123,13 +124,28 @@ class NmeaPosition:
                 self.speed = float(msg.spd_over_grnd) * KNOTS if msg.spd_over_grnd not in (None, "") else None
             else:
                 return False
-            if self.fix:
-                self.latitude, self.longitude = float(msg.latitude), float(msg.longitude)
-        except (TypeError, ValueError):  # a field that is empty although the fix says valid
+            if self.fix:  # pynmea2 reads empty fields as 0.0: parse and check them here
+                self.latitude = _coordinate(msg.lat, msg.lat_dir, "NS", 90)
+                self.longitude = _coordinate(msg.lon, msg.lon_dir, "EW", 180)
+        except (TypeError, ValueError) as exc:  # an empty or impossible field although the fix says valid
+            logger.debug("GPS: %s: not a fix (%s)", sentence, exc)
             self.bad += 1
             self.fix = False
             return True
         return True
+
+
+def _coordinate(value: str | None, direction: str | None, hemispheres: str, limit: int) -> float:
+    """Degrees of an NMEA ``(d)ddmm.mmmm`` field and its hemisphere letter (``hemispheres``: the
+    positive one first); ValueError when either is empty or the angle is impossible."""
+    if not value or direction not in tuple(hemispheres):
+        raise ValueError(f"position field {value!r} {direction!r} is empty")
+    number = float(value)
+    degrees, minutes = divmod(number, 100.0)
+    if not (number >= 0 and minutes < 60.0 and degrees + minutes / 60.0 <= limit):
+        raise ValueError(f"position field {value!r} is not an angle up to {limit} degrees")
+    angle = degrees + minutes / 60.0
+    return angle if direction == hemispheres[0] else -angle
 
 
 class GPS(SensorPart):

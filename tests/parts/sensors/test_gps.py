@@ -102,3 +102,23 @@ def test_local_frame_matches_an_independent_wgs84_reference(lat: float) -> None:
         assert back == pytest.approx((lat + dlat, lon + dlon), abs=1e-9)  # 0.1 mm
     x, y = frame.to_xy(lat + 100 / 111_000, lon)  # about 100 m north: the sphere read 100.56 m at the equator
     assert y == pytest.approx(ref(lat + 100 / 111_000, lon)[1], abs=1e-4)
+
+
+@pytest.mark.parametrize("body", [
+    "GPGGA,123519.00,,,,,1,08,1.2,545.4,M,46.9,M,,",  # quality 1 but no position at all
+    "GPRMC,123519.00,A,,,,,0.00,84.4,230394,3.1,W",  # status A, no position
+    "GPGGA,123519.00,4807.038,,01131.000,E,1,08,0.9,545.4,M,46.9,M,,",  # no N/S
+    "GPGGA,123519.00,4807.038,N,01131.000,,1,08,0.9,545.4,M,46.9,M,,",  # no E/W
+    "GPGGA,123519.00,9959.000,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,",  # latitude 99 degrees 59'
+    "GPGGA,123519.00,4807.038,N,18130.000,E,1,08,0.9,545.4,M,46.9,M,,",  # longitude 181 degrees 30'
+    "GPRMC,123519.00,A,4807.038,N,01175.000,E,0.00,84.4,230394,3.1,W",  # 75 minutes
+])
+def test_empty_or_impossible_position_fields_are_not_a_fix(body: str) -> None:
+    """pynmea2 reads empty fields as 0.0: a sentence without a position must not put the car at
+    0 N 0 E, nor become the frame's origin."""
+    part = GPS("unused")
+    assert part.update_from(nmea(body)) is None
+    assert not part.receiver.fix and part.frame is None and part.receiver.bad == 1
+    out = part.update_from(gga(LAT, LON))  # the first real fix becomes the origin
+    assert out is not None and out[:4] == pytest.approx((0.0, 0.0, LAT, LON), abs=1e-6)
+    assert part.frame.latitude == pytest.approx(LAT, abs=1e-6)
