@@ -105,6 +105,10 @@ class Drivetrain:
         """Put the hardware in its neutral state now."""
         raise NotImplementedError
 
+    def _drive_without_throttle(self, angle: float) -> None:
+        """Steer with the throttle at neutral (the throttle command is missing or NaN)."""
+        self._drive(angle, 0.0)
+
     def _close_hardware(self) -> None:
         """Release the device (after neutral has been held)."""
         raise NotImplementedError
@@ -166,6 +170,11 @@ class Drivetrain:
                         a = 0.0
             if self.STEERING_MOVES_CAR and not fresh:
                 a = 0.0
+            if not fresh:  # no throttle command: neutral now, not a slew-limited ramp to 0
+                self.slew.reset()
+                self.reverse.reset()
+                self._drive_without_throttle(clamp(a, -1.0, 1.0))
+                return
             t = self.reverse.step(self.slew.step(self._limit(t), now), now)
             self._drive(clamp(a, -1.0, 1.0), t)
 

@@ -8,8 +8,10 @@ From the electrical RPM in the reply it reports the car's speed as ``enc/speed``
     speed = ERPM / (MOTOR_POLES / 2) / GEAR_RATIO / 60 * 2 pi WHEEL_RADIUS
 
 and None when no reply arrived for ``stale_s`` seconds (the speed controller then stops trusting
-it). Neutral is the servo centre and a braking current (``brake_current`` A; 0 = release the
-motor); the VESC's own command timeout (VESC Tool: App Settings > General > Timeout) stops the
+it). Neutral (also a missing or NaN throttle) is the servo centre and a braking current
+(``brake_current`` A; 0 = release the motor); a negative throttle while the motor turns forward
+(a fresh reply above ``ROLLING_ERPM``) is a braking current of |throttle| x ``max_current`` A, not
+reverse. The VESC's own command timeout (VESC Tool: App Settings > General > Timeout) stops the
 motor if this computer goes silent.
 
 pyserial is imported when the part opens.
@@ -30,6 +32,9 @@ logger = logging.getLogger(__name__)
 
 ControlMode = Literal["duty", "current", "rpm"]
 CONTROL_MODES: tuple[str, ...] = ("duty", "current", "rpm")
+#: ERPM above which the motor counts as turning forward, so a negative throttle brakes (a 4-pole
+#: motor at 150 rpm; a motor at rest reads a few ERPM of noise)
+ROLLING_ERPM = 300.0
 
 
 class VESC(Drivetrain):
@@ -114,6 +119,11 @@ class VESC(Drivetrain):
         self._serial = self._factory(self.port_name, self.baudrate)
 
     def _drive(self, angle: float, throttle: float) -> None:
+        if throttle < 0 and self._rolling_forward():
+            # a negative command while rolling forward is a brake (as on a hobby ESC; the obstacle
+            # stop brakes so): braking current, never reverse duty/current/RPM against the motion
+            self._send(self._servo(angle) + vp.set_current_brake(-throttle * self.max_current) + vp.get_values())
+            return
         if self.mode == "duty":
             motor = vp.set_duty(throttle * self.max_duty)
         elif self.mode == "current":
@@ -123,8 +133,18 @@ class VESC(Drivetrain):
         self._send(self._servo(angle) + motor + vp.get_values())
 
     def _neutral_outputs(self) -> None:
-        brake = vp.set_current_brake(self.brake_current) if self.brake_current > 0 else vp.set_current(0.0)
-        self._send(self._servo(0.0) + brake)
+        self._send(self._servo(0.0) + self._brake())
+
+    def _drive_without_throttle(self, angle: float) -> None:
+        self._send(self._servo(angle) + self._brake() + vp.get_values())  # neutral is the brake current
+
+    def _brake(self) -> bytes:
+        return vp.set_current_brake(self.brake_current) if self.brake_current > 0 else vp.set_current(0.0)
+
+    def _rolling_forward(self) -> bool:
+        """The latest fresh GET_VALUES reply says the motor turns forward faster than ROLLING_ERPM."""
+        fresh = self._values_at is not None and self.clock() - self._values_at <= self.stale_s
+        return fresh and self.values is not None and self.values.erpm > ROLLING_ERPM
 
     def _close_hardware(self) -> None:
         port, self._serial = self._serial, None

@@ -155,3 +155,36 @@ def test_speed_reaches_the_vehicle_memory_as_enc_speed(vesc):
     V.add(watch, inputs=["enc/speed"])
     V.start(rate_hz=100, max_loop_count=500)
     assert seen[-1] == pytest.approx(-1.5, rel=1e-3)
+
+
+def _receive_values(part, vesc):
+    """Drive at neutral until a GET_VALUES reply (the fake's ERPM) has reached the part."""
+    for _ in range(200):
+        part.run(0.0, 0.0)
+        if part.values is not None and part.values.erpm == vesc.erpm:
+            return
+        vesc.wait_for(lambda: False, timeout=0.01)
+    raise AssertionError("no GET_VALUES reply reached the part")
+
+
+def test_a_missing_throttle_sends_the_brake_current_not_duty_zero(vesc):
+    part = VESC(vesc.port, mode="duty", max_duty=0.2, brake_current=4.0, **SAFE).open()
+    part.run(0.0, 0.0)
+    drive_until(part, vesc, lambda: vesc.last("duty") == 0.1, throttle=0.5)
+    drive_until(part, vesc, lambda: vesc.motor_commands()[-1] == ("brake", 4.0), angle=0.5, throttle=math.nan)
+    assert vesc.last("servo") == 0.75  # the steering still follows
+    part.shutdown()
+
+
+def test_a_negative_throttle_while_rolling_forward_is_a_brake_current(vesc):
+    """The obstacle stop brakes with a negative throttle while the car rolls: on a VESC that is
+    COMM_SET_CURRENT_BRAKE (|throttle| x VESC_MAX_CURRENT), not reverse duty."""
+    vesc.erpm = 3000
+    part = VESC(vesc.port, mode="duty", max_duty=0.2, max_current=10.0, **SAFE).open()
+    _receive_values(part, vesc)
+    drive_until(part, vesc, lambda: vesc.motor_commands()[-1] == ("brake", 6.0), throttle=-0.6)
+    assert not [c for c in vesc.motor_commands() if c[0] == "duty" and c[1] < 0]
+    vesc.erpm = 0  # standing: a negative throttle is reverse again
+    _receive_values(part, vesc)
+    drive_until(part, vesc, lambda: vesc.last("duty") == pytest.approx(-0.12), throttle=-0.6)
+    part.shutdown()
