@@ -26,7 +26,7 @@ from typing import Any, Literal
 
 from parts.actuators import vesc_protocol as vp
 from parts.actuators.drivetrain import Drivetrain, check_number, clamp
-from parts.actuators.serial_port import close_serial, open_serial
+from parts.actuators.serial_port import close_serial, open_serial, serial_link
 
 logger = logging.getLogger(__name__)
 
@@ -35,6 +35,9 @@ CONTROL_MODES: tuple[str, ...] = ("duty", "current", "rpm")
 #: ERPM above which the motor counts as turning forward, so a negative throttle brakes (a 4-pole
 #: motor at 150 rpm; a motor at rest reads a few ERPM of noise)
 ROLLING_ERPM = 300.0
+SETTING = "VESC_SERIAL_PORT"
+#: what still stops the motor when this computer cannot reach the VESC
+SILENT = "the VESC's own timeout (VESC Tool: App Settings > General > Timeout) stops the motor"
 
 
 class VESC(Drivetrain):
@@ -85,7 +88,7 @@ class VESC(Drivetrain):
         self.gear_ratio = gear_ratio
         self.wheel_radius = float(wheel_radius)
         self.stale_s = float(stale_s)
-        self._factory = serial_factory or (lambda p, b: open_serial(p, b, "VESC_SERIAL_PORT"))
+        self._factory = serial_factory or (lambda p, b: open_serial(p, b, SETTING))
         self._serial: Any = None
         self._reader = vp.PacketReader()
         self.values: vp.Values | None = None
@@ -148,7 +151,7 @@ class VESC(Drivetrain):
 
     def _close_hardware(self) -> None:
         port, self._serial = self._serial, None
-        close_serial(port)
+        close_serial(port, SETTING, self.port_name, SILENT)
 
     # -- the part ---------------------------------------------------------------------------------
     def run(self, angle: float | None, throttle: float | None) -> float | None:  # type: ignore[override]
@@ -173,16 +176,17 @@ class VESC(Drivetrain):
     def _send(self, data: bytes) -> None:
         if self._serial is None:
             return
-        self._serial.write(data)
+        with serial_link(SETTING, self.port_name, SILENT):
+            self._serial.write(data)
 
     def _receive(self) -> None:
         port = self._serial
         if port is None:
             return
-        waiting = port.in_waiting
-        if not waiting:
-            return
-        for payload in self._reader.feed(port.read(waiting)):
+        with serial_link(SETTING, self.port_name, SILENT):
+            waiting = port.in_waiting
+            data = port.read(waiting) if waiting else b""
+        for payload in self._reader.feed(data):
             if payload[0] == vp.COMM_GET_VALUES:
                 try:
                     self.values = vp.Values.parse(payload)

@@ -188,3 +188,20 @@ def test_a_negative_throttle_while_rolling_forward_is_a_brake_current(vesc):
     _receive_values(part, vesc)
     drive_until(part, vesc, lambda: vesc.last("duty") == pytest.approx(-0.12), throttle=-0.6)
     part.shutdown()
+
+
+def test_a_pulled_cable_is_one_line_on_run_and_on_shutdown(vesc):
+    """USB unplugged while driving: writing and draining the tty fail with EIO (pyserial's
+    SerialException, termios.error); each is one DrivetrainError naming the setting, and the port
+    is still closed."""
+    part = VESC(vesc.port, **SAFE).open()
+    part.run(0.0, 0.0)
+    vesc.stop()  # the device end of the pty is gone: the cable is pulled
+    with pytest.raises(DrivetrainError, match=r"^VESC_SERIAL_PORT = '.*': the serial link failed") as info:
+        part.run(0.0, 0.0)
+    assert "\n" not in str(info.value)
+    with pytest.raises(DrivetrainError, match=r"^VESC_SERIAL_PORT = '.*': the serial link failed") as info:
+        part.shutdown()
+    assert "\n" not in str(info.value) and "VESC's own timeout" in str(info.value)
+    assert part._serial is None
+    part.shutdown()  # idempotent: nothing left to fail
