@@ -205,3 +205,48 @@ def test_a_pulled_cable_is_one_line_on_run_and_on_shutdown(vesc):
     assert "\n" not in str(info.value) and "VESC's own timeout" in str(info.value)
     assert part._serial is None
     part.shutdown()  # idempotent: nothing left to fail
+
+
+@pytest.mark.parametrize("firmware", [(2, 18), (3, 32)])
+def test_firmware_older_than_3_33_is_refused_at_open_in_one_line(firmware):
+    """Before 3.33 COMM_GET_VALUES starts with seven temperatures: read with the current layout,
+    ERPM 6000 came out as 1,715.7 m/s (and could pass for 'rolling forward')."""
+    with FakeVESC(erpm=6000, firmware=firmware) as device:
+        part = VESC(device.port, gear_ratio=10.0, **SAFE)
+        version = f"{firmware[0]}.{firmware[1]:02d}"
+        with pytest.raises(DrivetrainError, match=rf"^VESC_SERIAL_PORT = '.*': VESC firmware {version} .*3\.33") as e:
+            part.open()
+        assert "\n" not in str(e.value)
+        assert device.motor_commands() == []  # refused before any motor command
+        assert part._serial is None
+
+
+def test_a_vesc_that_never_answers_its_firmware_version_is_one_line():
+    with FakeVESC(firmware=None) as device:
+        part = VESC(device.port, **SAFE)
+        part.fw_reply_s = 0.2
+        with pytest.raises(DrivetrainError, match=r"^VESC_SERIAL_PORT = '.*': no answer to COMM_FW_VERSION") as e:
+            part.open()
+        assert "\n" not in str(e.value) and "VESC_BAUDRATE" in str(e.value)
+
+
+def test_the_firmware_version_is_read_at_open(vesc):
+    part = VESC(vesc.port, **SAFE).open()
+    assert part.firmware == (5, 2) and "firmware 5.02" in part.describe()
+    assert vesc.commands[0] == ("fw_version", None)
+    part.shutdown()
+
+
+def test_a_physically_impossible_speed_is_stale_not_a_reading(vesc, clock):
+    """A reply whose ERPM means far beyond any RC car (a mis-framed or foreign layout) is dropped:
+    the speed stays None and the motor does not count as rolling forward."""
+    vesc.erpm = 1_500_000
+    part = VESC(vesc.port, gear_ratio=10.0, clock=clock, **SAFE).open()
+    for _ in range(20):
+        assert part.run(0.0, 0.0) is None
+        vesc.wait_for(lambda: False, timeout=0.01)
+    assert vesc.replies >= 5 and part.values is None and not part._rolling_forward()
+    vesc.erpm = 3000  # a plausible reading is taken again
+    _receive_values(part, vesc)
+    assert part.run(0.0, 0.0) == pytest.approx(3000 / 2 / 10 / 60 * 2 * math.pi * 0.0315)
+    part.shutdown()
