@@ -72,7 +72,8 @@ ODOM_MAX_AGE_S: Annotated[float, Range(0.05, 10, unit="s")] = 0.5
 
 # An IMU is fitted (HAVE_IMU): imu/acl_x..z (m/s^2) and imu/gyr_x..z (rad/s) are recorded.
 HAVE_IMU: bool = False
-# The chip: "mpu6050" or "mpu9250" (IMU_SENSOR; its WHO_AM_I is checked at start).
+# The chip family: "mpu6050" or "mpu9250" (DonkeyCar's names); either reads any register-compatible
+# chip (WHO_AM_I 0x68 MPU-6050, 0x70 MPU-6500, 0x71 MPU-9250, 0x73 MPU-9255), named in the log at start.
 IMU_SENSOR: Annotated[str, IMUS.choice()] = "mpu6050"
 # I2C address: 0x68, or 0x69 with the AD0 pin high (IMU_ADDRESS).
 IMU_ADDRESS: Annotated[int, Range(0x08, 0x77)] = 0x68
