@@ -105,11 +105,11 @@ def drivetrain_problems(v: Mapping[str, Any]) -> Iterator[Problem]:
         except ValueError as exc:
             yield Problem(kind, str(exc))
             return
-        if str(spec) in seen:
-            yield Problem(kind, f"{kind}[{key!r}] = {values[key]!r} is the same pin as {seen[str(spec)]}; "
-                          "valid: a pin of its own for every output")
+        if spec.physical in seen:  # RPI_GPIO.BOARD.33 and RPI_GPIO.BCM.13 are one pin
+            yield Problem(kind, f"{kind}[{key!r}] = {values[key]!r} is the same pin as {seen[spec.physical]} "
+                          f"({spec.where()}); valid: a pin of its own for every output")
             return
-        seen[str(spec)] = f"{kind}[{key!r}]"
+        seen[spec.physical] = f"{kind}[{key!r}] = {values[key]!r}"
     # PWM_STEERING_THROTTLE's pulses from the flat settings are checked (and named) by their own rule
     source = (v[kind] or {}) if kind == "PWM_STEERING_THROTTLE" else values
     pulses = [key for key in PULSE_KEYS if key in source]

@@ -6,7 +6,6 @@ from __future__ import annotations
 import pytest
 from gpiozero.pins.mock import MockFactory, MockPWMPin
 
-from parts.actuators.drivetrain import DrivetrainError
 from parts.actuators.motors import DCSteerThrottle, DifferentialDrive, MotorPins, ServoHBridge
 from parts.actuators.pins import PinSet
 from parts.actuators.pwm import SteeringCalibration
@@ -125,7 +124,7 @@ def test_watchdog_brakes_motors(gpio, clock):
 
 
 def test_bad_motor_pin_names_the_setting(gpio):
-    with pytest.raises(DrivetrainError, match="^LEFT_FWD_DUTY_PIN = 'RPI_GPIO.BOARD.99'"):
+    with pytest.raises(ValueError, match="^LEFT_FWD_DUTY_PIN = 'RPI_GPIO.BOARD.99': header pin 99 is not on the"):
         DifferentialDrive(PinSet(60, gpio_factory=gpio),
                           MotorPins("RPI_GPIO.BOARD.99", "RPI_GPIO.BOARD.16",
                                     names=("LEFT_FWD_DUTY_PIN", "LEFT_BWD_DUTY_PIN", "")),
