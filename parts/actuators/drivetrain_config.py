@@ -20,6 +20,7 @@ from typing import Any
 
 from parts.actuators.pca9685 import pulse_tick_range, pwm_timing
 from parts.actuators.pins import PinSet, parse_pin
+from parts.gpio import mock_factory
 from vehicle.config_checks import Problem
 
 #: DonkeyCar's defaults for each dict setting (donkeycar/templates/cfg_complete.py)
@@ -130,7 +131,10 @@ def drivetrain_problems(v: Mapping[str, Any]) -> Iterator[Problem]:
 
 
 def pinset(cfg: Any, *, bus_factory: Any = None, gpio_factory: Any = None) -> PinSet:
-    """The PinSet for the car: PWM_FREQ, PCA9685_OSC_HZ, and the given bus / GPIO factories."""
+    """The PinSet for the car: PWM_FREQ, PCA9685_OSC_HZ, and the given bus / GPIO factories (GPIO:
+    with GPIO_MOCK the simulated pins, when none is given)."""
+    if gpio_factory is None and cfg.GPIO_MOCK:
+        gpio_factory = mock_factory()
     return PinSet(cfg.PWM_FREQ, osc_hz=cfg.PCA9685_OSC_HZ, bus_factory=bus_factory, gpio_factory=gpio_factory)
 
 

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
 from parts.actuators.drivetrain import DrivetrainError
+from parts.gpio import gpio_errors
 
 if TYPE_CHECKING:
     from parts.actuators.pca9685 import PCA9685, BusFactory
@@ -295,6 +296,12 @@ class PinSet:
         self._pins.append(pin)
         return pin
 
+    def gpio_levels(self) -> dict[str, float]:
+        """What each open GPIO pin outputs now, by gpiozero name (duty 0-1; a digital pin 0 or 1):
+        the bench report of GPIO_MOCK."""
+        return {pin.spec.gpio_name: float(pin.device.pin.state) for pin in self._pins
+                if isinstance(pin, GpioPwmPin | GpioOutputPin)}
+
     def close(self) -> None:
         """Release every pin and close every board (idempotent)."""
         pins, self._pins = self._pins, []
@@ -335,21 +342,21 @@ class PinSet:
         """Make a gpiozero-backed pin; gpiozero's errors become one line naming the setting."""
         where = f"{setting} = {str(spec)!r}"
         try:
-            return cls(spec, self._gpio_factory(spec), *args)
+            with gpio_errors(where, DrivetrainError):
+                return cls(spec, self._gpio_factory(spec), *args)
+        except DrivetrainError:
+            raise
         except Exception as exc:  # noqa: BLE001 - gpiozero has many error classes, each said in one line
             kind = type(exc).__name__
-            if isinstance(exc, ImportError) and exc.name == "gpiozero":
-                raise DrivetrainError(f"{where} needs gpiozero: pip install 'vehicle-rc[car]'") from exc
             if spec.provider == "PIGPIO" and (isinstance(exc, ImportError | OSError) or "pigpio" in str(exc).lower()):
                 raise DrivetrainError(
                     f"{where}: pigpio is not available ({exc}); install it and start its daemon (`sudo apt install "
                     "pigpio python3-pigpio && sudo systemctl enable --now pigpiod`; the Pi 5 has no pigpio: use "
                     "RPI_GPIO pins)") from exc
-            if isinstance(exc, ImportError) or kind == "BadPinFactory":
-                raise DrivetrainError(
-                    f"{where}: no GPIO here ({exc}); run on a Raspberry Pi with a GPIO backend (`sudo apt install "
-                    "python3-lgpio`, a venv made with --system-site-packages), or use PCA9685 pins") from exc
-            raise DrivetrainError(f"{where}: {exc} ({kind})") from exc
+            if kind == "PinPWMUnsupported":  # gpiozero says nothing more; its MockFactory's default pins do no PWM
+                raise DrivetrainError(f"{where}: this pin factory cannot make PWM on the pin ({kind}); for a bench "
+                                      "run without GPIO set GPIO_MOCK = True (not GPIOZERO_PIN_FACTORY=mock)") from exc
+            raise DrivetrainError(f"{where}: {exc or 'refused by gpiozero'} ({kind})") from exc
 
     def _gpio_factory(self, spec: PinSpec) -> Any:
         """The pin factory: the given one, pigpio's for PIGPIO, else None (gpiozero's default)."""

@@ -81,3 +81,33 @@ def test_tune_speed_on_a_real_car_path_mock_drivetrain_and_a_serial_encoder(tmp_
     out = capsys.readouterr().out
     assert "(time reached)" in out and "PILOT_SPEED_KP = " in out
     assert b"p\n" in encoder.received  # the speed came from the encoder's answers
+
+
+def _no_gpio_here() -> bool:
+    """This machine has no GPIO backend gpiozero can use (the tests' machines; not a Pi)."""
+    import warnings
+
+    from gpiozero import Device
+    from gpiozero.exc import BadPinFactory
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            Device._default_pin_factory().close()
+        except (BadPinFactory, ImportError):
+            return True
+    return False
+
+
+def test_hw_check_of_a_gpio_encoder_without_gpio_is_one_line(tmp_path, capsys, recwarn):
+    import pytest
+    from gpiozero.exc import PinFactoryFallback
+
+    if not _no_gpio_here():
+        pytest.skip("this machine has GPIO")
+    (tmp_path / "myconfig.py").write_text("HAVE_ODOM = True\nENCODER_TYPE = 'GPIO'\nODOM_PIN = 13\n")
+    assert main(["hw", "check", "--car", str(tmp_path)]) == 1
+    captured = capsys.readouterr()
+    lines = [line for line in (captured.out + captured.err).splitlines() if line.strip()]
+    assert len(lines) == 1, lines
+    assert "ODOM_PIN = 13" in lines[0] and "no GPIO here" in lines[0] and "GPIO_MOCK = True" in lines[0]
+    assert not [w for w in recwarn if issubclass(w.category, PinFactoryFallback)]
