@@ -8,6 +8,8 @@ says how to open its hardware, drive it, put it in neutral and release it; this 
   starts, or lazily by the first ``run``) opens it and writes neutral at once;
 - arming: the throttle stays at neutral for ``arm_s`` seconds after open (ESCs arm on neutral),
   and then until a command at neutral arrives, so a throttle held at start never launches the car;
+  where steering alone moves the car (``STEERING_MOVES_CAR``: differential drive), steering is held
+  too, and arming needs commands at neutral in steering and throttle for the whole ``arm_s``;
 - command watchdog: no fresh command for ``watchdog_s`` -> neutral from the watchdog's own thread
   (it fires when the loop itself is stuck), and the throttle waits for neutral again;
 - :meth:`neutral` (the Vehicle calls it first on every stop path: exception, Ctrl-C, SIGTERM,
@@ -86,6 +88,7 @@ class Drivetrain:
         self._lock = threading.RLock()
         self._opened_at: float | None = None
         self._armed = False
+        self._neutral_since: float | None = None  # start of the current run of neutral commands
         self._closed = False
         self.watchdog = CommandWatchdog(watchdog_s, self._on_watchdog, clock) if watchdog_s else None
 
@@ -101,6 +104,10 @@ class Drivetrain:
     def _neutral_outputs(self) -> None:
         """Put the hardware in its neutral state now."""
         raise NotImplementedError
+
+    def _drive_without_throttle(self, angle: float) -> None:
+        """Steer with the throttle at neutral (the throttle command is missing or NaN)."""
+        self._drive(angle, 0.0)
 
     def _close_hardware(self) -> None:
         """Release the device (after neutral has been held)."""
@@ -156,17 +163,18 @@ class Drivetrain:
             if fresh and self.watchdog is not None:
                 self.watchdog.feed()
             if not self._armed:
-                if now - self._opened_at < self.arm_s:  # type: ignore[operator]
+                self._arm(now, a, t)
+                if not self._armed:
                     t = 0.0
-                elif abs(t) <= self.NEUTRAL_BAND:
-                    self._armed = True
-                    logger.info("drivetrain armed: throttle commands now reach the motors")
-                else:
-                    t = 0.0
-                if self.STEERING_MOVES_CAR and not self._armed:
-                    a = 0.0
+                    if self.STEERING_MOVES_CAR:
+                        a = 0.0
             if self.STEERING_MOVES_CAR and not fresh:
                 a = 0.0
+            if not fresh:  # no throttle command: neutral now, not a slew-limited ramp to 0
+                self.slew.reset()
+                self.reverse.reset()
+                self._drive_without_throttle(clamp(a, -1.0, 1.0))
+                return
             t = self.reverse.step(self.slew.step(self._limit(t), now), now)
             self._drive(clamp(a, -1.0, 1.0), t)
 
@@ -194,6 +202,24 @@ class Drivetrain:
                 self._close_hardware()
 
     # -- internals --------------------------------------------------------------------------------
+    def _arm(self, now: float, angle: float, throttle: float) -> None:
+        """Arm on a command at neutral once the arming time is over. Where steering alone moves the
+        car, neutral means steering too, held for the whole arming time (a steering command starts
+        it again), so the command that arms never turns the car on the spot."""
+        neutral = abs(throttle) <= self.NEUTRAL_BAND
+        start: float = self._opened_at  # type: ignore[assignment]
+        if self.STEERING_MOVES_CAR:
+            neutral = neutral and abs(angle) <= self.NEUTRAL_BAND
+            if not neutral:
+                self._neutral_since = None
+                return
+            if self._neutral_since is None:
+                self._neutral_since = now
+            start = max(start, self._neutral_since)
+        if neutral and now - start >= self.arm_s:
+            self._armed = True
+            logger.info("drivetrain armed: throttle commands now reach the motors")
+
     def _on_watchdog(self) -> None:
         with self._lock:
             if self._closed or self._opened_at is None:
@@ -204,6 +230,7 @@ class Drivetrain:
         self.slew.reset()
         self.reverse.reset()
         self._armed = False
+        self._neutral_since = None
         self._neutral_outputs()
 
     def _valid(self, x: object) -> bool:

@@ -20,6 +20,7 @@ from typing import Any
 
 from parts.actuators.pca9685 import pulse_tick_range, pwm_timing
 from parts.actuators.pins import PinSet, parse_pin
+from parts.gpio import mock_factory
 from vehicle.config_checks import Problem
 
 #: DonkeyCar's defaults for each dict setting (donkeycar/templates/cfg_complete.py)
@@ -105,11 +106,11 @@ def drivetrain_problems(v: Mapping[str, Any]) -> Iterator[Problem]:
         except ValueError as exc:
             yield Problem(kind, str(exc))
             return
-        if str(spec) in seen:
-            yield Problem(kind, f"{kind}[{key!r}] = {values[key]!r} is the same pin as {seen[str(spec)]}; "
-                          "valid: a pin of its own for every output")
+        if spec.physical in seen:  # RPI_GPIO.BOARD.33 and RPI_GPIO.BCM.13 are one pin
+            yield Problem(kind, f"{kind}[{key!r}] = {values[key]!r} is the same pin as {seen[spec.physical]} "
+                          f"({spec.where()}); valid: a pin of its own for every output")
             return
-        seen[str(spec)] = f"{kind}[{key!r}]"
+        seen[spec.physical] = f"{kind}[{key!r}] = {values[key]!r}"
     # PWM_STEERING_THROTTLE's pulses from the flat settings are checked (and named) by their own rule
     source = (v[kind] or {}) if kind == "PWM_STEERING_THROTTLE" else values
     pulses = [key for key in PULSE_KEYS if key in source]
@@ -130,7 +131,10 @@ def drivetrain_problems(v: Mapping[str, Any]) -> Iterator[Problem]:
 
 
 def pinset(cfg: Any, *, bus_factory: Any = None, gpio_factory: Any = None) -> PinSet:
-    """The PinSet for the car: PWM_FREQ, PCA9685_OSC_HZ, and the given bus / GPIO factories."""
+    """The PinSet for the car: PWM_FREQ, PCA9685_OSC_HZ, and the given bus / GPIO factories (GPIO:
+    with GPIO_MOCK the simulated pins, when none is given)."""
+    if gpio_factory is None and cfg.GPIO_MOCK:
+        gpio_factory = mock_factory()
     return PinSet(cfg.PWM_FREQ, osc_hz=cfg.PCA9685_OSC_HZ, bus_factory=bus_factory, gpio_factory=gpio_factory)
 
 

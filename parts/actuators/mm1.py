@@ -19,13 +19,16 @@ from typing import Any
 
 from parts.actuators.drivetrain import Drivetrain, clamp
 from parts.actuators.pwm import map_range
-from parts.actuators.serial_port import close_serial, open_serial
+from parts.actuators.serial_port import close_serial, open_serial, serial_link
 
 logger = logging.getLogger(__name__)
 
 PULSE_MIN_US, PULSE_MAX_US = 1000, 2000  # the firmware reads four digits per pulse
 MM1_PWM_HZ = 60.0  # the firmware's servo output frequency
 BAUDRATE = 115200
+SETTING = "MM1_SERIAL_PORT"
+#: what happens to the outputs when this computer cannot reach the board (the firmware's fallback)
+SILENT = "the MM1 keeps its last pulses for 10 s, then hands the outputs to the RC receiver"
 
 
 class RoboHatMM1(Drivetrain):
@@ -46,7 +49,7 @@ class RoboHatMM1(Drivetrain):
         self.port_name = port
         self.steering_mid = steering_mid
         self.max_forward, self.stopped, self.max_reverse = max_forward, stopped, max_reverse
-        self._factory = serial_factory or (lambda p, b: open_serial(p, b, "MM1_SERIAL_PORT"))
+        self._factory = serial_factory or (lambda p, b: open_serial(p, b, SETTING))
         self._serial: Any = None
         self.last_pulses: tuple[int, int] | None = None  # (steering, throttle) µs last sent
 
@@ -87,13 +90,14 @@ class RoboHatMM1(Drivetrain):
 
     def _close_hardware(self) -> None:
         port, self._serial = self._serial, None
-        close_serial(port)
+        close_serial(port, SETTING, self.port_name, SILENT)
 
     def _send(self, steering: int, throttle: int) -> None:
         port = self._serial
         if port is None:
             return
-        if port.in_waiting:
-            port.reset_input_buffer()  # the RC receiver's pulses: not ours to use here
-        port.write(b"%d, %d\r" % (steering, throttle))
+        with serial_link(SETTING, self.port_name, SILENT):
+            if port.in_waiting:
+                port.reset_input_buffer()  # the RC receiver's pulses: not ours to use here
+            port.write(b"%d, %d\r" % (steering, throttle))
         self.last_pulses = (steering, throttle)

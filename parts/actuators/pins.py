@@ -4,8 +4,9 @@ A pin is named by DonkeyCar's pin specifier string, accepted as DonkeyCar writes
 
 - ``"PCA9685.<bus>:<hex address>.<channel>"``: a channel of a PCA9685 (``"PCA9685.1:40.1"``);
 - ``"RPI_GPIO.BOARD.<n>"`` / ``"RPI_GPIO.BCM.<n>"``: a header pin by board position or Broadcom
-  GPIO number, driven through gpiozero (lgpio, RPi.GPIO or native, whatever gpiozero picks on
-  the machine, or ``GPIOZERO_PIN_FACTORY``);
+  GPIO number (one pin, two names: BOARD 33 is BCM 13, see :data:`HEADER_GPIO`), driven through
+  gpiozero (lgpio, RPi.GPIO or native, whatever gpiozero picks on the machine, or
+  ``GPIOZERO_PIN_FACTORY``);
 - ``"PIGPIO.BCM.<n>"``: a GPIO driven through the pigpio daemon (gpiozero's pigpio factory).
 
 :class:`PinSet` makes the pins of one drivetrain and owns what they share: one PCA9685 driver
@@ -29,6 +30,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
 from parts.actuators.drivetrain import DrivetrainError
+from parts.gpio import gpio_errors
 
 if TYPE_CHECKING:
     from parts.actuators.pca9685 import PCA9685, BusFactory
@@ -37,6 +39,14 @@ logger = logging.getLogger(__name__)
 
 TICKS = 4096  # ticks per PWM period, the PCA9685's resolution and DonkeyCar's pulse unit
 PROVIDERS = ("PCA9685", "RPI_GPIO", "PIGPIO")
+#: the 40-pin header (every Raspberry Pi since the B+, and the Jetson's in BOARD numbering): header
+#: pin -> BCM GPIO number; the other pins are power and ground (:data:`HEADER_SUPPLY`)
+HEADER_GPIO: dict[int, int] = {
+    3: 2, 5: 3, 7: 4, 8: 14, 10: 15, 11: 17, 12: 18, 13: 27, 15: 22, 16: 23, 18: 24, 19: 10, 21: 9, 22: 25,
+    23: 11, 24: 8, 26: 7, 27: 0, 28: 1, 29: 5, 31: 6, 32: 12, 33: 13, 35: 19, 36: 16, 37: 26, 38: 20, 40: 21,
+}
+HEADER_SUPPLY: dict[int, str] = {1: "3.3 V power", 17: "3.3 V power", 2: "5 V power", 4: "5 V power",
+                                 **{n: "ground" for n in (6, 9, 14, 20, 25, 30, 34, 39)}}
 SPEC_HELP = ('"PCA9685.<bus>:<hex address>.<channel 0-15>" (e.g. "PCA9685.1:40.1"), '
              '"RPI_GPIO.BOARD.<pin>" / "RPI_GPIO.BCM.<gpio>" (e.g. "RPI_GPIO.BOARD.33") or '
              '"PIGPIO.BCM.<gpio>" (e.g. "PIGPIO.BCM.13")')
@@ -56,6 +66,22 @@ class PinSpec:
     def gpio_name(self) -> str:
         """The pin as gpiozero names it (``BOARD33``, ``BCM13``)."""
         return f"{self.scheme}{self.number}"
+
+    @property
+    def physical(self) -> str:
+        """What the spec drives, whatever it is called: ``GPIO13`` for RPI_GPIO.BOARD.33,
+        RPI_GPIO.BCM.13 and PIGPIO.BCM.13 alike; the specifier itself for a PCA9685 channel."""
+        if self.provider == "PCA9685":
+            return str(self)
+        return f"GPIO{HEADER_GPIO[self.number] if self.scheme == 'BOARD' else self.number}"
+
+    def where(self) -> str:
+        """The pin in both numberings, for messages: ``header pin 33, GPIO13``."""
+        if self.provider == "PCA9685":
+            return f"channel {self.number} of the PCA9685 at bus {self.bus} address 0x{self.address:02X}"
+        bcm = int(self.physical[4:])
+        header = next((n for n, g in HEADER_GPIO.items() if g == bcm), None)
+        return f"header pin {header}, GPIO{bcm}" if header is not None else f"GPIO{bcm}, not on the header"
 
     @property
     def board(self) -> tuple[int, int] | None:
@@ -98,7 +124,12 @@ def parse_pin(spec: object, setting: str = "pin") -> PinSpec:
         raise bad("pigpio numbers pins by BCM only")
     if not parts[2].isdigit():
         raise bad(f"pin number {parts[2]!r} is not a number")
-    return PinSpec(provider, int(parts[2]), scheme)
+    number = int(parts[2])
+    if scheme == "BOARD" and number in HEADER_SUPPLY:
+        raise bad(f"header pin {number} is {HEADER_SUPPLY[number]}, not a GPIO")
+    if scheme == "BOARD" and number not in HEADER_GPIO:
+        raise bad(f"header pin {number} is not on the 40-pin header (1-40)")
+    return PinSpec(provider, number, scheme)
 
 
 class OutputPin(Protocol):
@@ -265,6 +296,12 @@ class PinSet:
         self._pins.append(pin)
         return pin
 
+    def gpio_levels(self) -> dict[str, float]:
+        """What each open GPIO pin outputs now, by gpiozero name (duty 0-1; a digital pin 0 or 1):
+        the bench report of GPIO_MOCK."""
+        return {pin.spec.gpio_name: float(pin.device.pin.state) for pin in self._pins
+                if isinstance(pin, GpioPwmPin | GpioOutputPin)}
+
     def close(self) -> None:
         """Release every pin and close every board (idempotent)."""
         pins, self._pins = self._pins, []
@@ -282,11 +319,11 @@ class PinSet:
     # -- internals --------------------------------------------------------------------------------
     def _claim(self, spec: str | PinSpec, setting: str) -> PinSpec:
         parsed = spec if isinstance(spec, PinSpec) else parse_pin(spec, setting)
-        key = str(parsed)  # the same GPIO named by BOARD and BCM numbers: gpiozero refuses it
+        key = parsed.physical  # the same GPIO named by BOARD and BCM numbers is one pin
         if key in self._used:
-            raise ValueError(f"{setting} = {key!r} is the same pin as {self._used[key]}; every "
-                             "output needs its own pin")
-        self._used[key] = setting
+            raise ValueError(f"{setting} = {str(parsed)!r} is the same pin as {self._used[key]} "
+                             f"({parsed.where()}); every output needs its own pin")
+        self._used[key] = f"{setting} = {str(parsed)!r}"
         return parsed
 
     def _board(self, spec: PinSpec) -> PCA9685:
@@ -305,21 +342,21 @@ class PinSet:
         """Make a gpiozero-backed pin; gpiozero's errors become one line naming the setting."""
         where = f"{setting} = {str(spec)!r}"
         try:
-            return cls(spec, self._gpio_factory(spec), *args)
+            with gpio_errors(where, DrivetrainError):
+                return cls(spec, self._gpio_factory(spec), *args)
+        except DrivetrainError:
+            raise
         except Exception as exc:  # noqa: BLE001 - gpiozero has many error classes, each said in one line
             kind = type(exc).__name__
-            if isinstance(exc, ImportError) and exc.name == "gpiozero":
-                raise DrivetrainError(f"{where} needs gpiozero: pip install 'vehicle-rc[car]'") from exc
             if spec.provider == "PIGPIO" and (isinstance(exc, ImportError | OSError) or "pigpio" in str(exc).lower()):
                 raise DrivetrainError(
                     f"{where}: pigpio is not available ({exc}); install it and start its daemon (`sudo apt install "
                     "pigpio python3-pigpio && sudo systemctl enable --now pigpiod`; the Pi 5 has no pigpio: use "
                     "RPI_GPIO pins)") from exc
-            if isinstance(exc, ImportError) or kind == "BadPinFactory":
-                raise DrivetrainError(
-                    f"{where}: no GPIO here ({exc}); run on a Raspberry Pi with a GPIO backend (`sudo apt install "
-                    "python3-lgpio`, a venv made with --system-site-packages), or use PCA9685 pins") from exc
-            raise DrivetrainError(f"{where}: {exc} ({kind})") from exc
+            if kind == "PinPWMUnsupported":  # gpiozero says nothing more; its MockFactory's default pins do no PWM
+                raise DrivetrainError(f"{where}: this pin factory cannot make PWM on the pin ({kind}); for a bench "
+                                      "run without GPIO set GPIO_MOCK = True (not GPIOZERO_PIN_FACTORY=mock)") from exc
+            raise DrivetrainError(f"{where}: {exc or 'refused by gpiozero'} ({kind})") from exc
 
     def _gpio_factory(self, spec: PinSpec) -> Any:
         """The pin factory: the given one, pigpio's for PIGPIO, else None (gpiozero's default)."""

@@ -95,6 +95,10 @@ PWM_FULL_OFF_ON_SHUTDOWN: bool = False
 # MOCK drivetrain: append every output change of the simulated board to this file
 # ("<time> <channel> <ticks|off|on>" per line; relative to CAR_PATH). None = keep it in memory.
 PCA9685_MOCK_TRACE: str | None = None
+# Bench mode of cars with GPIO pins (RPI_GPIO / PIGPIO pins of any DRIVE_TRAIN_TYPE, a GPIO wheel
+# encoder): True = every GPIO pin is simulated (gpiozero's MockFactory with PWM pins), so the car
+# runs on a machine without GPIO and moves nothing; `vehicle drivetrain check` prints each pin's output.
+GPIO_MOCK: bool = False
 
 # == Drivetrains beyond the PCA9685 ==
 

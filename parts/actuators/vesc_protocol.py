@@ -29,6 +29,8 @@ COMM_SET_SERVO_POS = 12
 COMM_ALIVE = 30
 
 SHORT_START, LONG_START, END = 0x02, 0x03, 0x03
+#: the first firmware (major, minor) whose COMM_GET_VALUES reply has :class:`Values`' layout
+VALUES_SINCE = (3, 33)
 MAX_PAYLOAD = 65535
 
 
@@ -84,6 +86,19 @@ def get_values() -> bytes:
     return _command(COMM_GET_VALUES)
 
 
+def fw_version() -> bytes:
+    """COMM_FW_VERSION request (no arguments)."""
+    return _command(COMM_FW_VERSION)
+
+
+def parse_fw_version(payload: bytes) -> tuple[int, int]:
+    """(major, minor) from a COMM_FW_VERSION reply (``0, MAJOR, MINOR, HW_NAME\\0, UUID ...``;
+    firmware before 3.x sends only the two numbers); ValueError when it is not one."""
+    if len(payload) < 3 or payload[0] != COMM_FW_VERSION:
+        raise ValueError("not a COMM_FW_VERSION reply")
+    return payload[1], payload[2]
+
+
 def alive() -> bytes:
     """COMM_ALIVE: keeps the VESC's command timeout from stopping the motor."""
     return _command(COMM_ALIVE)
@@ -91,7 +106,8 @@ def alive() -> bytes:
 
 @dataclass(frozen=True)
 class Values:
-    """The start of a COMM_GET_VALUES reply (firmware 3.x and later)."""
+    """The start of a COMM_GET_VALUES reply in the layout of firmware 3.33 and later (before, the
+    reply began with seven temperatures: see :data:`VALUES_SINCE`)."""
 
     temp_fet_c: float
     temp_motor_c: float

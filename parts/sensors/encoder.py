@@ -17,6 +17,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any, ClassVar, Literal, Protocol
 
+from parts.gpio import gpio_errors, pin_factory
 from parts.sensors.freshness import SensorPart
 from parts.serial_port import pyserial_port
 from vehicle.errors import VehicleError
@@ -66,14 +67,19 @@ class GpioTicks:
             up; FORWARD_REVERSE counts with the sign of the last non-zero throttle; FORWARD_REVERSE_STOP
             counts with the sign of the current throttle and ignores pulses at zero throttle.
         debounce_s: ignore pulses closer than this after the previous one (ENCODER_DEBOUNCE_NS).
-        pin_factory: gpiozero pin factory (tests: ``MockFactory``); None = gpiozero's default.
+        pin_factory: gpiozero pin factory (tests: ``MockFactory``; GPIO_MOCK: the simulated pins);
+            None = gpiozero's default.
+        settings: the names of ``pin`` and ``pin_b`` in the car's settings, for messages.
     """
 
     def __init__(self, pin: int | str, pin_b: int | str | None = None, *, mode: TachometerMode = "FORWARD_ONLY",
-                 debounce_s: float = 0.0, pin_factory: Any = None) -> None:
+                 debounce_s: float = 0.0, pin_factory: Any = None,
+                 settings: tuple[str, str] = ("ODOM_PIN", "ODOM_PIN_B")) -> None:
         if mode not in TACHOMETER_MODES:
             raise EncoderError(f"TACHOMETER_MODE {mode!r}: use one of {', '.join(TACHOMETER_MODES)}")
         self.pin, self.pin_b = gpio_pin_name(pin), None if pin_b is None else gpio_pin_name(pin_b)
+        given = [f"{settings[0]} = {pin!r}"] + ([] if pin_b is None else [f"{settings[1]} = {pin_b!r}"])
+        self.where = ", ".join(given)  # the settings as the user wrote them, for messages
         self.mode = mode
         self.debounce_s = float(debounce_s)
         self.pin_factory = pin_factory
@@ -84,9 +90,13 @@ class GpioTicks:
 
     def open(self) -> None:
         """Claim the pins (gpiozero imported here)."""
-        import gpiozero  # noqa: PLC0415 - hardware library, imported only when a part starts
-
         bounce = self.debounce_s or None
+        with gpio_errors(f"encoder {self.where}", EncoderError):
+            import gpiozero  # noqa: PLC0415 - hardware library, imported only when a part starts
+
+            self._make(gpiozero, bounce)
+
+    def _make(self, gpiozero: Any, bounce: float | None) -> None:
         try:
             if self.pin_b is not None:
                 self._device = gpiozero.RotaryEncoder(self.pin, self.pin_b, max_steps=0, bounce_time=bounce,
@@ -95,10 +105,11 @@ class GpioTicks:
                 self._device = gpiozero.DigitalInputDevice(self.pin, pull_up=True, bounce_time=bounce,
                                                            pin_factory=self.pin_factory)
                 self._device.when_activated = self._pulse
+        except gpiozero.BadPinFactory:
+            raise  # no GPIO here: gpio_errors says so
         except (gpiozero.GPIOZeroError, ValueError) as exc:
-            pins = self.pin if self.pin_b is None else f"{self.pin}/{self.pin_b}"
-            raise EncoderError(f"encoder on pin {pins}: {exc} (check ODOM_PIN / ODOM_PIN_B and that no "
-                               "other program uses the pin)") from exc
+            raise EncoderError(f"encoder {self.where}: {exc} (check the pin setting and that no other program "
+                               "uses the pin)") from exc
 
     def _pulse(self, *_: Any) -> None:
         if self.mode == "FORWARD_ONLY":
@@ -271,13 +282,16 @@ class Encoder(SensorPart):
         two = bool(cfg.HAVE_ODOM_2)
         mode = tachometer_mode(cfg.TACHOMETER_MODE)
         debounce = cfg.ENCODER_DEBOUNCE_NS / 1e9
+        factory = pin_factory(kind == "GPIO" and cfg.GPIO_MOCK)
         if kind == "GPIO" and two:
-            source: TickSource = TickGroup([GpioTicks(cfg.ODOM_PIN, mode=mode, debounce_s=debounce),
-                                            GpioTicks(cfg.ODOM_PIN_2, mode=mode, debounce_s=debounce)])
+            source: TickSource = TickGroup([
+                GpioTicks(cfg.ODOM_PIN, mode=mode, debounce_s=debounce, pin_factory=factory),
+                GpioTicks(cfg.ODOM_PIN_2, mode=mode, debounce_s=debounce, pin_factory=factory,
+                          settings=("ODOM_PIN_2", ""))])
         else:
             pins = [cfg.ODOM_PIN] + ([cfg.ODOM_PIN_B] if cfg.ODOM_PIN_B is not None else [])
             source = make_tick_source(kind, pins=pins, port=cfg.ODOM_SERIAL, baudrate=cfg.ODOM_SERIAL_BAUDRATE,
-                                      channels=2 if two else 1, mode=mode, debounce_s=debounce)
+                                      channels=2 if two else 1, mode=mode, debounce_s=debounce, pin_factory=factory)
         return cls(source, max_age=cfg.ODOM_MAX_AGE_S, clock=clock or time.monotonic)
 
     def open(self) -> None:
@@ -298,14 +312,16 @@ class Encoder(SensorPart):
 
 
 def make_tick_source(kind: str, *, pins: Sequence[int | str] = (), port: str = "", baudrate: int = 115200,
-                     channels: int = 1, mode: TachometerMode = "FORWARD_ONLY", debounce_s: float = 0.0) -> TickSource:
+                     channels: int = 1, mode: TachometerMode = "FORWARD_ONLY", debounce_s: float = 0.0,
+                     pin_factory: Any = None) -> TickSource:
     """The tick source for DonkeyCar's ENCODER_TYPE: "GPIO" (``pins``: one pin, or A and B of a
-    quadrature encoder) or "ARDUINO" (``port``)."""
+    quadrature encoder, on ``pin_factory``) or "ARDUINO" (``port``)."""
     kind = kind.upper()
     if kind == "GPIO":
         if len(pins) not in (1, 2):
             raise EncoderError(f"ENCODER_TYPE 'GPIO' needs ODOM_PIN (and ODOM_PIN_B for quadrature), got {list(pins)}")
-        return GpioTicks(pins[0], pins[1] if len(pins) == 2 else None, mode=mode, debounce_s=debounce_s)
+        return GpioTicks(pins[0], pins[1] if len(pins) == 2 else None, mode=mode, debounce_s=debounce_s,
+                         pin_factory=pin_factory)
     if kind == "ARDUINO":
         return SerialTicks(port, baudrate, channels=channels)
     raise EncoderError(f"ENCODER_TYPE {kind!r} is not supported: use 'GPIO' or 'ARDUINO'")

@@ -95,9 +95,8 @@ class SensorPart(ThreadedPart):
         return (*value, True)  # type: ignore[misc]
 
     def run(self, *inputs: object) -> tuple[object, ...]:
-        """Non-threaded use: one read inline, then as :meth:`run_threaded`."""
-        self._ensure_open()
-        value = self.poll()
-        if value is not self.NOTHING:
-            self.publish(value)
+        """Non-threaded use: one read inline with this loop's inputs (ThreadedPart.run stores them
+        before the read, so a read sees this loop's throttle, not the previous one's), then as
+        :meth:`run_threaded`."""
+        super().run(*inputs)
         return self.run_threaded(*inputs)

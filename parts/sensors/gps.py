@@ -1,13 +1,15 @@
 """GPS over serial: NMEA 0183 sentences (parsed by pynmea2, checksums checked) -> position in a
 local metric frame.
 
-The frame is a local tangent plane (east = x, north = y, metres) around an origin: the first fix,
-or a latitude/longitude the car is given (GPS_ORIGIN), so recorded paths stay valid between runs.
-Over the few hundred metres a small car drives, the equirectangular projection used here is off by
-far less than a GPS's own error (a millimetre per 100 m).
+The frame is the local tangent plane of the WGS-84 ellipsoid (east = x, north = y, metres; the
+east-north plane of ENU coordinates, the up component dropped) around an origin: the first fix, or
+a latitude/longitude the car is given (GPS_ORIGIN), so recorded paths stay valid between runs.
+Against UTM (the ``utm`` package, scale k0 removed on a central meridian) points 500 m away land
+within a millimetre at the equator, 47 degrees and +-60 degrees (tests/parts/sensors/test_gps.py).
 
 A lost fix is honest: an RMC sentence with status V or a GGA with fix quality 0 makes ``gps/ok``
-False and the position None until the next valid fix; so does silence longer than ``max_age``.
+False and the position None until the next valid fix; so does silence longer than ``max_age``, and
+so does a sentence whose position fields are empty or impossible (pynmea2 would read them as 0.0).
 """
 
 from __future__ import annotations
@@ -24,7 +26,9 @@ from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
 
-EARTH_RADIUS = 6_371_008.8  # m, mean Earth radius (IUGG)
+WGS84_A = 6_378_137.0  # m, semi-major axis of the WGS-84 ellipsoid (what GPS positions refer to)
+WGS84_F = 1 / 298.257223563  # flattening
+WGS84_E2 = WGS84_F * (2 - WGS84_F)  # first eccentricity squared
 KNOTS = 1852.0 / 3600.0  # m/s per knot
 #: user equivalent range error, m: horizontal accuracy ~ HDOP x this (a consumer receiver)
 UERE = 5.0
@@ -34,25 +38,48 @@ class GPSError(VehicleError):
     """The GPS serial port cannot be opened (the message says what to check)."""
 
 
+def _ecef(latitude: float, longitude: float) -> tuple[float, float, float]:
+    """Earth-centred, Earth-fixed metres of a point on the WGS-84 ellipsoid (height 0)."""
+    lat, lon = math.radians(latitude), math.radians(longitude)
+    n = WGS84_A / math.sqrt(1.0 - WGS84_E2 * math.sin(lat) ** 2)  # prime-vertical radius of curvature
+    return n * math.cos(lat) * math.cos(lon), n * math.cos(lat) * math.sin(lon), n * (1.0 - WGS84_E2) * math.sin(lat)
+
+
 class LocalFrame:
-    """Latitude/longitude (degrees) <-> x east, y north (metres) around an origin."""
+    """Latitude/longitude (degrees, WGS-84) <-> x east, y north (metres) in the tangent plane at an
+    origin (see the module doc)."""
 
     def __init__(self, latitude: float, longitude: float) -> None:
         if not (-90 <= latitude <= 90 and -180 <= longitude <= 180):
             raise ValueError(f"GPS origin ({latitude}, {longitude}) is not a latitude/longitude in degrees")
         self.latitude, self.longitude = float(latitude), float(longitude)
-        self._cos = math.cos(math.radians(latitude))
+        lat, lon = math.radians(latitude), math.radians(longitude)
+        self._sin_lat, self._cos_lat = math.sin(lat), math.cos(lat)
+        self._sin_lon, self._cos_lon = math.sin(lon), math.cos(lon)
+        self._origin = _ecef(latitude, longitude)
+        w = 1.0 - WGS84_E2 * self._sin_lat ** 2
+        # radii of curvature at the origin, m: the first guess of the inverse
+        self._meridian = WGS84_A * (1.0 - WGS84_E2) / w ** 1.5
+        self._parallel = WGS84_A / math.sqrt(w) * self._cos_lat
 
     def to_xy(self, latitude: float, longitude: float) -> tuple[float, float]:
         """Metres east and north of the origin."""
-        dlon = (longitude - self.longitude + 180.0) % 360.0 - 180.0
-        return (math.radians(dlon) * EARTH_RADIUS * self._cos,
-                math.radians(latitude - self.latitude) * EARTH_RADIUS)
+        dx, dy, dz = (p - o for p, o in zip(_ecef(latitude, longitude), self._origin, strict=True))
+        east = -self._sin_lon * dx + self._cos_lon * dy
+        north = -self._sin_lat * (self._cos_lon * dx + self._sin_lon * dy) + self._cos_lat * dz
+        return east, north
 
     def to_latlon(self, x: float, y: float) -> tuple[float, float]:
-        """Latitude and longitude of a point ``x`` m east and ``y`` m north of the origin."""
-        return (self.latitude + math.degrees(y / EARTH_RADIUS),
-                self.longitude + math.degrees(x / (EARTH_RADIUS * self._cos)))
+        """Latitude and longitude of the point on the ellipsoid ``x`` m east and ``y`` m north of the
+        origin (a few Newton steps with the origin's radii; well under a millimetre within 10 km)."""
+        lat = self.latitude + math.degrees(y / self._meridian)
+        lon = self.longitude + math.degrees(x / self._parallel) if self._parallel > 1e-3 else self.longitude
+        for _ in range(4):
+            ex, ey = self.to_xy(lat, lon)
+            lat += math.degrees((y - ey) / self._meridian)
+            if self._parallel > 1e-3:  # at a pole every longitude is the origin
+                lon += math.degrees((x - ex) / self._parallel)
+        return lat, lon
 
 
 class NmeaPosition:
@@ -97,13 +124,28 @@ class NmeaPosition:
                 self.speed = float(msg.spd_over_grnd) * KNOTS if msg.spd_over_grnd not in (None, "") else None
             else:
                 return False
-            if self.fix:
-                self.latitude, self.longitude = float(msg.latitude), float(msg.longitude)
-        except (TypeError, ValueError):  # a field that is empty although the fix says valid
+            if self.fix:  # pynmea2 reads empty fields as 0.0: parse and check them here
+                self.latitude = _coordinate(msg.lat, msg.lat_dir, "NS", 90)
+                self.longitude = _coordinate(msg.lon, msg.lon_dir, "EW", 180)
+        except (TypeError, ValueError) as exc:  # an empty or impossible field although the fix says valid
+            logger.debug("GPS: %s: not a fix (%s)", sentence, exc)
             self.bad += 1
             self.fix = False
             return True
         return True
+
+
+def _coordinate(value: str | None, direction: str | None, hemispheres: str, limit: int) -> float:
+    """Degrees of an NMEA ``(d)ddmm.mmmm`` field and its hemisphere letter (``hemispheres``: the
+    positive one first); ValueError when either is empty or the angle is impossible."""
+    if not value or direction not in tuple(hemispheres):
+        raise ValueError(f"position field {value!r} {direction!r} is empty")
+    number = float(value)
+    degrees, minutes = divmod(number, 100.0)
+    if not (number >= 0 and minutes < 60.0 and degrees + minutes / 60.0 <= limit):
+        raise ValueError(f"position field {value!r} is not an angle up to {limit} degrees")
+    angle = degrees + minutes / 60.0
+    return angle if direction == hemispheres[0] else -angle
 
 
 class GPS(SensorPart):

@@ -1,26 +1,31 @@
-"""InvenSense MPU6050 / MPU9250 accelerometer + gyroscope over I2C (smbus2).
+"""InvenSense MPU6050 / MPU-6500 / MPU9250 accelerometer + gyroscope over I2C (smbus2).
 
-Register facts from the datasheets (MPU-6000/6050 register map rev 4.2; MPU-9250 register map
-rev 1.6): WHO_AM_I 0x75 reads 0x68 (MPU6050), 0x71 (MPU9250) or 0x73 (MPU9255); PWR_MGMT_1
-0x6B powers up with SLEEP (bit 6) set, the driver writes 0x01 (awake, clock from the X gyro's
-PLL); CONFIG 0x1A bits 2:0 = DLPF_CFG; GYRO_CONFIG 0x1B bits 4:3 = FS_SEL (±250/500/1000/2000
-°/s: 131/65.5/32.8/16.4 LSB per °/s); ACCEL_CONFIG 0x1C bits 4:3 = AFS_SEL (±2/4/8/16 g:
-16384/8192/4096/2048 LSB per g); ACCEL_XOUT_H 0x3B starts 14 bytes, big-endian signed 16-bit:
-accel X, Y, Z, temperature, gyro X, Y, Z. Temperature: raw/340 + 36.53 °C (MPU6050),
-(raw - 21)/333.87 + 21 °C (MPU9250).
+Register facts from the datasheets (MPU-6000/6050 register map rev 4.2; MPU-6500 register map
+rev 2.1; MPU-9250 register map rev 1.6), the same on every chip of :data:`CHIPS`: WHO_AM_I 0x75
+names the chip; PWR_MGMT_1 0x6B powers up with SLEEP (bit 6) set, the driver writes 0x01 (awake,
+clock from the gyro's PLL); CONFIG 0x1A bits 2:0 = DLPF_CFG; GYRO_CONFIG 0x1B bits 4:3 = FS_SEL
+(±250/500/1000/2000 °/s: 131/65.5/32.8/16.4 LSB per °/s); ACCEL_CONFIG 0x1C bits 4:3 = AFS_SEL
+(±2/4/8/16 g: 16384/8192/4096/2048 LSB per g); ACCEL_XOUT_H 0x3B starts 14 bytes, big-endian
+signed 16-bit: accel X, Y, Z, temperature, gyro X, Y, Z. Only the temperature's scale differs:
+raw/340 + 36.53 °C (MPU6050), (raw - 21)/333.87 + 21 °C (MPU-6500 and the MPU-9250/9255 built on it).
+Boards sold as "MPU6050" often carry an MPU-6500: the driver accepts every chip of the table,
+whatever IMU_SENSOR says, and logs which one it found.
 """
 
 from __future__ import annotations
 
 import contextlib
+import logging
 import math
 import struct
 import time
 from collections.abc import Callable
-from typing import Any, ClassVar
+from typing import Any, ClassVar, NamedTuple
 
 from parts.sensors.freshness import SensorPart
 from vehicle.errors import VehicleError
+
+logger = logging.getLogger(__name__)
 
 WHO_AM_I = 0x75
 PWR_MGMT_1 = 0x6B
@@ -28,8 +33,27 @@ CONFIG = 0x1A
 GYRO_CONFIG = 0x1B
 ACCEL_CONFIG = 0x1C
 ACCEL_XOUT_H = 0x3B
-#: WHO_AM_I value per IMU_SENSOR
-CHIP_IDS: dict[str, tuple[int, ...]] = {"mpu6050": (0x68,), "mpu9250": (0x71, 0x73)}
+
+
+class Chip(NamedTuple):
+    """A register-compatible chip: its name and temperature scale, °C = (raw - offset) / lsb + at."""
+
+    name: str
+    temp_lsb: float  # LSB per °C
+    temp_offset: float  # raw reading at ``temp_at``
+    temp_at: float  # °C
+
+
+#: the chips this driver reads, by WHO_AM_I (datasheets above; the MPU-6000 and the MPU-9150's
+#: accel/gyro die read 0x68 like the MPU6050)
+CHIPS: dict[int, Chip] = {
+    0x68: Chip("MPU-6050", 340.0, 0.0, 36.53),
+    0x70: Chip("MPU-6500", 333.87, 21.0, 21.0),
+    0x71: Chip("MPU-9250", 333.87, 21.0, 21.0),
+    0x73: Chip("MPU-9255", 333.87, 21.0, 21.0),
+}
+#: IMU_SENSOR values (DonkeyCar's names); every one reads any chip of CHIPS
+SENSORS: tuple[str, ...] = ("mpu6050", "mpu9250")
 #: full-scale ranges: g -> AFS_SEL, °/s -> FS_SEL
 ACCEL_RANGES: dict[int, int] = {2: 0, 4: 1, 8: 2, 16: 3}
 GYRO_RANGES: dict[int, int] = {250: 0, 500: 1, 1000: 2, 2000: 3}
@@ -44,13 +68,13 @@ class IMUError(VehicleError):
 
 
 class MPU6050:
-    """Driver of an MPU6050 or MPU9250 (accelerometer and gyroscope; the MPU9250's magnetometer is
-    a separate chip behind it and not read).
+    """Driver of a chip of :data:`CHIPS` (accelerometer and gyroscope; the MPU9250's magnetometer is
+    a separate chip behind it and not read). :attr:`chip` names the chip found at open.
 
     Args:
         busnum: I2C bus (1 on a Raspberry Pi's header).
         address: 0x68 (AD0 low) or 0x69 (AD0 high) (IMU_ADDRESS).
-        sensor: "mpu6050" or "mpu9250" (IMU_SENSOR).
+        sensor: "mpu6050" or "mpu9250" (IMU_SENSOR; either reads any chip of :data:`CHIPS`).
         accel_range: ±g full scale (2, 4, 8, 16).
         gyro_range: ±°/s full scale (250, 500, 1000, 2000).
         dlpf: digital low-pass filter setting 0-6 (IMU_DLP_CONFIG).
@@ -60,7 +84,7 @@ class MPU6050:
     def __init__(self, busnum: int = 1, address: int = 0x68, *, sensor: str = "mpu6050", accel_range: int = 2,
                  gyro_range: int = 250, dlpf: int = 0, bus_factory: Callable[[int], Any] | None = None) -> None:
         sensor = sensor.lower()
-        if sensor not in CHIP_IDS:
+        if sensor not in SENSORS:
             raise IMUError(f"IMU_SENSOR {sensor!r}: use 'mpu6050' or 'mpu9250'")
         if accel_range not in ACCEL_RANGES or gyro_range not in GYRO_RANGES or not 0 <= dlpf <= 6:
             raise IMUError(f"IMU ranges: accel one of {list(ACCEL_RANGES)} g, gyro one of {list(GYRO_RANGES)} °/s, "
@@ -70,9 +94,11 @@ class MPU6050:
         self._factory = bus_factory
         self._bus: Any = None
         self.temperature: float | None = None  # °C at the latest read
+        self.chip: str | None = None  # the chip WHO_AM_I named at open ("MPU-6500")
+        self._temp = CHIPS[0x68]
 
     def _where(self) -> str:
-        return f"{self.sensor.upper()} at I2C bus {self.busnum} address 0x{self.address:02X}"
+        return f"IMU ({self.chip or self.sensor}) at I2C bus {self.busnum} address 0x{self.address:02X}"
 
     def open(self) -> None:
         """Check WHO_AM_I, wake the chip and set the ranges and filter."""
@@ -87,9 +113,14 @@ class MPU6050:
         except OSError as exc:
             raise IMUError(f"{self._where()}: no answer ({exc}); check the wiring (SDA, SCL, 3.3 V, GND), "
                            "IMU_ADDRESS (0x68, or 0x69 with AD0 high) and `i2cdetect -y 1`") from exc
-        if who not in CHIP_IDS[self.sensor]:
-            raise IMUError(f"{self._where()}: WHO_AM_I reads 0x{who:02X}, expected "
-                           f"{'/'.join(f'0x{v:02X}' for v in CHIP_IDS[self.sensor])}: check IMU_SENSOR")
+        chip = CHIPS.get(who)
+        if chip is None:
+            known = ", ".join(f"0x{v:02X} {c.name}" for v, c in CHIPS.items())
+            raise IMUError(f"{self._where()}: WHO_AM_I reads 0x{who:02X}, not a chip this driver reads ({known}); "
+                           "check IMU_ADDRESS (`i2cdetect -y 1`: another device may answer there)")
+        self.chip, self._temp = chip.name, chip
+        logger.info("IMU: %s (WHO_AM_I 0x%02X) at I2C bus %d address 0x%02X", chip.name, who, self.busnum,
+                    self.address)
         self._bus.write_byte_data(self.address, PWR_MGMT_1, 0x01)
         time.sleep(0.01)  # the PLL settles (datasheet: gyro start-up 30 ms typical; first reads may lag)
         self._bus.write_byte_data(self.address, CONFIG, self.dlpf)
@@ -102,7 +133,8 @@ class MPU6050:
         ax, ay, az, temp, gx, gy, gz = struct.unpack(">7h", data)
         a_scale = G / ACCEL_LSB[self.accel_range]
         g_scale = math.radians(1.0 / GYRO_LSB[self.gyro_range])
-        self.temperature = temp / 340.0 + 36.53 if self.sensor == "mpu6050" else (temp - 21) / 333.87 + 21.0
+        chip = self._temp
+        self.temperature = (temp - chip.temp_offset) / chip.temp_lsb + chip.temp_at
         return ax * a_scale, ay * a_scale, az * a_scale, gx * g_scale, gy * g_scale, gz * g_scale
 
     def close(self) -> None:

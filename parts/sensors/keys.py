@@ -43,7 +43,7 @@ KEYS: dict[str, KeyInfo] = {
     "gps/ok": KeyInfo("bool", "a valid, fresh fix"),
     # -- LiDAR and obstacle stop
     "lidar/dist_array": KeyInfo("list[float], m", "nearest return per angle bin, bins counter-clockwise from straight "
-                                                  "ahead, 0.0 = no return"),
+                                                  "ahead, 0.0 = no return, -1.0 = unknown (no fresh reading)"),
     "lidar/ok": KeyInfo("bool", "False while the LiDAR has not completed a turn within its max age"),
     "obstacle/stop": KeyInfo("bool", "the obstacle stop is cutting the throttle this loop"),
     "obstacle/distance": KeyInfo("float, m, or None", "nearest LiDAR return in the cone ahead"),

@@ -13,9 +13,18 @@ SCAN answers ``A5 5A 05 00 00 40 81`` and then streams 5-byte nodes:
 A node whose check bits are wrong means the stream lost its framing: the driver drops one byte
 and looks again. The A1's motor runs while DTR is low (pyserial ``dtr = False``).
 
+The check bits are weak: a quarter of shifted byte windows pass them, so line noise fakes nodes,
+some with S set. The driver therefore trusts the angles, not the S bit: a node is kept only when its
+angle lies at most ``max_gap`` degrees after the previous kept node (two consecutive nodes that agree
+with each other re-anchor the chain after a real gap), a turn ends where the kept angles wrap past
+360, and a turn is published only with at least ``360 / max_gap`` nodes. Bins inside a gap wider
+than ``max_gap`` have no reading: they keep an earlier turn's reading while it is at most
+``max_age`` old and read :data:`UNKNOWN` after that; the obstacle stop treats an unknown bin ahead
+as blind.
+
 :func:`bin_scan` turns a turn's (angle, distance) points into ``lidar/dist_array``: the nearest
 return per angle bin, bins counter-clockwise from straight ahead (the car's frame, as ``pos/angle``),
-metres, 0.0 where nothing returned.
+metres, 0.0 where nothing returned, :data:`UNKNOWN` (-1.0) where there is no fresh reading.
 """
 
 from __future__ import annotations
@@ -39,6 +48,7 @@ SYNC, SYNC2 = 0xA5, 0x5A
 STOP, RESET, SCAN, GET_HEALTH = 0x25, 0x40, 0x20, 0x52
 SCAN_DESCRIPTOR = bytes((SYNC, SYNC2, 0x05, 0x00, 0x00, 0x40, 0x81))
 NODE_SIZE = 5
+UNKNOWN = -1.0  # a bin of lidar/dist_array without a fresh reading (JSON-safe, unlike NaN: tubs store it)
 
 
 class LidarError(VehicleError):
@@ -89,33 +99,44 @@ class RPLidar(SensorPart):
         port: serial device (LIDAR_SERIAL) or pyserial URL; baudrate 115200 (A1/A2) or 256000 (A3).
         bins: length of the distance array (LIDAR_BINS).
         offset_deg, max_range: see :func:`bin_scan`.
-        max_age: seconds without a full turn after which the array reads None.
+        max_age: seconds without a full turn after which the array reads None, and after which a bin
+            without a reading reads UNKNOWN.
+        max_gap: degrees between two consecutive nodes above which the bins between them are not
+            read (LIDAR_MAX_GAP); it also bounds how far a node may follow the previous one.
         serial_factory: ``factory(port, baudrate, timeout)`` -> pyserial-like (tests: a pty).
     """
 
     OUTPUTS: ClassVar[tuple[str, ...]] = ("lidar/dist_array", "lidar/ok")
 
     def __init__(self, port: str, baudrate: int = 115200, *, bins: int = 360, offset_deg: float = 0.0,
-                 max_range: float = 12.0, max_age: float = 0.5, serial_factory: Callable[..., Any] | None = None,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 max_range: float = 12.0, max_age: float = 0.5, max_gap: float = 5.0,
+                 serial_factory: Callable[..., Any] | None = None, clock: Callable[[], float] = time.monotonic) -> None:
         super().__init__(max_age, clock)
         if bins < 4:
             raise LidarError(f"LIDAR_BINS must be >= 4, got {bins}")
+        if not 0 < max_gap <= 90:
+            raise LidarError(f"LIDAR_MAX_GAP must be in (0, 90] degrees, got {max_gap!r}")
         self.port, self.baudrate, self.bins = port, int(baudrate), int(bins)
-        self.offset_deg, self.max_range = float(offset_deg), float(max_range)
+        self.offset_deg, self.max_range, self.max_gap = float(offset_deg), float(max_range), float(max_gap)
+        self.min_nodes = int(math.ceil(360.0 / self.max_gap))  # fewer cannot cover a turn without a wider gap
         self._factory = serial_factory
         self._serial: Any = None
         self._buffer = bytearray()
         self._turn: list[tuple[float, float]] = []
+        self._candidate: tuple[float, float] | None = None  # the latest node that did not follow the chain
+        self._bins = np.full(self.bins, UNKNOWN)  # latest reading per bin ...
+        self._seen = np.full(self.bins, -math.inf)  # ... and its clock time
         self.resyncs = 0  # bytes dropped to find the node framing again
+        self.rejected_nodes = 0  # nodes whose check bits passed but whose angle did not fit the turn
+        self.rejected_turns = 0  # turns with too few nodes: not published
 
     @classmethod
     def from_config(cls, cfg: Any, clock: Callable[[], float] | None = None) -> RPLidar:
         """LIDAR_SERIAL, LIDAR_SERIAL_BAUDRATE, LIDAR_BINS, LIDAR_ANGLE_OFFSET, LIDAR_MAX_RANGE,
-        LIDAR_MAX_AGE_S."""
+        LIDAR_MAX_AGE_S, LIDAR_MAX_GAP."""
         return cls(cfg.LIDAR_SERIAL, cfg.LIDAR_SERIAL_BAUDRATE, bins=cfg.LIDAR_BINS,
                    offset_deg=cfg.LIDAR_ANGLE_OFFSET, max_range=cfg.LIDAR_MAX_RANGE, max_age=cfg.LIDAR_MAX_AGE_S,
-                   clock=clock or time.monotonic)
+                   max_gap=cfg.LIDAR_MAX_GAP, clock=clock or time.monotonic)
 
     def open(self) -> None:
         """Open the port, stop any scan, start the motor and a scan, check the descriptor."""
@@ -153,13 +174,82 @@ class RPLidar(SensorPart):
                 self.resyncs += 1
                 continue
             i += NODE_SIZE
-            start, _quality, angle, distance = node
-            if start and self._turn:
-                result = (bin_scan(self._turn, self.bins, offset_deg=self.offset_deg, max_range=self.max_range),)
-                self._turn = []
-            self._turn.append((angle, distance))
+            _start, _quality, angle, distance = node  # S is not trusted: noise forges it (module docstring)
+            turn = self._follow(angle, distance)
+            if turn is not None:
+                result = turn
         del buf[:i]
         return result
+
+    def _follow(self, angle: float, distance: float) -> tuple[list[float]] | None:
+        """Add one decoded node to the turn; the published array when it completed a plausible turn."""
+        if angle >= 360.0:  # angle_q6 reaches 512 degrees: only a forged node gets there
+            self.rejected_nodes += 1
+            return None
+        turn = self._turn
+        if not turn or 0.0 < (angle - turn[-1][0]) % 360.0 <= self.max_gap:
+            self._candidate = None
+            return self._extend(angle, distance)
+        cand, self._candidate = self._candidate, (angle, distance)
+        if cand is None or not 0.0 < (angle - cand[0]) % 360.0 <= self.max_gap:
+            self.rejected_nodes += 1
+            return None
+        # two consecutive nodes agree with each other, not with the chain: a real gap (the chain goes
+        # on from them), or forged nodes just ahead of the true angles (dropped)
+        self._candidate = None
+        if (cand[0] - turn[-1][0]) % 360.0 >= 180.0:
+            while turn and turn[-1][0] >= cand[0]:
+                turn.pop()
+                self.rejected_nodes += 1
+        published = self._extend(*cand)
+        return self._extend(angle, distance) or published
+
+    def _extend(self, angle: float, distance: float) -> tuple[list[float]] | None:
+        """Append a node that follows the chain; a wrap past 360 ends the turn and starts the next."""
+        turn = self._turn
+        if turn and angle < turn[-1][0]:
+            self._turn = [(angle, distance)]
+            return self._publish(turn)
+        turn.append((angle, distance))
+        return None
+
+    def _publish(self, turn: list[tuple[float, float]]) -> tuple[list[float]] | None:
+        """Merge a completed turn into the bins; the array (bins without a fresh reading: UNKNOWN)."""
+        if len(turn) < self.min_nodes:
+            self.rejected_turns += 1
+            logger.debug("LiDAR turn of %d nodes dropped (< %d)", len(turn), self.min_nodes)
+            return None
+        values, read = self._read_bins(turn)
+        now = self.freshness.clock()
+        self._bins[read] = values[read]
+        self._seen[read] = now
+        out = np.where(now - self._seen <= self.freshness.max_age, self._bins, UNKNOWN)
+        return (out.tolist(),)
+
+    def _read_bins(self, turn: list[tuple[float, float]]) -> tuple[np.ndarray, np.ndarray]:
+        """The turn's car-frame bins and the mask of those it read: bins holding a node, and bins
+        swept between two consecutive nodes (the last to the first across 360) at most ``max_gap``
+        apart, which take the nearer return of those two nodes (the beams' spacing is the sensor's
+        resolution; the nearer one keeps an obstacle between them)."""
+        n = self.bins
+        values = np.asarray(bin_scan(turn, n, offset_deg=self.offset_deg, max_range=self.max_range))
+        angles = np.asarray([a for a, _ in turn])
+        has_node = np.zeros(n, dtype=bool)
+        has_node[np.floor(((self.offset_deg - angles) % 360.0) * n / 360.0).astype(int) % n] = True
+        read = has_node.copy()
+        fill = np.full(n, np.inf)
+        nxt = [*turn[1:], (turn[0][0] + 360.0, turn[0][1])]
+        for (a, da), (b, db) in zip(turn, nxt, strict=True):
+            if b - a > self.max_gap:
+                continue
+            near = [d for d in (da, db) if 0.0 < d <= self.max_range]
+            x = ((self.offset_deg - b) % 360.0) * n / 360.0  # bin_scan's frame: ccw = offset - angle
+            for i in range(int(x), int(x + (b - a) * n / 360.0) + 1):
+                read[i % n] = True
+                fill[i % n] = min(fill[i % n], min(near, default=0.0))
+        swept = read & ~has_node
+        values[swept] = fill[swept]
+        return values, read
 
     def close(self) -> None:
         """Stop the scan and the motor, close the port."""
@@ -170,13 +260,15 @@ class RPLidar(SensorPart):
             self._serial.close()
             self._serial = None
 
-
 def front_distance(dist_array: list[float] | np.ndarray, half_angle_deg: float) -> float:
-    """The nearest return within ``half_angle_deg`` either side of straight ahead (inf: none)."""
+    """The nearest return within ``half_angle_deg`` either side of straight ahead (inf: none; NaN:
+    a bin in that cone is :data:`UNKNOWN`, so nothing can be said)."""
     d = np.asarray(dist_array, dtype=float)
     n = len(d)
     k = int(math.ceil(half_angle_deg * n / 360.0))
     idx = np.r_[0:k, n - k:n] if k > 0 else np.array([0])
     ahead = d[idx]
+    if (ahead < 0).any() or np.isnan(ahead).any():
+        return math.nan
     ahead = ahead[ahead > 0]
     return float(ahead.min()) if ahead.size else math.inf

@@ -32,7 +32,8 @@ class ObstacleStop:
         brake: brake command magnitude in [0, 1] (OBSTACLE_STOP_BRAKE); 0 = coast to neutral.
         decel: m/s^2 the car decelerates at under that brake (OBSTACLE_STOP_DECEL; be modest).
         latency: seconds from a return to the brake acting (a LiDAR turn plus a loop).
-        stop_when_blind: a stale LiDAR stops the car too (OBSTACLE_STOP_WHEN_BLIND).
+        stop_when_blind: a stale LiDAR, or an unknown bin (no fresh reading) in the cone ahead,
+            stops the car too (OBSTACLE_STOP_WHEN_BLIND).
         rolling: m/s above which the brake is held; below it the throttle is neutral.
     """
 
@@ -71,6 +72,8 @@ class ObstacleStop:
             speed: float | None = None) -> tuple[float | None, bool, float | None]:
         """The throttle to drive with, whether the stop acts, the nearest distance ahead (m)."""
         ahead = None if dist_array is None or not lidar_ok else front_distance(dist_array, self.half_angle_deg)
+        if ahead is not None and math.isnan(ahead):  # a bin ahead without a fresh reading: blind there
+            ahead = None
         blocked = (ahead is None and self.stop_when_blind) or (ahead is not None and ahead < self.trigger(speed))
         if blocked != self.stopping:
             self.stopping = blocked

@@ -72,7 +72,8 @@ ODOM_MAX_AGE_S: Annotated[float, Range(0.05, 10, unit="s")] = 0.5
 
 # An IMU is fitted (HAVE_IMU): imu/acl_x..z (m/s^2) and imu/gyr_x..z (rad/s) are recorded.
 HAVE_IMU: bool = False
-# The chip: "mpu6050" or "mpu9250" (IMU_SENSOR; its WHO_AM_I is checked at start).
+# The chip family: "mpu6050" or "mpu9250" (DonkeyCar's names); either reads any register-compatible
+# chip (WHO_AM_I 0x68 MPU-6050, 0x70 MPU-6500, 0x71 MPU-9250, 0x73 MPU-9255), named in the log at start.
 IMU_SENSOR: Annotated[str, IMUS.choice()] = "mpu6050"
 # I2C address: 0x68, or 0x69 with the AD0 pin high (IMU_ADDRESS).
 IMU_ADDRESS: Annotated[int, Range(0x08, 0x77)] = 0x68
@@ -108,7 +109,7 @@ GPS_MAX_AGE_S: Annotated[float, Range(0.1, 60, unit="s")] = 2.0
 # == LiDAR and obstacle stop ==
 
 # A 2-D LiDAR is fitted (USE_LIDAR): lidar/dist_array, the nearest return per angle bin (metres,
-# bins counter-clockwise from straight ahead, 0.0 = no return).
+# bins counter-clockwise from straight ahead, 0.0 = no return, -1.0 = no fresh reading: unknown).
 USE_LIDAR: bool = False
 # The LiDAR: "RP" (Slamtec RPLidar A1/A2/A3 and compatible scan protocol).
 LIDAR_TYPE: Annotated[str, LIDARS.choice()] = "RP"
@@ -125,6 +126,11 @@ LIDAR_ANGLE_OFFSET: Annotated[float, Range(0, 360, hi_open=True, unit="degrees")
 LIDAR_MAX_RANGE: Annotated[float, Range(0.1, 100, unit="m")] = 12.0
 # No full turn for this long: lidar/ok False, the array None.
 LIDAR_MAX_AGE_S: Annotated[float, Range(0.1, 10, unit="s")] = 0.5
+# Two consecutive scan nodes farther apart than this leave the bins between them unread (unknown
+# once their last reading is LIDAR_MAX_AGE_S old), a node farther than this after the previous one
+# is taken for line noise, and a turn needs 360 / LIDAR_MAX_GAP nodes to be published. An RPLidar
+# A1/A2 reads a node every 0.5-2 degrees.
+LIDAR_MAX_GAP: Annotated[float, Range(0.5, 90, unit="degrees")] = 5.0
 # Brake when the LiDAR (or the simulated one) sees something closer than OBSTACLE_STOP_DISTANCE
 # ahead, in every drive mode (the final throttle is cut after drive mode and speed limit).
 OBSTACLE_STOP: bool = False
@@ -138,5 +144,6 @@ OBSTACLE_STOP_ANGLE: Annotated[float, Range(1, 180, unit="degrees")] = 20.0
 OBSTACLE_STOP_BRAKE: Annotated[float, Range(0, 1)] = 0.5
 # Deceleration the car reaches under that brake, m/s^2; be modest (a wet floor halves it).
 OBSTACLE_STOP_DECEL: Annotated[float, Range(0.1, 20, unit="m/s^2")] = 3.0
-# A stale LiDAR (no turn within LIDAR_MAX_AGE_S) stops the car too: it cannot see.
+# A stale LiDAR (no turn within LIDAR_MAX_AGE_S), or one without a fresh reading somewhere in the
+# cone ahead, stops the car too: it cannot see.
 OBSTACLE_STOP_WHEN_BLIND: bool = True

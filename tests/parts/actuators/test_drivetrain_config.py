@@ -55,6 +55,14 @@ def test_a_partial_dict_keeps_the_other_defaults():
     ('PWM_STEERING_THROTTLE = {"PWM_STEERING_PIN": "RPI_GPIO.BOARD.33", "STEERING_LEFT_PWM": 1000}\n',
      r"line 1: PWM_STEERING_THROTTLE\['STEERING_LEFT_PWM'\] = 1000 is not a servo pulse at PWM_FREQ = 60 "
      r"\(60.00 Hz\); valid: 123 to 614 ticks"),
+    ('DRIVE_TRAIN_TYPE = "SERVO_HBRIDGE_2PIN"\nSERVO_HBRIDGE_2PIN = {"FWD_DUTY_PIN": "RPI_GPIO.BCM.13"}\n',
+     r"line 2: SERVO_HBRIDGE_2PIN\['PWM_STEERING_PIN'\] = 'RPI_GPIO.BOARD.33' is the same pin as "
+     r"SERVO_HBRIDGE_2PIN\['FWD_DUTY_PIN'\] = 'RPI_GPIO.BCM.13' \(header pin 33, GPIO13\)"),
+    ('DRIVE_TRAIN_TYPE = "DC_TWO_WHEEL"\nDC_TWO_WHEEL = {"LEFT_FWD_DUTY_PIN": "PIGPIO.BCM.22"}\n',
+     r"line 2: DC_TWO_WHEEL\['RIGHT_FWD_DUTY_PIN'\] = 'RPI_GPIO.BOARD.15' is the same pin as "
+     r"DC_TWO_WHEEL\['LEFT_FWD_DUTY_PIN'\] = 'PIGPIO.BCM.22' \(header pin 15, GPIO22\)"),
+    ('DRIVE_TRAIN_TYPE = "DC_TWO_WHEEL"\nDC_TWO_WHEEL = {"LEFT_FWD_DUTY_PIN": "RPI_GPIO.BOARD.6"}\n',
+     r"line 2: DC_TWO_WHEEL\['LEFT_FWD_DUTY_PIN'\] = 'RPI_GPIO.BOARD.6': header pin 6 is ground, not a GPIO"),
     ('DRIVE_TRAIN_TYPE = "VESC"\nVESC_CONTROL_MODE = "torque"\n', r"line 2: VESC_CONTROL_MODE"),
     ('DRIVE_TRAIN_TYPE = "MM1"\nMM1_MAX_FORWARD = 2100\n', r"line 2: MM1_MAX_FORWARD = 2100"),
 ])

@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 from fixtures.fake_mm1 import FakeMM1
 
+from parts.actuators.drivetrain import DrivetrainError
 from parts.actuators.mm1 import RoboHatMM1
 
 SAFE = dict(arm_s=0.0, watchdog_s=None, sleep=lambda s: None)
@@ -45,3 +46,12 @@ def test_bad_pulses_are_refused():
         RoboHatMM1("/dev/ttyS0", max_forward=2100)
     with pytest.raises(ValueError, match="MM1_STOPPED_PWM .1000. must lie strictly between"):
         RoboHatMM1("/dev/ttyS0", stopped=1000)
+
+
+def test_a_pulled_cable_is_one_line_on_shutdown(mm1):
+    part = RoboHatMM1(mm1.port, **SAFE).open()
+    part.run(0.0, 0.0)
+    mm1.stop()  # the board's end of the pty is gone: the cable is pulled
+    with pytest.raises(DrivetrainError, match=r"^MM1_SERIAL_PORT = '.*': the serial link failed .*RC receiver$") as e:
+        part.shutdown()
+    assert "\n" not in str(e.value)

@@ -6,7 +6,6 @@ from __future__ import annotations
 import pytest
 from gpiozero.pins.mock import MockFactory, MockPWMPin
 
-from parts.actuators.drivetrain import DrivetrainError
 from parts.actuators.motors import DCSteerThrottle, DifferentialDrive, MotorPins, ServoHBridge
 from parts.actuators.pins import PinSet
 from parts.actuators.pwm import SteeringCalibration
@@ -125,8 +124,49 @@ def test_watchdog_brakes_motors(gpio, clock):
 
 
 def test_bad_motor_pin_names_the_setting(gpio):
-    with pytest.raises(DrivetrainError, match="^LEFT_FWD_DUTY_PIN = 'RPI_GPIO.BOARD.99'"):
+    with pytest.raises(ValueError, match="^LEFT_FWD_DUTY_PIN = 'RPI_GPIO.BOARD.99': header pin 99 is not on the"):
         DifferentialDrive(PinSet(60, gpio_factory=gpio),
                           MotorPins("RPI_GPIO.BOARD.99", "RPI_GPIO.BOARD.16",
                                     names=("LEFT_FWD_DUTY_PIN", "LEFT_BWD_DUTY_PIN", "")),
                           MotorPins("RPI_GPIO.BOARD.15", "RPI_GPIO.BOARD.13"), **SAFE).open()
+
+
+@pytest.mark.parametrize("three_pin", [False, True])
+def test_differential_drive_arms_only_on_a_neutral_steering_and_throttle(gpio, clock, three_pin):
+    """Steering alone spins a two-wheel car: the command that arms it (right after open, right after
+    the watchdog fired) must be neutral in steering too, for the whole arming time."""
+    if three_pin:
+        left = MotorPins("RPI_GPIO.BOARD.16", "RPI_GPIO.BOARD.18", "RPI_GPIO.BOARD.22")
+        right = MotorPins("RPI_GPIO.BOARD.15", "RPI_GPIO.BOARD.13", "RPI_GPIO.BOARD.11")
+        duty = lambda m: level(gpio, int(m.duty.split(".")[-1]))  # noqa: E731
+    else:
+        left = MotorPins("RPI_GPIO.BOARD.18", "RPI_GPIO.BOARD.16")
+        right = MotorPins("RPI_GPIO.BOARD.15", "RPI_GPIO.BOARD.13")
+        duty = lambda m: max(level(gpio, int(m.fwd.split(".")[-1])), level(gpio, int(m.bwd.split(".")[-1])))  # noqa: E731
+    part = DifferentialDrive(PinSet(60, gpio_factory=gpio), left, right, arm_s=1.0, watchdog_s=0.5, clock=clock,
+                             sleep=lambda s: None)
+    part.watchdog.start = lambda: None  # checked inline, in the test's clock
+    part.open()
+    clock.advance(1.5)
+    part.run(0.9, 0.0)  # the arming time is over, the throttle is neutral, the steering is not
+    assert part.last == (0.0, 0.0) and duty(left) in (0, 1) and duty(right) in (0, 1)  # braked, not driven
+    part.run(0.0, 0.0)  # neutral from here on: the arming time starts now
+    clock.advance(0.5)
+    part.run(0.0, 0.0)
+    part.run(0.9, 0.0)
+    assert part.last == (0.0, 0.0)  # not armed yet, and this steering restarts the arming time
+    clock.advance(0.6)
+    part.run(0.0, 0.0)
+    clock.advance(0.6)
+    part.run(0.9, 0.0)
+    assert part.last == (0.0, 0.0)  # 0.6 s of neutral since the last steering: not yet
+    part.run(0.0, 0.0)
+    clock.advance(1.0)
+    part.run(0.0, 0.0)
+    part.run(0.9, 0.0)
+    assert part.last == (0.9, -0.9)  # armed after a whole second of neutral: steering turns on the spot
+    clock.advance(0.6)
+    assert part.watchdog.check()  # no command for 0.6 s: neutral, disarmed
+    part.run(0.9, 0.0)
+    assert part.last == (0.0, 0.0)
+    part.shutdown()

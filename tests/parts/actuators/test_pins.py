@@ -94,9 +94,12 @@ def test_one_pin_twice_is_refused(gpio, i2c, board):
     with pytest.raises(ValueError, match="PWM_THROTTLE_PIN = 'PCA9685.1:40.1' is the same pin as PWM_STEERING_PIN"):
         pins.pwm("PCA9685.1:40.1", "PWM_THROTTLE_PIN")
     pins.pwm("RPI_GPIO.BOARD.33", "FWD_DUTY_PIN")
-    with pytest.raises(DrivetrainError, match="BWD_DUTY_PIN = 'RPI_GPIO.BCM.13': "):  # the same header pin
+    with pytest.raises(ValueError, match=r"BWD_DUTY_PIN = 'RPI_GPIO.BCM.13' is the same pin as FWD_DUTY_PIN = "
+                       r"'RPI_GPIO.BOARD.33' \(header pin 33, GPIO13\)"):
         pins.pwm("RPI_GPIO.BCM.13", "BWD_DUTY_PIN")
-    with pytest.raises(DrivetrainError, match="DUTY_PIN = 'RPI_GPIO.BOARD.1': .*not a GPIO pin"):  # 3V3
+    with pytest.raises(ValueError, match="PWM_STEERING_PIN = 'PIGPIO.BCM.13' is the same pin as FWD_DUTY_PIN"):
+        pins.pwm("PIGPIO.BCM.13", "PWM_STEERING_PIN")
+    with pytest.raises(ValueError, match="DUTY_PIN = 'RPI_GPIO.BOARD.1': header pin 1 is 3.3 V power, not a GPIO"):
         pins.pwm("RPI_GPIO.BOARD.1", "DUTY_PIN")
     pins.close()
 

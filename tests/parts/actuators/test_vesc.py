@@ -155,3 +155,98 @@ def test_speed_reaches_the_vehicle_memory_as_enc_speed(vesc):
     V.add(watch, inputs=["enc/speed"])
     V.start(rate_hz=100, max_loop_count=500)
     assert seen[-1] == pytest.approx(-1.5, rel=1e-3)
+
+
+def _receive_values(part, vesc):
+    """Drive at neutral until a GET_VALUES reply (the fake's ERPM) has reached the part."""
+    for _ in range(200):
+        part.run(0.0, 0.0)
+        if part.values is not None and part.values.erpm == vesc.erpm:
+            return
+        vesc.wait_for(lambda: False, timeout=0.01)
+    raise AssertionError("no GET_VALUES reply reached the part")
+
+
+def test_a_missing_throttle_sends_the_brake_current_not_duty_zero(vesc):
+    part = VESC(vesc.port, mode="duty", max_duty=0.2, brake_current=4.0, **SAFE).open()
+    part.run(0.0, 0.0)
+    drive_until(part, vesc, lambda: vesc.last("duty") == 0.1, throttle=0.5)
+    drive_until(part, vesc, lambda: vesc.motor_commands()[-1] == ("brake", 4.0), angle=0.5, throttle=math.nan)
+    assert vesc.last("servo") == 0.75  # the steering still follows
+    part.shutdown()
+
+
+def test_a_negative_throttle_while_rolling_forward_is_a_brake_current(vesc):
+    """The obstacle stop brakes with a negative throttle while the car rolls: on a VESC that is
+    COMM_SET_CURRENT_BRAKE (|throttle| x VESC_MAX_CURRENT), not reverse duty."""
+    vesc.erpm = 3000
+    part = VESC(vesc.port, mode="duty", max_duty=0.2, max_current=10.0, **SAFE).open()
+    _receive_values(part, vesc)
+    drive_until(part, vesc, lambda: vesc.motor_commands()[-1] == ("brake", 6.0), throttle=-0.6)
+    assert not [c for c in vesc.motor_commands() if c[0] == "duty" and c[1] < 0]
+    vesc.erpm = 0  # standing: a negative throttle is reverse again
+    _receive_values(part, vesc)
+    drive_until(part, vesc, lambda: vesc.last("duty") == pytest.approx(-0.12), throttle=-0.6)
+    part.shutdown()
+
+
+def test_a_pulled_cable_is_one_line_on_run_and_on_shutdown(vesc):
+    """USB unplugged while driving: writing and draining the tty fail with EIO (pyserial's
+    SerialException, termios.error); each is one DrivetrainError naming the setting, and the port
+    is still closed."""
+    part = VESC(vesc.port, **SAFE).open()
+    part.run(0.0, 0.0)
+    vesc.stop()  # the device end of the pty is gone: the cable is pulled
+    with pytest.raises(DrivetrainError, match=r"^VESC_SERIAL_PORT = '.*': the serial link failed") as info:
+        part.run(0.0, 0.0)
+    assert "\n" not in str(info.value)
+    with pytest.raises(DrivetrainError, match=r"^VESC_SERIAL_PORT = '.*': the serial link failed") as info:
+        part.shutdown()
+    assert "\n" not in str(info.value) and "VESC's own timeout" in str(info.value)
+    assert part._serial is None
+    part.shutdown()  # idempotent: nothing left to fail
+
+
+@pytest.mark.parametrize("firmware", [(2, 18), (3, 32)])
+def test_firmware_older_than_3_33_is_refused_at_open_in_one_line(firmware):
+    """Before 3.33 COMM_GET_VALUES starts with seven temperatures: read with the current layout,
+    ERPM 6000 came out as 1,715.7 m/s (and could pass for 'rolling forward')."""
+    with FakeVESC(erpm=6000, firmware=firmware) as device:
+        part = VESC(device.port, gear_ratio=10.0, **SAFE)
+        version = f"{firmware[0]}.{firmware[1]:02d}"
+        with pytest.raises(DrivetrainError, match=rf"^VESC_SERIAL_PORT = '.*': VESC firmware {version} .*3\.33") as e:
+            part.open()
+        assert "\n" not in str(e.value)
+        assert device.motor_commands() == []  # refused before any motor command
+        assert part._serial is None
+
+
+def test_a_vesc_that_never_answers_its_firmware_version_is_one_line():
+    with FakeVESC(firmware=None) as device:
+        part = VESC(device.port, **SAFE)
+        part.fw_reply_s = 0.2
+        with pytest.raises(DrivetrainError, match=r"^VESC_SERIAL_PORT = '.*': no answer to COMM_FW_VERSION") as e:
+            part.open()
+        assert "\n" not in str(e.value) and "VESC_BAUDRATE" in str(e.value)
+
+
+def test_the_firmware_version_is_read_at_open(vesc):
+    part = VESC(vesc.port, **SAFE).open()
+    assert part.firmware == (5, 2) and "firmware 5.02" in part.describe()
+    assert vesc.commands[0] == ("fw_version", None)
+    part.shutdown()
+
+
+def test_a_physically_impossible_speed_is_stale_not_a_reading(vesc, clock):
+    """A reply whose ERPM means far beyond any RC car (a mis-framed or foreign layout) is dropped:
+    the speed stays None and the motor does not count as rolling forward."""
+    vesc.erpm = 1_500_000
+    part = VESC(vesc.port, gear_ratio=10.0, clock=clock, **SAFE).open()
+    for _ in range(20):
+        assert part.run(0.0, 0.0) is None
+        vesc.wait_for(lambda: False, timeout=0.01)
+    assert vesc.replies >= 5 and part.values is None and not part._rolling_forward()
+    vesc.erpm = 3000  # a plausible reading is taken again
+    _receive_values(part, vesc)
+    assert part.run(0.0, 0.0) == pytest.approx(3000 / 2 / 10 / 60 * 2 * math.pi * 0.0315)
+    part.shutdown()

@@ -82,6 +82,23 @@ def test_single_channel_direction_follows_the_throttle(factory, mode, expected) 
     ticks.close()
 
 
+def test_the_throttle_sets_the_direction_at_once_in_the_non_threaded_run(factory) -> None:
+    """Pulses after a loop's run(throttle) count with that throttle's sign (as in the threaded
+    path), not with the sign of the loop before."""
+    part = Encoder(GpioTicks(13, mode="FORWARD_REVERSE", pin_factory=factory), clock=Clock())
+    pin = factory.pin(27)  # header pin 13 is BCM 27
+    deltas, last = [], 0
+    for throttle, pulses in ((-0.5, 30), (-0.5, 10), (0.5, 5), (0.5, 0)):
+        ticks = part.run(throttle)[0]
+        deltas.append(ticks - last)
+        last = ticks
+        for _ in range(pulses):
+            pin.drive_low()
+            pin.drive_high()
+    assert deltas[1:] == [-30, -10, 5]
+    part.shutdown()
+
+
 def test_serial_encoder_protocol_and_staleness() -> None:
     device = ArduinoEncoder(channels=2)
     clock = Clock()

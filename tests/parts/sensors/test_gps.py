@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
 from sensor_fakes import NmeaSource, gga, nmea, rmc, wait_for
 
@@ -74,3 +76,49 @@ def _next_fix(part: GPS, new=lambda v: True) -> tuple:
     out: list = []
     wait_for(lambda: out.append(part.run()) or (out[-1][-1] is True and new(out[-1])))
     return out[-1]
+
+
+@pytest.mark.parametrize("lat", [0.0, 47.0, 60.0, -60.0, -33.9])
+def test_local_frame_matches_an_independent_wgs84_reference(lat: float) -> None:
+    """The frame is WGS-84, not a sphere: against UTM (the `utm` package, independent of our code),
+    on a zone's central meridian where the grid's scale is exactly k0 = 0.9996 and its north is true
+    north, points up to 500 m away land within a millimetre."""
+    import utm
+
+    lon = 3.0  # central meridian of zone 31
+    frame = LocalFrame(lat, lon)
+
+    def ref(la: float, lo: float) -> tuple[float, float]:
+        e, n, _, _ = utm.from_latlon(la, lo, force_zone_number=31, force_northern=True)
+        e0, n0, _, _ = utm.from_latlon(lat, lon, force_zone_number=31, force_northern=True)
+        return (e - e0) / 0.9996, (n - n0) / 0.9996
+
+    for dlat, dlon in [(0.0045, 0.0), (0.0, 0.006), (-0.003, 0.004), (0.0025, -0.0035)]:
+        x, y = frame.to_xy(lat + dlat, lon + dlon)
+        rx, ry = ref(lat + dlat, lon + dlon)
+        assert math.hypot(rx, ry) < 700
+        assert (x, y) == pytest.approx((rx, ry), abs=1e-3), (dlat, dlon)
+        back = frame.to_latlon(x, y)
+        assert back == pytest.approx((lat + dlat, lon + dlon), abs=1e-9)  # 0.1 mm
+    x, y = frame.to_xy(lat + 100 / 111_000, lon)  # about 100 m north: the sphere read 100.56 m at the equator
+    assert y == pytest.approx(ref(lat + 100 / 111_000, lon)[1], abs=1e-4)
+
+
+@pytest.mark.parametrize("body", [
+    "GPGGA,123519.00,,,,,1,08,1.2,545.4,M,46.9,M,,",  # quality 1 but no position at all
+    "GPRMC,123519.00,A,,,,,0.00,84.4,230394,3.1,W",  # status A, no position
+    "GPGGA,123519.00,4807.038,,01131.000,E,1,08,0.9,545.4,M,46.9,M,,",  # no N/S
+    "GPGGA,123519.00,4807.038,N,01131.000,,1,08,0.9,545.4,M,46.9,M,,",  # no E/W
+    "GPGGA,123519.00,9959.000,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,",  # latitude 99 degrees 59'
+    "GPGGA,123519.00,4807.038,N,18130.000,E,1,08,0.9,545.4,M,46.9,M,,",  # longitude 181 degrees 30'
+    "GPRMC,123519.00,A,4807.038,N,01175.000,E,0.00,84.4,230394,3.1,W",  # 75 minutes
+])
+def test_empty_or_impossible_position_fields_are_not_a_fix(body: str) -> None:
+    """pynmea2 reads empty fields as 0.0: a sentence without a position must not put the car at
+    0 N 0 E, nor become the frame's origin."""
+    part = GPS("unused")
+    assert part.update_from(nmea(body)) is None
+    assert not part.receiver.fix and part.frame is None and part.receiver.bad == 1
+    out = part.update_from(gga(LAT, LON))  # the first real fix becomes the origin
+    assert out is not None and out[:4] == pytest.approx((0.0, 0.0, LAT, LON), abs=1e-6)
+    assert part.frame.latitude == pytest.approx(LAT, abs=1e-6)

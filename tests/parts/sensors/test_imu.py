@@ -41,14 +41,37 @@ def test_readings_in_si_units(accel_range: int, gyro_range: int) -> None:
     assert imu.temperature == pytest.approx(35.0, abs=0.01)
 
 
-def test_wrong_chip_and_missing_chip_are_named() -> None:
-    with pytest.raises(IMUError, match="WHO_AM_I reads 0x68.*IMU_SENSOR"):
-        _driver(MPU6050Model(0x68), sensor="mpu9250").open()
+@pytest.mark.parametrize(("who", "chip", "temp_raw"), [
+    (0x68, "MPU-6050", -521),  # raw / 340 + 36.53 (MPU-6000/6050 register map 4.18)
+    (0x70, "MPU-6500", round((35.0 - 21) * 333.87) + 21),  # (raw - 21) / 333.87 + 21 (MPU-6500 map 4.23)
+    (0x71, "MPU-9250", round((35.0 - 21) * 333.87) + 21),
+    (0x73, "MPU-9255", round((35.0 - 21) * 333.87) + 21),
+])
+@pytest.mark.parametrize("sensor", ["mpu6050", "mpu9250"])
+def test_register_compatible_chips_are_accepted_and_named(who, chip, temp_raw, sensor, caplog) -> None:
+    """Boards sold as "MPU6050" often carry an MPU-6500: any chip of the family opens, whatever
+    IMU_SENSOR says, and the log names the chip found."""
+    model = MPU6050Model(who)
+    model.accel_g = (0.0, 0.0, 1.0)
+    model.temp_raw = temp_raw
+    imu = _driver(model, sensor=sensor)
+    with caplog.at_level("INFO", logger="parts.sensors.imu"):
+        imu.open()
+    assert imu.chip == chip
+    assert f"{chip} (WHO_AM_I 0x{who:02X})" in caplog.text
+    assert imu.read()[2] == pytest.approx(9.80665, abs=0.01)
+    assert imu.temperature == pytest.approx(35.0, abs=0.01)
+    imu.close()
+
+
+def test_unknown_chip_and_missing_chip_are_named() -> None:
+    with pytest.raises(IMUError, match=r"WHO_AM_I reads 0x12.*0x68 MPU-6050.*0x70 MPU-6500") as e:
+        _driver(MPU6050Model(0x12)).open()
+    assert "\n" not in str(e.value)
     model = MPU6050Model(0x71)
     bus = FakeSMBus({0x68: model})
     with pytest.raises(IMUError, match="0x69.*no answer"):
         MPU6050(1, 0x69, sensor="mpu9250", bus_factory=lambda n: bus).open()
-    _driver(MPU6050Model(0x71), sensor="mpu9250").open()  # the right chip opens
 
 
 def test_imu_part_keys_and_staleness() -> None:

@@ -109,3 +109,87 @@ def test_obstacle_stop_brakes_then_holds_neutral() -> None:
     assert stop.run(0.7, side, True, 1.0) == (0.7, False, None)
     assert stop.run(0.7, None, False, 1.0) == (-0.6, True, None)  # blind: stop
     assert ObstacleStop(0.5, stop_when_blind=False).run(0.7, None, False, 1.0)[0] == 0.7
+
+
+class _ByteStream:
+    """A pyserial-like port that hands out a fixed byte stream (what the RPLidar sent) in chunks."""
+
+    def __init__(self, data: bytes, chunk: int = 64) -> None:
+        self.data, self.pos, self.chunk = data, 0, chunk
+
+    @property
+    def in_waiting(self) -> int:
+        return min(self.chunk, len(self.data) - self.pos)
+
+    def read(self, n: int) -> bytes:
+        out = self.data[self.pos:self.pos + n]
+        self.pos += len(out)
+        return out
+
+
+def _noisy_turns(turns: int, places: int, junk: int, seed: int) -> bytes:
+    """RPLidar turns (360 nodes, S on the first) of a wall 0.4 m ahead (sensor angles 341-20: bins 340-19) with
+    ``junk`` random bytes inserted at ``places`` random places in each turn (line noise)."""
+    import random
+
+    rng = random.Random(seed)
+    out = bytearray()
+    for _ in range(turns):
+        nodes = [lidar_node(a, 0.4 if (a > 340 or a <= 20) else 3.0, start=a == 0) for a in range(360)]
+        cuts = set(rng.sample(range(1, 360), places))
+        for i, node in enumerate(nodes):
+            if i in cuts:
+                out += bytes(rng.randrange(256) for _ in range(junk))
+            out += node
+    return bytes(out)
+
+
+@pytest.mark.parametrize("places", [2, 5, 20])
+def test_line_noise_never_shows_a_clear_way_through_a_wall(places: int) -> None:
+    """Forged nodes (shifted bytes pass the check bits, some with S set) must not publish a partial
+    turn whose missing bins read 'no return' ahead: every published turn sees the wall or says unknown."""
+    clock = [0.0]
+    part = RPLidar("unused", bins=360, max_age=0.5, clock=lambda: clock[0])
+    part._serial = _ByteStream(_noisy_turns(60, places, 8, seed=places))
+    stop = ObstacleStop(0.5, half_angle_deg=20)
+    published = passed = good = 0
+    while part._serial.in_waiting:
+        clock[0] += 0.002
+        turn = part.read()
+        if turn is None:
+            continue
+        published += 1
+        dist = turn[0]
+        assert len(dist) == 360
+        throttle, stopping, _near = stop.run(0.5, dist, True, 1.0)
+        passed += throttle > 0
+        assert stopping, f"turn {published}: nothing ahead in {dist[:21]} ... {dist[-20:]}"
+        ahead = [d for d in dist[:20] + dist[-20:] if d >= 0]
+        assert all(d == pytest.approx(0.4) for d in ahead)  # the wall, or unknown
+        good += sum(d == pytest.approx(0.4) for d in ahead) >= 38
+    assert passed == 0 and published >= 40 and good >= 0.9 * published  # most turns still come through
+    assert part.resyncs > 0 and part.rejected_nodes > 0
+
+
+def test_a_turn_with_a_hole_reads_unknown_there_once_its_old_readings_are_stale() -> None:
+    clock = [0.0]
+    part = RPLidar("unused", bins=36, max_age=0.5, max_gap=5.0, clock=lambda: clock[0])
+    full = b"".join(lidar_node(a, 2.0, start=a == 0) for a in range(360))
+    holed = b"".join(lidar_node(a, 2.0, start=a == 0) for a in range(360) if not 100 <= a < 150)
+    part._serial = _ByteStream(full + full + holed + holed + lidar_node(0.0, 2.0, start=True))
+    turns = []
+    while part._serial.in_waiting:
+        clock[0] += 0.001
+        turns += [t for t in [part.read()] if t is not None]
+    assert len(turns) == 4 and part.rejected_turns == 0
+    # sensor angles 100-150 clockwise = car-frame bins 21-26 (210-260 degrees counter-clockwise)
+    assert turns[2][0][21:26] == [2.0] * 5  # the previous full turn's readings are still fresh
+    assert turns[3][0][21:26] == [2.0] * 5
+    clock[0] += 1.0
+    part._serial = _ByteStream(holed + lidar_node(0.0, 2.0, start=True))
+    while (t := part.read()) is None:
+        pass
+    assert t[0][22:26] == [-1.0] * 4 and t[0][21] == t[0][26] == t[0][0] == 2.0  # 21, 26: nodes 150, 100
+    assert ObstacleStop(0.5, half_angle_deg=20).run(0.5, [-1.0] + [5.0] * 35, True, 0.0)[:2] == (0.0, True)
+    assert ObstacleStop(0.5, half_angle_deg=20).run(0.5, [5.0] * 18 + [-1.0] + [5.0] * 17, True, 0.0)[:2] == \
+        (0.5, False)  # unknown behind: no matter

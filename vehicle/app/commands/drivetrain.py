@@ -7,8 +7,10 @@ Put the car on a stand with the wheels off the ground first. The command opens t
 car's settings describe (PCA9685, GPIO pins, VESC, Robo HAT MM1), then steps through: neutral
 (the ESC arms), full left, full right, centre, forward at --throttle, neutral, reverse, neutral,
 printing what you should see at each step (a VESC with VESC_GEAR_RATIO also prints the measured
-speed). It runs in the normal drive loop, so Ctrl-C, the command watchdog and every stop path
-leave the drivetrain at neutral, as when driving.
+speed). With GPIO_MOCK = True a car with GPIO pins runs on simulated pins (no GPIO needed, nothing
+moves) and each step ends with what every pin would have output. It runs in the normal drive
+loop, so Ctrl-C, the command watchdog and every stop path leave the drivetrain at neutral, as
+when driving.
 """
 
 from __future__ import annotations
@@ -62,10 +64,12 @@ class BenchScript:
     FEEDBACK: ClassVar[tuple[str, ...]] = ("enc/speed",)
     OUTPUTS: ClassVar[tuple[str, ...]] = ("angle", "throttle")
 
-    def __init__(self, V: Any, script: list[tuple[str, float, float, float]], say: Any = print) -> None:
+    def __init__(self, V: Any, script: list[tuple[str, float, float, float]], say: Any = print,
+                 report: Any = None) -> None:
         self.V = V
         self.script = script
         self.say = say
+        self.report = report  # () -> a line said at the end of each step (what the outputs were)
         self.index = -1
         self.until = 0.0
         self.speeds: list[float] = []
@@ -73,6 +77,8 @@ class BenchScript:
     def run(self, speed: float | None = None) -> tuple[float, float]:
         now = self.V.clock.now()
         if self.index < 0 or now >= self.until:
+            if self.index >= 0 and self.report is not None:
+                self.say(self.report())
             self.index += 1
             if self.index >= len(self.script):
                 self.V.stop()
@@ -111,6 +117,11 @@ def cmd_check(args: argparse.Namespace) -> int:
     V.add(script)
     part = add_drivetrain(V, cfg)
     print(f"drivetrain: {part.describe()}", flush=True)  # noqa: T201 - the command's output
+    pins = getattr(part, "pins", None)
+    if cfg.GPIO_MOCK and pins is not None and pins.gpio_levels():
+        print("GPIO_MOCK: the GPIO pins are simulated (gpiozero's MockFactory); nothing moves", flush=True)  # noqa: T201
+        script.report = lambda: "    pins: " + ", ".join(f"{name} {level:.3f}"
+                                                           for name, level in pins.gpio_levels().items())
     V.start(rate_hz=cfg.DRIVE_LOOP_HZ)
     if script.speeds:
         print(f"measured speed: {min(script.speeds):.2f} to {max(script.speeds):.2f} m/s "  # noqa: T201

@@ -49,3 +49,30 @@ def test_a_standard_input_without_an_answer_names_yes(tmp_path, monkeypatch, cap
     assert "Traceback" not in err and len(err.strip().splitlines()) == 1
     assert "--yes" in err and "wheels off the ground" in err
     assert not (car / "pwm.txt").exists()
+
+
+def test_a_gpio_car_without_gpio_is_one_line_and_gpio_mock_is_its_bench_mode(tmp_path, capsys, recwarn):
+    """An H-bridge car on a machine without GPIO: one line saying so and how to fix it (no
+    gpiozero fallback warnings); with GPIO_MOCK the same car runs the bench script on gpiozero's
+    MockFactory (PWM pins) and prints what each pin would output."""
+    from gpiozero.exc import PinFactoryFallback
+    from test_hw_cli import _no_gpio_here
+
+    (tmp_path / "myconfig.py").write_text('DRIVE_TRAIN_TYPE = "SERVO_HBRIDGE_2PIN"\n')
+    if _no_gpio_here():
+        assert main(["drivetrain", "check", "--yes", "--seconds", "0.05", "--car", str(tmp_path)]) != 0
+        captured = capsys.readouterr()
+        err = [line for line in captured.err.splitlines() if line.strip()]
+        assert len(err) == 1 and "no GPIO here" in err[0] and "GPIO_MOCK = True" in err[0], err
+        assert not [w for w in recwarn if issubclass(w.category, PinFactoryFallback)]
+    (tmp_path / "myconfig.py").write_text('DRIVE_TRAIN_TYPE = "SERVO_HBRIDGE_2PIN"\nGPIO_MOCK = True\n')
+    assert main(["drivetrain", "check", "--yes", "--seconds", "0.05", "--throttle", "0.2", "--car", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "GPIO_MOCK" in out
+    # the defaults: FWD_DUTY_PIN BOARD18, BWD_DUTY_PIN BOARD16, servo on BOARD33 at 60 Hz (ticks / 4096)
+    steps = [line for line in out.splitlines() if line.lstrip().startswith("pins:")]
+    assert len(steps) == 8
+    assert "BOARD18 0.20" in steps[4] and "BOARD16 0.00" in steps[4]  # forward at 0.2
+    assert "BOARD18 0.00" in steps[6] and "BOARD16 0.20" in steps[6]  # reverse at 0.2
+    assert f"BOARD33 {460 / 4096:.3f}" in steps[1]  # full left: STEERING_LEFT_PWM 460 ticks
+    assert "done: the drivetrain is at neutral" in out

@@ -87,13 +87,44 @@ def test_hw_check_says_one_line_per_missing_device_and_tracebacks_only_with_debu
     import subprocess
 
     (tmp_path / "myconfig.py").write_text(
+        "HAVE_ODOM = True\nENCODER_TYPE = 'GPIO'\nODOM_PIN = 13\n"  # no GPIO here: one line, no warnings
         "HAVE_IMU = True\nIMU_I2C_BUSNUM = 9\nHAVE_GPS = True\nGPS_SERIAL = '/dev/ttyNOPE7'\n"
         "USE_LIDAR = True\nLIDAR_SERIAL = '/dev/ttyNOPE8'\n")
     cmd = [sys.executable, "-m", "vehicle.app.cli", "hw", "check", "--car", str(tmp_path), "--timeout", "0.5"]
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     lines = (run.stdout + run.stderr).splitlines()
     assert run.returncode == 1
-    assert [line.split()[0] for line in lines] == ["imu", "gps", "lidar"], lines
-    assert "/dev/ttyNOPE7" in lines[1] and "GPS_SERIAL" in lines[1] and "LIDAR_SERIAL" in lines[2]
+    assert [line.split()[0] for line in lines] == ["odom", "imu", "gps", "lidar"], lines
+    assert "/dev/ttyNOPE7" in lines[2] and "GPS_SERIAL" in lines[2] and "LIDAR_SERIAL" in lines[3]
     debug = subprocess.run([*cmd, "--debug"], capture_output=True, text=True, timeout=120)
     assert debug.returncode == 1 and debug.stderr.count("Traceback (most recent call last)") >= 3
+
+
+def _no_gpio_here() -> bool:
+    """This machine has no GPIO backend gpiozero can use (the tests' machines; not a Pi)."""
+    import warnings
+
+    from gpiozero import Device
+    from gpiozero.exc import BadPinFactory
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            Device._default_pin_factory().close()
+        except (BadPinFactory, ImportError):
+            return True
+    return False
+
+
+def test_hw_check_of_a_gpio_encoder_without_gpio_is_one_line(tmp_path, capsys, recwarn):
+    import pytest
+    from gpiozero.exc import PinFactoryFallback
+
+    if not _no_gpio_here():
+        pytest.skip("this machine has GPIO")
+    (tmp_path / "myconfig.py").write_text("HAVE_ODOM = True\nENCODER_TYPE = 'GPIO'\nODOM_PIN = 13\n")
+    assert main(["hw", "check", "--car", str(tmp_path)]) == 1
+    captured = capsys.readouterr()
+    lines = [line for line in (captured.out + captured.err).splitlines() if line.strip()]
+    assert len(lines) == 1, lines
+    assert "ODOM_PIN = 13" in lines[0] and "no GPIO here" in lines[0] and "GPIO_MOCK = True" in lines[0]
+    assert not [w for w in recwarn if issubclass(w.category, PinFactoryFallback)]
