@@ -76,13 +76,18 @@ class Protocol:
     def command_line(self) -> str:
         """The command that runs this protocol again (defaults written out)."""
         words = ["vehicle", "sim", "robustness", "--recipe", self.recipe, "--seeds", _ints(self.seeds),
-                 "--precisions", ",".join(self.precisions), "--draws", str(self.draws)]
+                 "--precisions", ",".join(self.precisions), "--draws", str(self.draws), *self.demo_options()]
+        return shlex.join([*words, "--jobs", str(self.jobs), "--out", str(self.out)])
+
+    def demo_options(self) -> list[str]:
+        """The options given to every run's ``vehicle demo`` (those left at the demo's default are left out)."""
+        words: list[str] = []
         for option, value in (("--eval-tracks", self.eval_tracks), ("--laps", self.laps),
                               ("--records", self.records), ("--epochs", self.epochs),
                               ("--train-tracks", self.train_tracks)):
             if value is not None:
                 words += [option, _ints(value) if isinstance(value, list) else str(value)]
-        return shlex.join([*words, "--jobs", str(self.jobs), "--out", str(self.out)])
+        return words
 
 
 def _ints(values: list[int]) -> str:
@@ -96,12 +101,7 @@ def say(text: str) -> None:
 def demo_command(spec: RunSpec, folder: Path, protocol: Protocol) -> list[str]:
     """The ``vehicle demo`` subprocess of one run, with one torch thread."""
     cmd = [sys.executable, "-m", "vehicle.app.cli", "demo", "--out", str(folder), "--seed", str(spec.seed),
-           "--precision", spec.precision, "--draws", str(protocol.draws), "--threads", "1"]
-    for option, value in (("--eval-tracks", protocol.eval_tracks), ("--laps", protocol.laps),
-                          ("--records", protocol.records), ("--epochs", protocol.epochs),
-                          ("--train-tracks", protocol.train_tracks)):
-        if value is not None:
-            cmd += [option, _ints(value) if isinstance(value, list) else str(value)]
+           "--precision", spec.precision, "--draws", str(protocol.draws), "--threads", "1", *protocol.demo_options()]
     return [*cmd, "--robust"] if spec.recipe == "robust" else cmd
 
 
@@ -170,7 +170,9 @@ def run_all(specs: list[RunSpec], protocol: Protocol,
     Ctrl-C or SIGTERM stops the running ones (:func:`stop_runs`) and is raised again."""
     runs_dir = protocol.out / "runs"
     runs_dir.mkdir(parents=True, exist_ok=True)
-    queue, running, codes = list(specs), {}, {}
+    queue = list(specs)
+    running: dict[RunSpec, tuple[subprocess.Popen[bytes], IO[bytes], float]] = {}  # process, log, start time
+    codes: dict[str, int] = {}
     env = child_env()
     try:
         with sigterm_stops():
