@@ -78,6 +78,14 @@ ROBUST_WIDE_RANGES: dict[str, tuple[float, float]] = {
 #: the demo's ranges instead of the wider ones gave 67.8 % in park, the wider ones alone 78.7 %.
 ROBUST_RECORDINGS = (Recording("demo_tub_draw11", 11, 11, None),
                      Recording("demo_tub_wide", 1, 0, ROBUST_WIDE_RANGES))
+#: ``vehicle demo --seed N`` records with the randomisation and effects seeds of seed 1 plus
+#: (N - 1) * SEED_STRIDE: seed 2 records draws 10001 and 10011, far from the hidden evaluation draws
+#: (eval_draws.HIDDEN_DRAW_BASE + 1 ..) and DAgger's roll-out draws (dagger.ROLLOUT_DRAW_BASE + round)
+SEED_STRIDE = 10_000
+#: the largest --seed: its draws stay within SIM_RANDOMIZE's range (below 2**32)
+MAX_SEED = 100_000
+#: TRAIN_SEED of ``--seed 1`` (the setting's default: the demo as it always trained)
+BASE_TRAIN_SEED = 42
 # 12000 records on 64 tracks: with half of each, one unseen indoor track in five failed (docs/pilot.md)
 DEFAULTS = {"records": 12000, "epochs": 10, "noise": 0.4, "train_tracks": list(range(1, 65)),
             "eval_tracks": [101, 102, 103, 104, 105], "laps": 2, "eval_randomize": None, "unseen_theme": "park"}
@@ -112,6 +120,22 @@ def _minutes(seconds: float) -> str:
     return f"{seconds:.0f} s" if seconds < 90 else f"{round(seconds / 60)} minutes"
 
 
+def training_recordings(seed: int = 1, robust: bool = False) -> list[Recording]:
+    """The recordings of ``vehicle demo --seed seed`` (with ``--robust``: three): seed 1 is the demo
+    as it always recorded (draw 1, SIM_SEED 0; --robust also draws 11 and 1 over wider ranges), seed
+    N adds (N - 1) * :data:`SEED_STRIDE` to each draw and effects seed. ValueError outside 1..MAX_SEED."""
+    if not 1 <= seed <= MAX_SEED:
+        raise ValueError(f"--seed {seed}: use 1 .. {MAX_SEED}")
+    offset = (seed - 1) * SEED_STRIDE
+    base = [Recording("demo_tub", DEMO_SETTINGS["SIM_RANDOMIZE"], 0, None), *(ROBUST_RECORDINGS if robust else ())]
+    return [r._replace(draw=r.draw + offset, seed=r.seed + offset) for r in base]
+
+
+def train_seed(seed: int = 1) -> int:
+    """TRAIN_SEED of ``vehicle demo --seed seed``: 42 for seed 1, then 43, 44, ..."""
+    return BASE_TRAIN_SEED + seed - 1
+
+
 def say(text: str) -> None:
     print(text, flush=True)  # noqa: T201 - the command's own output
 
@@ -119,7 +143,8 @@ def say(text: str) -> None:
 def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks: list[int],
              eval_tracks: list[int], laps: int, model_type: str = "linear",
              eval_randomize: int | None = DEFAULTS["eval_randomize"],
-             unseen_theme: str = DEFAULTS["unseen_theme"], robust: bool = False, draws: int = 0) -> dict[str, Any]:
+             unseen_theme: str = DEFAULTS["unseen_theme"], robust: bool = False, draws: int = 0, seed: int = 1,
+             precision: str = "auto") -> dict[str, Any]:
     """Run the four steps in ``out``; returns ``{"reports": {theme: {"pilot": report, "expert":
     report}}, "trained_themes": [...], "unseen_theme": name, "model": path, "seconds": {step: s},
     "cpu_seconds": {step: s}, "metrics": {...}}`` (wall time, and CPU time of this process and its
@@ -127,7 +152,9 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
     and records as many records again for each of :data:`ROBUST_RECORDINGS`.
     With ``draws`` > 0 the pilot is also driven under that many hidden randomisation draws per theme
     (``vehicle sim eval --draws``) and the result holds ``"draws"``: that report, whose ``by_theme``
-    gives the mean and the worst draw. Raises ValueError on bad arguments."""
+    gives the mean and the worst draw. ``seed`` picks the recordings' draws and effects seeds and
+    TRAIN_SEED (:func:`training_recordings`, :func:`train_seed`; 1: the demo as it always ran),
+    ``precision`` TRAIN_PRECISION. Raises ValueError on bad arguments."""
     from parts.sim.eval_report import describe, format_table, write_json
     from parts.sim.themes import theme_list
     from vehicle.app.evaluate import evaluate
@@ -143,12 +170,21 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
     theme_list(unseen_theme)  # a known theme
     if unseen_theme in trained:
         raise ValueError(f"the unseen theme {unseen_theme!r} is a training theme: pick another")
-    recordings = [Recording("demo_tub", DEMO_SETTINGS["SIM_RANDOMIZE"], 0, None),
-                  *(ROBUST_RECORDINGS if robust else ())]
+    recordings = training_recordings(seed, robust)
     if eval_randomize in {r.draw for r in recordings}:
         raise ValueError(f"randomisation seed {eval_randomize} is a training draw: evaluate with another")
+    if draws:
+        from vehicle.app.eval_draws import hidden_draws
+
+        for r in recordings:  # raises when a training draw is one of the hidden ones
+            hidden_draws(draws, r.draw)
     out = out.resolve()
-    settings = dict(DEMO_SETTINGS)
+    settings = {**DEMO_SETTINGS, "SIM_RANDOMIZE": recordings[0].draw}
+    # written only where they differ from the settings' defaults: --seed 1 writes today's myconfig.py
+    if train_seed(seed) != BASE_TRAIN_SEED:
+        settings["TRAIN_SEED"] = train_seed(seed)
+    if precision != "auto":
+        settings["TRAIN_PRECISION"] = precision
     if robust:
         settings["AUGMENTATIONS"] = [*settings["AUGMENTATIONS"], *ROBUST_AUGMENTATIONS]
     cfg = Config.defaults(CAR_PATH=str(out), **settings)
@@ -203,7 +239,7 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
             write_json(report, out / "eval" / f"{who}_{theme}.json")
     by_draw = None
     if draws:
-        from vehicle.app.eval_draws import evaluate_draws, format_draws_table, hidden_draws
+        from vehicle.app.eval_draws import evaluate_draws, format_draws_table
 
         say(f"      and under {draws} hidden randomisation draw(s) per theme (mean and worst draw) ...")
         by_draw = evaluate_draws(model_path, eval_tracks, laps, cfg=cfg, draws=hidden_draws(draws, cfg.SIM_RANDOMIZE),
@@ -224,8 +260,29 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
         say("\ntrained pilot on unseen tracks under hidden randomisation draws (robustness):")
         say(format_draws_table(by_draw))
     return {"reports": reports, "trained_themes": trained, "unseen_theme": unseen_theme, "model": model_path,
-            "seconds": seconds, "cpu_seconds": cpu, "metrics": metrics,
-            **({"draws": by_draw} if by_draw is not None else {})}
+            "seconds": seconds, "cpu_seconds": cpu, "metrics": metrics, "seed": seed, "precision": precision,
+            "recipe": "robust" if robust else "plain", "eval_tracks": list(eval_tracks), "laps": laps,
+            "recordings": [{"tub": r.tub, "draw": r.draw, "seed": r.seed} for r in recordings],
+            "train_seed": train_seed(seed), **({"draws": by_draw} if by_draw is not None else {})}
+
+
+def write_summary(result: dict[str, Any], path: Path, total_s: float) -> Path:
+    """Write ``run_demo``'s result as JSON, atomically (``vehicle sim robustness`` takes a run whose
+    file exists as finished): everything but the per-track reports, of which each theme keeps the
+    pilot's and the expert's ``overall``, and of the draws report its ``by_theme``."""
+    import json
+
+    from parts.tub.format import atomic_write
+
+    summary = {k: v for k, v in result.items() if k not in ("reports", "draws", "model")}
+    summary.update(model=str(result["model"]), total_seconds=round(total_s, 1),
+                   overall={theme: {who: r["overall"] for who, r in pair.items()}
+                            for theme, pair in result["reports"].items()})
+    if "draws" in result:
+        summary["by_theme"] = result["draws"]["by_theme"]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write(path, json.dumps(summary, indent=1, default=str) + "\n")
+    return path
 
 
 def train_or_stop(cfg: Any, tubs: list[Path], model_path: Path, *, ends: str = "the demo ends here",

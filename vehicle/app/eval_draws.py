@@ -29,7 +29,10 @@ logger = logging.getLogger(__name__)
 HIDDEN_DRAW_BASE = 1000
 #: per-draw figures summarised over the draws: (key of a report's "overall", worse when larger)
 SUMMARY_KEYS: dict[str, bool] = {"autonomy": False, "interventions": True, "laps_completed": False,
-                                 "mean_abs_cte": True, "mean_speed": False, "off_track_per_lap": True}
+                                 "mean_abs_cte": True, "mean_speed": False, "off_track_per_lap": True,
+                                 # the share of the asked laps driven and autonomy times it (rank_key):
+                                 # a car that stood still has 100 % autonomy and completion 0
+                                 "completion": False, "score": False}
 
 
 def hidden_draws(n: int, training_draw: int | None = None) -> list[int]:

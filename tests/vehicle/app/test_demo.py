@@ -29,6 +29,14 @@ def test_tiny_demo_writes_model_export_reports_and_registry(tmp_path, capsys):
         assert step in printed
     draws = json.loads((out / "eval" / "pilot_draws.json").read_text())
     assert list(draws["by_theme"]) == ["road", "indoor", "park"] and draws["draws"] == [1001]
+    summary = json.loads((out / "eval" / "result.json").read_text())  # what vehicle sim robustness reads
+    assert (summary["seed"], summary["precision"], summary["recipe"], summary["train_seed"]) == (1, "auto", "plain", 42)
+    assert summary["recordings"] == [{"tub": "demo_tub", "draw": 1, "seed": 0}]
+    assert summary["by_theme"] == draws["by_theme"] and summary["eval_tracks"] == [101] and summary["laps"] == 1
+    assert set(summary["seconds"]) == {"record", "train", "export", "evaluate"} and summary["metrics"]["epochs"] == 1
+    for theme in ("road", "indoor", "park"):
+        expert = summary["overall"][theme]["expert"]
+        assert expert["interventions"] == 0 and expert["tracks"] == 1
     model = out / "models" / "demo_linear.pt"
     assert model.is_file() and model.with_suffix(".onnx").is_file()
     for theme in ("road", "indoor", "park"):
@@ -59,6 +67,8 @@ def test_tiny_demo_writes_model_export_reports_and_registry(tmp_path, capsys):
     (["--unseen-theme", "moon"], "unknown theme 'moon'"),
     (["--eval-randomize", "1"], "training draw"),
     (["--draws", "-1"], "--draws -1"),
+    (["--seed", "0"], "--seed 0: use 1 .. 100000"),
+    (["--lanes", "--seed", "2"], "leave them out with --lanes"),
 ])
 def test_demo_refuses_bad_arguments(tmp_path, capsys, args, message):
     assert main(["demo", "--out", str(tmp_path / "d"), *args]) == 2
@@ -236,3 +246,40 @@ def test_robust_demo_records_the_training_tracks_again_under_another_draw_and_wi
     assert trained == [["demo_tub"], ["demo_tub", "demo_tub_draw11", "demo_tub_wide"]]
     with pytest.raises(ValueError, match="seed 11 is a training draw"):  # never evaluated under a trained draw
         demo.run_demo(tmp_path / "r", **{**demo.DEFAULTS, "robust": True, "eval_randomize": 11})
+
+
+def test_seed_1_records_what_the_demo_always_recorded_and_seed_2_other_data(tmp_path):
+    from parts.tub.reader import load_records
+    from vehicle.app.demo import DEMO_SETTINGS, ROBUST_WIDE_RANGES, Recording, train_seed, training_recordings
+    from vehicle.app.record import record_expert
+    from vehicle.config import Config
+
+    # the demo before --seed: draw 1 / SIM_SEED 0, --robust also draw 11 / 11 and draw 1 / 0 wider; TRAIN_SEED 42
+    assert training_recordings(1, robust=True) == [
+        Recording("demo_tub", 1, 0, None), Recording("demo_tub_draw11", 11, 11, None),
+        Recording("demo_tub_wide", 1, 0, ROBUST_WIDE_RANGES)]
+    assert train_seed(1) == 42 and train_seed(2) == 43
+    two = training_recordings(2, robust=True)
+    assert [(r.draw, r.seed) for r in two] == [(10001, 10000), (10011, 10011), (10001, 10000)]
+    cfg = Config.defaults(CAR_PATH=str(tmp_path), **DEMO_SETTINGS)
+
+    def record(draw: int, seed: int, name: str) -> list[tuple[bytes, float]]:
+        tub = record_expert(cfg.replace(SIM_RANDOMIZE=draw, SIM_SEED=seed), [1], 20, tmp_path / name, noise=0.4)
+        return [(r.image_bytes(), r.angle) for r in load_records([tub])]
+
+    before = record(1, 0, "before")  # the unchanged Recording settings of the main tub
+    assert record(training_recordings(1)[0].draw, training_recordings(1)[0].seed, "seed1") == before
+    seed2 = record(two[0].draw, two[0].seed, "seed2")
+    assert len(seed2) == len(before) == 20
+    assert [img for img, _ in seed2] != [img for img, _ in before]  # another draw: other frames
+
+
+def test_demo_refuses_bf16_on_a_cpu_without_native_bf16(monkeypatch, tmp_path, capsys):
+    from training import acceleration
+
+    monkeypatch.setattr(acceleration, "cpu_caps", lambda: acceleration.DeviceCaps("cpu", "Old CPU"))
+    assert main(["demo", "--out", str(tmp_path / "d"), "--threads", "1", "--precision", "bf16"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == ("error: --precision bf16: this CPU (Old CPU) has no native bf16 (AVX512-BF16 or AMX); "
+                   "use fp32 or auto")
+    assert not (tmp_path / "d").exists()  # refused before any work

@@ -38,7 +38,9 @@ def test_summary_mean_and_worst_draw():
     assert [d["randomize"] for d in s["per_draw"]] == [1001, 1002, 1003]
     # a draw where the car stood still (no intervention, 100 % autonomy) is the worst of all
     still = {**overalls[0], "laps_completed": 0, "completion": 0.0, "score": 0.0}
-    assert summarise([*overalls, still], [1001, 1002, 1003, 1004])["worst"]["randomize"] == 1004
+    with_still = summarise([*overalls, still], [1001, 1002, 1003, 1004])
+    assert with_still["worst"]["randomize"] == 1004 and with_still["worst"]["score"] == 0.0
+    assert with_still["per_draw"][3]["completion"] == 0.0  # the share of laps driven stays beside autonomy
 
 
 def test_hidden_draws_are_fixed_and_never_the_training_draw():

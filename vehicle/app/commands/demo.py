@@ -70,6 +70,12 @@ def register(subparsers: Any) -> None:
                         "recordings of the training tracks (another randomisation draw, and wider ranges): steadier "
                         "under light, colours and themes never seen, about three times the recording and training "
                         "time (docs/pilot.md)")
+    p.add_argument("--seed", type=int, default=1, metavar="N",
+                   help="recording and training seed: the training recordings' randomisation draws, their effects "
+                        "and steering-noise seed, and TRAIN_SEED (1: the demo as it always ran; vehicle sim "
+                        "robustness trains several)")
+    p.add_argument("--precision", choices=["auto", "fp32", "bf16"], default="auto",
+                   help="training precision (TRAIN_PRECISION; auto: bf16 on a CPU with native bf16, else fp32)")
     p.add_argument("--threads", type=int, default=None,
                    help="torch threads (default: one per core, or 1 when the machine is already busy)")
     p.add_argument("--lanes", action="store_true",
@@ -85,7 +91,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     import torch
 
     from training.acceleration import cpu_caps
-    from vehicle.app.demo import ROBUST_RECORDINGS, expected_time, run_demo, torch_threads
+    from vehicle.app.demo import ROBUST_RECORDINGS, expected_time, run_demo, torch_threads, write_summary
     from vehicle.app.demo import say as _say
     from vehicle.app.demo_estimate import demo_expectation
 
@@ -99,7 +105,10 @@ def _cmd_demo(args: argparse.Namespace) -> int:
             setattr(args, name, value)
     if args.draws < 0:
         raise UserError(f"--draws {args.draws}: give 0 (off) or more hidden randomisation draws")
+    check_precision(args.precision)
     if args.lanes:
+        if args.seed != 1 or args.precision != "auto":
+            raise UserError("--seed and --precision choose the plain demo's runs: leave them out with --lanes")
         caps = cpu_caps()
         _say(expected_time("lanes", caps.native_bf16, caps.name))
         return _cmd_lanes(args)
@@ -107,11 +116,14 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     recorded = args.records * (1 + len(ROBUST_RECORDINGS) if args.robust else 1)  # --robust records again
     _say(demo_expectation(recorded, args.epochs, len(args.eval_tracks), args.laps, threads))
     started = time.perf_counter()
+    summary_path = Path(args.out) / "eval" / "result.json"
+    summary_path.unlink(missing_ok=True)  # exists only once this run has finished
     try:
         result = run_demo(Path(args.out), records=args.records, epochs=args.epochs, noise=args.noise,
                           train_tracks=args.train_tracks, eval_tracks=args.eval_tracks, laps=args.laps,
                           model_type=args.model_type, eval_randomize=args.eval_randomize,
-                          unseen_theme=args.unseen_theme, robust=args.robust, draws=args.draws)
+                          unseen_theme=args.unseen_theme, robust=args.robust, draws=args.draws, seed=args.seed,
+                          precision=args.precision)
     except ValueError as exc:
         raise UserError(f"demo: {exc}") from exc
     total = time.perf_counter() - started
@@ -134,11 +146,25 @@ def _cmd_demo(args: argparse.Namespace) -> int:
              f"{s['worst']['autonomy']:.1f} % (draw {s['worst']['randomize']}), speed "
              f"{s['speed_vs_expert_pct'] if s.get('speed_vs_expert_pct') is not None else '-'} % of the expert's")
     out = Path(args.out)
+    write_summary(result, summary_path, total)
     _say(f"next: vehicle models --car {out}  |  vehicle sim eval --pilot {result['model']} --theme "
          f"{args.unseen_theme} --randomize {'off' if args.eval_randomize is None else args.eval_randomize}  |  "
          f"reports in {out / 'eval'}")
     sys.stdout.flush()
     return 0
+
+
+def check_precision(precision: str, option: str = "--precision") -> None:
+    """UserError for bf16 forced on a CPU without native bf16 (emulated: slower than fp32, and not
+    the arithmetic a measurement of the bf16 path means)."""
+    if precision != "bf16":
+        return
+    from training.acceleration import cpu_caps
+
+    caps = cpu_caps()
+    if not caps.native_bf16:
+        raise UserError(f"{option} bf16: this CPU ({caps.name}) has no native bf16 (AVX512-BF16 or AMX); "
+                        "use fp32 or auto")
 
 
 def _cmd_lanes(args: argparse.Namespace) -> int:

@@ -64,6 +64,8 @@ def register(subparsers: Any) -> None:
     _world_options(ev)
     ev.set_defaults(func=cmd_eval)
 
+    _robustness_parser(sub)
+
     rec = sub.add_parser("record", help="record expert demonstrations into a tub", formatter_class=fmt)
     rec.add_argument("--records", type=int, required=True, help="number of records")
     rec.add_argument("--tracks", type=_seeds, help="comma-separated track seeds (default SIM_TRACK_SEEDS)")
@@ -100,6 +102,46 @@ def register(subparsers: Any) -> None:
     serve.add_argument("--max-clients", type=int, default=16, help="connections served at once")
     add_car_options(serve)
     serve.set_defaults(func=cmd_serve)
+
+
+def _robustness_parser(sub: Any) -> None:
+    """``vehicle sim robustness``: the demo's recipe over training seeds x precisions x hidden draws."""
+    from vehicle.app.demo import DEFAULTS
+
+    rb = sub.add_parser("robustness", help="retrain the demo's recipe over seeds and precisions and report the "
+                                           "mean, worst draw and worst seed per theme",
+                        description=_robustness_doc(), formatter_class=argparse.RawDescriptionHelpFormatter)
+    rb.add_argument("--recipe", choices=["plain", "robust"], default="plain",
+                    help="plain: vehicle demo's; robust: vehicle demo --robust's (default plain)")
+    rb.add_argument("--seeds", type=_seeds, default=[1, 2, 3], metavar="N,N",
+                    help="training seeds (vehicle demo --seed; default 1,2,3)")
+    rb.add_argument("--precisions", metavar="P,P",
+                    help="training precisions, of fp32 and bf16 (default fp32,bf16 on a CPU with native bf16, else "
+                         "fp32)")
+    rb.add_argument("--draws", type=int, default=3, metavar="N", help="hidden randomisation draws per theme "
+                                                                      "(default 3)")
+    rb.add_argument("--eval-tracks", type=_seeds, metavar="SEEDS",
+                    help=f"unseen track seeds (default the demo's, {_ints(DEFAULTS['eval_tracks'])})")
+    rb.add_argument("--laps", type=int, help=f"laps per track and draw (default the demo's, {DEFAULTS['laps']})")
+    rb.add_argument("--records", type=int, help=f"records per recording (default the demo's, {DEFAULTS['records']})")
+    rb.add_argument("--epochs", type=int, help=f"most training epochs (default the demo's, {DEFAULTS['epochs']})")
+    rb.add_argument("--train-tracks", type=_seeds, metavar="SEEDS",
+                    help="training track seeds (default the demo's, 1-64; fewer only for tiny trial runs)")
+    rb.add_argument("--jobs", type=int, metavar="N",
+                    help="runs at a time, each with one torch thread (default: one per core)")
+    rb.add_argument("--out", default="robustness", metavar="DIR",
+                    help="working folder: runs/ and robustness.json, robustness.md (default ./robustness)")
+    rb.set_defaults(func=cmd_robustness)
+
+
+def _ints(values: list[int]) -> str:
+    return ",".join(map(str, values))
+
+
+def _robustness_doc() -> str:
+    import vehicle.app.robustness
+
+    return vehicle.app.robustness.__doc__ or ""
 
 
 def _world_options(p: argparse.ArgumentParser) -> None:
@@ -411,3 +453,41 @@ def cmd_serve(args: argparse.Namespace) -> int:
     finally:
         server.stop()
     return 0
+
+
+def robustness_protocol(args: argparse.Namespace) -> Any:
+    """The :class:`vehicle.app.robustness.Protocol` of the command line, checked (UserError)."""
+    import os
+
+    from training.acceleration import cpu_caps
+    from vehicle.app.commands.demo import check_precision
+    from vehicle.app.demo import DEFAULTS, MAX_SEED
+    from vehicle.app.robustness import PRECISIONS, Protocol
+
+    native = cpu_caps().native_bf16
+    precisions = [p.strip() for p in (args.precisions or ("fp32,bf16" if native else "fp32")).split(",") if p.strip()]
+    if not precisions or any(p not in PRECISIONS for p in precisions) or len(set(precisions)) < len(precisions):
+        raise UserError(f"--precisions {args.precisions}: give fp32, bf16 or fp32,bf16")
+    for p in precisions:
+        check_precision(p, "--precisions")
+    bad = [s for s in args.seeds if not 1 <= s <= MAX_SEED]
+    if bad or len(set(args.seeds)) < len(args.seeds):
+        raise UserError(f"--seeds {_ints(args.seeds)}: give different seeds of 1 .. {MAX_SEED}")
+    for option, value, least in (("--draws", args.draws, 1), ("--laps", args.laps, 1),
+                                 ("--records", args.records, 100), ("--epochs", args.epochs, 1),
+                                 ("--jobs", args.jobs, 1)):
+        if value is not None and value < least:
+            raise UserError(f"{option} {value}: give at least {least}")
+    overlap = set(args.train_tracks or DEFAULTS["train_tracks"]) & set(args.eval_tracks or DEFAULTS["eval_tracks"])
+    if overlap:
+        raise UserError(f"--eval-tracks: {_ints(sorted(overlap))} are training tracks; evaluate on others")
+    return Protocol(out=Path(args.out).resolve(), recipe=args.recipe, seeds=args.seeds, precisions=precisions,
+                    draws=args.draws, eval_tracks=args.eval_tracks, laps=args.laps, records=args.records,
+                    epochs=args.epochs, train_tracks=args.train_tracks, jobs=args.jobs or os.cpu_count() or 1)
+
+
+def cmd_robustness(args: argparse.Namespace) -> int:
+    """Run (or resume) the robustness protocol and report it (docs/pilot.md)."""
+    from vehicle.app.robustness import run_protocol
+
+    return run_protocol(robustness_protocol(args))
