@@ -50,11 +50,11 @@ def actions(n: int, k: int = 1) -> np.ndarray:
 def ours_single(seconds: float, cfg: Config) -> float:
     import parts.sim.gym_env  # noqa: F401 - registers vehicle/Track-v0
 
-    env = gym.make("vehicle/Track-v0", config=cfg)
+    env = gym.make("vehicle/Track-v0", config=cfg, tracks=[1])  # one track: the steps, not track drawing
     env.reset(seed=0)
     acts, n, t0 = actions(100_000), 0, time.perf_counter()
     while time.perf_counter() - t0 < seconds:
-        _, _, term, trunc, _ = env.step(acts[n, 0])
+        _, _, term, trunc, _ = env.step(acts[n % len(acts), 0])
         n += 1
         if term or trunc:
             env.reset()
@@ -64,11 +64,11 @@ def ours_single(seconds: float, cfg: Config) -> float:
 def ours_vector(seconds: float, cfg: Config, n_envs: int) -> float:
     import parts.sim.gym_env  # noqa: F401
 
-    env = gym.make_vec("vehicle/Track-v0", num_envs=n_envs, vectorization_mode="async", config=cfg)
+    env = gym.make_vec("vehicle/Track-v0", num_envs=n_envs, vectorization_mode="async", config=cfg, tracks=[1])
     env.reset(seed=0)  # autoreset: an ended episode resets on the next step
     acts, n, t0 = actions(100_000, n_envs), 0, time.perf_counter()
     while time.perf_counter() - t0 < seconds:
-        env.step(acts[n])
+        env.step(acts[n % len(acts)])
         n += 1
     rate = n * n_envs / (time.perf_counter() - t0)
     env.close()
@@ -114,7 +114,7 @@ def gym_donkeycar(seconds: float, hz: float) -> float:
         env.reset()
         acts, n, t0 = actions(100_000), 0, time.perf_counter()
         while time.perf_counter() - t0 < seconds:
-            _, _, term, trunc, _ = env.step(acts[n, 0])
+            _, _, term, trunc, _ = env.step(acts[n % len(acts), 0])
             n += 1
             if term or trunc:
                 env.reset()
@@ -129,14 +129,17 @@ def gym_donkeycar(seconds: float, hz: float) -> float:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--seconds", type=float, default=20.0, help="seconds per measurement")
-    p.add_argument("--hz", default="20", help="comma-separated telemetry rates of vehicle sim serve")
+    p.add_argument("--hz", default="20", help="comma-separated telemetry rates of vehicle sim serve ('none': "
+                   "skip gym-donkeycar)")
     p.add_argument("--envs", type=int, default=os.cpu_count() or 1, help="vectorised environments")
+    p.add_argument("--camera", default="160x120", help="camera WxH (a larger frame makes a step dearer)")
     args = p.parse_args()
-    cfg = Config.defaults(SIM_REALTIME=False)
+    w, h = (int(v) for v in args.camera.split("x"))
+    cfg = Config.defaults(SIM_REALTIME=False, SIM_CAMERA_W=w, SIM_CAMERA_H=h)
     out: dict[str, float] = {"ours_single": ours_single(args.seconds, cfg),
                              f"ours_vector_{args.envs}": ours_vector(args.seconds, cfg, args.envs)}
     print(out, flush=True)  # noqa: T201
-    for hz in (float(h) for h in args.hz.split(",")):
+    for hz in (float(h) for h in args.hz.split(",") if args.hz != "none"):
         out[f"gym_donkeycar_serve_{hz:g}hz"] = gym_donkeycar(args.seconds, hz)
     print(json.dumps({k: round(v, 1) for k, v in out.items()}, indent=1))  # noqa: T201
     with open("/proc/loadavg") as f:
