@@ -86,6 +86,24 @@ SEED_STRIDE = 10_000
 MAX_SEED = 100_000
 #: TRAIN_SEED of ``--seed 1`` (the setting's default: the demo as it always trained)
 BASE_TRAIN_SEED = 42
+
+class Recipe(NamedTuple):
+    """What a demo recipe adds to :data:`DEMO_SETTINGS` (``vehicle demo --recipe NAME``)."""
+
+    augmentations: tuple[str, ...]  # batch augmentations added to AUGMENTATIONS
+    recordings: tuple[Recording, ...]  # recordings of the training tracks beside the demo's own
+    what: str  # one line for --help
+
+
+#: the demo's recipes, measured against each other by ``vehicle sim robustness --recipe``
+RECIPES: dict[str, Recipe] = {
+    "plain": Recipe((), (), "the demo's settings"),
+    "augmented": Recipe(tuple(ROBUST_AUGMENTATIONS), (), "plus the light, colour, noise and cutout batch "
+                        "augmentations (no more records; some training time)"),
+    "robust": Recipe(tuple(ROBUST_AUGMENTATIONS), ROBUST_RECORDINGS, "plus those augmentations and two more "
+                     "recordings of the training tracks (another draw, wider ranges): three times the records"),
+}
+
 # 12000 records on 64 tracks: with half of each, one unseen indoor track in five failed (docs/pilot.md)
 DEFAULTS = {"records": 12000, "epochs": 10, "noise": 0.4, "train_tracks": list(range(1, 65)),
             "eval_tracks": [101, 102, 103, 104, 105], "laps": 2, "eval_randomize": None, "unseen_theme": "park"}
@@ -120,14 +138,14 @@ def _minutes(seconds: float) -> str:
     return f"{seconds:.0f} s" if seconds < 90 else f"{round(seconds / 60)} minutes"
 
 
-def training_recordings(seed: int = 1, robust: bool = False) -> list[Recording]:
-    """The recordings of ``vehicle demo --seed seed`` (with ``--robust``: three): seed 1 is the demo
+def training_recordings(seed: int = 1, recipe: str = "plain") -> list[Recording]:
+    """The recordings of ``vehicle demo --seed seed`` (with ``--recipe robust``: three): seed 1 is the demo
     as it always recorded (draw 1, SIM_SEED 0; --robust also draws 11 and 1 over wider ranges), seed
     N adds (N - 1) * :data:`SEED_STRIDE` to each draw and effects seed. ValueError outside 1..MAX_SEED."""
     if not 1 <= seed <= MAX_SEED:
         raise ValueError(f"--seed {seed}: use 1 .. {MAX_SEED}")
     offset = (seed - 1) * SEED_STRIDE
-    base = [Recording("demo_tub", DEMO_SETTINGS["SIM_RANDOMIZE"], 0, None), *(ROBUST_RECORDINGS if robust else ())]
+    base = [Recording("demo_tub", DEMO_SETTINGS["SIM_RANDOMIZE"], 0, None), *RECIPES[recipe].recordings]
     return [r._replace(draw=r.draw + offset, seed=r.seed + offset) for r in base]
 
 
@@ -143,13 +161,13 @@ def say(text: str) -> None:
 def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks: list[int],
              eval_tracks: list[int], laps: int, model_type: str = "linear",
              eval_randomize: int | None = DEFAULTS["eval_randomize"],
-             unseen_theme: str = DEFAULTS["unseen_theme"], robust: bool = False, draws: int = 0, seed: int = 1,
+             unseen_theme: str = DEFAULTS["unseen_theme"], recipe: str = "plain", draws: int = 0, seed: int = 1,
              precision: str = "auto") -> dict[str, Any]:
     """Run the four steps in ``out``; returns ``{"reports": {theme: {"pilot": report, "expert":
     report}}, "trained_themes": [...], "unseen_theme": name, "model": path, "seconds": {step: s},
     "cpu_seconds": {step: s}, "metrics": {...}}`` (wall time, and CPU time of this process and its
-    finished workers: on a shared machine the two differ). ``robust`` adds :data:`ROBUST_AUGMENTATIONS`
-    and records as many records again for each of :data:`ROBUST_RECORDINGS`.
+    finished workers: on a shared machine the two differ). ``recipe`` names one of :data:`RECIPES`: its
+    batch augmentations are added, and as many records again recorded for each of its recordings.
     With ``draws`` > 0 the pilot is also driven under that many hidden randomisation draws per theme
     (``vehicle sim eval --draws``) and the result holds ``"draws"``: that report, whose ``by_theme``
     gives the mean and the worst draw. ``seed`` picks the recordings' draws and effects seeds and
@@ -170,7 +188,9 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
     theme_list(unseen_theme)  # a known theme
     if unseen_theme in trained:
         raise ValueError(f"the unseen theme {unseen_theme!r} is a training theme: pick another")
-    recordings = training_recordings(seed, robust)
+    if recipe not in RECIPES:
+        raise ValueError(f"recipe {recipe!r}: choose one of {', '.join(RECIPES)}")
+    recordings = training_recordings(seed, recipe)
     if eval_randomize in {r.draw for r in recordings}:
         raise ValueError(f"randomisation seed {eval_randomize} is a training draw: evaluate with another")
     if draws:
@@ -185,8 +205,7 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
         settings["TRAIN_SEED"] = train_seed(seed)
     if precision != "auto":
         settings["TRAIN_PRECISION"] = precision
-    if robust:
-        settings["AUGMENTATIONS"] = [*settings["AUGMENTATIONS"], *ROBUST_AUGMENTATIONS]
+    settings["AUGMENTATIONS"] = [*settings["AUGMENTATIONS"], *RECIPES[recipe].augmentations]
     cfg = Config.defaults(CAR_PATH=str(out), **settings)
     write_myconfig(out, settings, "vehicle demo")
     # the demo records afresh each run; it never touches other folders
@@ -261,7 +280,7 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
         say(format_draws_table(by_draw))
     return {"reports": reports, "trained_themes": trained, "unseen_theme": unseen_theme, "model": model_path,
             "seconds": seconds, "cpu_seconds": cpu, "metrics": metrics, "seed": seed, "precision": precision,
-            "recipe": "robust" if robust else "plain", "eval_tracks": list(eval_tracks), "laps": laps,
+            "recipe": recipe, "eval_tracks": list(eval_tracks), "laps": laps,
             "recordings": [{"tub": r.tub, "draw": r.draw, "seed": r.seed} for r in recordings],
             "train_seed": train_seed(seed), **({"draws": by_draw} if by_draw is not None else {})}
 

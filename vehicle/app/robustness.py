@@ -1,6 +1,6 @@
 """``vehicle sim robustness``: a pilot's quality as a distribution, not one training run's number.
 
-The demo's recipe (``plain``, or ``robust``: ``vehicle demo --robust``) is recorded, trained and
+A demo recipe (``vehicle demo --recipe plain|augmented|robust``) is recorded, trained and
 evaluated once per training seed and precision path (``vehicle demo --seed N --precision P
 --draws D``, each run a subprocess with one torch thread, ``--jobs`` at a time, its output in
 ``OUT/runs/<name>.log``). Each run drives the unseen tracks in every theme under the hidden
@@ -30,9 +30,11 @@ from typing import IO, Any, NamedTuple
 
 import numpy as np
 
+from vehicle.app.demo import RECIPES as DEMO_RECIPES
+
 logger = logging.getLogger(__name__)
 
-RECIPES = ("plain", "robust")
+RECIPES = tuple(DEMO_RECIPES)  # vehicle.app.demo.RECIPES: plain, augmented, robust
 PRECISIONS = ("fp32", "bf16")
 #: a run's summary, relative to its folder (written last and atomically by ``vehicle demo``)
 RESULT = Path("eval") / "result.json"
@@ -102,7 +104,7 @@ def demo_command(spec: RunSpec, folder: Path, protocol: Protocol) -> list[str]:
     """The ``vehicle demo`` subprocess of one run, with one torch thread."""
     cmd = [sys.executable, "-m", "vehicle.app.cli", "demo", "--out", str(folder), "--seed", str(spec.seed),
            "--precision", spec.precision, "--draws", str(protocol.draws), "--threads", "1", *protocol.demo_options()]
-    return [*cmd, "--robust"] if spec.recipe == "robust" else cmd
+    return [*cmd, "--recipe", spec.recipe]
 
 
 def child_env() -> dict[str, str]:

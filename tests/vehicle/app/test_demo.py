@@ -202,7 +202,9 @@ def test_robust_demo_trains_with_the_batch_augmentations(monkeypatch, tmp_path):
     seen = {}
     monkeypatch.setattr(demo, "run_demo", lambda out, **kw: seen.update(kw) or (_ for _ in ()).throw(ValueError("x")))
     assert main(["demo", "--out", str(tmp_path / "d"), "--threads", "1", "--robust"]) == 2
-    assert seen["robust"] is True
+    assert seen["recipe"] == "robust"
+    assert main(["demo", "--out", str(tmp_path / "d"), "--threads", "1", "--recipe", "augmented"]) == 2
+    assert seen["recipe"] == "augmented"
     monkeypatch.undo()
 
     def stop(cfg, *args, **kw):
@@ -210,12 +212,15 @@ def test_robust_demo_trains_with_the_batch_augmentations(monkeypatch, tmp_path):
         raise ValueError("stopped before recording")
 
     monkeypatch.setattr(record, "record_expert", stop)
-    for robust in (False, True):
+    for recipe in ("plain", "augmented", "robust"):
         with pytest.raises(ValueError, match="stopped"):
-            demo.run_demo(tmp_path / f"r{robust}", **{**demo.DEFAULTS, "robust": robust})
+            demo.run_demo(tmp_path / recipe, **{**demo.DEFAULTS, "recipe": recipe})
         extra = [a for a in seen["augmentations"] if a not in demo.DEMO_SETTINGS["AUGMENTATIONS"]]
-        assert extra == (demo.ROBUST_AUGMENTATIONS if robust else [])
-        assert ("'cutout'" in (tmp_path / f"r{robust}" / "myconfig.py").read_text()) is robust
+        assert extra == ([] if recipe == "plain" else demo.ROBUST_AUGMENTATIONS)
+        assert ("'cutout'" in (tmp_path / recipe / "myconfig.py").read_text()) is (recipe != "plain")
+    # the augmented recipe records what the plain demo records, no more
+    assert demo.training_recordings(1, "augmented") == demo.training_recordings(1, "plain")
+    assert len(demo.training_recordings(1, "robust")) == 3
 
 
 def test_robust_demo_records_the_training_tracks_again_under_another_draw_and_wider_ranges(monkeypatch, tmp_path):
@@ -255,11 +260,11 @@ def test_seed_1_records_what_the_demo_always_recorded_and_seed_2_other_data(tmp_
     from vehicle.config import Config
 
     # the demo before --seed: draw 1 / SIM_SEED 0, --robust also draw 11 / 11 and draw 1 / 0 wider; TRAIN_SEED 42
-    assert training_recordings(1, robust=True) == [
+    assert training_recordings(1, "robust") == [
         Recording("demo_tub", 1, 0, None), Recording("demo_tub_draw11", 11, 11, None),
         Recording("demo_tub_wide", 1, 0, ROBUST_WIDE_RANGES)]
     assert train_seed(1) == 42 and train_seed(2) == 43
-    two = training_recordings(2, robust=True)
+    two = training_recordings(2, "robust")
     assert [(r.draw, r.seed) for r in two] == [(10001, 10000), (10011, 10011), (10001, 10000)]
     cfg = Config.defaults(CAR_PATH=str(tmp_path), **DEMO_SETTINGS)
 

@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from vehicle.app.demo import DEFAULTS
+from vehicle.app.demo import DEFAULTS, RECIPES
 from vehicle.app.demo_lanes import DEFAULTS as LANE_DEFAULTS
 from vehicle.errors import UserError
 
@@ -65,11 +65,12 @@ def register(subparsers: Any) -> None:
                    help="also drive under N hidden randomisation draws per theme and report the mean and the worst "
                         "draw (vehicle sim eval --draws; costs about N times the evaluation step)")
     p.add_argument("--type", dest="model_type", default="linear", help="model type to train")
-    p.add_argument("--robust", action="store_true",
-                   help="train with the light, colour, noise and cutout batch augmentations as well, on two more "
-                        "recordings of the training tracks (another randomisation draw, and wider ranges): steadier "
-                        "under light, colours and themes never seen, about three times the recording and training "
-                        "time (docs/pilot.md)")
+    p.add_argument("--recipe", choices=sorted(RECIPES), default="plain",
+                   help="what the demo records and trains: " + "; ".join(f"{k}: {r.what}" for k, r in RECIPES.items())
+                   + " (docs/pilot.md)")
+    p.add_argument("--robust", dest="recipe", action="store_const", const="robust",
+                   help="the same as --recipe robust: steadier under light, colours and themes never seen, about "
+                        "three times the recording and training time")
     p.add_argument("--seed", type=int, default=1, metavar="N",
                    help="recording and training seed: the training recordings' randomisation draws, their effects "
                         "and steering-noise seed, and TRAIN_SEED (1: the demo as it always ran; vehicle sim "
@@ -91,7 +92,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     import torch
 
     from training.acceleration import cpu_caps
-    from vehicle.app.demo import ROBUST_RECORDINGS, expected_time, run_demo, torch_threads, write_summary
+    from vehicle.app.demo import expected_time, run_demo, torch_threads, write_summary
     from vehicle.app.demo import say as _say
     from vehicle.app.demo_estimate import demo_expectation
 
@@ -113,7 +114,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         _say(expected_time("lanes", caps.native_bf16, caps.name))
         return _cmd_lanes(args)
     # the plain demo measures this host (about 2 s) instead of looking its CPU kind up
-    recorded = args.records * (1 + len(ROBUST_RECORDINGS) if args.robust else 1)  # --robust records again
+    recorded = args.records * (1 + len(RECIPES[args.recipe].recordings))  # --recipe robust records again
     _say(demo_expectation(recorded, args.epochs, len(args.eval_tracks), args.laps, threads))
     started = time.perf_counter()
     summary_path = Path(args.out) / "eval" / "result.json"
@@ -122,7 +123,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         result = run_demo(Path(args.out), records=args.records, epochs=args.epochs, noise=args.noise,
                           train_tracks=args.train_tracks, eval_tracks=args.eval_tracks, laps=args.laps,
                           model_type=args.model_type, eval_randomize=args.eval_randomize,
-                          unseen_theme=args.unseen_theme, robust=args.robust, draws=args.draws, seed=args.seed,
+                          unseen_theme=args.unseen_theme, recipe=args.recipe, draws=args.draws, seed=args.seed,
                           precision=args.precision)
     except ValueError as exc:
         raise UserError(f"demo: {exc}") from exc

@@ -106,13 +106,14 @@ def register(subparsers: Any) -> None:
 
 def _robustness_parser(sub: Any) -> None:
     """``vehicle sim robustness``: the demo's recipe over training seeds x precisions x hidden draws."""
-    from vehicle.app.demo import DEFAULTS
+    from vehicle.app.demo import DEFAULTS, RECIPES
 
     rb = sub.add_parser("robustness", help="retrain the demo's recipe over seeds and precisions and report the "
                                            "mean, worst draw and worst seed per theme",
                         description=_robustness_doc(), formatter_class=argparse.RawDescriptionHelpFormatter)
-    rb.add_argument("--recipe", choices=["plain", "robust"], default="plain",
-                    help="plain: vehicle demo's; robust: vehicle demo --robust's (default plain)")
+    rb.add_argument("--recipe", choices=list(RECIPES), default="plain",
+                    help="the recipe of vehicle demo --recipe (default plain): "
+                         + "; ".join(f"{k}: {r.what}" for k, r in RECIPES.items()))
     rb.add_argument("--seeds", type=_seeds, default=[1, 2, 3], metavar="N,N",
                     help="training seeds (vehicle demo --seed; default 1,2,3)")
     rb.add_argument("--precisions", metavar="P,P",
