@@ -243,14 +243,15 @@ def test_robust_demo_records_the_training_tracks_again_under_another_draw_and_wi
     for robust in (False, True):
         recorded.clear()
         with pytest.raises(ValueError, match="stopped"):
-            demo.run_demo(tmp_path / f"r{robust}", **{**demo.DEFAULTS, "records": 500, "robust": robust})
+            recipe = "robust" if robust else "plain"
+            demo.run_demo(tmp_path / f"r{robust}", **{**demo.DEFAULTS, "records": 500, "recipe": recipe})
         first = (1, 0, default_light, tracks, 500, "demo_tub")
         more = [(11, 11, default_light, tracks, 500, "demo_tub_draw11"),
                 (1, 0, (0.35, 1.9), tracks, 500, "demo_tub_wide")]
         assert recorded == ([first, *more] if robust else [first])
     assert trained == [["demo_tub"], ["demo_tub", "demo_tub_draw11", "demo_tub_wide"]]
     with pytest.raises(ValueError, match="seed 11 is a training draw"):  # never evaluated under a trained draw
-        demo.run_demo(tmp_path / "r", **{**demo.DEFAULTS, "robust": True, "eval_randomize": 11})
+        demo.run_demo(tmp_path / "r", **{**demo.DEFAULTS, "recipe": "robust", "eval_randomize": 11})
 
 
 def test_seed_1_records_what_the_demo_always_recorded_and_seed_2_other_data(tmp_path):
