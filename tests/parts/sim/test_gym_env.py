@@ -172,8 +172,9 @@ def test_a_reward_function_that_never_returns_is_stopped_in_one_line(cfg, tmp_pa
     with pytest.raises(RewardError, match=rf"^{path}:4: reward_function did not return within 0.2 s "
                                           r"\(RL_REWARD_TIME_LIMIT_S\)"):
         e.step(np.zeros(2, np.float32))
-    assert e.step  # the env is still usable for a reset
-    e.reset(seed=0)
+    e.reset(seed=0)  # the env is still usable, and the limit holds again (the timer was rearmed)
+    with pytest.raises(RewardError, match="did not return within 0.2 s"):
+        e.step(np.zeros(2, np.float32))
 
 
 def test_a_stop_signal_in_a_reward_function_is_not_blamed_on_it(tmp_path):

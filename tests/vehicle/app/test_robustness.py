@@ -48,6 +48,10 @@ def test_tiny_protocol_runs_the_demo_per_seed_reports_and_resumes(tmp_path, caps
         s = report["themes"][theme]
         assert (s["runs"], s["draws"], s["laps_asked"]) == (2, 2, 2)  # 2 runs x 1 draw x 1 lap on 1 track
         assert s["worst_draw"]["randomize"] == 1001 and s["worst_draw"]["seed"] in (1, 2)
+        # the theme's mean is the mean of the runs' own scores (one draw each), never above autonomy
+        run_scores = [json.loads((out / "runs" / name / "eval" / "result.json").read_text())
+                      ["by_theme"][theme]["mean"]["score"] for name in sorted(runs)]
+        assert s["mean"]["score"] == pytest.approx(sum(run_scores) / 2, abs=0.01)
         assert s["mean"]["score"] <= s["mean"]["autonomy"] and s["speed_vs_expert_pct"] is not None
     md = (out / "robustness.md").read_text()
     assert "| park (unseen) | 2 x 1 |" in md and "| plain-s2-fp32 | 2 | fp32 |" in md
