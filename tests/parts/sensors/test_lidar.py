@@ -65,10 +65,12 @@ def test_rplidar_scan_session_and_resync() -> None:
         part._serial.timeout = 0.05
         clock[0] = 1.0
         assert part.run() == (None, False)
+        part.shutdown()
+        # the fake reads the pty on its own thread: wait until the bytes written on shutdown arrived
+        wait_for(lambda: device.commands[-1] == 0x25)  # stopped on shutdown
     finally:
         part.shutdown()
         device.close()
-    assert device.commands[-1] == 0x25  # stopped on shutdown
 
 
 def test_rplidar_that_does_not_answer_is_named() -> None:
