@@ -2,7 +2,7 @@
 
 Settings are declared beside what they configure: the kernel's in :mod:`vehicle.settings`, every
 family's in a ``settings.py`` of its own package (``parts/cameras/settings.py``, ...), found under
-:data:`vehicle.discovery.FAMILY_ROOTS` with no list to keep (the same walk finds the families'
+:func:`vehicle.discovery.family_roots` with no list to keep (the same walk finds the families'
 ``keys.py``). Each such module follows the rules below; the loader
 reads it by its syntax tree (for the documentation and the derived values) and imports it (for
 the names its annotations use, and its ``RULES`` across settings):
@@ -40,7 +40,7 @@ from pathlib import Path
 from typing import Annotated, Any
 
 from vehicle.config_checks import Checked, Constraint, Length, OneOf, Range, Rule
-from vehicle.discovery import FAMILY_ROOTS, family_modules
+from vehicle.discovery import family_modules
 from vehicle.errors import VehicleError
 from vehicle.keys import Mode
 
@@ -80,7 +80,7 @@ class Setting:
         return Path(_module(self.module).__file__ or "")
 
 
-def settings_modules(roots: Sequence[str] = FAMILY_ROOTS) -> list[str]:
+def settings_modules(roots: Sequence[str] | None = None) -> list[str]:
     """The settings modules: the kernel's, then every ``settings.py`` in a package under ``roots``
     (:func:`vehicle.discovery.family_modules`). A new family adds its own settings.py."""
     return [KERNEL_SETTINGS, *family_modules("settings.py", roots)]

@@ -31,7 +31,7 @@ from enum import StrEnum
 from functools import cache
 from typing import NamedTuple
 
-from vehicle.discovery import FAMILY_ROOTS, family_modules
+from vehicle.discovery import family_modules
 from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
@@ -91,8 +91,9 @@ class KeyTable(NamedTuple):
     aliases: dict[str, str]  # old name -> standard name
 
 
-def collect_keys(roots: Sequence[str] = FAMILY_ROOTS) -> KeyTable:
-    """The kernel's :data:`KEYS`, then those of every ``keys.py`` in a package under ``roots``.
+def collect_keys(roots: Sequence[str] | None = None) -> KeyTable:
+    """The kernel's :data:`KEYS`, then those of every ``keys.py`` in a package under ``roots``
+    (default: the installed families, :func:`vehicle.discovery.family_roots`).
 
     Raises:
         KeyDeclarationError: a key (or an old name) is declared twice, a ``KEYS`` entry is not a

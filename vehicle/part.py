@@ -16,6 +16,9 @@ not given them:
   purpose.
 - ``OUTPUT_SHAPES`` / ``INPUT_SHAPES``: ``{key: shape}`` of what it makes and of what it expects
   (:mod:`vehicle.shapes`), compared by the wiring check before the first loop.
+- ``RECORDED``: ``{output key: tub type}`` of the outputs every drive records while the part is in
+  the car (a sensor's readings: ``{"imu/acl_x": "float", ...}``); the tub writer asks
+  :meth:`vehicle.Vehicle.recorded`, so a new kind of part is recorded without a list to edit.
 
 Key names follow :mod:`vehicle.keys`.
 """

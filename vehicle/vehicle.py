@@ -176,6 +176,21 @@ class Vehicle:
         """The parts added so far that are instances of ``cls``, in run order."""
         return [e.part for e in self.parts if isinstance(e.part, cls)]
 
+    def recorded(self) -> dict[str, str]:
+        """What the parts added so far ask every drive to record: output key -> tub type, in run
+        order, from each part's ``RECORDED`` declaration (followed through a renaming of its
+        outputs)."""
+        found: dict[str, str] = {}
+        for e in self.parts:
+            declared = declared_keys(e.part, "RECORDED") or {}
+            own = declared_keys(e.part, "OUTPUTS") or ()
+            renamed = dict(zip(own, e.outputs, strict=False)) if len(own) == len(e.outputs) else {}
+            for key, tub_type in dict(declared).items():
+                key = renamed.get(key, key)
+                if key in e.outputs:
+                    found.setdefault(key, tub_type)
+        return found
+
     def produces(self, key: str) -> bool:
         """Whether a part added so far writes ``key`` (the vehicle's own ``loop/*`` keys included)."""
         return key in LOOP_KEYS or any(key in e.outputs for e in self.parts)

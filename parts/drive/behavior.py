@@ -11,7 +11,7 @@ in recordings and evaluations).
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import ClassVar
 
 import numpy as np
@@ -31,6 +31,8 @@ class BehaviorState:
     #: a car without behaviour buttons (or without the web page) has no step: the state stays
     OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("behavior/step", "web/behavior_step")
     OUTPUTS: ClassVar[tuple[str, ...]] = ("behavior/state", "behavior/label", "behavior/one_hot_state_array")
+    #: as DonkeyCar: a car with behaviours (TRAIN_BEHAVIORS) records them with every frame
+    RECORDED: ClassVar[Mapping[str, str]] = dict(zip(OUTPUTS, ("int", "str", "vector"), strict=True))
 
     def __init__(self, behaviors: Sequence[str], initial: int | str = 0) -> None:
         names = list(behaviors)

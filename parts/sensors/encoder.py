@@ -262,10 +262,11 @@ class Encoder(SensorPart):
     OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("throttle",)
 
     def __init__(self, source: TickSource, *, max_age: float = 0.5, period: float = 0.01,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] = time.monotonic, mm_per_tick: float | None = None) -> None:
         super().__init__(max_age, clock)
         self.source = source
         self.period = period
+        self.mm_per_tick = mm_per_tick  # only to say the ticks in metres (hw check); the odometer scales
 
     @property
     def OUTPUTS(self) -> tuple[str, ...]:  # noqa: N802 - the part declaration read by Vehicle.add
@@ -292,7 +293,25 @@ class Encoder(SensorPart):
             pins = [cfg.ODOM_PIN] + ([cfg.ODOM_PIN_B] if cfg.ODOM_PIN_B is not None else [])
             source = make_tick_source(kind, pins=pins, port=cfg.ODOM_SERIAL, baudrate=cfg.ODOM_SERIAL_BAUDRATE,
                                       channels=2 if two else 1, mode=mode, debounce_s=debounce, pin_factory=factory)
-        return cls(source, max_age=cfg.ODOM_MAX_AGE_S, clock=clock or time.monotonic)
+        return cls(source, max_age=cfg.ODOM_MAX_AGE_S, clock=clock or time.monotonic, mm_per_tick=cfg.MM_PER_TICK)
+
+    def where(self) -> str:
+        """The serial port of an Arduino counter, or the GPIO pin(s)."""
+        port = getattr(self.source, "port", None)
+        if port:
+            return f"on {port}"
+        pins = (getattr(self.source, "pin", None), getattr(self.source, "pin_b", None))
+        return "on pin " + "/".join(str(p) for p in pins if p)
+
+    def describe(self, values: tuple[object, ...]) -> tuple[bool, str]:
+        """The ticks counted (in metres at MM_PER_TICK)."""
+        ok, text = super().describe(values)
+        if not ok:
+            return ok, text
+        ticks = [int(t) for t in values[:-2]]  # type: ignore[call-overload]
+        metres = f" ({', '.join(f'{t * self.mm_per_tick / 1000:.2f} m' for t in ticks)} at MM_PER_TICK " \
+                 f"{self.mm_per_tick:.3g})" if self.mm_per_tick else ""
+        return True, f"{self.where()}: ticks {', '.join(str(t) for t in ticks)}{metres}; turn a wheel and run again"
 
     def open(self) -> None:
         self.source.open()

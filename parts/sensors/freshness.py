@@ -50,7 +50,8 @@ class SensorPart(ThreadedPart):
     all-None values with ``ok`` False once the latest reading is older than ``max_age`` seconds.
 
     Subclasses set ``OUTPUTS`` (the values' keys, then the ok key) and implement :meth:`read`;
-    ``open`` / ``close`` acquire and release the device.
+    ``open`` / ``close`` acquire and release the device; ``RECORDED`` says which values a drive
+    records, :meth:`where` and :meth:`describe` what ``vehicle hw check`` prints.
     """
 
     OUTPUTS: ClassVar[tuple[str, ...]] = ()
@@ -94,9 +95,30 @@ class SensorPart(ThreadedPart):
             return (None,) * (len(self.OUTPUTS) - 1) + (False,)
         return (*value, True)  # type: ignore[misc]
 
+    def where(self) -> str:
+        """Where the device is, for messages: ``"on /dev/ttyUSB0"`` (its ``port``) by default."""
+        return f"on {getattr(self, 'port', '?')}"
+
+    def describe(self, values: tuple[object, ...]) -> tuple[bool, str]:
+        """(whether ``values``, this part's latest outputs, hold a fresh reading, one line saying
+        what they show) for ``vehicle hw check``; by default each value beside its key."""
+        if not values or values[-1] is not True:
+            return False, f"{self.where()}: no reading within the timeout: check the wiring and the settings above"
+        shown = ", ".join(f"{key} {_short(value)}" for key, value in zip(self.OUTPUTS, values[:-1], strict=False))
+        return True, f"{self.where()}: {shown}"
+
     def run(self, *inputs: object) -> tuple[object, ...]:
         """Non-threaded use: one read inline with this loop's inputs (ThreadedPart.run stores them
         before the read, so a read sees this loop's throttle, not the previous one's), then as
         :meth:`run_threaded`."""
         super().run(*inputs)
         return self.run_threaded(*inputs)
+
+
+def _short(value: object) -> str:
+    """A reading in a few characters: floats to 3 significant digits, long sequences by length."""
+    if isinstance(value, float):
+        return f"{value:.3g}"
+    if isinstance(value, list | tuple) and len(value) > 4:
+        return f"[{len(value)} values]"
+    return str(value)

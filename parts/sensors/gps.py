@@ -17,7 +17,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any, ClassVar
 
 from parts.sensors.freshness import SensorPart
@@ -164,6 +164,7 @@ class GPS(SensorPart):
 
     OUTPUTS: ClassVar[tuple[str, ...]] = ("gps/x", "gps/y", "gps/latitude", "gps/longitude", "gps/accuracy",
                                           "gps/speed", "gps/ok")
+    RECORDED: ClassVar[Mapping[str, str]] = {**dict.fromkeys(OUTPUTS[:5], "float"), "gps/ok": "boolean"}
 
     def __init__(self, port: str, baudrate: int = 9600, *, origin: tuple[float, float] | None = None,
                  max_age: float = 2.0, serial_factory: Callable[..., Any] | None = None,
@@ -228,6 +229,19 @@ class GPS(SensorPart):
         if self._log is not None:
             self._log.close()
             self._log = None
+
+    def describe(self, values: tuple[object, ...]) -> tuple[bool, str]:
+        """The fix and its place in the local frame; without one, whether sentences arrive at all."""
+        where, r = self.where(), self.receiver
+        if not values or values[-1] is not True:
+            if r.sentences:
+                return False, (f"{where}: no fix yet ({r.sentences} sentences, {r.bad} bad checksums): "
+                               "give it open sky and a minute")
+            return False, (f"{where}: no NMEA sentences ({r.bad} unreadable lines): check GPS_SERIAL_BAUDRATE "
+                           "and the wiring (receiver TX to the Pi's RX)")
+        x, y, lat, lon, accuracy = values[:5]
+        acc = f"±{accuracy:.1f} m" if accuracy is not None else "accuracy unknown"
+        return True, f"{where}: fix {lat:.7f}, {lon:.7f} ({acc}); local x {x:.2f} m, y {y:.2f} m"
 
 
 class SpeedFromGPS:

@@ -19,7 +19,7 @@ import logging
 import math
 import struct
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any, ClassVar, NamedTuple
 
 from parts.sensors.freshness import SensorPart
@@ -158,6 +158,7 @@ class IMU(SensorPart):
 
     OUTPUTS: ClassVar[tuple[str, ...]] = ("imu/acl_x", "imu/acl_y", "imu/acl_z", "imu/gyr_x", "imu/gyr_y",
                                           "imu/gyr_z", "imu/ok")
+    RECORDED: ClassVar[Mapping[str, str]] = dict.fromkeys(OUTPUTS[:6], "float")
 
     def __init__(self, device: Any, *, max_age: float = 0.5, period: float = 0.01,
                  clock: Callable[[], float] = time.monotonic) -> None:
@@ -185,3 +186,17 @@ class IMU(SensorPart):
 
     def close(self) -> None:
         self.device.close()
+
+    def where(self) -> str:
+        """The I2C bus and address."""
+        return f"at bus {self.device.busnum} 0x{self.device.address:02X}"
+
+    def describe(self, values: tuple[object, ...]) -> tuple[bool, str]:
+        """Acceleration (with its magnitude: 9.8 at rest), turn rates and the chip's temperature."""
+        ok, text = super().describe(values)
+        if not ok:
+            return ok, text
+        ax, ay, az, gx, gy, gz = (float(v) for v in values[:6])  # type: ignore[arg-type]
+        temp = self.device.temperature
+        return True, (f"{self.where()}: acc ({ax:.2f}, {ay:.2f}, {az:.2f}) m/s^2 |a| {math.hypot(ax, ay, az):.2f}, "
+                      f"gyro ({gx:.3f}, {gy:.3f}, {gz:.3f}) rad/s" + (f", {temp:.1f} °C" if temp is not None else ""))

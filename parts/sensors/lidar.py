@@ -33,7 +33,7 @@ import contextlib
 import logging
 import math
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any, ClassVar
 
 import numpy as np
@@ -107,6 +107,7 @@ class RPLidar(SensorPart):
     """
 
     OUTPUTS: ClassVar[tuple[str, ...]] = ("lidar/dist_array", "lidar/ok")
+    RECORDED: ClassVar[Mapping[str, str]] = {"lidar/dist_array": "vector"}
 
     def __init__(self, port: str, baudrate: int = 115200, *, bins: int = 360, offset_deg: float = 0.0,
                  max_range: float = 12.0, max_age: float = 0.5, max_gap: float = 5.0,
@@ -259,6 +260,20 @@ class RPLidar(SensorPart):
                 self._serial.dtr = True
             self._serial.close()
             self._serial = None
+
+    def describe(self, values: tuple[object, ...]) -> tuple[bool, str]:
+        """How many bins have a return, and the nearest one's distance and angle."""
+        ok, text = super().describe(values)
+        if not ok:
+            return ok, text
+        dist = list(values[0])  # type: ignore[call-overload]
+        hits = [(d, i) for i, d in enumerate(dist) if d > 0]
+        if not hits:
+            return True, f"{self.where()}: {len(dist)} bins, no return: is anything within LIDAR_MAX_RANGE?"
+        d, i = min(hits)
+        return True, (f"{self.where()}: {len(dist)} bins, {len(hits)} with a return, nearest {d:.2f} m at "
+                      f"{i * 360 / len(dist):.0f} degrees")
+
 
 def front_distance(dist_array: list[float] | np.ndarray, half_angle_deg: float) -> float:
     """The nearest return within ``half_angle_deg`` either side of straight ahead (inf: none; NaN:

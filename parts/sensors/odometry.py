@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 Pose = tuple[float, float, float]
@@ -48,6 +49,7 @@ class Odometer:
 
     INPUTS: ClassVar[tuple[str, ...]] = ("enc/ticks", "enc/timestamp")
     OUTPUTS: ClassVar[tuple[str, ...]] = ("enc/distance", "enc/speed")
+    RECORDED: ClassVar[Mapping[str, str]] = {"enc/speed": "float", "enc/distance": "float"}
 
     def __init__(self, m_per_tick: float, smoothing: int = 1) -> None:
         if not m_per_tick > 0:
@@ -85,6 +87,7 @@ class Odometer:
 
 class _PoseBase:
     OUTPUTS: ClassVar[tuple[str, ...]] = ("pos/x", "pos/y", "pos/angle", "vel/x", "vel/y", "vel/angle")
+    RECORDED: ClassVar[Mapping[str, str]] = dict.fromkeys(OUTPUTS, "float")
 
     def __init__(self, x: float = 0.0, y: float = 0.0, heading: float = 0.0) -> None:
         self.x, self.y, self.heading = float(x), float(y), float(heading)
@@ -194,6 +197,7 @@ class DifferentialOdometer:
 
     INPUTS: ClassVar[tuple[str, ...]] = ("enc/left/ticks", "enc/right/ticks", "enc/timestamp")
     OUTPUTS: ClassVar[tuple[str, ...]] = ("enc/left/distance", "enc/right/distance", "enc/distance", "enc/speed")
+    RECORDED: ClassVar[Mapping[str, str]] = Odometer.RECORDED
 
     def __init__(self, m_per_tick: float, smoothing: int = 1) -> None:
         self.left, self.right = Odometer(m_per_tick, smoothing), Odometer(m_per_tick, smoothing)

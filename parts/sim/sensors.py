@@ -129,6 +129,16 @@ class SimSensors:
         """The keys of the sensors switched on, in the order of :meth:`run`'s values."""
         return self._outputs
 
+    @property
+    def RECORDED(self) -> dict[str, str]:  # noqa: N802 - the part declaration read by Vehicle.recorded
+        """What the real sensors record, of the keys this part writes (the odometer records the
+        encoder's distance and speed)."""
+        from parts.sensors.gps import GPS
+        from parts.sensors.imu import IMU
+        from parts.sensors.lidar import RPLidar
+
+        return {k: t for cls in (IMU, GPS, RPLidar) for k, t in cls.RECORDED.items() if k in self._outputs}
+
     @classmethod
     def from_config(cls, cfg: Any, sim: Any) -> SimSensors | None:
         """The simulated sensors a simulator car's settings switch on (HAVE_ODOM, HAVE_IMU,

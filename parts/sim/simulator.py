@@ -11,7 +11,7 @@ import logging
 import math
 import time
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -84,6 +84,9 @@ class SimCar:
     FEEDBACK: ClassVar[tuple[str, ...]] = ("angle", "throttle")
     #: a car may have no reset button
     OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("sim/reset",)
+    #: the side cameras' frames, recorded when the car has them (the three_camera model's data)
+    RECORDED: ClassVar[Mapping[str, str]] = dict.fromkeys(SIDE_OUTPUTS, "image_array")
+
     @property
     def OUTPUTS(self) -> tuple[str, ...]:  # noqa: N802 - the part declaration read by Vehicle.add
         """:data:`OUTPUTS`, without enc/speed when the odometer writes it from simulated encoder

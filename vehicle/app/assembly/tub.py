@@ -11,22 +11,6 @@ from vehicle.errors import UserError
 
 TIMESTAMP_KEY = "cam/timestamp"
 ERASE_KEY = "tub/erase"
-#: what a drive with TRAIN_BEHAVIORS records besides TUB_INPUTS (DonkeyCar's keys and tub types)
-BEHAVIOR_FIELDS = (("behavior/state", "int"), ("behavior/label", "str"), ("behavior/one_hot_state_array", "vector"))
-#: what a car with sensors records besides TUB_INPUTS, per switch (as DonkeyCar's complete.py does)
-_F = "float"
-SENSOR_FIELDS: dict[str, tuple[tuple[str, str], ...]] = {
-    "HAVE_ODOM": (("enc/speed", _F), ("enc/distance", _F), ("pos/x", _F), ("pos/y", _F), ("pos/angle", _F),
-                  ("vel/x", _F), ("vel/y", _F), ("vel/angle", _F)),
-    "HAVE_IMU": (("imu/acl_x", _F), ("imu/acl_y", _F), ("imu/acl_z", _F), ("imu/gyr_x", _F), ("imu/gyr_y", _F),
-                 ("imu/gyr_z", _F)),
-    "HAVE_GPS": (("gps/x", _F), ("gps/y", _F), ("gps/latitude", _F), ("gps/longitude", _F), ("gps/accuracy", _F),
-                 ("gps/ok", "boolean")),
-    "USE_LIDAR": (("lidar/dist_array", "vector"),),
-}
-
-#: cameras beside the centre one, recorded when a part makes them (the three_camera model's views)
-SIDE_CAMERA_KEYS = ("cam/image_array_left", "cam/image_array_right")
 #: what a car in correction mode (CORRECTION_MODE) records besides TUB_INPUTS
 CORRECTION_FIELDS = (("user/correction", "boolean"), ("pilot/angle", "float"), ("pilot/throttle", "float"))
 
@@ -53,23 +37,18 @@ def _produced(V: Any, key: str) -> bool:
 def recorded_extras(V: Any, cfg: Any, inputs: list[str]) -> list[tuple[str, str]]:
     """What a drive records beside ``inputs``, as (key, tub type), for the parts ``V`` holds.
 
-    pilot/angle and pilot/throttle with RECORD_DURING_AI (when a pilot part was added); the keys of
-    the sensors HAVE_ODOM, HAVE_IMU, HAVE_GPS, USE_LIDAR switch on (:data:`SENSOR_FIELDS`); the side
-    cameras' frames; the correction fields with CORRECTION_MODE; the behaviour keys with
-    TRAIN_BEHAVIORS. Each only while a part writes it. ``manage.py drive`` and the expert
-    recording both record through this, so a sensor present is recorded by either.
+    What the car's parts declare (:meth:`vehicle.Vehicle.recorded`: a sensor's readings, the side
+    cameras' frames, the behaviour); pilot/angle and pilot/throttle with RECORD_DURING_AI (when a
+    pilot part was added); the correction fields with CORRECTION_MODE. Each only while a part
+    writes it. ``manage.py drive``, the expert recording and the console's recordings all record
+    through this, so a part present is recorded by each.
     """
     wanted: list[tuple[str, str]] = []
     if getattr(cfg, "RECORD_DURING_AI", False):  # a drive without a model has no pilot
         wanted += [("pilot/angle", "float"), ("pilot/throttle", "float")]
-    for switch, fields in SENSOR_FIELDS.items():  # a sensor's keys, while its part writes them
-        if getattr(cfg, switch, False):
-            wanted += fields
-    wanted += [(key, "image_array") for key in SIDE_CAMERA_KEYS]  # SIM_SIDE_CAMERAS_OFFSET
+    wanted += list(V.recorded().items())
     if getattr(cfg, "CORRECTION_MODE", False):  # the flag, and what the pilot wanted beside the label
         wanted += CORRECTION_FIELDS
-    if getattr(cfg, "TRAIN_BEHAVIORS", False):  # as DonkeyCar: behaviour drives record it
-        wanted += BEHAVIOR_FIELDS
     seen = set(inputs)
     extras = []
     for key, tp in wanted:

@@ -1,7 +1,8 @@
 """``vehicle hw``: bench checks of a real car's sensors and tuning of its speed controller.
 
 - ``vehicle hw check`` opens every sensor the car's settings switch on (HAVE_ODOM, HAVE_IMU,
-  HAVE_GPS, USE_LIDAR), waits for readings and says in one line each what it sees. Nothing moves.
+  HAVE_GPS, USE_LIDAR and any kind an installed package adds), waits for readings and says in one
+  line each what it sees (the part's own ``where()`` / ``describe()``). Nothing moves.
 - ``vehicle hw tune-speed`` drives a throttle step straight ahead (on the floor or on blocks; or
   in the built-in simulator with ``--sim``), fits the speed response and prints PI gains.
 """
@@ -11,16 +12,12 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
-import math
 import threading
 from collections.abc import Iterator
 from typing import Any
 
 from vehicle.app.carconfig import add_car_options, load_for_command
 from vehicle.errors import UserError, VehicleError
-
-#: --only names -> the sensor table's enabling setting
-KINDS: dict[str, str] = {"odom": "HAVE_ODOM", "imu": "HAVE_IMU", "gps": "HAVE_GPS", "lidar": "USE_LIDAR"}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -34,7 +31,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                          "USE_LIDAR), wait for readings and print one line per device. Nothing moves. "
                          "Exit status 1 when a device is missing or silent.")
     add_car_options(c)
-    c.add_argument("--only", choices=sorted(KINDS), help="check one kind of sensor")
+    c.add_argument("--only", metavar="KIND", help="check one kind of sensor (odom, imu, gps, lidar, or a kind an "
+                   "installed package of parts adds)")
     c.add_argument("--timeout", type=float, default=3.0, help="seconds to wait for each device (default 3)")
     c.add_argument("--debug", action="store_true", help="log each device's failure with its traceback")
     c.set_defaults(func=_check)
@@ -55,24 +53,29 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 # -- check ------------------------------------------------------------------------------------
 def _check(args: argparse.Namespace) -> int:
-    from parts.sensors.registry import SENSOR_TABLES
+    from parts.sensors.registry import sensor_tables
 
     cfg = load_for_command(args)
     if args.timeout <= 0:
         raise UserError(f"--timeout {args.timeout}: give a number of seconds > 0")
-    tables = [t for t in SENSOR_TABLES if args.only is None or t.enabled_by == KINDS[args.only]]
+    tables = sensor_tables()
+    if args.only is not None:
+        tables = tuple(t for t in tables if t.kind == args.only)
+        if not tables:
+            raise UserError(f"--only {args.only}: not a kind of sensor; the kinds are "
+                            f"{', '.join(t.kind for t in sensor_tables())}")
     enabled = [t for t in tables if t.enabled(cfg)]
     if not enabled:
-        which = KINDS[args.only] if args.only else ", ".join(KINDS.values())
+        which = ", ".join(str(t.enabled_by) for t in tables)
         print(f"no sensor to check: switch one on in myconfig.py ({which} = True)")  # noqa: T201
         return 1
     failed = 0
+    width = max(6, *(len(t.kind) for t in enabled))
     with _one_line_per_device(args.debug):
         for table in enabled:
-            label = next(k for k, v in KINDS.items() if v == table.enabled_by)
             ok, text = check_one(table, cfg, args.timeout)
             failed += not ok
-            print(f"{label:<6} {cfg[table.setting]} {text}")  # noqa: T201
+            print(f"{table.kind:<{width}} {cfg[table.setting]} {text}")  # noqa: T201
     return 1 if failed else 0
 
 
@@ -93,7 +96,8 @@ def _one_line_per_device(debug: bool) -> Iterator[None]:
 
 
 def check_one(table: Any, cfg: Any, timeout: float) -> tuple[bool, str]:
-    """(whether the device answered, one line saying what it sees) for one sensor table's part."""
+    """(whether the device answered, one line saying what it sees) for one sensor table's part: the
+    part's own ``where()`` and ``describe(values)``."""
     try:
         part = table.from_config(cfg)
     except (VehicleError, ValueError) as exc:
@@ -110,61 +114,10 @@ def check_one(table: Any, cfg: Any, timeout: float) -> tuple[bool, str]:
                 break
             pause.wait(0.05)
         if part.error is not None:
-            return False, f"{_where(part, cfg)}: {part.error}"
-        return describe(part, cfg, values)
+            return False, f"{part.where()}: {part.error}"
+        return part.describe(values)
     finally:
         part.shutdown()
-
-
-def _where(part: Any, cfg: Any) -> str:
-    kind = type(part).__name__
-    if kind == "Encoder":
-        source = part.source
-        port = getattr(source, "port", None)
-        return f"on {port}" if port else "on pin " + "/".join(
-            str(p) for p in (getattr(source, "pin", None), getattr(source, "pin_b", None)) if p)
-    if kind == "IMU":
-        return f"at bus {part.device.busnum} 0x{part.device.address:02X}"
-    return f"on {getattr(part, 'port', '?')}"
-
-
-def describe(part: Any, cfg: Any, values: tuple[Any, ...]) -> tuple[bool, str]:
-    """What a sensor part's latest ``values`` (its OUTPUTS) say, in words."""
-    where = _where(part, cfg)
-    kind = type(part).__name__
-    ok = bool(values) and values[-1] is True
-    if kind == "GPS" and not ok:
-        r = part.receiver
-        if r.sentences:
-            return False, (f"{where}: no fix yet ({r.sentences} sentences, {r.bad} bad checksums): "
-                           "give it open sky and a minute")
-        return False, (f"{where}: no NMEA sentences ({r.bad} unreadable lines): check GPS_SERIAL_BAUDRATE "
-                       "and the wiring (receiver TX to the Pi's RX)")
-    if not ok:
-        return False, f"{where}: no reading within the timeout: check the wiring and the settings above"
-    if kind == "Encoder":
-        ticks = values[:-2]
-        metres = ", ".join(f"{t * cfg.MM_PER_TICK / 1000:.2f} m" for t in ticks)
-        return True, (f"{where}: ticks {', '.join(str(t) for t in ticks)} ({metres} at MM_PER_TICK "
-                      f"{cfg.MM_PER_TICK:.3g}); turn a wheel and run again")
-    if kind == "IMU":
-        ax, ay, az, gx, gy, gz = values[:6]
-        temp = part.device.temperature
-        return True, (f"{where}: acc ({ax:.2f}, {ay:.2f}, {az:.2f}) m/s^2 |a| {math.hypot(ax, ay, az):.2f}, "
-                      f"gyro ({gx:.3f}, {gy:.3f}, {gz:.3f}) rad/s" + (f", {temp:.1f} °C" if temp is not None else ""))
-    if kind == "GPS":
-        x, y, lat, lon, accuracy, _speed = values[:6]
-        acc = f"±{accuracy:.1f} m" if accuracy is not None else "accuracy unknown"
-        return True, f"{where}: fix {lat:.7f}, {lon:.7f} ({acc}); local x {x:.2f} m, y {y:.2f} m"
-    if kind == "RPLidar":
-        dist = values[0]
-        hits = [(d, i) for i, d in enumerate(dist) if d > 0]
-        if not hits:
-            return True, f"{where}: {len(dist)} bins, no return: is anything within LIDAR_MAX_RANGE?"
-        d, i = min(hits)
-        return True, (f"{where}: {len(dist)} bins, {len(hits)} with a return, nearest {d:.2f} m at "
-                      f"{i * 360 / len(dist):.0f} degrees")
-    return True, f"{where}: {values[:-1]}"
 
 
 # -- tune-speed ---------------------------------------------------------------------------------
