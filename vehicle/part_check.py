@@ -25,7 +25,7 @@ The part is shut down afterwards: check a part built for the check.
 from __future__ import annotations
 
 import threading
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from vehicle.errors import VehicleError
@@ -65,6 +65,14 @@ def _declared(part: Any, problems: list[str]) -> dict[str, tuple[str, ...] | Non
         stray = [k for k in found[attr] or () if k not in inputs]
         if stray:
             problems.append(f"{attr} {stray} are not among its INPUTS {list(inputs)}")
+    recorded = declared_keys(part, "RECORDED")
+    if recorded is not None:
+        if not isinstance(recorded, Mapping) or not all(isinstance(t, str) and t for t in recorded.values()):
+            problems.append(f"RECORDED must map output keys to tub types ('float', 'vector' ...), got {recorded!r}")
+        else:
+            stray = [k for k in recorded if k not in (found["OUTPUTS"] or ())]
+            if stray:
+                problems.append(f"RECORDED {stray} are not among its OUTPUTS {list(found['OUTPUTS'] or ())}")
     return found
 
 

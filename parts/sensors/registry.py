@@ -39,6 +39,7 @@ def sensor_tables() -> tuple[Registry, ...]:
     """Every kind of sensor: :data:`SENSOR_TABLES`, then those other families declare in the
     ``SENSOR_TABLES`` of their ``registry.py`` (an installed package of parts), in discovery order."""
     tables = list(SENSOR_TABLES)
-    for _module, declared in family_declarations("registry.py", "SENSOR_TABLES"):
-        tables += [t for t in declared if t not in tables]
+    for module, declared in family_declarations("registry.py", "SENSOR_TABLES"):
+        if module != __name__:
+            tables += declared
     return tuple(tables)

@@ -11,7 +11,7 @@ import logging
 import math
 import time
 from collections import deque
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -84,15 +84,17 @@ class SimCar:
     FEEDBACK: ClassVar[tuple[str, ...]] = ("angle", "throttle")
     #: a car may have no reset button
     OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("sim/reset",)
-    #: the side cameras' frames, recorded when the car has them (the three_camera model's data)
-    RECORDED: ClassVar[Mapping[str, str]] = dict.fromkeys(SIDE_OUTPUTS, "image_array")
-
     @property
     def OUTPUTS(self) -> tuple[str, ...]:  # noqa: N802 - the part declaration read by Vehicle.add
         """:data:`OUTPUTS`, without enc/speed when the odometer writes it from simulated encoder
         ticks (``measured_speed`` False), with :data:`SIDE_OUTPUTS` when the car has side cameras."""
         return (OUTPUTS if self.measured_speed else OUTPUTS[:-1]) + \
             (SIDE_OUTPUTS if self.side_cameras is not None else ())
+
+    @property
+    def RECORDED(self) -> dict[str, str]:  # noqa: N802 - the part declaration read by Vehicle.recorded
+        """The side cameras' frames, when the car has them (the three_camera model's data)."""
+        return dict.fromkeys(SIDE_OUTPUTS, "image_array") if self.side_cameras is not None else {}
 
     @property
     def OUTPUT_SHAPES(self) -> dict[str, tuple[int, ...]]:  # noqa: N802 - the part declaration

@@ -216,3 +216,51 @@ def test_the_evaluation_episode_parts_keep_the_contract():
     waiter = StopIfNoSimulator(0.0, lambda: stopped.append(True))
     check_part(waiter, inputs=(False,))
     assert waiter.gave_up and stopped == [True]
+
+
+def test_every_sensor_row_keeps_the_contract(monkeypatch):
+    """Every row of every sensor table, built from its settings against a fake of its device."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parents[1] / "parts" / "sensors"))
+    import smbus2
+    from sensor_fakes import ArduinoEncoder, FakeSMBus, MPU6050Model, NmeaSource, RPLidarDevice, gga
+
+    from parts.sensors.registry import sensor_tables
+
+    encoder, gps, lidar = ArduinoEncoder(), NmeaSource(), RPLidarDevice(lambda a: 1.0)
+    gps.sentences = [gga(48.1, 11.5, hdop=1.0)]
+    monkeypatch.setattr(smbus2, "SMBus", lambda bus: FakeSMBus({0x68: MPU6050Model(0x68),
+                                                                0x69: MPU6050Model(0x71)}))
+    devices = {"ENCODER_TYPE": {"ODOM_SERIAL": encoder.path, "GPIO_MOCK": True},
+               "IMU_SENSOR": {"IMU_ADDRESS": 0x68}, "GPS_TYPE": {"GPS_SERIAL": gps.path},
+               "LIDAR_TYPE": {"LIDAR_SERIAL": lidar.path}}
+    checked = []
+    try:
+        for table in sensor_tables():
+            for name in table:
+                settings = {table.setting: name, **devices[table.setting]}
+                if name == "mpu9250":
+                    settings["IMU_ADDRESS"] = 0x69
+                part = table.from_config(Config.defaults(**settings))
+                check_part(part, inputs=(0.0,) * len(getattr(part, "INPUTS", ())), threaded=True)
+                checked.append(name)
+    finally:
+        for device in (encoder, gps, lidar):
+            device.close()
+    assert checked == ["GPIO", "ARDUINO", "arduino", "mpu6050", "mpu9250", "NMEA", "RP"]
+
+
+def test_recorded_keys_must_be_outputs_with_a_tub_type():
+    class Recorder(Good):
+        RECORDED = {"angle": "float", "imu/gyro_z": "float"}
+
+    with pytest.raises(PartCheckError, match=r"RECORDED \['imu/gyro_z'\] are not among its OUTPUTS"):
+        check_part(Recorder(), inputs=(0.1, None))
+
+    class Untyped(Good):
+        RECORDED = {"angle": None}
+
+    with pytest.raises(PartCheckError, match="RECORDED must map output keys to tub types"):
+        check_part(Untyped(), inputs=(0.1, None))

@@ -304,3 +304,18 @@ def test_stop_from_a_part_ends_the_loop_and_shuts_down():
     V.add(Actuator("esc", log))
     loops, _ = V.start(rate_hz=10)
     assert loops == 4 and log == ["neutral esc", "shutdown esc"]
+
+
+def test_recorded_follows_the_parts_declarations_and_their_renaming():
+    class Sonar:
+        OUTPUTS = ("sonar/distance", "sonar/ok")
+        RECORDED = {"sonar/distance": "float"}
+
+        def run(self):
+            return 1.0, True
+
+    V = Vehicle()
+    V.add(Sonar())
+    V.add(Sonar(), outputs=["sonar/rear_distance", "sonar/rear_ok"])  # a second one, renamed
+    V.add(lambda: 2.0, outputs=["other/x"])  # declares nothing: records nothing
+    assert V.recorded() == {"sonar/distance": "float", "sonar/rear_distance": "float"}

@@ -12,19 +12,20 @@ logger = logging.getLogger(__name__)
 
 
 def add_sensors(V: Any, cfg: Config, tables: Sequence[Any] | None = None) -> list[Any]:
-    """Add one part per enabled sensor kind (:data:`parts.sensors.registry.SENSOR_TABLES`, or
-    ``tables``), each built by its class's ``from_config(cfg, clock=...)`` and opened now (a part's
-    ``probe()``: a missing device stops the assembly with its one-line reason); threaded when the
-    part has ``run_threaded``; then the odometry (:func:`add_odometry`). Returns the parts added.
+    """Add one part per enabled sensor kind (:func:`parts.sensors.registry.sensor_tables`: the
+    project's and those of installed packages of parts; or ``tables``), each built by its class's
+    ``from_config(cfg, clock=...)`` and opened now (a part's ``probe()``: a missing device stops the
+    assembly with its one-line reason); threaded when the part has ``run_threaded``; then the
+    odometry (:func:`add_odometry`). Returns the parts added.
 
     Raises:
         VehicleError: a sensor's device is missing or answers another protocol (EncoderError,
             IMUError, GPSError, LidarError: one line naming the device and what to check).
     """
     if tables is None:
-        from parts.sensors.registry import SENSOR_TABLES
+        from parts.sensors.registry import sensor_tables
 
-        tables = SENSOR_TABLES
+        tables = sensor_tables()
     clock = getattr(getattr(V, "clock", None), "now", None)
     added = []
     for table in tables:

@@ -1,0 +1,1 @@
+"""An ultrasonic rangefinder (MaxBotix HRLV-MaxSonar, serial output) for vehicle-rc cars."""
