@@ -62,6 +62,10 @@ class ConfigError(VehicleError, ValueError):
     read. The message is one line: file, line, setting, what is valid."""
 
 
+class SettingTypeError(ConfigError, TypeError):
+    """A setting's value has the wrong type (a TypeError too, for code that builds parts)."""
+
+
 @dataclass(frozen=True)
 class Setting:
     """One declared setting: its type, default expression, documentation and where it is declared."""
@@ -245,9 +249,26 @@ def check_value(name: str, value: Any, where: str = "") -> None:
                           "See docs/config.md for every setting.")
     setting = known[name]
     if not _matches(value, _type_of(name)):
-        raise ConfigError(f"{where}{name} = {value!r} has type {type(value).__name__}, "
-                          f"expected {describe_type(setting.annotation)}.")
+        raise SettingTypeError(f"{where}{name} = {value!r} has type {type(value).__name__}, "
+                               f"expected {describe_type(setting.annotation)}.")
     check_range(name, value, where)
+
+
+def check_settings(**values: Any) -> None:
+    """Raise ConfigError unless each value fits the setting it is named for (its type and range).
+
+    A part's constructor checks its arguments with it, ``check_settings(LIDAR_BINS=bins)``, so a
+    bound is written once, in the setting's annotation, and a part built from code fails with the
+    same one-line message as a bad myconfig.py. A value in another unit than the setting's is
+    passed converted (``MM_PER_TICK=m_per_tick * 1000``).
+    """
+    for name, value in values.items():
+        if type(value).__module__ == "numpy" and hasattr(value, "item"):
+            value = value.item()  # a numpy number is the number it holds
+        if isinstance(value, float) and value.is_integer() and name in settings() \
+                and not _matches(value, _type_of(name)):
+            value = int(value)  # 20.0 frames per second for an int setting: the same number
+        check_value(name, value)
 
 
 def _closest(name: str) -> str | None:

@@ -32,6 +32,7 @@ from typing import ClassVar
 
 from parts.actuators.esc import ReverseStateMachine, SlewLimiter
 from parts.actuators.watchdog import CommandWatchdog
+from vehicle.config import check_settings
 from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
@@ -74,10 +75,8 @@ class Drivetrain:
                  arm_s: float = 0.0, watchdog_s: float | None = 0.5, hold_s: float = 0.1,
                  clock: Callable[[], float] = time.monotonic,
                  sleep: Callable[[float], None] = time.sleep) -> None:
-        if not 0 <= check_number("ESC_ARM_TIME_S", arm_s) <= 10:
-            raise ValueError(f"ESC_ARM_TIME_S must be 0-10 seconds, got {arm_s}")
-        if not 0 <= check_number("PWM_SHUTDOWN_HOLD_S", hold_s) <= 5:
-            raise ValueError(f"PWM_SHUTDOWN_HOLD_S must be 0-5 seconds, got {hold_s}")
+        check_settings(ESC_ARM_TIME_S=arm_s, PWM_SHUTDOWN_HOLD_S=hold_s, ACTUATOR_WATCHDOG_S=watchdog_s,
+                       THROTTLE_SLEW_RATE=slew_rate)
         self.name = getattr(self, "name", type(self).__name__)
         self.slew = SlewLimiter(slew_rate)
         self.reverse = reverse or ReverseStateMachine("direct")

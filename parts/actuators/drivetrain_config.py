@@ -62,7 +62,12 @@ ESC_TYPES = ("PWM_STEERING_THROTTLE", "MOCK", "MM1")
 
 
 def flat_pwm_dict(cfg: Mapping[str, Any]) -> dict[str, Any]:
-    """PWM_STEERING_THROTTLE's dict as the flat settings describe it."""
+    """PWM_STEERING_THROTTLE's dict as the flat settings describe it (checked with their ranges,
+    so a bad one is named, not the pin spec made from it)."""
+    from vehicle.config import check_settings  # noqa: PLC0415 - the loader imports this module
+
+    check_settings(**{k: cfg[k] for k in ("PCA9685_I2C_BUSNUM", "PCA9685_I2C_ADDR", "STEERING_CHANNEL",
+                                         "THROTTLE_CHANNEL")})
     bus = 1 if cfg["PCA9685_I2C_BUSNUM"] is None else cfg["PCA9685_I2C_BUSNUM"]
     board = f"PCA9685.{bus}:{cfg['PCA9685_I2C_ADDR']:02X}"
     return {**DONKEY_DICTS["PWM_STEERING_THROTTLE"],

@@ -11,6 +11,8 @@ import math
 from enum import Enum
 from typing import Literal
 
+from vehicle.config import check_settings
+
 logger = logging.getLogger(__name__)
 
 ReverseMode = Literal["direct", "double_tap"]
@@ -28,10 +30,7 @@ class SlewLimiter:
     """
 
     def __init__(self, rate_per_s: float | None) -> None:
-        if rate_per_s is not None and (isinstance(rate_per_s, bool) or not rate_per_s > 0
-                                       or not math.isfinite(rate_per_s)):
-            raise ValueError(f"THROTTLE_SLEW_RATE must be > 0 (full-scale units per second) or None "
-                             f"(no limit), got {rate_per_s!r}")
+        check_settings(THROTTLE_SLEW_RATE=rate_per_s)  # full-scale units per second, None: no limit
         self.rate = rate_per_s
         self.value = 0.0
         self._last: float | None = None

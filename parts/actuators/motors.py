@@ -34,6 +34,7 @@ from parts.actuators.drivetrain import Drivetrain, check_number, clamp
 from parts.actuators.drivetrain_config import drivetrain_dict, motor_limits, pinset, safety_from_config
 from parts.actuators.pins import OutputPin, PinSet, PwmPin, parse_pin
 from parts.actuators.pwm import MAX_TICK, SteeringCalibration, check_pulse_widths, steering_pulses
+from vehicle.config import check_settings
 
 
 def arcade_mix(throttle: float, angle: float) -> tuple[float, float]:
@@ -149,9 +150,7 @@ class _MotorDrivetrain(Drivetrain):
     def __init__(self, pins: PinSet, *, forward_limit: float = 1.0, reverse_limit: float = 1.0,
                  throttle_invert: bool = False, steering_invert: bool = False, **safety: Any) -> None:
         super().__init__(**safety)
-        for name, limit in (("THROTTLE_FORWARD_LIMIT", forward_limit), ("THROTTLE_REVERSE_LIMIT", reverse_limit)):
-            if not 0.0 <= check_number(name, limit) <= 1.0:
-                raise ValueError(f"{name} must be within [0, 1] (fraction of full throttle), got {limit}")
+        check_settings(THROTTLE_FORWARD_LIMIT=forward_limit, THROTTLE_REVERSE_LIMIT=reverse_limit)
         self.pins = pins
         self.limits = (float(forward_limit), float(reverse_limit))
         self.throttle_invert = throttle_invert

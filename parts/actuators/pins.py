@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 from parts.actuators.drivetrain import DrivetrainError
 from parts.gpio import gpio_errors
+from vehicle.config import check_settings
 
 if TYPE_CHECKING:
     from parts.actuators.pca9685 import PCA9685, BusFactory
@@ -257,6 +258,8 @@ class PinSet:
 
     def __init__(self, frequency: float = 60.0, *, osc_hz: float | None = None,
                  bus_factory: BusFactory | None = None, gpio_factory: Any = None) -> None:
+        if osc_hz is not None:
+            check_settings(PCA9685_OSC_HZ=osc_hz)
         self.frequency = frequency
         self.osc_hz = osc_hz
         self.bus_factory = bus_factory

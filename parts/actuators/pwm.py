@@ -20,6 +20,7 @@ from typing import Any
 from parts.actuators.drivetrain import Drivetrain, check_number, clamp
 from parts.actuators.pca9685 import MAX_TICK, PULSE_MAX_US, PULSE_MIN_US, pulse_tick_range
 from parts.actuators.pins import PinSet, PwmPin, parse_pin
+from vehicle.config import check_settings
 
 logger = logging.getLogger(__name__)
 
@@ -61,9 +62,7 @@ class SteeringCalibration:
         if self.left == self.right:
             raise ValueError(f"STEERING_LEFT_PWM and STEERING_RIGHT_PWM are both {self.left}: the "
                              "wheels could not turn; calibrate both ends with `vehicle calibrate`")
-        if not -0.5 <= check_number("STEERING_TRIM", self.trim) <= 0.5:
-            raise ValueError(f"STEERING_TRIM must be within [-0.5, 0.5] (steering units), got "
-                             f"{self.trim}; a larger offset means LEFT/RIGHT_PWM need recalibrating")
+        check_settings(STEERING_TRIM=self.trim)  # beyond it, LEFT/RIGHT_PWM need recalibrating
 
     def ticks(self, angle: float) -> int:
         """Ticks for a steering angle in [-1, 1] (values outside are clamped)."""
@@ -100,10 +99,7 @@ class ThrottleCalibration:
             raise ValueError(
                 f"THROTTLE_STOPPED_PWM ({s}) must lie strictly between THROTTLE_REVERSE_PWM ({r}) and "
                 f"THROTTLE_FORWARD_PWM ({f}); recalibrate with `vehicle calibrate`")
-        for name, limit in (("THROTTLE_FORWARD_LIMIT", self.forward_limit),
-                            ("THROTTLE_REVERSE_LIMIT", self.reverse_limit)):
-            if not 0.0 <= check_number(name, limit) <= 1.0:
-                raise ValueError(f"{name} must be within [0, 1] (fraction of full throttle), got {limit}")
+        check_settings(THROTTLE_FORWARD_LIMIT=self.forward_limit, THROTTLE_REVERSE_LIMIT=self.reverse_limit)
 
     def limit(self, throttle: float) -> float:
         """The command after inversion, clamping to [-1, 1] and the forward/reverse limits."""

@@ -26,8 +26,9 @@ from collections.abc import Callable
 from typing import Any, Literal
 
 from parts.actuators import vesc_protocol as vp
-from parts.actuators.drivetrain import Drivetrain, DrivetrainError, check_number, clamp
+from parts.actuators.drivetrain import Drivetrain, DrivetrainError, clamp
 from parts.actuators.serial_port import close_serial, open_serial, serial_link
+from vehicle.config import check_settings
 
 logger = logging.getLogger(__name__)
 
@@ -73,20 +74,13 @@ class VESC(Drivetrain):
                  **safety: Any) -> None:
         safety.setdefault("arm_s", 0.0)
         super().__init__(**safety)
-        if mode not in CONTROL_MODES:
-            raise ValueError(f"VESC_CONTROL_MODE must be one of {CONTROL_MODES}, got {mode!r}")
-        checks = (("VESC_MAX_SPEED_PERCENT", max_duty, 0.0, 0.95), ("VESC_MAX_CURRENT", max_current, 0.0, 200.0),
-                  ("VESC_MAX_ERPM", max_erpm, 0.0, 200_000.0), ("VESC_BRAKE_CURRENT", brake_current, 0.0, 200.0))
-        for name, value, lo, hi in checks:
-            if not lo <= check_number(name, value) <= hi:
-                raise ValueError(f"{name} must be within [{lo:g}, {hi:g}], got {value}")
-        if isinstance(motor_poles, bool) or not isinstance(motor_poles, int) or motor_poles < 2 or motor_poles % 2:
-            raise ValueError(f"VESC_MOTOR_POLES must be an even number >= 2 (magnet poles of the motor), "
+        check_settings(VESC_BAUDRATE=baudrate, VESC_CONTROL_MODE=mode, VESC_MAX_SPEED_PERCENT=max_duty,
+                       VESC_MAX_CURRENT=max_current, VESC_MAX_ERPM=max_erpm, VESC_BRAKE_CURRENT=brake_current,
+                       VESC_STEERING_SCALE=steering_scale, VESC_STEERING_OFFSET=steering_offset,
+                       VESC_MOTOR_POLES=motor_poles, VESC_GEAR_RATIO=gear_ratio, WHEEL_RADIUS=wheel_radius)
+        if motor_poles % 2:  # beyond the setting's range: magnets come in pairs
+            raise ValueError(f"VESC_MOTOR_POLES must be an even number (magnet poles of the motor), "
                              f"got {motor_poles!r}")
-        if gear_ratio is not None and not check_number("VESC_GEAR_RATIO", gear_ratio) > 0:
-            raise ValueError(f"VESC_GEAR_RATIO must be > 0 (motor turns per wheel turn), got {gear_ratio}")
-        if not check_number("WHEEL_RADIUS", wheel_radius) > 0:
-            raise ValueError(f"WHEEL_RADIUS must be > 0 metres, got {wheel_radius}")
         self.port_name = port
         self.baudrate = baudrate
         self.mode = mode

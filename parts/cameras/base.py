@@ -17,6 +17,7 @@ from typing import Any, ClassVar, NamedTuple, Protocol
 
 import numpy as np
 
+from vehicle.config import check_settings
 from vehicle.errors import VehicleError
 from vehicle.part import ThreadedPart
 
@@ -87,12 +88,7 @@ class Camera(ThreadedPart):
     def __init__(self, source: FrameSource, width: int = 160, height: int = 120, fps: float = 20.0,
                  vflip: bool = False, hflip: bool = False, timeout_s: float = 1.0) -> None:
         super().__init__()
-        if width <= 0 or height <= 0:
-            raise ValueError(f"camera size {width}x{height} must be positive (IMAGE_W, IMAGE_H)")
-        if fps <= 0:
-            raise ValueError(f"camera fps {fps} must be > 0 (CAMERA_FRAMERATE)")
-        if timeout_s <= 0:
-            raise ValueError(f"CAMERA_TIMEOUT_S = {timeout_s} must be > 0 seconds")
+        check_settings(IMAGE_W=width, IMAGE_H=height, CAMERA_FRAMERATE=fps, CAMERA_TIMEOUT_S=timeout_s)
         self.source = source
         self.width, self.height = width, height
         self.fps = fps

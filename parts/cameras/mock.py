@@ -6,6 +6,8 @@ from typing import Any
 
 import numpy as np
 
+from vehicle.config import check_settings
+
 
 class MockSource:
     """Generates frames: a colour gradient with a bright bar that moves one step per frame.
@@ -17,8 +19,7 @@ class MockSource:
     paced = True
 
     def __init__(self, width: int = 160, height: int = 120, step: int = 4) -> None:
-        if width <= 0 or height <= 0:
-            raise ValueError(f"mock camera size {width}x{height} must be positive")
+        check_settings(IMAGE_W=width, IMAGE_H=height)
         self.width, self.height, self.step = width, height, step
         self.name = "mock"
         self.count = 0

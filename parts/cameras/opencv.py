@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from parts.cameras.base import CameraError
+from vehicle.config import check_settings
 
 logger = logging.getLogger(__name__)
 
@@ -45,6 +46,9 @@ class OpenCVSource:
     def __init__(self, device: int | str = 0, width: int = 160, height: int = 120, fps: int = 20,
                  backend: int = CAP_V4L2, fourcc: str | None = "MJPG",
                  capture_factory: Callable[..., Any] | None = None) -> None:
+        # a CSI camera's pipeline comes here with its CSIC_CAPTURE_FPS, checked first (the same bound)
+        check_settings(IMAGE_W=width, IMAGE_H=height, CAMERA_FRAMERATE=fps,
+                       **({"CAMERA_INDEX": device} if isinstance(device, int) else {}))
         self.device = device
         self.width, self.height, self.fps = width, height, fps
         self.backend = backend
@@ -147,6 +151,8 @@ class CSISource(OpenCVSource):
     def __init__(self, width: int = 160, height: int = 120, fps: int = 60, sensor_id: int = 0,
                  capture_width: int = 1280, capture_height: int = 720, flip_method: int = 0,
                  capture_factory: Callable[..., Any] | None = None) -> None:
+        check_settings(CSIC_CAPTURE_FPS=fps, CAMERA_INDEX=sensor_id, CSIC_CAPTURE_WIDTH=capture_width,
+                       CSIC_CAPTURE_HEIGHT=capture_height)
         self.pipeline = csi_pipeline(sensor_id, capture_width, capture_height, fps, width, height,
                                      flip_method)
         super().__init__(self.pipeline, width, height, fps, CAP_GSTREAMER, None, capture_factory)

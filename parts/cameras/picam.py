@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from parts.cameras.base import CameraError
+from vehicle.config import check_settings
 
 logger = logging.getLogger(__name__)
 
@@ -25,6 +26,7 @@ class PiCamera2Source:
 
     def __init__(self, width: int = 160, height: int = 120, fps: int = 20, camera_num: int = 0,
                  picamera2_class: Any = None) -> None:
+        check_settings(IMAGE_W=width, IMAGE_H=height, CAMERA_FRAMERATE=fps, CAMERA_INDEX=camera_num)
         self.width, self.height, self.fps = width, height, fps
         self.camera_num = camera_num
         self._cls = picamera2_class

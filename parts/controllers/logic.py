@@ -25,6 +25,7 @@ from typing import NamedTuple
 
 from parts.controllers.events import AXIS, AXIS_MAX, BUTTON, PadEvent
 from parts.controllers.layouts import BUTTON_ACTIONS, AxisControl, Layout
+from vehicle.config import check_settings
 from vehicle.keys import MODES
 
 logger = logging.getLogger(__name__)
@@ -61,14 +62,8 @@ class GamepadSettings:
     initial_mode: str = "user"
 
     def __post_init__(self) -> None:
-        if not 0.0 < self.max_throttle <= 1.0:
-            raise ValueError(f"JOYSTICK_MAX_THROTTLE = {self.max_throttle} must be in (0, 1]")
-        if not 0.0 <= self.deadzone < 1.0:
-            raise ValueError(f"JOYSTICK_DEADZONE = {self.deadzone} must be in [0, 1)")
-        if self.throttle_dir not in (-1.0, 1.0):
-            raise ValueError(f"JOYSTICK_THROTTLE_DIR = {self.throttle_dir} must be -1.0 or 1.0")
-        if not 0.0 < self.throttle_step <= 0.5:
-            raise ValueError(f"JOYSTICK_THROTTLE_STEP = {self.throttle_step} must be in (0, 0.5]")
+        check_settings(JOYSTICK_MAX_THROTTLE=self.max_throttle, JOYSTICK_DEADZONE=self.deadzone,
+                       JOYSTICK_THROTTLE_DIR=float(self.throttle_dir), JOYSTICK_THROTTLE_STEP=self.throttle_step)
         if self.initial_mode not in MODES:
             raise ValueError(f"mode {self.initial_mode!r} must be one of {', '.join(MODES)}")
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
+from vehicle.config import check_settings
 from vehicle.keys import Mode, parse_mode
 
 
@@ -46,8 +47,7 @@ class Correction:
                                           "recording")
 
     def __init__(self, deadzone: float = 0.05) -> None:
-        if not 0.0 <= deadzone < 1.0:
-            raise ValueError(f"CORRECTION_DEADZONE = {deadzone} must be in [0, 1)")
+        check_settings(CORRECTION_DEADZONE=deadzone)
         self.deadzone = float(deadzone)
         self.corrections = 0  # frames overridden so far
 

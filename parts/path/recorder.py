@@ -12,6 +12,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from parts.path.pathfile import Path, PathFileError, load_path, save_path
+from vehicle.config import check_settings
 
 logger = logging.getLogger(__name__)
 
@@ -47,8 +48,7 @@ class PathRecorder:
     OUTPUTS: ClassVar[tuple[str, ...]] = ("path/xy", "path/speed", "path/version", "path/recording")
 
     def __init__(self, filename: str | os.PathLike[str], min_dist: float = 0.2, *, load: bool = True) -> None:
-        if not min_dist > 0:
-            raise ValueError(f"PATH_MIN_DIST must be > 0 m, got {min_dist!r}")
+        check_settings(PATH_MIN_DIST=min_dist)
         self.filename = FilePath(filename)
         self.min_dist = float(min_dist)
         self.path = Path()

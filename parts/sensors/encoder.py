@@ -20,6 +20,7 @@ from typing import Any, ClassVar, Literal, Protocol
 from parts.gpio import gpio_errors, pin_factory
 from parts.sensors.freshness import SensorPart
 from parts.serial_port import pyserial_port
+from vehicle.config import check_settings
 from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
@@ -77,6 +78,8 @@ class GpioTicks:
                  settings: tuple[str, str] = ("ODOM_PIN", "ODOM_PIN_B")) -> None:
         if mode not in TACHOMETER_MODES:
             raise EncoderError(f"TACHOMETER_MODE {mode!r}: use one of {', '.join(TACHOMETER_MODES)}")
+        check_settings(ENCODER_DEBOUNCE_NS=round(debounce_s * 1e9), **{settings[0]: pin},
+                       **({settings[1]: pin_b} if pin_b is not None else {}))
         self.pin, self.pin_b = gpio_pin_name(pin), None if pin_b is None else gpio_pin_name(pin_b)
         given = [f"{settings[0]} = {pin!r}"] + ([] if pin_b is None else [f"{settings[1]} = {pin_b!r}"])
         self.where = ", ".join(given)  # the settings as the user wrote them, for messages
@@ -192,6 +195,7 @@ class SerialTicks:
                  serial_factory: Callable[..., Any] | None = None) -> None:
         if channels not in (1, 2):
             raise EncoderError(f"serial encoder: channels must be 1 or 2, got {channels}")
+        check_settings(ODOM_SERIAL_BAUDRATE=baudrate)
         self.port, self.baudrate, self.channels, self.timeout = port, int(baudrate), channels, float(timeout)
         self._factory = serial_factory
         self._serial: Any = None
@@ -263,6 +267,7 @@ class Encoder(SensorPart):
 
     def __init__(self, source: TickSource, *, max_age: float = 0.5, period: float = 0.01,
                  clock: Callable[[], float] = time.monotonic, mm_per_tick: float | None = None) -> None:
+        check_settings(ODOM_MAX_AGE_S=max_age, **({} if mm_per_tick is None else {"MM_PER_TICK": mm_per_tick}))
         super().__init__(max_age, clock)
         self.source = source
         self.period = period
@@ -281,18 +286,23 @@ class Encoder(SensorPart):
         channels with HAVE_ODOM_2)."""
         kind = str(cfg.ENCODER_TYPE).upper()
         two = bool(cfg.HAVE_ODOM_2)
+        source: TickSource
+        if kind != "GPIO":  # each kind reads only its own settings (a bad unused one is no error)
+            source = make_tick_source(kind, port=cfg.ODOM_SERIAL, baudrate=cfg.ODOM_SERIAL_BAUDRATE,
+                                      channels=2 if two else 1)
+            return cls(source, max_age=cfg.ODOM_MAX_AGE_S, clock=clock or time.monotonic,
+                       mm_per_tick=cfg.MM_PER_TICK)
         mode = tachometer_mode(cfg.TACHOMETER_MODE)
         debounce = cfg.ENCODER_DEBOUNCE_NS / 1e9
-        factory = pin_factory(kind == "GPIO" and cfg.GPIO_MOCK)
-        if kind == "GPIO" and two:
-            source: TickSource = TickGroup([
+        factory = pin_factory(cfg.GPIO_MOCK)
+        if two:
+            source = TickGroup([
                 GpioTicks(cfg.ODOM_PIN, mode=mode, debounce_s=debounce, pin_factory=factory),
                 GpioTicks(cfg.ODOM_PIN_2, mode=mode, debounce_s=debounce, pin_factory=factory,
                           settings=("ODOM_PIN_2", ""))])
         else:
             pins = [cfg.ODOM_PIN] + ([cfg.ODOM_PIN_B] if cfg.ODOM_PIN_B is not None else [])
-            source = make_tick_source(kind, pins=pins, port=cfg.ODOM_SERIAL, baudrate=cfg.ODOM_SERIAL_BAUDRATE,
-                                      channels=2 if two else 1, mode=mode, debounce_s=debounce, pin_factory=factory)
+            source = make_tick_source(kind, pins=pins, mode=mode, debounce_s=debounce, pin_factory=factory)
         return cls(source, max_age=cfg.ODOM_MAX_AGE_S, clock=clock or time.monotonic, mm_per_tick=cfg.MM_PER_TICK)
 
     def where(self) -> str:

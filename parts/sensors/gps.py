@@ -22,6 +22,7 @@ from typing import Any, ClassVar
 
 from parts.sensors.freshness import SensorPart
 from parts.serial_port import pyserial_port
+from vehicle.config import check_settings
 from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
@@ -169,6 +170,7 @@ class GPS(SensorPart):
     def __init__(self, port: str, baudrate: int = 9600, *, origin: tuple[float, float] | None = None,
                  max_age: float = 2.0, serial_factory: Callable[..., Any] | None = None,
                  nmea_path: str | None = None, clock: Callable[[], float] = time.monotonic) -> None:
+        check_settings(GPS_SERIAL_BAUDRATE=baudrate, GPS_MAX_AGE_S=max_age, GPS_ORIGIN=origin)
         super().__init__(max_age, clock)
         self.port, self.baudrate = port, int(baudrate)
         self.frame = None if origin is None else LocalFrame(*origin)

@@ -23,6 +23,7 @@ from collections.abc import Callable, Mapping
 from typing import Any, ClassVar, NamedTuple
 
 from parts.sensors.freshness import SensorPart
+from vehicle.config import check_settings
 from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
@@ -86,9 +87,8 @@ class MPU6050:
         sensor = sensor.lower()
         if sensor not in SENSORS:
             raise IMUError(f"IMU_SENSOR {sensor!r}: use 'mpu6050' or 'mpu9250'")
-        if accel_range not in ACCEL_RANGES or gyro_range not in GYRO_RANGES or not 0 <= dlpf <= 6:
-            raise IMUError(f"IMU ranges: accel one of {list(ACCEL_RANGES)} g, gyro one of {list(GYRO_RANGES)} °/s, "
-                           f"IMU_DLP_CONFIG 0-6; got {accel_range}, {gyro_range}, {dlpf}")
+        check_settings(IMU_I2C_BUSNUM=busnum, IMU_ADDRESS=address, IMU_ACCEL_RANGE=accel_range,
+                       IMU_GYRO_RANGE=gyro_range, IMU_DLP_CONFIG=dlpf)
         self.busnum, self.address, self.sensor = busnum, address, sensor
         self.accel_range, self.gyro_range, self.dlpf = accel_range, gyro_range, dlpf
         self._factory = bus_factory
@@ -162,6 +162,7 @@ class IMU(SensorPart):
 
     def __init__(self, device: Any, *, max_age: float = 0.5, period: float = 0.01,
                  clock: Callable[[], float] = time.monotonic) -> None:
+        check_settings(IMU_MAX_AGE_S=max_age)
         super().__init__(max_age, clock)
         self.device = device
         self.period = period

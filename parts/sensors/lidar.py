@@ -40,6 +40,7 @@ import numpy as np
 
 from parts.sensors.freshness import SensorPart
 from parts.serial_port import pyserial_port
+from vehicle.config import check_settings
 from vehicle.errors import VehicleError
 
 logger = logging.getLogger(__name__)
@@ -112,11 +113,9 @@ class RPLidar(SensorPart):
     def __init__(self, port: str, baudrate: int = 115200, *, bins: int = 360, offset_deg: float = 0.0,
                  max_range: float = 12.0, max_age: float = 0.5, max_gap: float = 5.0,
                  serial_factory: Callable[..., Any] | None = None, clock: Callable[[], float] = time.monotonic) -> None:
+        check_settings(LIDAR_SERIAL_BAUDRATE=baudrate, LIDAR_BINS=bins, LIDAR_ANGLE_OFFSET=offset_deg,
+                       LIDAR_MAX_RANGE=max_range, LIDAR_MAX_AGE_S=max_age, LIDAR_MAX_GAP=max_gap)
         super().__init__(max_age, clock)
-        if bins < 4:
-            raise LidarError(f"LIDAR_BINS must be >= 4, got {bins}")
-        if not 0 < max_gap <= 90:
-            raise LidarError(f"LIDAR_MAX_GAP must be in (0, 90] degrees, got {max_gap!r}")
         self.port, self.baudrate, self.bins = port, int(baudrate), int(bins)
         self.offset_deg, self.max_range, self.max_gap = float(offset_deg), float(max_range), float(max_gap)
         self.min_nodes = int(math.ceil(360.0 / self.max_gap))  # fewer cannot cover a turn without a wider gap

@@ -7,6 +7,7 @@ import math
 from typing import Any, ClassVar
 
 from parts.sensors.lidar import front_distance
+from vehicle.config import check_settings
 
 logger = logging.getLogger(__name__)
 
@@ -44,14 +45,10 @@ class ObstacleStop:
     def __init__(self, distance: float = 0.5, *, half_angle_deg: float = 20.0, brake: float = 0.5,
                  decel: float = 3.0, latency: float = 0.15, stop_when_blind: bool = True,
                  rolling: float = 0.3) -> None:
-        if not distance > 0:
-            raise ValueError(f"OBSTACLE_STOP_DISTANCE must be > 0 m, got {distance!r}")
-        if not 0 < half_angle_deg <= 180:
-            raise ValueError(f"OBSTACLE_STOP_ANGLE must be in (0, 180] degrees, got {half_angle_deg!r}")
-        if not 0 <= brake <= 1:
-            raise ValueError(f"OBSTACLE_STOP_BRAKE must be in [0, 1], got {brake!r}")
-        if not decel > 0 or latency < 0:
-            raise ValueError(f"OBSTACLE_STOP_DECEL must be > 0 m/s^2, latency >= 0 s; got {decel!r}, {latency!r}")
+        check_settings(OBSTACLE_STOP_DISTANCE=distance, OBSTACLE_STOP_ANGLE=half_angle_deg, OBSTACLE_STOP_BRAKE=brake,
+                       OBSTACLE_STOP_DECEL=decel)
+        if not latency >= 0:
+            raise ValueError(f"ObstacleStop: latency must be >= 0 s, got {latency!r}")
         self.distance, self.half_angle_deg, self.brake = float(distance), float(half_angle_deg), float(brake)
         self.decel, self.latency = float(decel), float(latency)
         self.stop_when_blind, self.rolling = bool(stop_when_blind), float(rolling)

@@ -18,6 +18,8 @@ from collections import deque
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
+from vehicle.config import check_settings
+
 Pose = tuple[float, float, float]
 
 
@@ -52,10 +54,7 @@ class Odometer:
     RECORDED: ClassVar[Mapping[str, str]] = {"enc/speed": "float", "enc/distance": "float"}
 
     def __init__(self, m_per_tick: float, smoothing: int = 1) -> None:
-        if not m_per_tick > 0:
-            raise ValueError(f"metres per tick must be > 0 (MM_PER_TICK), got {m_per_tick!r}")
-        if smoothing < 1:
-            raise ValueError(f"ODOM_SMOOTHING must be >= 1 reading, got {smoothing}")
+        check_settings(MM_PER_TICK=m_per_tick * 1000.0, ODOM_SMOOTHING=smoothing)
         self.m_per_tick = float(m_per_tick)
         self.smoothing = int(smoothing)
         self._history: deque[tuple[float, int]] = deque(maxlen=self.smoothing + 1)
@@ -132,10 +131,7 @@ class BicyclePose(_PoseBase):
     FEEDBACK: ClassVar[tuple[str, ...]] = ("angle",)
 
     def __init__(self, wheel_base: float, max_steering_angle: float, **pose: float) -> None:
-        if not wheel_base > 0:
-            raise ValueError(f"WHEEL_BASE must be > 0 m, got {wheel_base!r}")
-        if not 0 < max_steering_angle < math.pi / 2:
-            raise ValueError(f"MAX_STEERING_ANGLE must be in (0, pi/2) radians, got {max_steering_angle!r}")
+        check_settings(WHEEL_BASE=wheel_base, MAX_STEERING_ANGLE=max_steering_angle)
         super().__init__(**pose)
         self.wheel_base, self.max_steering_angle = float(wheel_base), float(max_steering_angle)
 
@@ -169,8 +165,7 @@ class UnicyclePose(_PoseBase):
     INPUTS: ClassVar[tuple[str, ...]] = ("enc/left/distance", "enc/right/distance", "enc/timestamp")
 
     def __init__(self, axle_length: float, **pose: float) -> None:
-        if not axle_length > 0:
-            raise ValueError(f"AXLE_LENGTH must be > 0 m, got {axle_length!r}")
+        check_settings(AXLE_LENGTH=axle_length)
         super().__init__(**pose)
         self.axle_length = float(axle_length)
 

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from parts.sensors.gps import LocalFrame
+from vehicle.config import check_settings
 
 G = 9.80665
 Segment = tuple[tuple[float, float], tuple[float, float]]
@@ -85,12 +86,10 @@ class SimSensors:
                  lidar: bool = False, lidar_bins: int = 360,
                  lidar_range: float = 12.0, lidar_noise: float = 0.01, lidar_forward: float = 0.15,
                  obstacles: Sequence[Segment] = (), seed: int = 0) -> None:
-        if not m_per_tick > 0:
-            raise ValueError(f"MM_PER_TICK must be > 0, got {m_per_tick * 1000!r} mm")
-        if not gps_hz > 0 or gps_noise < 0 or not gps_tau > 0:
-            raise ValueError(f"SIM_GPS_HZ must be > 0 and SIM_GPS_NOISE >= 0, got {gps_hz}, {gps_noise}")
-        if lidar_bins < 4 or not lidar_range > 0:
-            raise ValueError(f"LIDAR_BINS must be >= 4 and the range > 0, got {lidar_bins}, {lidar_range}")
+        check_settings(MM_PER_TICK=m_per_tick * 1000.0, SIM_GPS_HZ=gps_hz, SIM_GPS_NOISE=gps_noise,
+                       LIDAR_BINS=lidar_bins, LIDAR_MAX_RANGE=lidar_range)
+        if not gps_tau > 0:
+            raise ValueError(f"SimSensors: gps_tau must be > 0 s, got {gps_tau!r}")
         self.sim = sim
         self.encoder, self.imu, self.gps, self.lidar = bool(encoder), bool(imu), bool(gps), bool(lidar)
         self.m_per_tick = float(m_per_tick)

@@ -32,7 +32,7 @@ from parts.sim.world import (
     registered_tracks,
     world_params,
 )
-from vehicle.config import ConfigError
+from vehicle.config import ConfigError, check_settings
 
 logger = logging.getLogger(__name__)
 
@@ -126,8 +126,7 @@ class SimCar:
         randomize = self.world_args.get("randomize")
         if randomize is not None and (not isinstance(randomize, int | np.integer) or isinstance(randomize, bool)):
             raise ValueError(f"SIM_RANDOMIZE must be None or an integer seed, got {randomize!r}")
-        if int(self.world_args.get("distractors", 0)) < 0:
-            raise ValueError(f"SIM_DISTRACTORS must be >= 0, got {self.world_args['distractors']}")
+        check_settings(SIM_DISTRACTORS=int(self.world_args.get("distractors", 0)))
         self.reset_off_track = reset_off_track
         self.reset_to = reset_to
         self._off_track_cte = off_track_cte
