@@ -15,6 +15,8 @@ from typing import Any
 import cv2
 import numpy as np
 
+from vehicle.config import check_settings
+
 #: augmentations of one frame at a time (OpenCV), in the order listed
 SAMPLE_AUGMENTATIONS = ("flip", "brightness", "multiply", "shadow", "shift", "zoom", "blur", "hue")
 #: augmentations of the whole batch tensor at once (:mod:`training.batch_augment`), after the
@@ -71,33 +73,17 @@ class AugmentSettings:
         if twice:
             raise ValueError(f"augmentation(s) {twice} listed twice in AUGMENTATIONS; list each once")
         object.__setattr__(self, "names", names)
-        if self.border not in BORDERS:
-            raise ValueError(f"AUG_BORDER = {self.border!r} must be one of {BORDERS}")
-        lo, hi = self.multiply_range
-        if not 0.0 <= lo <= hi:
-            raise ValueError(f"AUG_MULTIPLY_RANGE = {self.multiply_range} must be (low, high) factors, "
-                             "0 <= low <= high")
-        for name in AUGMENTATION_NAMES:
-            p = getattr(self, f"{name}_p")
-            if not 0.0 <= p <= 1.0:
-                raise ValueError(f"AUG_{name.upper()}_P = {p} must be a probability in [0, 1]")
-        for setting, value, hi in (("AUG_LIGHT_CURVE", self.light_curve, 1.0),
-                                   ("AUG_LIGHT_BRIGHTNESS", self.light_brightness, 1.0),
-                                   ("AUG_LIGHT_CONTRAST", self.light_contrast, 1.0),
-                                   ("AUG_COLOUR_HUE", self.colour_hue, 180.0),
-                                   ("AUG_COLOUR_SATURATION", self.colour_saturation, 1.0),
-                                   ("AUG_NOISE_SIGMA", self.noise_sigma, 128.0),
-                                   ("AUG_CUTOUT_SIZE", self.cutout_size, 1.0)):
-            if not 0.0 <= value <= hi:
-                raise ValueError(f"{setting} = {value} must be in [0, {hi:g}]")
-        if not 0.0 <= self.shadow_darkness <= 1.0:
-            raise ValueError(f"AUG_SHADOW_DARKNESS = {self.shadow_darkness} must be in [0, 1]")
-        if not 0.0 <= self.hue_range <= 180.0:
-            raise ValueError(f"AUG_HUE_RANGE = {self.hue_range} must be in [0, 180] degrees")
-        lo, hi = self.blur_range
-        if not 0.0 < lo <= hi:
-            raise ValueError(f"AUG_BLUR_RANGE = {self.blur_range} must be (low, high) sigmas, "
-                             "0 < low <= high")
+        # the settings' own bounds (training/settings.py), then what a range cannot say: low <= high
+        check_settings(AUG_BORDER=self.border, AUG_MULTIPLY_RANGE=tuple(self.multiply_range),
+                       AUG_BLUR_RANGE=tuple(self.blur_range), AUG_SHADOW_DARKNESS=self.shadow_darkness,
+                       AUG_HUE_RANGE=self.hue_range, AUG_LIGHT_CURVE=self.light_curve,
+                       AUG_LIGHT_BRIGHTNESS=self.light_brightness, AUG_LIGHT_CONTRAST=self.light_contrast,
+                       AUG_COLOUR_HUE=self.colour_hue, AUG_COLOUR_SATURATION=self.colour_saturation,
+                       AUG_NOISE_SIGMA=self.noise_sigma, AUG_CUTOUT_SIZE=self.cutout_size,
+                       **{f"AUG_{name.upper()}_P": getattr(self, f"{name}_p") for name in AUGMENTATION_NAMES})
+        for setting, (lo, hi) in (("AUG_MULTIPLY_RANGE", self.multiply_range), ("AUG_BLUR_RANGE", self.blur_range)):
+            if lo > hi:
+                raise ValueError(f"{setting} = {(lo, hi)}: give (low, high) with low <= high")
 
     @classmethod
     def from_config(cls, cfg: Any, names: list[str] | tuple[str, ...] | None = None) -> AugmentSettings:

@@ -15,6 +15,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from vehicle.config import check_settings
+
 logger = logging.getLogger(__name__)
 
 
@@ -59,12 +61,7 @@ def split_train_val(segments: Sequence[int], train_fraction: float, by: str = "b
         seed: random seed of the choice of validation sessions/blocks.
     """
     n = len(segments)
-    if not 0.0 <= train_fraction <= 1.0:
-        raise ValueError(f"TRAIN_TEST_SPLIT = {train_fraction} must be in [0, 1]")
-    if by not in ("session", "block", "random"):
-        raise ValueError(f"TRAIN_SPLIT_BY = {by!r} must be 'session', 'block' or 'random'")
-    if block < 1:
-        raise ValueError(f"TRAIN_SPLIT_BLOCK = {block} must be >= 1")
+    check_settings(TRAIN_TEST_SPLIT=train_fraction, TRAIN_SPLIT_BY=by, TRAIN_SPLIT_BLOCK=block)
     if n == 0:
         raise ValueError("no records to split")
     n_val = int(round(n * (1.0 - train_fraction)))

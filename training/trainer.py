@@ -48,6 +48,7 @@ from training.recipes import Recipe
 from training.split import split_train_val
 from training.train_report import plot_losses, sidecar, write_metrics
 from training.views import require_views
+from vehicle.config import check_settings
 
 __all__ = ["default_model_path", "prepare_data", "train"]
 
@@ -297,11 +298,7 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
     batch_size = cfg.BATCH_SIZE if batch_size is None else batch_size
     learning_rate = cfg.LEARNING_RATE if learning_rate is None else learning_rate
     workers = cfg.TRAIN_NUM_WORKERS if workers is None else workers
-    for name, value in (("epochs", epochs), ("batch size", batch_size)):
-        if value < 1:
-            raise ValueError(f"{name} must be >= 1, got {value}")
-    if not learning_rate > 0:
-        raise ValueError(f"learning rate must be > 0, got {learning_rate}")
+    check_settings(MAX_EPOCHS=epochs, BATCH_SIZE=batch_size, LEARNING_RATE=learning_rate)  # the settings' bounds
     check_config(cfg, model_type_names())
 
     def phase(name: str) -> None:

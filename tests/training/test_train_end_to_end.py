@@ -101,7 +101,7 @@ def test_bad_arguments_are_explained(tiny_tub, tmp_path):
         train(cfg, [tiny_tub], tmp_path / "m.h5")
     with pytest.raises(ValueError, match="unknown model type"):
         train(cfg, [tiny_tub], tmp_path / "m.pt", model_type_name="resnet")
-    with pytest.raises(ValueError, match="epochs must be >= 1"):
+    with pytest.raises(ValueError, match="MAX_EPOCHS = 0 is out of range; valid: at least 1"):
         train(cfg, [tiny_tub], tmp_path / "m.pt", epochs=0)
     assert resolve_device("auto").type == ("cuda" if torch.cuda.is_available() else "cpu")
     if not torch.cuda.is_available():
