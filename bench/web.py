@@ -107,6 +107,8 @@ def build_car(args: argparse.Namespace, sim: bool = False, pilot: bool = False) 
     probe = Probe()
     V.add(probe, inputs=["user/throttle"])
     assembly.add_drive_mode(V, cfg)
+    assembly.add_speed_limit(V, cfg)
+    assembly.add_obstacle_stop(V, cfg)
     if sim:
         assembly.add_tub_writer(V, cfg)  # the record count on the page
     return V, web, probe

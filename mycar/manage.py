@@ -40,6 +40,8 @@ def drive(cfg, args):
     if args.model:
         assembly.add_pilot(V, cfg, args.model)  # cam/image_array -> pilot/angle, pilot/throttle
     assembly.add_drive_mode(V, cfg)  # user/* or pilot/* -> angle, throttle
+    assembly.add_speed_limit(V, cfg)  # the web page's speed limit, in every mode -> throttle
+    assembly.add_obstacle_stop(V, cfg)  # OBSTACLE_STOP: LiDAR sees something close ahead -> brake
     assembly.add_tub_writer(V, cfg)  # records every loop while `recording` is on
     assembly.add_simulator_commands(V)  # last: Udacity/Donkey get this loop's angle, throttle at once
     return manage.run(V, cfg, args.max_loops)

@@ -21,4 +21,6 @@ KEYS: dict[str, KeyInfo] = {
     "tune/done": KeyInfo("bool", "the speed step test has finished"),
     "user/correction": KeyInfo("bool", "the pilot drove and the label (user/angle, user/throttle) is a correction: "
                                        "the simulator's expert (DAgger) or the person's override (CORRECTION_MODE)"),
+    "obstacle/stop": KeyInfo("bool", "the obstacle stop is cutting the throttle this loop"),
+    "obstacle/distance": KeyInfo("float, m, or None", "nearest LiDAR return in the cone ahead"),
 }

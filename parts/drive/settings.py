@@ -1,4 +1,4 @@
-"""Settings of the drive logic: modes, automatic recording, throttle filter and behaviours.
+"""Settings of the drive logic: modes, automatic recording, throttle filter, behaviours and the obstacle stop.
 
 Declared as the config loader reads them (see :mod:`vehicle.config`): ``NAME: type = value``, the
 comment lines above a setting document it, ``# == Title ==`` starts a section of docs/config.md.
@@ -62,6 +62,25 @@ def _behaviors(v: Mapping[str, Any]) -> Iterator[Problem]:
         yield Problem("BEHAVIOR_INITIAL", f"BEHAVIOR_INITIAL = {initial} is not an index of "
                       f"BEHAVIOR_LIST ({n} behaviours); valid: 0 to {n - 1}", ("BEHAVIOR_LIST",))
 
+
+# == Obstacle stop ==
+
+# Brake when the LiDAR (or the simulated one) sees something closer than OBSTACLE_STOP_DISTANCE
+# ahead, in every drive mode (the final throttle is cut after drive mode and speed limit).
+OBSTACLE_STOP: bool = False
+# Where the car should stand in front of an obstacle, metres from the LiDAR; the stop starts
+# earlier by the stopping distance at the measured speed (OBSTACLE_STOP_DECEL).
+OBSTACLE_STOP_DISTANCE: Annotated[float, Range(0.05, 20, unit="m")] = 0.5
+# Half width of the watched cone ahead, degrees either side of straight ahead.
+OBSTACLE_STOP_ANGLE: Annotated[float, Range(1, 180, unit="degrees")] = 20.0
+# Brake command while the car still rolls (0 = cut to neutral only; a hobby ESC brakes on a
+# negative throttle while moving).
+OBSTACLE_STOP_BRAKE: Annotated[float, Range(0, 1)] = 0.5
+# Deceleration the car reaches under that brake, m/s^2; be modest (a wet floor halves it).
+OBSTACLE_STOP_DECEL: Annotated[float, Range(0.1, 20, unit="m/s^2")] = 3.0
+# A stale LiDAR (no turn within LIDAR_MAX_AGE_S), or one without a fresh reading somewhere in the
+# cone ahead, stops the car too: it cannot see.
+OBSTACLE_STOP_WHEN_BLIND: bool = True
 
 #: rules across this module's settings, run after every setting passed its own range
 RULES: tuple[Rule, ...] = (_behaviors,)

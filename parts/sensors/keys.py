@@ -1,4 +1,4 @@
-"""Memory keys of the sensors: odometry, IMU, GPS, LiDAR and the obstacle stop (DonkeyCar's names).
+"""Memory keys of the sensors: odometry, IMU, GPS and LiDAR (DonkeyCar's names).
 
 Collected with every family's ``keys.py`` into :data:`vehicle.keys.STANDARD_KEYS` (see
 :mod:`vehicle.keys`).
@@ -41,10 +41,8 @@ KEYS: dict[str, KeyInfo] = {
     "gps/accuracy": KeyInfo("float, m", "horizontal accuracy estimate (HDOP x 5 m)"),
     "gps/speed": KeyInfo("float, m/s", "speed over ground (NMEA RMC)"),
     "gps/ok": KeyInfo("bool", "a valid, fresh fix"),
-    # -- LiDAR and obstacle stop
+    # -- LiDAR
     "lidar/dist_array": KeyInfo("list[float], m", "nearest return per angle bin, bins counter-clockwise from straight "
                                                   "ahead, 0.0 = no return, -1.0 = unknown (no fresh reading)"),
     "lidar/ok": KeyInfo("bool", "False while the LiDAR has not completed a turn within its max age"),
-    "obstacle/stop": KeyInfo("bool", "the obstacle stop is cutting the throttle this loop"),
-    "obstacle/distance": KeyInfo("float, m, or None", "nearest LiDAR return in the cone ahead"),
 }

@@ -1,5 +1,5 @@
-"""Settings of the sensor family: car geometry, wheel encoders and odometry, IMU, GPS, LiDAR and
-obstacle stop (each kind's type setting picks a row of :mod:`parts.sensors.registry`).
+"""Settings of the sensor family: car geometry, wheel encoders and odometry, IMU, GPS and LiDAR
+(each kind's type setting picks a row of :mod:`parts.sensors.registry`).
 
 Declared as the config loader reads them (see :mod:`vehicle.config`): ``NAME: type = value``, the
 comment lines above a setting document it, ``# == Title ==`` starts a section of docs/config.md.
@@ -131,19 +131,3 @@ LIDAR_MAX_AGE_S: Annotated[float, Range(0.1, 10, unit="s")] = 0.5
 # is taken for line noise, and a turn needs 360 / LIDAR_MAX_GAP nodes to be published. An RPLidar
 # A1/A2 reads a node every 0.5-2 degrees.
 LIDAR_MAX_GAP: Annotated[float, Range(0.5, 90, unit="degrees")] = 5.0
-# Brake when the LiDAR (or the simulated one) sees something closer than OBSTACLE_STOP_DISTANCE
-# ahead, in every drive mode (the final throttle is cut after drive mode and speed limit).
-OBSTACLE_STOP: bool = False
-# Where the car should stand in front of an obstacle, metres from the LiDAR; the stop starts
-# earlier by the stopping distance at the measured speed (OBSTACLE_STOP_DECEL).
-OBSTACLE_STOP_DISTANCE: Annotated[float, Range(0.05, 20, unit="m")] = 0.5
-# Half width of the watched cone ahead, degrees either side of straight ahead.
-OBSTACLE_STOP_ANGLE: Annotated[float, Range(1, 180, unit="degrees")] = 20.0
-# Brake command while the car still rolls (0 = cut to neutral only; a hobby ESC brakes on a
-# negative throttle while moving).
-OBSTACLE_STOP_BRAKE: Annotated[float, Range(0, 1)] = 0.5
-# Deceleration the car reaches under that brake, m/s^2; be modest (a wet floor halves it).
-OBSTACLE_STOP_DECEL: Annotated[float, Range(0.1, 20, unit="m/s^2")] = 3.0
-# A stale LiDAR (no turn within LIDAR_MAX_AGE_S), or one without a fresh reading somewhere in the
-# cone ahead, stops the car too: it cannot see.
-OBSTACLE_STOP_WHEN_BLIND: bool = True

@@ -30,6 +30,8 @@ def drive(cfg, args):
     if args.model:
         assembly.add_pilot(V, cfg, args.model)  # cam/image_array -> pilot/angle, pilot/throttle
     assembly.add_drive_mode(V, cfg)  # user/* or pilot/* -> angle, throttle
+    assembly.add_speed_limit(V, cfg)  # the web page's speed limit, in every mode -> throttle
+    assembly.add_obstacle_stop(V, cfg)  # OBSTACLE_STOP: LiDAR sees something close ahead -> brake
     assembly.add_throttle_filter(V, cfg)  # ESC reverse double-tap
     assembly.add_drivetrain(V, cfg)  # angle, throttle -> PCA9685 pulses
     assembly.add_recording_rules(V, cfg)  # auto-record on throttle, no recording in autopilot

@@ -35,6 +35,8 @@ def drive(cfg, args):
     assembly.add_controller(V, cfg)  # web page (and gamepad) -> user/angle, user/throttle, user/mode
     assembly.add_path_follow(V, cfg)  # path buttons, localiser, recorder, follower -> pilot/angle, pilot/throttle
     assembly.add_drive_mode(V, cfg)  # user/* or pilot/* -> angle, throttle
+    assembly.add_speed_limit(V, cfg)  # the web page's speed limit, in every mode -> throttle
+    assembly.add_obstacle_stop(V, cfg)  # OBSTACLE_STOP: LiDAR sees something close ahead -> brake
     if not args.sim:
         assembly.add_throttle_filter(V, cfg)  # ESC reverse double-tap
         assembly.add_drivetrain(V, cfg)  # angle, throttle -> PWM

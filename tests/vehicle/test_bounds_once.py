@@ -100,7 +100,7 @@ def test_every_table_row_refuses_what_its_settings_refuse():
 
 @pytest.mark.parametrize("part", ["ObstacleStop", "Odometer", "BicyclePose"])
 def test_parts_outside_the_tables_check_with_the_settings_ranges_too(part):
-    from parts.sensors.obstacle import ObstacleStop
+    from parts.drive.obstacle import ObstacleStop
     from parts.sensors.odometry import BicyclePose, Odometer
     from vehicle.config import ConfigError
 

@@ -150,7 +150,7 @@ def rollout(cfg: Any, driver: Any, tub: Path, *, records: int, tracks: Sequence[
     from parts.sim.simulator import SimCar
     from vehicle import Vehicle
     from vehicle.app.assembly.camera import add_undistort
-    from vehicle.app.assembly.drive import add_drive_mode
+    from vehicle.app.assembly.drive import add_drive_mode, add_obstacle_stop, add_speed_limit
     from vehicle.app.assembly.tub import add_tub_writer
     from vehicle.app.evaluate import Lent
     from vehicle.app.record import WaitForTubWriter
@@ -175,6 +175,8 @@ def rollout(cfg: Any, driver: Any, tub: Path, *, records: int, tracks: Sequence[
     labeller = Labeller(beta, seed)
     V.add(labeller)
     add_drive_mode(V, cfg)
+    add_speed_limit(V, cfg)
+    add_obstacle_stop(V, cfg)
     if add_parts is not None:
         add_parts(V)
     writer = add_tub_writer(V, cfg, inputs=[k for k, _ in RECORD_FIELDS], types=[t for _, t in RECORD_FIELDS])

@@ -64,7 +64,7 @@ from parts.sim.themes import theme_list, theme_of
 from parts.sim.world import prefetch_world, world_params
 from vehicle import Vehicle
 from vehicle.app.assembly.camera import add_undistort
-from vehicle.app.assembly.drive import add_behavior, add_drive_mode
+from vehicle.app.assembly.drive import add_behavior, add_drive_mode, add_obstacle_stop, add_speed_limit
 from vehicle.app.assembly.pilot import BEHAVIOR_KEY, check_behavior_input, pilot_inputs
 from vehicle.app.assembly.sim import add_expert
 from vehicle.clock import SimulatedClock
@@ -555,6 +555,8 @@ def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float,
     else:
         add_engaged_pilot(V, driver, fixed_throttle)
     add_drive_mode(V, cfg)
+    add_speed_limit(V, cfg)
+    add_obstacle_stop(V, cfg)
     details: dict[str, Any] = {"theme": sim.conditions.theme, "conditions": sim.conditions.summary()}
     if sim.world is not None:
         details["look"] = sim.world.look.summary()
@@ -606,6 +608,8 @@ def run_bridge_episode(driver: Any, sim_type: str, scene: str, laps: int, cfg: A
         add_behavior(V, cfg)  # TRAIN_BEHAVIORS (checked before): BEHAVIOR_INITIAL all along, as a drive
     add_engaged_pilot(V, driver, fixed_throttle)
     add_drive_mode(V, cfg)
+    add_speed_limit(V, cfg)
+    add_obstacle_stop(V, cfg)
     metrics = EpisodeMetrics(dt, laps, max_time, penalty_s, stop=V.stop, seed=scene)  # type: ignore[arg-type]
     waiter = None
     if sim_type == "donkey":

@@ -129,6 +129,32 @@ def _whole_number(text: str, least: int) -> int:
     return value
 
 
+def _check_drive_logic(V: Any, cfg: Config) -> None:
+    """A manage.py written before the speed limit and the obstacle stop were added by name (they
+    came with ``add_drive_mode``) would drive without them: refuse, saying the two lines to add.
+
+    Raises:
+        UserError: the car has a drive mode and OBSTACLE_STOP is on, or the web page can set a
+            speed limit, but the part that enforces it is missing.
+    """
+    from parts.drive.modes import DriveMode
+    from parts.drive.obstacle import ObstacleStop
+    from parts.drive.speed import SpeedLimit
+    from vehicle.app.assembly.pilot import speed_key_of
+
+    if not V.find(DriveMode):
+        return
+    missing = []
+    if cfg.OBSTACLE_STOP and V.produces("lidar/dist_array") and not V.find(ObstacleStop):
+        missing.append("assembly.add_obstacle_stop(V, cfg)")
+    if V.produces("user/speed_limit") and V.produces(speed_key_of(V, cfg)) and not V.find(SpeedLimit):
+        missing.insert(0, "assembly.add_speed_limit(V, cfg)")
+    if missing:
+        raise UserError(f"this manage.py adds the drive mode but not {' and '.join(missing)}: add "
+                        f"{'them' if len(missing) > 1 else 'it'} right after assembly.add_drive_mode(V, cfg) "
+                        "(see the templates' manage.py; they used to come with the drive mode)")
+
+
 def run(V: Any, cfg: Config, max_loops: int | None = None) -> int:
     """Start the vehicle at DRIVE_LOOP_HZ and map how it stopped to an exit code.
 
@@ -136,6 +162,7 @@ def run(V: Any, cfg: Config, max_loops: int | None = None) -> int:
     0: max loops reached or stopped by a part; 1: a part failed; 130: Ctrl-C; 128+N: signal N.
     """
     loops = max_loops if max_loops is not None else cfg.MAX_LOOPS
+    _check_drive_logic(V, cfg)
     logger.info("starting at %d Hz%s\n%s", cfg.DRIVE_LOOP_HZ,
                 f" for {loops} loops" if loops else " (Ctrl-C to stop)", V.describe())
     try:

@@ -77,7 +77,7 @@ def record_path(cfg: Any, seed: int, localizer: str = "odometry", laps: int = 1)
     from parts.path.recorder import PathRecorder
     from parts.sim.simulator import SimCar
     from vehicle import Vehicle
-    from vehicle.app.assembly.drive import add_drive_mode
+    from vehicle.app.assembly.drive import add_drive_mode, add_obstacle_stop, add_speed_limit
     from vehicle.app.assembly.path import speed_wiring
     from vehicle.app.assembly.pilot import speed_key_of
     from vehicle.app.assembly.sim import add_expert, add_sim_sensors
@@ -95,6 +95,8 @@ def record_path(cfg: Any, seed: int, localizer: str = "odometry", laps: int = 1)
     recorder = PathRecorder("unsaved.csv", cfg.PATH_MIN_DIST, load=False)
     V.add(recorder, **speed_wiring(PathRecorder, speed_key_of(V, cfg)))
     add_drive_mode(V, cfg)
+    add_speed_limit(V, cfg)
+    add_obstacle_stop(V, cfg)
     V.add(_StopAfterLaps(laps, V.stop))
     V.start(rate_hz=cfg.DRIVE_LOOP_HZ, max_loop_count=int(120 * laps * cfg.DRIVE_LOOP_HZ), log_summary=False)
     logger.info("recorded %d points (%.1f m) on track %d with %s", len(recorder.path), recorder.path.length, seed,

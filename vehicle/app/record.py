@@ -91,7 +91,7 @@ def record_expert(cfg: Any, seeds: Sequence[int] | None, n_records: int, tub_pat
         UserError: lane changes on one-lane tracks, or more than fit into the recording.
     """
     from parts.sim.themes import theme_list
-    from vehicle.app.assembly.drive import add_drive_mode
+    from vehicle.app.assembly.drive import add_drive_mode, add_obstacle_stop, add_speed_limit
     from vehicle.app.assembly.sim import add_expert, add_expert_noise, add_simulator
     from vehicle.clock import SimulatedClock
     from vehicle.vehicle import Vehicle
@@ -135,6 +135,8 @@ def record_expert(cfg: Any, seeds: Sequence[int] | None, n_records: int, tub_pat
             sim.select_track(sim.seeds[0])
     add_expert(V, cfg, sim)
     add_drive_mode(V, cfg)  # user mode: the expert's command, clamped, as on the car
+    add_speed_limit(V, cfg)
+    add_obstacle_stop(V, cfg)
     add_expert_noise(V, cfg)  # perturbs the executed command; the tub keeps the expert's label
     from vehicle.app.assembly.tub import add_tub_writer, recorded_extras
 

@@ -8,8 +8,8 @@ import math
 import pytest
 from sensor_fakes import RPLidarDevice, lidar_node, wait_for
 
+from parts.drive.obstacle import ObstacleStop
 from parts.sensors.lidar import RPLidar, bin_scan, decode_node, front_distance
-from parts.sensors.obstacle import ObstacleStop
 
 
 def test_node_decoding_matches_the_protocol() -> None:
@@ -91,26 +91,21 @@ def test_rplidar_that_does_not_answer_is_named() -> None:
         device.close()
 
 
-def test_obstacle_stop_brakes_then_holds_neutral() -> None:
-    stop = ObstacleStop(0.5, half_angle_deg=20, brake=0.6, decel=2.0, latency=0.1, rolling=0.05)
-    assert stop.trigger(None) == 0.5 and stop.trigger(2.0) == pytest.approx(0.5 + 0.2 + 1.0)
-    clear = [0.0] * 36
-    near = [0.0] * 36
-    near[35] = 0.4  # 350-360 degrees: just right of straight ahead
-    assert stop.run(0.7, clear, True, 1.0) == (0.7, False, None)
-    assert stop.run(0.7, near, True, 1.0) == (-0.6, True, 0.4)  # rolling: brake
-    far = [0.0] * 36
-    far[0] = 1.5
-    assert stop.run(0.7, far, True, 0.5)[:2] == (0.7, False)  # 1.5 m is room enough at 0.5 m/s
-    assert stop.run(0.7, far, True, 2.0)[:2] == (-0.6, True)  # ... not at 2 m/s
-    assert stop.run(0.7, near, True, 0.0) == (0.0, True, 0.4)  # standing: neutral, never reverse
-    assert stop.run(0.7, near, True, None) == (0.0, True, 0.4)  # speed unknown: neutral
-    assert stop.run(-0.5, near, True, 0.0) == (-0.5, False, 0.4)  # backing away is allowed
-    side = [0.0] * 36
-    side[9] = 0.2  # at the left: not in the way
-    assert stop.run(0.7, side, True, 1.0) == (0.7, False, None)
-    assert stop.run(0.7, None, False, 1.0) == (-0.6, True, None)  # blind: stop
-    assert ObstacleStop(0.5, stop_when_blind=False).run(0.7, None, False, 1.0)[0] == 0.7
+def _noisy_turns(turns: int, places: int, junk: int, seed: int) -> bytes:
+    """RPLidar turns (360 nodes, S on the first) of a wall 0.4 m ahead (sensor angles 341-20: bins 340-19) with
+    ``junk`` random bytes inserted at ``places`` random places in each turn (line noise)."""
+    import random
+
+    rng = random.Random(seed)
+    out = bytearray()
+    for _ in range(turns):
+        nodes = [lidar_node(a, 0.4 if (a > 340 or a <= 20) else 3.0, start=a == 0) for a in range(360)]
+        cuts = set(rng.sample(range(1, 360), places))
+        for i, node in enumerate(nodes):
+            if i in cuts:
+                out += bytes(rng.randrange(256) for _ in range(junk))
+            out += node
+    return bytes(out)
 
 
 class _ByteStream:
@@ -127,23 +122,6 @@ class _ByteStream:
         out = self.data[self.pos:self.pos + n]
         self.pos += len(out)
         return out
-
-
-def _noisy_turns(turns: int, places: int, junk: int, seed: int) -> bytes:
-    """RPLidar turns (360 nodes, S on the first) of a wall 0.4 m ahead (sensor angles 341-20: bins 340-19) with
-    ``junk`` random bytes inserted at ``places`` random places in each turn (line noise)."""
-    import random
-
-    rng = random.Random(seed)
-    out = bytearray()
-    for _ in range(turns):
-        nodes = [lidar_node(a, 0.4 if (a > 340 or a <= 20) else 3.0, start=a == 0) for a in range(360)]
-        cuts = set(rng.sample(range(1, 360), places))
-        for i, node in enumerate(nodes):
-            if i in cuts:
-                out += bytes(rng.randrange(256) for _ in range(junk))
-            out += node
-    return bytes(out)
 
 
 @pytest.mark.parametrize("places", [2, 5, 20])

@@ -11,7 +11,7 @@ import pytest
 from fixtures.driving import hold_speed_from_ticks
 
 from parts.drive.modes import DriveMode
-from parts.sensors.obstacle import ObstacleStop
+from parts.drive.obstacle import ObstacleStop
 from parts.sensors.odometry import BicyclePose, Odometer
 from parts.sim.expert import Expert
 from parts.sim.kinematics import CarParams

@@ -348,6 +348,7 @@ def build_car(car_path: Path, browser: Any = None, *, sim: bool = False, model: 
     if path_follow:
         assembly.add_path_follow(V, cfg)
     assembly.add_drive_mode(V, cfg)
+    assembly.add_speed_limit(V, cfg)
     if tub:
         assembly.add_tub_writer(V, cfg)
     return Car(V, web, browser)

@@ -164,3 +164,24 @@ def test_drive_with_a_pilot_mode_and_no_model_is_a_one_line_error(tmp_path, caps
     manage = _sim_car(tmp_path, "WEB_CONTROL_PORT = 0\n")
     assert manage.main(["drive", "--mode", "local", "--max-loops", "3"]) == 2
     assert "error: --mode local needs a pilot: add --model FILE" in capsys.readouterr().err
+
+
+def test_an_older_manage_py_without_the_speed_limit_and_obstacle_stop_is_refused(tmp_path):
+    """They came with add_drive_mode before issue 40: a car folder made then must not drive without
+    them, it gets the two lines to add."""
+    from vehicle import Vehicle
+    from vehicle.app import assembly, manage
+    from vehicle.clock import SimulatedClock
+    from vehicle.config import Config
+    from vehicle.errors import UserError
+
+    cfg = Config.defaults(CAR_PATH=str(tmp_path), USE_LIDAR=True, OBSTACLE_STOP=True, LIDAR_BINS=36)
+    V = Vehicle(clock=SimulatedClock())
+    assembly.add_simulator(V, cfg, seeds=[1])
+    V.add(lambda: (0.0, 0.0, "user", 1.0), outputs=["user/angle", "user/throttle", "user/mode", "user/speed_limit"])
+    assembly.add_drive_mode(V, cfg)
+    with pytest.raises(UserError, match=r"not assembly.add_speed_limit\(V, cfg\) and assembly.add_obstacle_stop"):
+        manage.run(V, cfg, max_loops=1)
+    assembly.add_speed_limit(V, cfg)
+    assembly.add_obstacle_stop(V, cfg)
+    assert manage.run(V, cfg, max_loops=2) == 0

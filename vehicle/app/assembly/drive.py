@@ -18,7 +18,8 @@ def add_drive_mode(V: Any, cfg: Config) -> Any:
 
     Add it after the controller (and the pilot, when there is one): it reads their commands of
     this loop. A car without a pilot or an e-stop button reads None there (no pilot command, no
-    stop), as DriveMode's declaration says.
+    stop), as DriveMode's declaration says. The speed limit and the obstacle stop, which act on its
+    ``throttle``, are added right after it by name (:func:`add_speed_limit`, :func:`add_obstacle_stop`).
     """
     from parts.drive.modes import DriveMode
 
@@ -29,8 +30,6 @@ def add_drive_mode(V: Any, cfg: Config) -> Any:
 
         # before the speed limit and the obstacle stop: they act on the person's override too
         V.add(Correction(cfg.CORRECTION_DEADZONE))
-    add_speed_limit(V, cfg)
-    add_obstacle_stop(V, cfg)
     return part
 
 
@@ -58,7 +57,7 @@ def add_obstacle_stop(V: Any, cfg: Config) -> Any:
     Raises:
         UserError: OBSTACLE_STOP is on but no part writes ``lidar/dist_array`` (no USE_LIDAR).
     """
-    from parts.sensors.obstacle import ObstacleStop
+    from parts.drive.obstacle import ObstacleStop
 
     if not cfg.OBSTACLE_STOP or V.find(ObstacleStop):
         return None

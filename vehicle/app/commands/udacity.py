@@ -147,6 +147,8 @@ def cmd_drive(args: argparse.Namespace) -> int:
         logger.info("saving the driven frames as JPEG files in %s", jpeg_folder)
     assembly.add_pilot(V, cfg, model)
     assembly.add_drive_mode(V, cfg)
+    assembly.add_speed_limit(V, cfg)
+    assembly.add_obstacle_stop(V, cfg)
     if args.echo:
         V.add(Echo())
     if args.image_folder is not None:

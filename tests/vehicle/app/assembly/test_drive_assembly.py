@@ -118,7 +118,7 @@ def test_stalled_camera_disengages_the_pilot_in_the_drive_path():
 
     cfg = Config.defaults()
     V = Vehicle(clock=SimulatedClock())
-    V.add(Camera(StallingSource(), timeout_s=0.05), outputs=["cam/image_array", "cam/timestamp", "cam/ok"])
+    V.add(Camera(StallingSource(), timeout_s=0.1), outputs=["cam/image_array", "cam/timestamp", "cam/ok"])
     V.mem["cam/ok"] = False
     V.add(Script([("local", 0.0, 0.3, 0.1, 0.6)]),
           outputs=["user/mode", "user/angle", "user/throttle", "pilot/angle", "pilot/throttle"])
@@ -132,7 +132,7 @@ def test_stalled_camera_disengages_the_pilot_in_the_drive_path():
 
 
 def _simulated_car(cfg, limit, mode="user", throttle=1.0):
-    from vehicle.app.assembly.drive import add_drive_mode
+    from vehicle.app.assembly.drive import add_drive_mode, add_speed_limit
     from vehicle.app.assembly.sim import add_simulator
 
     V = Vehicle(clock=SimulatedClock())
@@ -140,6 +140,7 @@ def _simulated_car(cfg, limit, mode="user", throttle=1.0):
     V.add(Script([(0.0, throttle, mode, limit)]),
           outputs=["user/angle", "user/throttle", "user/mode", "user/speed_limit"])
     add_drive_mode(V, cfg)
+    add_speed_limit(V, cfg)
     speeds = Log()
     V.add(speeds, inputs=["sim/speed", "throttle"])
     return V, sim, speeds

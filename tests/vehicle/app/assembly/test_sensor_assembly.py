@@ -9,10 +9,10 @@ from pathlib import Path
 
 import pytest
 
+from parts.drive.obstacle import ObstacleStop
 from parts.sensors.encoder import Encoder, EncoderError
 from parts.sensors.gps import GPS
-from parts.sensors.obstacle import ObstacleStop
-from vehicle.app.assembly.drive import add_drive_mode, add_obstacle_stop
+from vehicle.app.assembly.drive import add_drive_mode, add_obstacle_stop, add_speed_limit
 from vehicle.app.assembly.pilot import speed_key_of
 from vehicle.app.assembly.sensors import add_sensors
 from vehicle.app.assembly.sim import add_expert, add_simulator
@@ -36,6 +36,8 @@ def test_simulator_car_with_sensors_limits_speed_from_ticks_and_records_them(cfg
     V.add(lambda: 1.2, outputs=["user/speed_limit"])  # the page's speed limit, m/s
     assert speed_key_of(V, cfg) == "enc/speed"
     add_drive_mode(V, cfg)
+    add_speed_limit(V, cfg)
+    add_obstacle_stop(V, cfg)
     names = [e.name for e in V.parts]
     assert names.index("SimSensors") == 1 and {"Odometer", "BicyclePose", "SpeedLimit", "ObstacleStop"} <= set(names)
     writer = add_tub_writer(V, cfg)
