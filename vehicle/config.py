@@ -412,14 +412,9 @@ def _evaluate(overrides: dict[str, Any]) -> dict[str, Any]:
     return {name: namespace[name] for name in known}
 
 
-def read_overrides(path: Path) -> dict[str, Any]:
-    """Run a myconfig.py file and return its UPPERCASE names, each validated with its line number."""
-    return read_overrides_with_lines(path)[0]
-
-
 def read_overrides_with_lines(path: Path) -> tuple[dict[str, Any], dict[str, int]]:
-    """:func:`read_overrides` plus the line of each name's last assignment (the one in effect when a
-    file sets a name twice)."""
+    """Run a myconfig.py file: its UPPERCASE names, each validated, and the line of each name's last
+    assignment (the one in effect when a file sets a name twice)."""
     try:
         source = path.read_text()
     except OSError as exc:

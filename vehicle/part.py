@@ -181,7 +181,7 @@ class ThreadedPart:
         return self._thread is not None and self._thread.is_alive()
 
     def publish(self, value: Any) -> None:
-        """Make ``value`` the latest value and wake anyone waiting in :meth:`wait_new`."""
+        """Make ``value`` the latest value and wake anyone waiting for a fresh one."""
         with self._fresh:
             self._latest = value
             self._latest_at = time.monotonic()
@@ -200,13 +200,6 @@ class ThreadedPart:
         """Seconds since the latest value was published (None if never)."""
         with self._lock:
             return None if self._latest_at is None else time.monotonic() - self._latest_at
-
-    def wait_new(self, timeout: float | None = None) -> Any:
-        """Block until a value newer than the current one is published; None on timeout or stop."""
-        with self._fresh:
-            seen = self._version
-            self._fresh.wait_for(lambda: self._version != seen or self.stop_event.is_set(), timeout)
-            return self._latest if self._version != seen else None
 
     def _ensure_open(self) -> None:
         if not self._opened:

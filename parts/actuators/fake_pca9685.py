@@ -143,10 +143,6 @@ class PCA9685Model:
         """The history of channel ``n`` without times (the first entry is the power-on OFF)."""
         return [e.output for e in self.history[n]]
 
-    def last_output(self, n: int) -> Output:
-        """The last recorded output of channel ``n``."""
-        return self.history[n][-1].output
-
     # -- bus side ----------------------------------------------------------------------------------
     def write(self, register: int, data: Sequence[int]) -> None:
         """One write transaction starting at ``register`` (outputs update at its STOP)."""

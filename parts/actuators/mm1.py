@@ -17,9 +17,9 @@ import logging
 from collections.abc import Callable
 from typing import Any
 
-from parts.actuators.drivetrain import Drivetrain, clamp
+from parts.actuators.drivetrain import Drivetrain, DrivetrainError, clamp
 from parts.actuators.pwm import map_range
-from parts.actuators.serial_port import close_serial, open_serial, serial_link
+from parts.serial_port import close_serial, open_serial, serial_link
 
 logger = logging.getLogger(__name__)
 
@@ -49,7 +49,7 @@ class RoboHatMM1(Drivetrain):
         self.port_name = port
         self.steering_mid = steering_mid
         self.max_forward, self.stopped, self.max_reverse = max_forward, stopped, max_reverse
-        self._factory = serial_factory or (lambda p, b: open_serial(p, b, SETTING))
+        self._factory = serial_factory or (lambda p, b: open_serial(p, b, SETTING, DrivetrainError))
         self._serial: Any = None
         self.last_pulses: tuple[int, int] | None = None  # (steering, throttle) µs last sent
 
@@ -90,13 +90,13 @@ class RoboHatMM1(Drivetrain):
 
     def _close_hardware(self) -> None:
         port, self._serial = self._serial, None
-        close_serial(port, SETTING, self.port_name, SILENT)
+        close_serial(port, SETTING, self.port_name, SILENT, DrivetrainError)
 
     def _send(self, steering: int, throttle: int) -> None:
         port = self._serial
         if port is None:
             return
-        with serial_link(SETTING, self.port_name, SILENT):
+        with serial_link(SETTING, self.port_name, SILENT, DrivetrainError):
             if port.in_waiting:
                 port.reset_input_buffer()  # the RC receiver's pulses: not ours to use here
             port.write(b"%d, %d\r" % (steering, throttle))

@@ -27,7 +27,7 @@ from typing import Any, Literal
 
 from parts.actuators import vesc_protocol as vp
 from parts.actuators.drivetrain import Drivetrain, DrivetrainError, clamp
-from parts.actuators.serial_port import close_serial, open_serial, serial_link
+from parts.serial_port import close_serial, open_serial, serial_link
 from vehicle.config import check_settings
 
 logger = logging.getLogger(__name__)
@@ -91,7 +91,7 @@ class VESC(Drivetrain):
         self.gear_ratio = gear_ratio
         self.wheel_radius = float(wheel_radius)
         self.stale_s = float(stale_s)
-        self._factory = serial_factory or (lambda p, b: open_serial(p, b, SETTING))
+        self._factory = serial_factory or (lambda p, b: open_serial(p, b, SETTING, DrivetrainError))
         self._serial: Any = None
         self._reader = vp.PacketReader()
         self.values: vp.Values | None = None
@@ -184,7 +184,7 @@ class VESC(Drivetrain):
 
     def _close_hardware(self) -> None:
         port, self._serial = self._serial, None
-        close_serial(port, SETTING, self.port_name, SILENT)
+        close_serial(port, SETTING, self.port_name, SILENT, DrivetrainError)
 
     # -- the part ---------------------------------------------------------------------------------
     def run(self, angle: float | None, throttle: float | None) -> float | None:  # type: ignore[override]
@@ -215,7 +215,7 @@ class VESC(Drivetrain):
     def _send(self, data: bytes) -> None:
         if self._serial is None:
             return
-        with serial_link(SETTING, self.port_name, SILENT):
+        with serial_link(SETTING, self.port_name, SILENT, DrivetrainError):
             self._serial.write(data)
 
     def _read_payloads(self) -> list[bytes]:
@@ -223,7 +223,7 @@ class VESC(Drivetrain):
         port = self._serial
         if port is None:
             return []
-        with serial_link(SETTING, self.port_name, SILENT):
+        with serial_link(SETTING, self.port_name, SILENT, DrivetrainError):
             waiting = port.in_waiting
             data = port.read(waiting) if waiting else b""
         return list(self._reader.feed(data))

@@ -11,7 +11,7 @@ randomised recording or evaluation is reproducible, and a held-out draw is just 
 What is drawn per episode is applied where it costs nothing per frame: light, colours, cast
 shadows and distractors are painted into the track's texture and backdrop, the camera's mounting
 is built into its homography. Only the sensor effects (noise, motion blur, vignetting, JPEG) run
-on every frame (:mod:`parts.sim.sensor`).
+on every frame (:mod:`parts.sim.image_sensor`).
 """
 
 from __future__ import annotations

@@ -17,9 +17,9 @@ from typing import Any, ClassVar
 import numpy as np
 
 from parts.sim.camera import PinholeCamera, camera_from_config
+from parts.sim.image_sensor import ImageSensor
 from parts.sim.kinematics import Car, CarParams
 from parts.sim.randomize import Conditions, RangesError, check_ranges
-from parts.sim.sensor import Sensor
 from parts.sim.telemetry import LapTracker, TelemetryFrame
 from parts.sim.themes import ThemeError, get_theme, theme_list, theme_of
 from parts.sim.world import (
@@ -61,7 +61,7 @@ class SimCar:
         reset_off_track: put the car back on the road when it leaves it.
         reset_to: "start" (start line, lap restarts) or "nearest" (re-centred where it left).
         off_track_cte: |CTE| in metres beyond which the car is off the road (default: half width).
-        sensor: keyword arguments of :class:`parts.sim.sensor.Sensor` applied to every frame
+        sensor: keyword arguments of :class:`parts.sim.image_sensor.ImageSensor` applied to every frame
             (noise, blur, brightness); randomised tracks add their own effects.
         realtime: cam/timestamp is the wall clock (True) or start time + simulated time (False).
         start_offset: lateral offset of the start position and of "nearest" resets, metres left of
@@ -131,7 +131,7 @@ class SimCar:
         self.reset_to = reset_to
         self._off_track_cte = off_track_cte
         self.sensor_args = dict(sensor or {})
-        Sensor(8, 8, **self.sensor_args)  # check the settings now rather than at the first track
+        ImageSensor(8, 8, **self.sensor_args)  # check the settings now rather than at the first track
         self.realtime = realtime
         self.start_offset = float(start_offset)
         if switch_every is not None and switch_every < 1:
@@ -152,7 +152,7 @@ class SimCar:
         self._track_index = 0
         self._pending: deque[tuple[float, float]] = deque()
         self.world: World | None = None
-        self.sensor: Sensor | None = None
+        self.sensor: ImageSensor | None = None
         self.frame: TelemetryFrame | None = None
         for i in range(min(len(self.seeds), len(self.themes))):  # fail now on park with two lanes
             get_theme(self.theme_for(i)).draw_look(np.random.default_rng(0), int(self.world_args.get("lanes", 1)))
@@ -234,7 +234,7 @@ class SimCar:
                                      base.forward_m, theme.far_distance, distortion=base.distortion)
             args = dict(self.sensor_args)
             noise = float(np.hypot(args.pop("noise", 0.0), cond.noise))
-            sensor = Sensor(base.width, base.height, noise=noise, vignetting=cond.vignetting,
+            sensor = ImageSensor(base.width, base.height, noise=noise, vignetting=cond.vignetting,
                             motion_blur=cond.motion_blur, jpeg_quality=cond.jpeg_quality,
                             seed=(self.frame_seed, self.track.seed, cond.randomize or 0), **args)
             self.sensor = sensor if sensor.active else None

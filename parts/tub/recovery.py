@@ -40,11 +40,6 @@ class TubState:
     torn: dict[str, int] = field(default_factory=dict)  # catalog name -> torn bytes at its end
     dropped: list[str] = field(default_factory=list)  # empty trailing catalogs (files to remove)
 
-    @property
-    def needs_manifest_write(self) -> bool:
-        return bool(self.problems)
-
-
 def catalogs_on_disk(tub: Path) -> list[str]:
     """``catalog_<n>.catalog`` names in the folder, by n."""
     found = []

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -167,9 +166,3 @@ def format_draws_table(report: dict[str, Any]) -> str:
                  "worst = the draw with the lowest autonomy")
     return "\n".join(lines)
 
-
-def write_draws(report: dict[str, Any], path: str | Path) -> Path:
-    """The report as JSON (as ``vehicle sim eval --json``)."""
-    from parts.sim.eval_report import write_json
-
-    return write_json(report, path)

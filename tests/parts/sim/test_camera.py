@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from parts.sim.camera import PinholeCamera
-from parts.sim.sensor import Sensor
+from parts.sim.image_sensor import ImageSensor
 from parts.sim.world import load_world
 
 
@@ -72,19 +72,19 @@ def test_camera_rejects_bad_settings():
 
 def test_sensor_effects_are_seeded_and_change_images():
     img = np.full((20, 30, 3), 100, np.uint8)
-    assert not Sensor(30, 20).active
-    a = Sensor(30, 20, noise=5.0, brightness=0.3, seed=1).apply(img.copy())
-    b = Sensor(30, 20, noise=5.0, brightness=0.3, seed=1).apply(img.copy())
-    c = Sensor(30, 20, noise=5.0, brightness=0.3, seed=2).apply(img.copy())
+    assert not ImageSensor(30, 20).active
+    a = ImageSensor(30, 20, noise=5.0, brightness=0.3, seed=1).apply(img.copy())
+    b = ImageSensor(30, 20, noise=5.0, brightness=0.3, seed=1).apply(img.copy())
+    c = ImageSensor(30, 20, noise=5.0, brightness=0.3, seed=2).apply(img.copy())
     np.testing.assert_array_equal(a, b)
     assert not np.array_equal(a, c)
     assert 3.0 < (a.astype(float) - a.mean()).std() < 7.0  # per-pixel noise of about 5
     edge = np.zeros((20, 30, 3), np.uint8)
     edge[:, 15:] = 200
-    blurred = Sensor(30, 20, blur=5).apply(edge.copy())
+    blurred = ImageSensor(30, 20, blur=5).apply(edge.copy())
     assert 0 < blurred[10, 14, 0] < 200
     with pytest.raises(ValueError, match="jitter"):
-        Sensor(30, 20, brightness=1.5)
+        ImageSensor(30, 20, brightness=1.5)
 
 
 def test_lens_distortion_bends_the_pinhole_image_as_opencvs_model(track_and_texture):

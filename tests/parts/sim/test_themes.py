@@ -9,9 +9,9 @@ import pytest
 
 from parts.sim.backdrops import Backdrop
 from parts.sim.camera import PinholeCamera
+from parts.sim.image_sensor import ImageSensor
 from parts.sim.randomize import RANGES, check_ranges, draw_conditions, kelvin_gains
 from parts.sim.scenery import CLEARANCE, Scenery, make_distractor, place_distractors
-from parts.sim.sensor import Sensor
 from parts.sim.simulator import SimCar
 from parts.sim.texture import TrackTexture, texture_bounds
 from parts.sim.themes import THEMES, ThemeError, get_theme, theme_list
@@ -221,18 +221,18 @@ def test_own_shadow_falls_away_from_the_sun():
 def test_sensor_effects():
     rng = np.random.default_rng(0)
     img = np.clip(rng.normal(128, 40, (120, 160, 3)), 0, 255).astype(np.uint8)
-    vig = Sensor(160, 120, vignetting=0.4).apply(img.copy())
+    vig = ImageSensor(160, 120, vignetting=0.4).apply(img.copy())
     assert vig[0, 0].mean() < 0.7 * img[0, 0].mean() + 2
     assert vig[60, 80].mean() == pytest.approx(img[60, 80].mean(), abs=3)
-    jpeg = Sensor(160, 120, jpeg_quality=20).apply(img.copy())
+    jpeg = ImageSensor(160, 120, jpeg_quality=20).apply(img.copy())
     assert 3 < np.abs(jpeg.astype(int) - img.astype(int)).mean() < 40
-    still = Sensor(160, 120, motion_blur=0.02).apply(img.copy(), speed=0.0)
-    moving = Sensor(160, 120, motion_blur=0.02).apply(img.copy(), speed=2.0)
+    still = ImageSensor(160, 120, motion_blur=0.02).apply(img.copy(), speed=0.0)
+    moving = ImageSensor(160, 120, motion_blur=0.02).apply(img.copy(), speed=2.0)
     assert np.array_equal(still, img)
     rough = lambda a: np.abs(np.diff(a[100:].astype(int), axis=0)).mean()  # noqa: E731
     assert rough(moving) < 0.5 * rough(img) and np.array_equal(moving[:50], img[:50])
     with pytest.raises(ValueError, match="JPEG"):
-        Sensor(160, 120, jpeg_quality=0)
+        ImageSensor(160, 120, jpeg_quality=0)
 
 
 def test_the_documented_ranges_are_the_ranges():

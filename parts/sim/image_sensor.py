@@ -1,5 +1,5 @@
-"""What the camera's sensor and its pipeline do to every frame: motion blur, lens vignetting,
-brightness jitter, noise, blur and JPEG compression.
+"""The simulated camera's image sensor and pipeline: what they do to every frame (motion blur, lens
+vignetting, brightness jitter, noise, blur and JPEG compression).
 
 These are the only per-frame costs of randomisation, so each is one or two OpenCV calls on the
 uint8 image: noise comes from a bank of noise frames drawn once per episode (a random window of
@@ -21,7 +21,7 @@ _PAD = 16
 _FLOW_ROWS_PER_M = 450.0
 
 
-class Sensor:
+class ImageSensor:
     """Per-frame image effects (all off by default; seeded, so a run is reproducible).
 
     Args:
