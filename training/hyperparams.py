@@ -29,8 +29,9 @@ from enum import Enum
 from functools import cache
 from typing import Annotated, Any
 
+from training.form import Form
 from vehicle.config import setting_type, settings
-from vehicle.config_checks import Form, Length, Range
+from vehicle.config_checks import Length, Range
 
 __all__ = ["HyperParam", "HyperParamError", "by_name", "check_config", "defaults", "describe",
            "for_setting", "hyperparams", "parse", "settings_for"]

@@ -9,7 +9,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Annotated, Any, Literal
 
-from vehicle.config_checks import Form, Length, Range, Rule, ordered_pair
+from training.form import Form
+from vehicle.config_checks import Length, Range, Rule, ordered_pair
 from vehicle.keys import Mode
 
 # == Training ==
