@@ -228,143 +228,207 @@ def fit(model: nn.Module, train_loader: DataLoader, val_loader: DataLoader | Non
     each uint8 training batch on the device before it becomes floats; its ``set_epoch`` is called
     at the start of every epoch.
     """
-    core: PilotModel = model.module if isinstance(model, nn.parallel.DistributedDataParallel) else model
-    needs_extra = core.extra_size > 0
-    plan = plan or plain_plan(device)
-    if optimizer is None:
-        optimizer = make_optimizer(model, settings, device)
-    scaler = grad_scaler(plan)
-    forward: Callable[..., torch.Tensor] = model
-    if plan.compile:
-        forward = torch.compile(model)
-    compile_pending = plan.compile
-    show = settings.progress if settings.progress is not None else sys.stderr.isatty()
-    show = bool(show and info.is_main)
-    history = History()
     if should_stop is not None and info.enabled:
         logger.warning("fit: should_stop is ignored when training on several processes")
         should_stop = None
-    emit = on_event if info.is_main else None
-    n_batches = len(train_loader) if settings.steps_per_epoch is None else settings.steps_per_epoch
-    scheduler = make_scheduler(optimizer, settings, settings.epochs * n_batches)
+    run = _Run.start(model, train_loader, pre, device, settings, info, optimizer, plan, on_event, should_stop,
+                     augment)
+    history = History()
     patience = Patience(settings.min_delta)
     for epoch in range(1, settings.epochs + 1):
-        _set_epoch(train_loader, epoch)
-        if augment is not None:
-            augment.set_epoch(epoch)
-        model.train()
-        total, count = 0.0, 0
-        start = time.perf_counter()
-        bar = None
-        if show:
-            from tqdm import tqdm
-
-            bar = tqdm(total=n_batches, desc=f"epoch {epoch}/{settings.epochs}", unit="batch",
-                       leave=False, dynamic_ncols=True)
-        batches = islice(_batches(_passes(train_loader, epoch, settings.epochs), device, pre, needs_extra, plan,
-                                  augment), n_batches)
-        source = Prefetcher(batches, settings.prefetch) if settings.prefetch > 0 else None
-        data_wait = 0.0
-        clock = time.perf_counter
-        # the loss sum stays on the device; reading it waits for the device, so a GPU is read only
-        # every SYNC_STEPS steps (a CPU every step: free there)
-        loss_sum = torch.zeros((), dtype=torch.float64, device=device)
-        sync_every = 1 if device.type == "cpu" else SYNC_STEPS
-        step = 0
-        try:
-            it = iter(source if source is not None else batches)
-            while True:
-                t = clock()
-                try:
-                    x, e, y = next(it)
-                except StopIteration:
-                    data_wait += clock() - t
-                    break
-                t_step = clock()
-                data_wait += t_step - t
-                with autocast(plan):
-                    out = forward(x, e)
-                loss = core.loss(out.float(), y)
-                optimizer.zero_grad(set_to_none=True)
-                if scaler is not None:
-                    scaler.scale(loss).backward()
-                    scaler.step(optimizer)
-                    scaler.update()
-                else:
-                    loss.backward()
-                    optimizer.step()
-                if scheduler is not None:
-                    scheduler.step()
-                loss_sum += loss.detach() * len(y)
-                count += len(y)
-                step += 1
-                if step % sync_every == 0 or bar is not None:
-                    total = float(loss_sum)
-                    _check_finite(total, epoch, settings)
-                    if bar is not None:
-                        bar.update(1)
-                        bar.set_postfix(loss=f"{total / count:.4f}")
-                    if emit is not None:
-                        elapsed = clock() - start
-                        emit({"event": "batch", "epoch": epoch, "epochs": settings.epochs, "batch": step,
-                              "batches": n_batches, "loss": total / count, "samples": count,
-                              "samples_per_s": count / elapsed if elapsed > 0 else 0.0})
-                if compile_pending:
-                    compile_pending = False
-                    if info.is_main:
-                        logger.info("torch.compile: the first training step took %.1f s (compiling)",
-                                    clock() - t_step)
-                if should_stop is not None and should_stop():
-                    history.cancelled, history.stopped_in_epoch = True, epoch
-                    break
-            total = float(loss_sum)
-            _check_finite(total, epoch, settings)
-        finally:
-            if source is not None:
-                source.close()
-            if bar is not None:
-                bar.close()
-        if history.cancelled:
-            if info.is_main:
-                logger.info("training cancelled in epoch %d/%d (batch %d of %d); the best model so far "
-                            "is kept (epoch %d)", epoch, settings.epochs, step, n_batches, history.best_epoch)
-            break
-        seconds = time.perf_counter() - start
-        total, count = all_sum([total, float(count)], info, device)
-        train_loss = total / max(count, 1.0)
-        val_loss = evaluate(core, val_loader, pre, device, info, plan, settings.val_steps) \
-            if val_loader is not None else math.nan
-        history.train_loss.append(train_loss)
-        history.val_loss.append(val_loss)
-        history.seconds.append(seconds)
-        history.samples_per_s.append(count / seconds if seconds > 0 else 0.0)
-        history.samples.append(int(count))
-        history.data_seconds.append(data_wait)
-        monitored = val_loss if math.isfinite(val_loss) else train_loss
-        improved = patience.update(monitored)
-        if info.is_main:
-            logger.info("epoch %d/%d: loss %.5f, val_loss %.5f, %.0f samples/s, %.0f %% waiting for data%s",
-                        epoch, settings.epochs, train_loss, val_loss, history.samples_per_s[-1],
-                        100.0 * data_wait / seconds if seconds > 0 else 0.0, " (best)" if improved else "")
-        if improved:
-            history.best_loss, history.best_epoch = monitored, epoch
-            if on_best is not None:
-                on_best(epoch, history)
-        if emit is not None:
-            emit({"event": "epoch", "epoch": epoch, "epochs": settings.epochs, "train_loss": train_loss,
-                  "val_loss": val_loss if math.isfinite(val_loss) else None, "seconds": seconds,
-                  "samples_per_s": history.samples_per_s[-1], "best": improved,
-                  "best_epoch": history.best_epoch})
-        if should_stop is not None and should_stop():
+        done = _train_epoch(run, train_loader, epoch)
+        if done.cancelled:
             history.cancelled, history.stopped_in_epoch = True, epoch
             if info.is_main:
-                logger.info("training cancelled after epoch %d/%d; the best model so far is kept (epoch %d)",
-                            epoch, settings.epochs, history.best_epoch)
+                logger.info("training cancelled in epoch %d/%d (batch %d of %d); the best model so far "
+                            "is kept (epoch %d)", epoch, settings.epochs, done.steps, run.n_batches,
+                            history.best_epoch)
             break
-        if settings.patience is not None and patience.waited >= settings.patience:
-            history.stopped_early = True
-            if info.is_main:
-                logger.info("early stop: no improvement of val_loss by more than %g for %d epochs",
-                            settings.min_delta, patience.waited)
+        if _end_epoch(run, done, epoch, history, patience, val_loader, on_best):
             break
     return history
+
+
+@dataclass
+class _Run:
+    """What the steps of one :func:`fit` share: the model and its (compiled) forward, the optimiser,
+    scaler and schedule, the plan, and where progress goes."""
+
+    model: nn.Module
+    core: PilotModel
+    forward: Callable[..., torch.Tensor]
+    optimizer: torch.optim.Optimizer
+    scaler: Any
+    scheduler: Any
+    plan: TrainPlan
+    pre: Preprocess
+    device: torch.device
+    settings: FitSettings
+    info: DistInfo
+    emit: EventSink | None  # the main process's event sink
+    show: bool  # a progress bar on the terminal
+    n_batches: int  # training batches per epoch
+    augment: Any
+    should_stop: Callable[[], bool] | None
+    compile_pending: bool  # the first step compiles (logged once)
+
+    @classmethod
+    def start(cls, model: nn.Module, train_loader: DataLoader, pre: Preprocess, device: torch.device,
+              settings: FitSettings, info: DistInfo, optimizer: torch.optim.Optimizer | None,
+              plan: TrainPlan | None, on_event: EventSink | None, should_stop: Callable[[], bool] | None,
+              augment: Any) -> _Run:
+        core: PilotModel = model.module if isinstance(model, nn.parallel.DistributedDataParallel) else model
+        plan = plan or plain_plan(device)
+        optimizer = optimizer or make_optimizer(model, settings, device)
+        show = settings.progress if settings.progress is not None else sys.stderr.isatty()
+        n_batches = len(train_loader) if settings.steps_per_epoch is None else settings.steps_per_epoch
+        return cls(model, core, torch.compile(model) if plan.compile else model, optimizer, grad_scaler(plan),
+                   make_scheduler(optimizer, settings, settings.epochs * n_batches), plan, pre, device, settings,
+                   info, on_event if info.is_main else None, bool(show and info.is_main), n_batches, augment,
+                   should_stop, plan.compile)
+
+
+@dataclass
+class _Epoch:
+    """One epoch's training pass: the loss summed over its samples, its steps and times (s)."""
+
+    total: float
+    count: int
+    steps: int
+    seconds: float
+    data_wait: float  # of which spent waiting for batches
+    cancelled: bool  # should_stop said yes during it
+
+
+def _train_epoch(run: _Run, train_loader: DataLoader, epoch: int) -> _Epoch:
+    """Train one pass over ``train_loader`` (its first ``n_batches``), with a progress bar and the
+    batch events."""
+    settings = run.settings
+    _set_epoch(train_loader, epoch)
+    if run.augment is not None:
+        run.augment.set_epoch(epoch)
+    run.model.train()
+    start = time.perf_counter()
+    bar = None
+    if run.show:
+        from tqdm import tqdm
+
+        bar = tqdm(total=run.n_batches, desc=f"epoch {epoch}/{settings.epochs}", unit="batch", leave=False,
+                   dynamic_ncols=True)
+    batches = islice(_batches(_passes(train_loader, epoch, settings.epochs), run.device, run.pre,
+                              run.core.extra_size > 0, run.plan, run.augment), run.n_batches)
+    source = Prefetcher(batches, settings.prefetch) if settings.prefetch > 0 else None
+    data_wait, count, step, cancelled = 0.0, 0, 0, False
+    clock = time.perf_counter
+    # the loss sum stays on the device; reading it waits for the device, so a GPU is read only
+    # every SYNC_STEPS steps (a CPU every step: free there)
+    loss_sum = torch.zeros((), dtype=torch.float64, device=run.device)
+    sync_every = 1 if run.device.type == "cpu" else SYNC_STEPS
+    try:
+        it = iter(source if source is not None else batches)
+        while True:
+            t = clock()
+            try:
+                x, e, y = next(it)
+            except StopIteration:
+                data_wait += clock() - t
+                break
+            t_step = clock()
+            data_wait += t_step - t
+            loss = _step(run, x, e, y)
+            loss_sum += loss.detach() * len(y)
+            count += len(y)
+            step += 1
+            if step % sync_every == 0 or bar is not None:
+                _report_batch(run, bar, float(loss_sum), count, step, epoch, clock() - start)
+            if run.compile_pending:
+                run.compile_pending = False
+                if run.info.is_main:
+                    logger.info("torch.compile: the first training step took %.1f s (compiling)", clock() - t_step)
+            if run.should_stop is not None and run.should_stop():
+                cancelled = True
+                break
+        total = float(loss_sum)
+        _check_finite(total, epoch, settings)
+    finally:
+        if source is not None:
+            source.close()
+        if bar is not None:
+            bar.close()
+    return _Epoch(total, count, step, time.perf_counter() - start, data_wait, cancelled)
+
+
+def _step(run: _Run, x: torch.Tensor, e: torch.Tensor | None, y: torch.Tensor) -> torch.Tensor:
+    """One optimiser step on a batch; its loss."""
+    with autocast(run.plan):
+        out = run.forward(x, e)
+    loss = run.core.loss(out.float(), y)
+    run.optimizer.zero_grad(set_to_none=True)
+    if run.scaler is not None:
+        run.scaler.scale(loss).backward()
+        run.scaler.step(run.optimizer)
+        run.scaler.update()
+    else:
+        loss.backward()
+        run.optimizer.step()
+    if run.scheduler is not None:
+        run.scheduler.step()
+    return loss
+
+
+def _report_batch(run: _Run, bar: Any, total: float, count: int, step: int, epoch: int, elapsed: float) -> None:
+    """The running loss, checked finite, on the bar and as a batch event."""
+    _check_finite(total, epoch, run.settings)
+    if bar is not None:
+        bar.update(1)
+        bar.set_postfix(loss=f"{total / count:.4f}")
+    if run.emit is not None:
+        run.emit({"event": "batch", "epoch": epoch, "epochs": run.settings.epochs, "batch": step,
+                  "batches": run.n_batches, "loss": total / count, "samples": count,
+                  "samples_per_s": count / elapsed if elapsed > 0 else 0.0})
+
+
+def _end_epoch(run: _Run, done: _Epoch, epoch: int, history: History, patience: Patience,
+               val_loader: DataLoader | None, on_best: Callable[[int, History], None] | None) -> bool:
+    """Validate, record the epoch in ``history``, hand a new best to ``on_best``, emit the epoch
+    event; whether training ends here (cancelled after the epoch, or no improvement for
+    ``patience`` epochs)."""
+    settings, info = run.settings, run.info
+    seconds = done.seconds
+    total, count = all_sum([done.total, float(done.count)], info, run.device)
+    train_loss = total / max(count, 1.0)
+    val_loss = evaluate(run.core, val_loader, run.pre, run.device, info, run.plan, settings.val_steps) \
+        if val_loader is not None else math.nan
+    history.train_loss.append(train_loss)
+    history.val_loss.append(val_loss)
+    history.seconds.append(seconds)
+    history.samples_per_s.append(count / seconds if seconds > 0 else 0.0)
+    history.samples.append(int(count))
+    history.data_seconds.append(done.data_wait)
+    monitored = val_loss if math.isfinite(val_loss) else train_loss
+    improved = patience.update(monitored)
+    if info.is_main:
+        logger.info("epoch %d/%d: loss %.5f, val_loss %.5f, %.0f samples/s, %.0f %% waiting for data%s",
+                    epoch, settings.epochs, train_loss, val_loss, history.samples_per_s[-1],
+                    100.0 * done.data_wait / seconds if seconds > 0 else 0.0, " (best)" if improved else "")
+    if improved:
+        history.best_loss, history.best_epoch = monitored, epoch
+        if on_best is not None:
+            on_best(epoch, history)
+    if run.emit is not None:
+        run.emit({"event": "epoch", "epoch": epoch, "epochs": settings.epochs, "train_loss": train_loss,
+                  "val_loss": val_loss if math.isfinite(val_loss) else None, "seconds": seconds,
+                  "samples_per_s": history.samples_per_s[-1], "best": improved, "best_epoch": history.best_epoch})
+    if run.should_stop is not None and run.should_stop():
+        history.cancelled, history.stopped_in_epoch = True, epoch
+        if info.is_main:
+            logger.info("training cancelled after epoch %d/%d; the best model so far is kept (epoch %d)",
+                        epoch, settings.epochs, history.best_epoch)
+        return True
+    if settings.patience is not None and patience.waited >= settings.patience:
+        history.stopped_early = True
+        if info.is_main:
+            logger.info("early stop: no improvement of val_loss by more than %g for %d epochs",
+                        settings.min_delta, patience.waited)
+        return True
+    return False
