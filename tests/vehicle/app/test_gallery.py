@@ -121,3 +121,23 @@ def test_gallery_errors_are_one_line_and_touch_nothing(make_model_file, tmp_path
     assert main([*base, "--pilot", str(other), "--gallery", str(tmp_path / "new")]) == 2
     assert "160x320" in capsys.readouterr().err
     assert not (tmp_path / "new").exists()
+
+
+def test_draws_write_one_gallery_per_theme_and_draw_and_an_index(make_model_file, cfg, tmp_path):
+    from vehicle.app.eval_draws import evaluate_draws
+
+    model = make_model_file("linear")
+    folder = tmp_path / "galleries"
+    report = evaluate_draws(str(model), [11], 1, cfg=cfg, draws=[1001, 1002], themes=["indoor"], expert=False,
+                            max_time=2.0, gallery=GallerySpec(str(folder), str(model), worst=1))
+    index = json.loads((folder / "gallery.json").read_text())
+    assert [g["folder"] for g in index["galleries"]] == ["indoor-draw1001", "indoor-draw1002"]
+    for g, draw in zip(index["galleries"], (1001, 1002), strict=True):
+        sub = json.loads((folder / g["folder"] / "gallery.json").read_text())
+        assert sub["randomize"] == draw and sub["tracks"][0]["theme"] == "indoor"
+        assert g["moments"] == sum(len(t["moments"]) for t in sub["tracks"])
+        assert f'href="{g["folder"]}/index.html"' in (folder / "index.html").read_text()
+    assert report["gallery"] == str(folder / "index.html") and report["settings"]["gallery"] == str(folder.resolve())
+    with pytest.raises(ValueError, match="exists: give a new folder"):
+        evaluate_draws(str(model), [11], 1, cfg=cfg, draws=[1001], themes=["indoor"], expert=False, max_time=1.0,
+                       gallery=GallerySpec(str(folder), str(model)))

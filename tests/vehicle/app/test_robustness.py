@@ -55,6 +55,10 @@ def test_tiny_protocol_runs_the_demo_per_seed_reports_and_resumes(tmp_path, caps
         assert s["mean"]["score"] <= s["mean"]["autonomy"] and s["speed_vs_expert_pct"] is not None
     md = (out / "robustness.md").read_text()
     assert "| park (unseen) | 2 x 1 |" in md and "| plain-s2-fp32 | 2 | fp32 |" in md
+    for theme in THEMES:  # each theme's worst draw links its failure gallery, which the run wrote
+        w = report["themes"][theme]["worst_draw"]
+        assert w["gallery"] == f"runs/{w['run']}/eval/gallery/{theme}-draw1001/index.html"
+        assert (out / w["gallery"]).is_file() and f"]({w['gallery']})" in md
 
     # again: nothing is redone
     mtimes = {p: p.stat().st_mtime_ns for p in (out / "runs").glob("*/eval/result.json")}
