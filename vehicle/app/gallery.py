@@ -188,17 +188,23 @@ def _figure(frame: dict[str, Any]) -> str:
             f"</figcaption></figure>")
 
 
+def _draw(value: Any) -> str:
+    """A randomisation draw as the page names it (None: the track's own look)."""
+    return "none" if value is None else html.escape(str(value))
+
+
 def gallery_html(data: dict[str, Any]) -> str:
     """The static page of a gallery's JSON (no script: every browser opens it from the disk)."""
     title = f"Failures of {data.get('pilot')}"
     parts = [f"<h1>{html.escape(title)}</h1>",
              f"<p class=note>{len(data['tracks'])} track(s), saliency: {html.escape(str(data['method']))} "
-             f"(where the pilot looked for its steering), {data['window_s']:g} s before each moment; draw "
-             f"{data.get('randomize')}. <span class=legend><span style='background:#f90'></span>pilot"
+             f"(where the pilot looked for its steering), {data['window_s']:g} s before each moment; "
+             f"randomisation draw {_draw(data.get('randomize'))}. "
+             f"<span class=legend><span style='background:#f90'></span>pilot"
              f"<span style='background:#4af'></span>expert steering</span></p>"]
     for track in data["tracks"]:
         parts.append(f"<h2 id=track-{track['seed']}>Track {track['seed']} · theme {html.escape(str(track['theme']))}"
-                     f" · draw {track.get('randomize', data.get('randomize'))} · "
+                     f" · draw {_draw(track.get('randomize', data.get('randomize')))} · "
                      f"{track.get('interventions')} intervention(s)</h2>")
         if not track["moments"]:
             parts.append("<p class=note>nothing to show: no intervention and no worst-|CTE| moment kept</p>")
