@@ -9,8 +9,8 @@ Three methods, all on the model's own preprocessed input (:mod:`parts.pilots.pre
 - ``smoothgrad``: SmoothGrad (Smilkov et al. 2017) of gradient x input: ``(x' - baseline) *
   gradient`` averaged over ``samples`` copies ``x'`` of the input with Gaussian noise (15 % of the
   input range), its magnitude summed over the channels.
-- ``occlusion``: the output's change when a square patch (1/8 of the shorter side, moved by half
-  a patch) is painted the frame's mean colour; forwards only, no gradient. Coarse, model-agnostic.
+- ``occlusion``: the output's change when a square patch (1/8 of the shorter side, patches side
+  by side) is painted the frame's mean colour; forwards only, no gradient. Coarse, model-agnostic.
 
 Steering and throttle are explained separately (``output``): the differentiable value each model
 type drives with (the expectation over the bins of a categorical model, the throttle a ``inferred``
@@ -214,7 +214,7 @@ class Explainer:
 
         h, w = x.shape[-2:]
         patch = max(2, min(h, w) // 8)
-        stride = max(1, patch // 2)
+        stride = patch  # side by side: 8 x 16 forwards on 80x160 (half a patch: 4x as many, measured 1 s)
         base = self._baseline(x)[0]
         spots = [(r, c) for r in range(0, max(1, h - patch + stride), stride)
                  for c in range(0, max(1, w - patch + stride), stride)]
