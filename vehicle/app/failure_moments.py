@@ -73,7 +73,7 @@ class ShadowExpert:
     """Part: what the expert would steer now (``gallery/expert_angle``); it drives nothing. Runs
     after the simulated car, so it sees the state the frame was rendered in."""
 
-    OUTPUTS: ClassVar[tuple[str, ...]] = (EXPERT_KEY,)
+    OUTPUTS: ClassVar[tuple[str, ...]] = ("gallery/expert_angle",)  # EXPERT_KEY
 
     def __init__(self, expert: Any) -> None:
         self.expert = expert
@@ -111,13 +111,17 @@ class MomentRecorder:
         self.dt, self.keys, self.worst = float(dt), tuple(inputs), int(worst)
         self.window = max(1, round(window_s / self.dt))
         self.window_s = self.window * self.dt
-        self.INPUTS = (*self.keys, "pilot/angle", "pilot/throttle", EXPERT_KEY, "sim/cte", "sim/off_track", "sim/pos")
         self._ring: deque[_Step] = deque(maxlen=self.window)
         self.interventions: list[Moment] = []
         self._worst: list[Moment] = []
         self._was_off = False
         self._last_pos: list[float] | None = None
         self._n = 0
+
+    @property
+    def INPUTS(self) -> tuple[str, ...]:  # noqa: N802 - the part declaration read by Vehicle.add
+        """The pilot's inputs, its commands, the expert's steering and the telemetry."""
+        return (*self.keys, "pilot/angle", "pilot/throttle", EXPERT_KEY, "sim/cte", "sim/off_track", "sim/pos")
 
     def run(self, *values: Any) -> None:
         k = len(self.keys)
