@@ -111,10 +111,14 @@ def _all_images_loaded(page, selector):
 
 
 @pytest.mark.browser
-@pytest.mark.parametrize("size", [(1280, 900), (390, 844)], ids=["desktop", "phone"])
-def test_console_pages_show_gallery_saliency_and_movie(page_factory, url, evaluated, browser, size, tmp_path):
+def test_console_pages_show_gallery_saliency_and_movie(page_factory, url, evaluated, browser, tmp_path):
+    """At a desktop's and a phone's size (one evaluation, saliency and movie: made once, then kept)."""
+    for size in ((1280, 900), (390, 844)):
+        _pages_at(page_factory, url, evaluated, browser, size, _shots(tmp_path))
+
+
+def _pages_at(page_factory, url, evaluated, browser, size, shots):
     name, eid, folder = evaluated
-    shots = _shots(tmp_path)
     tag = "desktop" if size[0] > 600 else "phone"
     page = page_factory(*size)
     page.goto(url + f"#/models/{name}")
