@@ -1,10 +1,10 @@
-"""``vehicle tub hist`` (PNG histograms, matplotlib Agg) and ``vehicle tub movie`` (MP4, OpenCV)."""
+"""``vehicle tub hist`` (PNG histograms, matplotlib Agg) and ``vehicle tub movie`` (MP4 or WebM, OpenCV)."""
 
 from __future__ import annotations
 
 import logging
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -61,8 +61,18 @@ def write_histograms(paths: Sequence[str | os.PathLike[str]], out: str | os.Path
     return out
 
 
-def _overlay(img: np.ndarray, rec: TubRecord) -> np.ndarray:
-    """Draw steering (horizontal bar), throttle (vertical bar) and values on a BGR frame."""
+#: what a movie frame may show beside the recording: called with the RGB frame and its record, it
+#: returns the picture to film (e.g. with a saliency overlay, possibly wider) and the model's
+#: steering for the frame (None: no model)
+FrameView = Callable[[np.ndarray, TubRecord], tuple[np.ndarray, float | None]]
+#: OpenCV's codec per file type: MPEG-4 part 2 for .mp4 (plays in desktop players), VP8 for .webm
+#: (plays in every browser, for the console)
+CODECS = {".mp4": "mp4v", ".webm": "VP80"}
+
+
+def _overlay(img: np.ndarray, rec: TubRecord, model_angle: float | None = None) -> np.ndarray:
+    """Draw steering (horizontal bar), throttle (vertical bar) and values on a BGR frame; with
+    ``model_angle``, the model's steering as an orange bar above the recorded (green) one."""
     cv = cv2()
     h, w = img.shape[:2]
     angle, throttle = rec.angle, rec.throttle
@@ -71,6 +81,11 @@ def _overlay(img: np.ndarray, rec: TubRecord) -> np.ndarray:
     if isinstance(angle, int | float):
         x = int(cx + float(np.clip(angle, -1, 1)) * (w // 2 - 8))
         cv.line(img, (cx, by), (x, by), (0, 220, 0), 3)
+    if model_angle is not None and np.isfinite(model_angle):
+        my = by - 7
+        cv.line(img, (8, my), (w - 8, my), (80, 80, 80), 3)
+        x = int(cx + float(np.clip(model_angle, -1, 1)) * (w // 2 - 8))
+        cv.line(img, (cx, my), (x, my), (0, 140, 255), 3)
     pilot = rec.get("pilot/angle")
     if isinstance(pilot, int | float):
         x = int(cx + float(np.clip(pilot, -1, 1)) * (w // 2 - 8))
@@ -82,6 +97,8 @@ def _overlay(img: np.ndarray, rec: TubRecord) -> np.ndarray:
         cv.line(img, (bx, cy), (bx, y), (0, 200, 255), 3)
     text = f"{rec.index}  a {angle if angle is None else f'{angle:+.2f}'}" \
            f"  t {throttle if throttle is None else f'{throttle:+.2f}'}"
+    if model_angle is not None:
+        text += f"  model {model_angle:+.2f}"
     cv.putText(img, text, (6, 16), cv.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 3, cv.LINE_AA)
     cv.putText(img, text, (6, 16), cv.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1, cv.LINE_AA)
     return img
@@ -89,8 +106,10 @@ def _overlay(img: np.ndarray, rec: TubRecord) -> np.ndarray:
 
 def write_movie(path: str | os.PathLike[str], out: str | os.PathLike[str], *, start: int = 0,
                 end: int | None = None, fps: float = 20.0, scale: int = 2, key: str = "cam/image_array",
-                progress: bool = False) -> tuple[Path, int]:
-    """MP4 of a tub's images (records ``start`` <= index < ``end``) with steering/throttle overlay.
+                progress: bool = False, view: FrameView | None = None) -> tuple[Path, int]:
+    """MP4 (or WebM: ``out`` ending in .webm) of a tub's images (records ``start`` <= index < ``end``)
+    with steering/throttle overlay; ``view`` changes each frame (a pilot's saliency, see
+    :class:`parts.pilots.saliency.SalientView`) and adds the model's steering bar.
 
     Returns (file, frames written).
     """
@@ -101,6 +120,9 @@ def write_movie(path: str | os.PathLike[str], out: str | os.PathLike[str], *, st
     if not fps > 0:
         raise ValueError(f"fps must be > 0 frames per second, got {fps}")
     cv = cv2()
+    codec = CODECS.get(Path(out).suffix.lower())
+    if codec is None:
+        raise ValueError(f"{out}: the movie file must end in {' or '.join(CODECS)}")
     records = [r for r in iter_records([path]) if r.index >= start and (end is None or r.index < end)]
     if not records:
         raise TubError(f"{path}: no records in the range {start}..{end if end is not None else 'end'}")
@@ -112,18 +134,21 @@ def write_movie(path: str | os.PathLike[str], out: str | os.PathLike[str], *, st
         decoders = max(1, (os.cpu_count() or 2) - 1)  # a core left to draw and encode the video
         for rec, img in tqdm(iter_images(records, key, workers=decoders), total=len(records), desc="movie",
                              unit="frame", disable=not progress, leave=False):
+            model_angle = None
+            if view is not None:
+                img, model_angle = view(img if img.ndim == 3 else np.repeat(img[:, :, None], 3, 2), rec)
             frame = cv.cvtColor(img, cv.COLOR_RGB2BGR) if img.ndim == 3 else cv.cvtColor(img, cv.COLOR_GRAY2BGR)
             if scale != 1:
                 frame = cv.resize(frame, (frame.shape[1] * scale, frame.shape[0] * scale),
                                   interpolation=cv.INTER_NEAREST)
             if writer is None:
                 size = (frame.shape[1], frame.shape[0])
-                writer = cv.VideoWriter(str(out), cv.VideoWriter_fourcc(*"mp4v"), float(fps), size)
+                writer = cv.VideoWriter(str(out), cv.VideoWriter_fourcc(*codec), float(fps), size)
                 if not writer.isOpened():
-                    raise TubError(f"OpenCV cannot write {out}: use a .mp4 file name")
+                    raise TubError(f"OpenCV cannot write {out} ({codec}): check the folder can be written")
             elif (frame.shape[1], frame.shape[0]) != size:
                 frame = cv.resize(frame, size)
-            writer.write(_overlay(frame, rec))
+            writer.write(_overlay(frame, rec, model_angle))
             frames += 1
     finally:
         if writer is not None:

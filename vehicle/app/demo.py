@@ -261,8 +261,13 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
         from vehicle.app.eval_draws import evaluate_draws, format_draws_table
 
         say(f"      and under {draws} hidden randomisation draw(s) per theme (mean and worst draw) ...")
+        from vehicle.app.failure_moments import GallerySpec
+
+        galleries = out / "eval" / "gallery"  # the demo's own folder: a rerun replaces its galleries
+        shutil.rmtree(galleries, ignore_errors=True)
         by_draw = evaluate_draws(model_path, eval_tracks, laps, cfg=cfg, draws=hidden_draws(draws, cfg.SIM_RANDOMIZE),
-                                 themes=[*trained, unseen_theme], workers=cfg.SIM_EVAL_WORKERS)
+                                 themes=[*trained, unseen_theme], workers=cfg.SIM_EVAL_WORKERS,
+                                 gallery=GallerySpec(str(galleries), str(model_path)))
         write_json(by_draw, out / "eval" / "pilot_draws.json")
     seconds["evaluate"] = time.perf_counter() - t
     cpu["evaluate"] = cpu_seconds() - c

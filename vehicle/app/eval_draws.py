@@ -88,14 +88,16 @@ def summarise(overalls: Sequence[dict[str, Any]], draws: Sequence[int],
 
 def evaluate_draws(pilot: Any, seeds: Sequence[int], laps: int, *, cfg: Any, draws: Sequence[int],
                    themes: Sequence[str], expert: bool = True, workers: int = 1,
-                   max_time: float | None = None) -> dict[str, Any]:
+                   max_time: float | None = None, gallery: Any = None) -> dict[str, Any]:
     """Evaluate ``pilot`` on tracks ``seeds`` in each of ``themes`` under each randomisation seed of
     ``draws`` (:func:`vehicle.app.evaluate.evaluate` for every pair), and the expert too when
     ``expert``.
 
     Returns a report shaped like ``evaluate``'s (so ``--json`` and ``--store`` keep it as they keep
     one): ``tracks`` holds every episode (each with its ``theme`` and ``randomize``), ``overall``
-    pools them all, and ``by_theme`` maps each theme to :func:`summarise`'s dict.
+    pools them all, and ``by_theme`` maps each theme to :func:`summarise`'s dict. With ``gallery``
+    (a :class:`vehicle.app.failure_moments.GallerySpec`), one failure gallery per theme and draw in
+    ``<folder>/<theme>-draw<N>/`` and a page linking them (the report's ``gallery``).
     """
     from parts.sim.metrics import overall
     from vehicle.app.evaluate import evaluate
@@ -103,6 +105,11 @@ def evaluate_draws(pilot: Any, seeds: Sequence[int], laps: int, *, cfg: Any, dra
     draws, themes = list(draws), list(themes)
     if not draws or not themes:
         raise ValueError("evaluate_draws needs at least one draw and one theme")
+    if gallery is not None:
+        from vehicle.app.gallery import check_new_folder
+
+        check_new_folder(gallery.folder)
+    galleries: list[dict[str, Any]] = []
     tracks: list[dict[str, Any]] = []
     by_theme: dict[str, Any] = {}
     name = None
@@ -111,8 +118,14 @@ def evaluate_draws(pilot: Any, seeds: Sequence[int], laps: int, *, cfg: Any, dra
         pilot_overalls, expert_overalls = [], []
         for draw in draws:
             c = cfg.replace(SIM_THEME=theme, SIM_RANDOMIZE=draw)
-            report = evaluate(pilot, seeds, laps, cfg=c, workers=workers, max_time=max_time)
+            sub = gallery_name(theme, draw)
+            report = evaluate(pilot, seeds, laps, cfg=c, workers=workers, max_time=max_time,
+                              gallery=gallery.sub(sub) if gallery is not None else None)
             name, settings = report["pilot"], report["settings"]
+            if gallery is not None:
+                galleries.append({"name": sub, "folder": sub, "theme": theme, "randomize": draw,
+                                  "label": f"theme {theme}, draw {draw}: {report['overall']['interventions']} "
+                                           f"intervention(s)", "moments": _moments(report["gallery"])})
             for t in report["tracks"]:
                 t["randomize"] = draw
             tracks += report["tracks"]
@@ -125,7 +138,14 @@ def evaluate_draws(pilot: Any, seeds: Sequence[int], laps: int, *, cfg: Any, dra
                         o["autonomy"], o["interventions"])
         by_theme[theme] = summarise(pilot_overalls, draws, expert_overalls if expert else None)
     penalty = settings.get("penalty_s", cfg.SIM_INTERVENTION_PENALTY)
-    return {
+    extra: dict[str, Any] = {}
+    if gallery is not None:
+        from vehicle.app.gallery import write_gallery_index
+
+        settings = {**settings, "gallery": str(Path(gallery.folder).expanduser().resolve())}
+        extra["gallery"] = str(write_gallery_index(gallery.folder, f"Failures of {name} under hidden draws",
+                                                   galleries))
+    return {**extra,
         "pilot": name, "simulator": "builtin", "laps": laps, "seeds": list(seeds), "draws": draws,
         "themes": themes,
         "conditions": {"themes": themes, "randomize": draws, "distractors": "randomised", "lanes": cfg.SIM_LANES,
@@ -136,6 +156,19 @@ def evaluate_draws(pilot: Any, seeds: Sequence[int], laps: int, *, cfg: Any, dra
         "overall": {**overall(tracks, penalty, np.empty(0)), "by_theme": by_theme},
         "by_theme": by_theme,
     }
+
+
+def gallery_name(theme: str, draw: int) -> str:
+    """The sub-folder of the gallery of ``theme`` under hidden draw ``draw``."""
+    return f"{theme}-draw{draw}"
+
+
+def _moments(page: str) -> int:
+    """Moments in the gallery whose page is ``page``."""
+    import json
+
+    data = json.loads((Path(page).parent / "gallery.json").read_text())
+    return sum(len(t["moments"]) for t in data["tracks"])
 
 
 def _f(value: Any, fmt: str) -> str:

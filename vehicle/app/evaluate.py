@@ -67,6 +67,8 @@ from vehicle.app.assembly.camera import add_undistort
 from vehicle.app.assembly.drive import add_behavior, add_drive_mode, add_obstacle_stop, add_speed_limit
 from vehicle.app.assembly.pilot import BEHAVIOR_KEY, check_behavior_input, pilot_inputs
 from vehicle.app.assembly.sim import add_expert
+from vehicle.app.failure_moments import GallerySpec
+from vehicle.app.failure_moments import attach as attach_recorder
 from vehicle.clock import SimulatedClock
 from vehicle.errors import UserError
 from vehicle.keys import Mode, rename
@@ -167,7 +169,7 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
              fixed_throttle: float | None = None, extra_inputs: dict[str, Any] | None = None,
              on_step: Callable[[SimCar], None] | None = None, sim: str = "builtin",
              scenes: Sequence[str] | None = None, lane_changes: bool | None = None,
-             workers: int = 1) -> dict[str, Any]:
+             workers: int = 1, gallery: GallerySpec | None = None) -> dict[str, Any]:
     """Drive ``pilot`` for ``laps`` laps on each track seed and return the report (a JSON-able dict).
 
     Args:
@@ -194,6 +196,9 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
             capped at the number of tracks). Needs ``pilot`` to be "expert" or a model file (a
             worker loads its own copy) and no ``on_step``; otherwise the tracks run one after
             another. The report is the same either way.
+        gallery: write a failure gallery (:mod:`vehicle.app.gallery`) of a model file's
+            interventions and worst |CTE| moments into ``gallery.folder`` (which must not exist),
+            built-in simulator only; the report's ``gallery`` names its page.
 
     Returns:
         ``{"pilot", "simulator", "laps", "seeds", "conditions", "settings", "tracks": [per-track
@@ -232,6 +237,8 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
 
     themes = theme_list(cfg.SIM_THEME)
     check_ranges(cfg.SIM_RANDOMIZE_RANGES)
+    if gallery is not None:
+        gallery = _check_gallery(gallery, pilot, sim)
     if not isinstance(workers, int) or isinstance(workers, bool) or workers < 0:
         raise ValueError(f"workers must be an int >= 0 (0 = one per core), got {workers!r}")
     n_workers = min(workers or os.cpu_count() or 1, len(episodes)) if sim == "builtin" else 1
@@ -260,7 +267,7 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
         if lanes_on:
             _check_change_schedule(cfg)
         episode_args = {"max_time": max_time, "penalty_s": penalty, "fixed_throttle": fixed_throttle,
-                        "extra_inputs": extra_inputs, "lanes": lanes_on}
+                        "extra_inputs": extra_inputs, "lanes": lanes_on, "gallery": gallery}
         if parallel:
             if owned and callable(getattr(driver, "shutdown", None)):
                 owned = False
@@ -286,6 +293,7 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
         if owned and callable(getattr(driver, "shutdown", None)):
             driver.shutdown()
     results = [res for res, _ in outcomes]
+    gallery_tracks = [res.pop("_gallery") for res in results if "_gallery" in res]
     pooled = [abs_cte for _, abs_cte in outcomes]  # |cte| of autonomous frames, for the overall percentile
     settings: dict[str, Any] = {"dt": 1.0 / cfg.DRIVE_LOOP_HZ, "penalty_s": penalty, "max_time_s": max_time,
                                 "fixed_throttle": fixed_throttle}
@@ -298,7 +306,7 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
                          "max_cte": cfg.DONKEY_MAX_CTE, "image": [cfg.IMAGE_W, cfg.IMAGE_H]})
     else:
         settings.update({"port": cfg.UDACITY_PORT, "realtime": True, "interventions": "manual overrides"})
-    return {
+    report = {
         "pilot": name,
         "simulator": sim,
         "laps": laps,
@@ -310,6 +318,28 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
                     **({"lanes": overall_lane_metrics([r["lanes"] for r in results])} if lanes_on else {})},
         "wall_time_s": round(time.perf_counter() - started, 3),
     }
+    if gallery is not None:
+        from vehicle.app.gallery import write_gallery
+
+        report["gallery"] = str(write_gallery(gallery, report, gallery_tracks))
+        settings["gallery"] = str(Path(gallery.folder).resolve())
+        report["wall_time_s"] = round(time.perf_counter() - started, 3)
+    return report
+
+
+def _check_gallery(spec: GallerySpec, pilot: Any, sim: str) -> GallerySpec:
+    """The gallery asked for, checked (ValueError, one line), with the model file's full path."""
+    from dataclasses import replace
+
+    from vehicle.app.gallery import check_new_folder
+
+    if sim != "builtin":
+        raise ValueError(f"a gallery shows the built-in simulator's frames: drop it with the {sim} simulator")
+    if not isinstance(pilot, str | Path) or pilot == "expert":
+        raise ValueError("a gallery shows where a model looks: evaluate a model file, not the expert or a part")
+    spec.check()
+    folder = check_new_folder(spec.folder)
+    return replace(spec, folder=str(folder), model=str(Path(pilot).expanduser().resolve()))
 
 
 def _path_overall(results: Sequence[dict[str, Any]]) -> dict[str, Any]:
@@ -348,12 +378,24 @@ def _builtin_episode(driver: Any, seed: int, laps: int, cfg: Any, episode_args: 
     if args.pop("lanes"):
         lane_part = LaneMetrics(1.0 / cfg.DRIVE_LOOP_HZ, cfg.SIM_ROAD_WIDTH / 2,
                                 time_limit=cfg.SIM_EVAL_LANE_CHANGE_TIME_LIMIT, hold=cfg.SIM_EVAL_LANE_CHANGE_HOLD)
-    metrics = run_episode(driver, seed, laps, cfg, **args, on_step=on_step, lanes=lane_part, theme=theme)
+    gallery: GallerySpec | None = args.pop("gallery", None)
+    recorders: list[Any] = []
+    after = None
+    if gallery is not None and driver != "expert":
+        def after(V: Vehicle, sim: SimCar) -> None:
+            recorders.append(attach_recorder(V, sim, cfg, Lent(driver).INPUTS, gallery))
+    metrics = run_episode(driver, seed, laps, cfg, **args, on_step=on_step, lanes=lane_part, theme=theme,
+                          after=after)
     res = metrics.result()
     if lane_part is not None:
         res["lanes"] = lane_part.result()
     if hasattr(driver, "episode_result"):
         res = driver.episode_result(res)
+    if recorders:
+        from vehicle.app.gallery import render_track
+
+        res["_gallery"] = render_track(recorders[0].moments(), gallery,  # type: ignore[arg-type]
+                                       {**res, "randomize": cfg.SIM_RANDOMIZE})
     return res, metrics.autonomous_abs_cte()
 
 
@@ -510,14 +552,16 @@ def _check_change_schedule(cfg: Any) -> None:
 def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float, penalty_s: float,
                 fixed_throttle: float | None = None, extra_inputs: dict[str, Any] | None = None,
                 on_step: Callable[[SimCar], None] | None = None, lanes: LaneMetrics | None = None,
-                theme: str | None = None) -> EpisodeMetrics:
+                theme: str | None = None,
+                after: Callable[[Vehicle, SimCar], None] | None = None) -> EpisodeMetrics:
     """One episode on track ``seed`` (in ``theme``, default the first of SIM_THEME): build the loop,
     run it to the end, return its metrics part (its result names the track's theme and conditions).
 
     ``driver`` is "expert" or a pilot part; a pilot with a ``reset()`` (sequence models) starts the
     episode with no memory of the previous track, so every track is scored on its own. With
     ``lanes`` (a :class:`LaneMetrics`, filled by the episode) the behaviour is stepped at seeded
-    times (SIM_EVAL_LANE_CHANGE_EVERY) and the car starts in the initial behaviour's lane.
+    times (SIM_EVAL_LANE_CHANGE_EVERY) and the car starts in the initial behaviour's lane. ``after``
+    adds parts at the end of the loop (a failure gallery's recorder).
     """
     # image effects stay as configured: a pilot is judged on the images it will get; the expert
     # drives from the map, so its episodes draw no images
@@ -569,6 +613,8 @@ def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float,
         V.add(lanes)
     if hasattr(driver, "add_metrics"):  # a path follower: the distance to its recorded path
         driver.add_metrics(V)
+    if after is not None:
+        after(V, sim)
     V.start(rate_hz=cfg.DRIVE_LOOP_HZ, log_summary=False)
     return metrics
 

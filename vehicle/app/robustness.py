@@ -247,8 +247,8 @@ def theme_summary(results: list[dict[str, Any]], theme: str) -> dict[str, Any]:
         "laps_asked": sum(row["laps_asked"] for row in rows),
         # draws where the car did not drive every lap asked: their autonomy is not a drive's
         "incomplete_draws": sum((row["laps_completed"] or 0) < row["laps_asked"] for row in rows),
-        "worst_draw": {k: w.get(k) for k in ("seed", "precision", "randomize", "score", "autonomy", "completion",
-                                             "laps_completed", "laps_asked", "interventions")},
+        "worst_draw": {k: w.get(k) for k in ("run", "seed", "precision", "randomize", "score", "autonomy",
+                                             "completion", "laps_completed", "laps_asked", "interventions")},
         "worst_seed": {"seed": results[ws]["seed"], "precision": results[ws]["precision"],
                        **{k: by_run[ws]["mean"].get(k) for k in ("score", "autonomy", "completion")}},
         "interventions": {"mean_per_run": _mean(interventions), "max_per_run": max(interventions)},
@@ -327,6 +327,25 @@ def run_table(report: dict[str, Any]) -> list[str]:
     return lines
 
 
+def link_galleries(report: dict[str, Any], out: Path) -> None:
+    """Give each theme's worst draw the path (relative to ``out``) of its failure gallery, which the
+    run's demo wrote (``runs/<run>/eval/gallery/<theme>-draw<N>/index.html``), where it exists."""
+    from vehicle.app.eval_draws import gallery_name
+
+    for theme, s in report["themes"].items():
+        w = s["worst_draw"]
+        page = Path("runs", str(w.get("run")), "eval", "gallery", gallery_name(theme, w["randomize"]), "index.html")
+        w["gallery"] = page.as_posix() if (out / page).is_file() else None
+
+
+def gallery_lines(report: dict[str, Any]) -> list[str]:
+    """Markdown links to the worst draws' galleries (what the pilot saw before it failed)."""
+    links = [f"- {theme}: [{s['worst_draw']['run']}, draw {s['worst_draw']['randomize']}]({s['worst_draw']['gallery']})"
+             for theme, s in report["themes"].items() if s["worst_draw"].get("gallery")]
+    return ["Failure galleries of the worst draws (frames before each intervention, with saliency):", "", *links, ""] \
+        if links else []
+
+
 def format_markdown(report: dict[str, Any]) -> str:
     """``robustness.md``: the conditions, the per-theme table and the per-run table."""
     load = report["load_average"]
@@ -339,7 +358,7 @@ def format_markdown(report: dict[str, Any]) -> str:
              f"tracks {_ints(report['eval_tracks'])}. Score = autonomy x share of the laps driven.", ""]
     if report["failed"]:
         lines += [f"FAILED runs (not in the tables): {', '.join(report['failed'])}", ""]
-    return "\n".join([*lines, *theme_table(report), "", *run_table(report), ""])
+    return "\n".join([*lines, *theme_table(report), "", *gallery_lines(report), *run_table(report), ""])
 
 
 def machine() -> dict[str, Any]:
@@ -371,6 +390,7 @@ def run_protocol(protocol: Protocol) -> int:
         say(f"no run finished: {'; '.join(failed)}")
         return 1
     at_end = machine()
+    link_galleries(report, protocol.out)
     report.update(command=protocol.command_line(), recipe=protocol.recipe, seeds=protocol.seeds,
                   precisions=protocol.precisions, draws=protocol.draws, eval_tracks=results[0]["eval_tracks"],
                   laps=results[0]["laps"], jobs=protocol.jobs, cpu=at_start["cpu"], cores=at_start["cores"],

@@ -31,6 +31,8 @@ class PilotModel(nn.Module):
     image_inputs: ClassVar[tuple[str, ...]] = ("cam/image_array",)
     #: memory keys the model needs beyond its camera frames (e.g. the behaviour one-hot)
     extra_inputs: ClassVar[tuple[str, ...]] = ()
+    #: the input's streams for saliency maps: name -> channel span (start, stop) of a frame
+    input_streams: ClassVar[dict[str, tuple[int | None, int | None]]] = {"camera": (None, None)}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         super().__init__()

@@ -10,7 +10,7 @@ so a tub holds only camera frames and training and driving compute it the same w
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import torch
 from torch import nn
@@ -41,6 +41,8 @@ class _TwoStreams(PilotModel):
 
     #: channels the thesis gives the lane stream (a binary image repeated: GRAY2RGB)
     LANE_CHANNELS = 3
+    #: the raw frame's channels, then the lane image (the last channel)
+    input_streams: ClassVar[dict[str, tuple[int | None, int | None]]] = {"camera": (None, -1), "lanes": (-1, None)}
 
     def _build_streams(self, input_shape: tuple[int, int, int]) -> None:
         dropout = check_option(self.options, "dropout", float, 0.0)

@@ -55,6 +55,10 @@ def test_tiny_protocol_runs_the_demo_per_seed_reports_and_resumes(tmp_path, caps
         assert s["mean"]["score"] <= s["mean"]["autonomy"] and s["speed_vs_expert_pct"] is not None
     md = (out / "robustness.md").read_text()
     assert "| park (unseen) | 2 x 1 |" in md and "| plain-s2-fp32 | 2 | fp32 |" in md
+    for theme in THEMES:  # each theme's worst draw links its failure gallery, which the run wrote
+        w = report["themes"][theme]["worst_draw"]
+        assert w["gallery"] == f"runs/{w['run']}/eval/gallery/{theme}-draw1001/index.html"
+        assert (out / w["gallery"]).is_file() and f"]({w['gallery']})" in md
 
     # again: nothing is redone
     mtimes = {p: p.stat().st_mtime_ns for p in (out / "runs").glob("*/eval/result.json")}
@@ -90,9 +94,9 @@ def test_a_run_whose_car_stood_still_is_the_worst_and_does_not_lift_the_mean():
     report = robustness.aggregate(results)
     park, road = report["themes"]["park"], report["themes"]["road"]
     assert list(report["themes"]) == ["road", "park"] and report["unseen_themes"] == ["park"]
-    assert park["worst_draw"] == {"seed": 2, "precision": "fp32", "randomize": 1001, "score": 0.0,
-                                  "autonomy": 100.0, "completion": 0.0, "laps_completed": 0, "laps_asked": 2,
-                                  "interventions": 0}
+    assert park["worst_draw"] == {"run": "plain-s2-fp32", "seed": 2, "precision": "fp32", "randomize": 1001,
+                                  "score": 0.0, "autonomy": 100.0, "completion": 0.0, "laps_completed": 0,
+                                  "laps_asked": 2, "interventions": 0}
     assert park["worst_seed"]["seed"] == 2 and park["worst_seed"]["score"] == pytest.approx(30.0)
     # the still car's 100 % counts 0 in the score mean: (80 + 70 + 0 + 60 + 90 + 90) / 6
     assert park["mean"]["score"] == pytest.approx(65.0) and park["mean"]["autonomy"] == pytest.approx(81.667)

@@ -61,6 +61,16 @@ def register(subparsers: Any) -> None:
                     help="robustness: drive the tracks in each theme of --theme (default SIM_THEME) under N hidden "
                          "randomisation draws (seeds 1001..1000+N, never used for training) and report per theme "
                          "the mean and the worst draw, beside the expert's speed (docs/simulator.md)")
+    ev.add_argument("--gallery", metavar="DIR",
+                    help="write a failure gallery of a model file into the new folder DIR: the frames before each "
+                         "intervention and worst |CTE| moment with the pilot's and the expert's steering and where "
+                         "the pilot looked (DIR/index.html, DIR/gallery.json; docs/insight.md)")
+    ev.add_argument("--gallery-seconds", type=float, default=2.0, metavar="S", help="seconds shown before each moment")
+    ev.add_argument("--gallery-frames", type=int, default=6, metavar="N", help="frames shown per moment")
+    ev.add_argument("--gallery-worst", type=int, default=3, metavar="N",
+                    help="worst-|CTE| moments per track besides the interventions")
+    ev.add_argument("--gallery-method", choices=["integrated", "smoothgrad", "occlusion"], default="integrated",
+                    help="saliency method of the gallery")
     _world_options(ev)
     ev.set_defaults(func=cmd_eval)
 
@@ -284,11 +294,12 @@ def cmd_eval(args: argparse.Namespace) -> int:
         raise UserError("--scenes names Donkey simulator scenes: use it with --sim donkey")
     if args.sim == "udacity" and args.tracks:
         raise UserError("--tracks: the Udacity simulator drives the track it shows (choose it in its menu)")
+    gallery = _gallery_spec(args, path_driver)
     if args.draws is not None:
         if path_driver is not None:
             raise UserError("--draws compares pilots under hidden draws; a path is followed in the track's own "
                             "look: drop --path or --draws")
-        return _eval_draws(args, cfg, seeds, laps, workers)
+        return _eval_draws(args, cfg, seeds, laps, workers, gallery)
     scenes = None
     if args.sim == "donkey":
         scenes = [x.strip() for x in args.scenes.split(",") if x.strip()] if args.scenes else (
@@ -296,12 +307,14 @@ def cmd_eval(args: argparse.Namespace) -> int:
     try:
         report = evaluate(args.pilot, seeds, laps, cfg=cfg, max_time=args.max_time,
                           fixed_throttle=args.throttle, sim=args.sim, scenes=scenes,
-                          lane_changes=args.lane_changes, workers=workers)
+                          lane_changes=args.lane_changes, workers=workers, gallery=gallery)
     except (ValueError, FileNotFoundError) as exc:
         raise UserError(str(exc)) from exc
     except PartError as exc:  # e.g. a model made for another image size: the loop stopped safely
         raise UserError(f"evaluation stopped: {exc}") from exc
     print(format_table(report))  # noqa: T201 - CLI output
+    if gallery is not None:
+        print(f"gallery: {report['gallery']}")  # noqa: T201
     if path_driver is not None:
         path_report = _eval_path(args, cfg, seeds, laps, path_driver, quiet=True)
         from parts.sim.eval_report import format_comparison
@@ -311,7 +324,30 @@ def cmd_eval(args: argparse.Namespace) -> int:
     return 0
 
 
-def _eval_draws(args: argparse.Namespace, cfg: Any, seeds: list[int], laps: int, workers: int) -> int:
+def _gallery_spec(args: argparse.Namespace, path_driver: Any) -> Any:
+    """--gallery*, checked before any work (UserError, one line): a model file, the built-in
+    simulator, a folder that does not exist yet."""
+    if args.gallery is None:
+        return None
+    from vehicle.app.failure_moments import GallerySpec
+    from vehicle.app.gallery import check_new_folder
+
+    if args.pilot in (None, "expert") or path_driver is not None:
+        raise UserError("--gallery shows where a model looks: give --pilot a model file (and no --path)")
+    if args.sim != "builtin":
+        raise UserError(f"--gallery shows the built-in simulator's frames: drop it with --sim {args.sim}")
+    spec = GallerySpec(args.gallery, args.pilot, window_s=args.gallery_seconds, frames=args.gallery_frames,
+                       worst=args.gallery_worst, method=args.gallery_method)
+    try:
+        spec.check()
+        check_new_folder(args.gallery)
+    except ValueError as exc:
+        raise UserError(f"--gallery: {exc}") from exc
+    return spec
+
+
+def _eval_draws(args: argparse.Namespace, cfg: Any, seeds: list[int], laps: int, workers: int,
+                gallery: Any = None) -> int:
     """``vehicle sim eval --draws N``: every theme under N hidden draws, mean and worst per theme."""
     from parts.sim.themes import theme_list
     from vehicle.app.eval_draws import evaluate_draws, format_draws_table, hidden_draws
@@ -321,12 +357,14 @@ def _eval_draws(args: argparse.Namespace, cfg: Any, seeds: list[int], laps: int,
     try:
         draws = hidden_draws(args.draws, cfg.SIM_RANDOMIZE)
         report = evaluate_draws(args.pilot, seeds, laps, cfg=cfg, draws=draws, themes=theme_list(cfg.SIM_THEME),
-                                workers=workers, max_time=args.max_time)
+                                workers=workers, max_time=args.max_time, gallery=gallery)
     except (ValueError, FileNotFoundError) as exc:
         raise UserError(str(exc)) from exc
     except PartError as exc:
         raise UserError(f"evaluation stopped: {exc}") from exc
     print(format_draws_table(report))  # noqa: T201 - CLI output
+    if gallery is not None:
+        print(f"galleries: {report['gallery']}")  # noqa: T201
     _write_and_store(args, cfg, report)
     return 0
 

@@ -70,6 +70,12 @@ def register(subparsers: Any) -> None:
     p.add_argument("--end", type=int, default=None)
     p.add_argument("--fps", type=float, default=20.0)
     p.add_argument("--scale", type=int, default=2, help="integer upscale of the frames")
+    p.add_argument("--model", default=None, metavar="MODEL",
+                   help="a pilot model file: its steering is drawn as an orange bar above the recorded (green) one")
+    p.add_argument("--salient", nargs="?", const="integrated", default=None, metavar="METHOD",
+                   choices=("integrated", "smoothgrad", "occlusion"),
+                   help="with --model: overlay where the model looks for its steering (default method: integrated; "
+                        "smoothgrad or occlusion; docs/insight.md)")
     p.set_defaults(func=cmd_movie)
 
     p = sub.add_parser("import-udacity", help="import a Udacity simulator recording (driving_log.csv)")
@@ -262,13 +268,28 @@ def cmd_movie(args: argparse.Namespace) -> int:
 
     tub = Path(args.tub)
     out = Path(args.out) if args.out else tub.with_name(f"{tub.name}.mp4")
+    if args.salient and not args.model:
+        raise UserError("--salient shows where a model looks: give the model with --model MODEL")
     try:
+        view = _salient_view(args.model, args.salient) if args.model else None
         path, frames = write_movie(tub, out, start=args.start, end=args.end, fps=args.fps,
-                                   scale=args.scale, progress=_tty())
+                                   scale=args.scale, progress=_tty(), view=view)
     except _errors() as exc:
         raise _user_error(exc) from exc
     _out(f"wrote {path} ({frames} frames)")
     return 0
+
+
+def _salient_view(model: str, method: str | None) -> Any:
+    """The movie's view of ``model`` (ValueError, one line, for a file that is no model)."""
+    from parts.pilots.errors import ModelFileError
+    from parts.pilots.saliency import Explainer
+    from parts.pilots.salient_view import SalientView
+
+    try:
+        return SalientView(Explainer.from_file(model), method)
+    except ModelFileError as exc:
+        raise ValueError(f"--model: {exc}") from exc
 
 
 def cmd_import_udacity(args: argparse.Namespace) -> int:

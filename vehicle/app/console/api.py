@@ -104,6 +104,7 @@ class Api:
             ("POST", "/api/datasets/{id}/records", self.mark_records),
             ("GET", "/api/datasets/{id}/records/{index}", self.get_record),
             ("GET", "/api/datasets/{id}/images/{index}", self.get_image),
+            ("GET", "/api/datasets/{id}/movie", self.dataset_movie),
             ("GET", "/api/augment-preview", self.augment_preview),
             ("POST", "/api/train/validate", self.validate_training),
             ("POST", "/api/jobs/train", self.submit_training),
@@ -117,7 +118,11 @@ class Api:
             ("DELETE", "/api/models/{name}", self.delete_model),
             ("POST", "/api/models/{name}/export", self.export_model),
             ("GET", "/api/models/{name}/file", self.model_file),
+            ("GET", "/api/models/{name}/saliency", self.model_saliency),
+            ("GET", "/api/models/{name}/saliency/{file}", self.model_saliency_file),
             ("GET", "/api/evaluations/{id}/picture", self.evaluation_picture),
+            ("GET", "/api/evaluations/{id}/gallery", self.evaluation_gallery),
+            ("GET", "/api/evaluations/{id}/gallery/{path:.+}", self.evaluation_gallery_file),
             ("DELETE", "/api/evaluations/{id}", self.delete_evaluation),
             ("GET", "/api/leaderboard", self.leaderboard),
         ]
@@ -519,6 +524,62 @@ class Api:
         if not png:
             raise ApiError(404, "this evaluation has no picture")
         return web.Response(body=png, headers={"Content-Type": "image/png", "Cache-Control": "private, max-age=3600"})
+
+    # -- insight: galleries, saliency, movies (vehicle/app/console/insight.py) ----------------------------
+    @staticmethod
+    def _file(path: Path) -> Any:
+        from aiohttp import web
+
+        from vehicle.app.console.insight import CONTENT_TYPES
+
+        return web.FileResponse(path, headers={"Content-Type": CONTENT_TYPES[path.suffix],
+                                               "Cache-Control": "private, max-age=60"})
+
+    async def evaluation_gallery(self, request: Any) -> Any:
+        from vehicle.app.console.insight import gallery_data
+
+        eid = _int(request.match_info["id"], "evaluation id")
+        return json_response(finite(await self._run(gallery_data, self.registry, eid)))
+
+    async def evaluation_gallery_file(self, request: Any) -> Any:
+        from vehicle.app.console.insight import gallery_file
+
+        eid = _int(request.match_info["id"], "evaluation id")
+        return self._file(await self._run(gallery_file, self.registry, eid, request.match_info["path"]))
+
+    async def dataset_movie(self, request: Any) -> Any:
+        from vehicle.app.console.insight import dataset_movie
+
+        entry = await self._run(self.store.get, _int(request.match_info["id"], "dataset id"))
+        return self._file(await self._run(dataset_movie, self.app.cfg, Path(entry.path), entry.id))
+
+    async def model_saliency(self, request: Any) -> Any:
+        """Saliency samples of a model on its datasets, computed by a worker process (torch stays out
+        of the web server) once per model file."""
+        from vehicle.app.console.insight import saliency_folder
+
+        entry = await self._run(self.registry.get, request.match_info["name"])
+        if not entry.exists:
+            raise ApiError(409, f"{entry.name}'s file {entry.path} is missing")
+        proc = await asyncio.create_subprocess_exec(
+            sys.executable, "-m", "vehicle.app.console.worker", "saliency", "--car", str(self.app.cfg.CAR_PATH),
+            entry.name, str(saliency_folder(self.app.cfg, entry.name)), stdout=asyncio.subprocess.PIPE,
+            stderr=asyncio.subprocess.PIPE, cwd=str(self.app.cfg.CAR_PATH))
+        out, err = await proc.communicate()
+        try:
+            answer = json.loads(out.decode().strip().splitlines()[-1])
+        except (ValueError, IndexError):
+            answer = {"error": (err.decode(errors="replace").strip().splitlines() or ["saliency failed"])[-1]}
+        if proc.returncode != 0 or "error" in answer:
+            raise ApiError(400, f"no saliency for {entry.name}: {answer.get('error')}")
+        answer["base"] = f"api/models/{entry.name}/saliency/"
+        return json_response(finite(answer))
+
+    async def model_saliency_file(self, request: Any) -> Any:
+        from vehicle.app.console.insight import saliency_file
+
+        name = check_model_name(request.match_info["name"])
+        return self._file(await self._run(saliency_file, self.app.cfg, name, request.match_info["file"]))
 
     async def delete_evaluation(self, request: Any) -> Any:
         await self._run(self.registry.remove_evaluation, _int(request.match_info["id"], "evaluation id"))

@@ -3,6 +3,7 @@
     python -m vehicle.app.console.worker run JOB.json     # a queued job (train | evaluate)
     python -m vehicle.app.console.worker describe         # the registered model types, as JSON
     python -m vehicle.app.console.worker export --car DIR NAME onnx|torchscript
+    python -m vehicle.app.console.worker saliency --car DIR NAME OUT   # saliency samples, as JSON
 
 ``run`` writes one JSON event per line on its standard output (progress, epochs, log records,
 the result, then ``{"event": "end", "status": ...}``); anything else a library prints goes to
@@ -217,6 +218,13 @@ def run_evaluate(job: dict[str, Any], events: Events, watcher: StopWatcher) -> d
     kwargs: dict[str, Any] = {"cfg": cfg}
     if "on_step" in inspect.signature(evaluate).parameters:
         kwargs["on_step"] = on_step
+    if params.get("gallery", True):  # the failures, shown on the evaluation's card
+        from vehicle.app.console.insight import insight_dir
+        from vehicle.app.failure_moments import GallerySpec
+
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        folder = insight_dir(cfg, "galleries") / f"{entry.name}-{stamp}-{os.getpid()}"
+        kwargs["gallery"] = GallerySpec(str(folder), str(entry.path))
     events.emit({"event": "phase", "phase": "evaluating"})
     watcher.interruptible = True
     report = evaluate(str(entry.path), tracks, laps, **kwargs)
@@ -356,6 +364,18 @@ def _export(car: str, name: str, fmt: str) -> int:
     return 0
 
 
+def _saliency(car: str, name: str, out: Path) -> int:
+    from training.model_db import ModelRegistry
+    from vehicle.app.model_insight import saliency_samples
+    from vehicle.config import load_config
+
+    cfg = load_config(car_path=car)
+    entry = ModelRegistry.for_models_dir(cfg.path("MODELS_PATH")).get(name)
+    data = saliency_samples(entry.path, list(entry.datasets), out)
+    print(json.dumps(data))  # noqa: T201 - the answer
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``python -m vehicle.app.console.worker``."""
     parser = argparse.ArgumentParser(prog="python -m vehicle.app.console.worker", description=__doc__,
@@ -368,6 +388,10 @@ def main(argv: list[str] | None = None) -> int:
     exp.add_argument("--car", required=True)
     exp.add_argument("name")
     exp.add_argument("format", choices=("onnx", "torchscript"))
+    sal = sub.add_parser("saliency")
+    sal.add_argument("--car", required=True)
+    sal.add_argument("name")
+    sal.add_argument("out", type=Path)
     args = parser.parse_args(argv)
     if args.command == "run":
         return _run(args.job)
@@ -375,6 +399,8 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps({"model_types": describe_model_types()}))  # noqa: T201 - the answer
         return 0
     try:
+        if args.command == "saliency":
+            return _saliency(args.car, args.name, args.out)
         return _export(args.car, args.name, args.format)
     except Exception as exc:  # noqa: BLE001 - the console shows the message
         print(json.dumps({"error": str(exc)}))  # noqa: T201

@@ -441,6 +441,25 @@ async function pageEditDataset(id) {
   show(h("h1", {}, `Edit dataset ${d.name}`), form);
 }
 
+/** A tub's movie (WebM, made on the console's side the first time, kept while the tub is unchanged). */
+function movieCard(d) {
+  const slot = h("div", { class: "movie" });
+  const button = h("button", { type: "button", id: "play-movie", onclick: () => {
+    button.disabled = true; button.textContent = "Making the movie…";
+    const video = h("video", { controls: true, autoplay: true, muted: true, playsinline: true, src: `api/datasets/${d.id}/movie` });
+    video.addEventListener("loadeddata", () => { button.hidden = true; });
+    video.addEventListener("error", async () => {
+      let msg = "the movie cannot be played";
+      try { await api("GET", `api/datasets/${d.id}/movie`); } catch (e) { msg = e.message; }
+      slot.replaceChildren(h("p", { class: "err" }, msg)); button.hidden = true;
+    });
+    slot.replaceChildren(video);
+  } }, "Play the movie");
+  return h("div", { class: "card" }, h("h2", {}, "Movie"),
+    h("p", { class: "muted small" }, "The frames with the recorded steering (green) and throttle; `vehicle tub movie --model M --salient` adds where a model looks."),
+    button, slot);
+}
+
 async function pageDataset(id) {
   const [d, series] = await Promise.all([api("GET", `api/datasets/${id}`), api("GET", `api/datasets/${id}/series`).catch(() => null)]);
   const st = d.stats || {};
@@ -492,7 +511,8 @@ async function pageDataset(id) {
       chartEl, form),
     h("div", { class: "grid2" },
       h("div", { class: "card" }, h("h2", {}, "Frame"), h("div", { class: "frame-view" }, img, frameInfo)),
-      h("div", { class: "card" }, h("h2", {}, "Steering histogram"), histEl)));
+      h("div", { class: "card" }, h("h2", {}, "Steering histogram"), histEl)),
+    st.records ? movieCard(d) : null);
   if (st.histogram) histogramChart(histEl, st.histogram, false);
   if (series && series.index.length) {
     const del = series.deleted.map(x => (x ? 1 : null));
@@ -880,7 +900,8 @@ async function deleteModel(m) {
   go("#/models");
 }
 
-function evaluationCard(ev) {
+function evaluationCard(ev, i = 0) {
+  const open = i === 0;
   const o = ev.overall || {};
   return h("div", { class: "card evaluation", "data-evaluation": ev.id },
     h("div", { class: "spread" }, h("h3", {}, `Tracks ${ev.tracks.join(", ")} · ${fmt.n(ev.laps, "lap")}`), h("span", { class: "muted small" }, fmt.when(ev.created))),
@@ -889,7 +910,62 @@ function evaluationCard(ev) {
       .map(([k, v]) => h("div", { class: "stat" }, h("b", {}, v), h("span", {}, k)))),
     ev.per_track && ev.per_track.length ? h("div", { class: "table-wrap", style: "margin-top:.6rem" }, h("table", {}, h("thead", {}, h("tr", {}, ["track", "autonomy", "laps", "mean |CTE|", "speed", "off-track"].map(t => h("th", {}, t)))),
       h("tbody", {}, ev.per_track.map(t => h("tr", {}, h("td", {}, t.seed), h("td", {}, fmt.pct(t.autonomy)), h("td", {}, t.laps_completed), h("td", {}, fmt.num(t.mean_abs_cte, 3)), h("td", {}, fmt.num(t.mean_speed, 2)), h("td", {}, t.interventions)))))) : null,
-    ev.has_picture ? h("img", { class: "eval-pic", src: `api/evaluations/${ev.id}/picture`, alt: "driven trajectories", loading: "lazy" }) : null);
+    ev.has_picture ? h("img", { class: "eval-pic", src: `api/evaluations/${ev.id}/picture`, alt: "driven trajectories", loading: "lazy" }) : null,
+    ev.settings && ev.settings.gallery ? galleryBox(ev, open) : null);
+}
+
+/** An evaluation's failure gallery: the frames before each intervention and worst-|CTE| moment,
+    with the pilot's (orange) and the expert's (blue) steering and where the pilot looked. */
+function galleryBox(ev, open) {
+  const body = h("div", { class: "gallery-body" }, h("p", { class: "muted" }, "Loading…"));
+  const box = h("details", { class: "gallery", "data-gallery": ev.id, open },
+    h("summary", {}, "Failure gallery ", h("a", { href: `api/evaluations/${ev.id}/gallery/index.html`, target: "_blank", rel: "noopener" }, "(open as a page)")), body);
+  let loaded = false;
+  const load = async () => {
+    if (loaded || !box.open) return;
+    loaded = true;
+    try { body.replaceChildren(...nodes([galleryView(await api("GET", `api/evaluations/${ev.id}/gallery`))])); }
+    catch (e) { body.replaceChildren(h("p", { class: "err" }, e.message)); }
+  };
+  box.addEventListener("toggle", load);
+  if (open) load();
+  return box;
+}
+
+function steerBar(v, cls) {
+  if (v === null || v === undefined) return null;
+  const x = Math.max(-1, Math.min(1, v));
+  return h("span", { class: cls, style: x < 0 ? `left:${50 + 50 * x}%;width:${-50 * x}%` : `left:50%;width:${50 * x}%` });
+}
+
+function galleryView(g) {
+  const moments = g.tracks.flatMap(t => t.moments.map(m => ({ t, m })));
+  if (!moments.length) return h("p", { class: "muted" }, "Nothing to show: no intervention and no worst-|CTE| moment.");
+  const sign = v => (v === null || v === undefined ? "–" : (v >= 0 ? "+" : "") + v.toFixed(2));
+  return moments.map(({ t, m }) => h("div", { class: `moment kind-${m.kind}` },
+    h("h4", {}, `${m.kind === "intervention" ? "Intervention" : "Worst |CTE|"} ${m.number} · track ${t.seed} · ${t.theme} · draw ${t.randomize ?? "–"} · ${m.time_s} s · cte ${sign(m.cte)} m`),
+    h("div", { class: "frames" }, m.frames.map(f => h("figure", {},
+      h("img", { src: g.base + (Object.values(f.saliency)[0] || f.image), alt: `saliency ${f.t} s`, loading: "lazy" }),
+      h("div", { class: "bar" }, steerBar(f.pilot.angle, "pilot"), steerBar(f.expert.angle, "expert")),
+      h("figcaption", {}, `${sign(f.t)} s · pilot ${sign(f.pilot.angle)} · expert ${sign(f.expert.angle)}`))))));
+}
+
+/** Saliency of a model on a few frames of its datasets (made by a worker process, then kept). */
+function saliencyCard(m) {
+  const body = h("div", { id: "saliency" }, h("p", { class: "muted" }, "Computing where the model looks…"));
+  (async () => {
+    try {
+      const s = await api("GET", `api/models/${encodeURIComponent(m.name)}/saliency`);
+      const sign = v => (v === null || v === undefined ? "–" : (v >= 0 ? "+" : "") + (+v).toFixed(2));
+      body.replaceChildren(h("div", { class: "saliency-grid" }, s.samples.map(x => h("figure", { class: "sample" },
+        h("div", { class: "pics" }, h("img", { src: s.base + x.image, alt: "frame" }),
+          ...Object.entries(x.steering).map(([k, f]) => h("img", { src: s.base + f, alt: `steering saliency (${k})` })),
+          ...Object.entries(x.throttle).map(([k, f]) => h("img", { src: s.base + f, alt: `throttle saliency (${k})` }))),
+        h("figcaption", {}, `${x.tub} #${x.index} · steering ${sign(x.prediction.angle)} (recorded ${sign(x.recorded.angle)}) · throttle ${sign(x.prediction.throttle)} (recorded ${sign(x.recorded.throttle)})`)))));
+    } catch (e) { body.replaceChildren(h("p", { class: "err" }, e.message)); }
+  })();
+  return h("div", { class: "card" }, h("h2", {}, "Where it looks"),
+    h("p", { class: "muted small" }, "Frames of its datasets; then the saliency of its steering and of its throttle (integrated gradients: brighter = more of the decision)."), body);
 }
 
 async function pageEditModel(name) {
@@ -942,7 +1018,8 @@ async function pageEditModel(name) {
         h("details", {}, h("summary", {}, "All training parameters"), h("pre", { class: "small mono", style: "white-space:pre-wrap" }, JSON.stringify(p, null, 1))))),
     h("div", { class: "card" }, h("h2", {}, "Training curves"), m.metrics.train_loss ? curves : h("p", { class: "muted" }, "No curves stored.")),
     h("div", { class: "card" }, h("h2", {}, "Evaluate"), h("p", { class: "muted small" }, "Drives the model in the built-in simulator on the chosen tracks (use tracks it was not trained on) in a worker process; the result is stored in the registry and ranked on the leaderboard."), evalForm),
-    h("h2", {}, "Evaluations"), m.evaluations.length ? m.evaluations.map(evaluationCard) : h("p", { class: "muted", id: "no-evaluations" }, "Not evaluated yet."));
+    m.exists ? saliencyCard(m) : null,
+    h("h2", {}, "Evaluations"), m.evaluations.length ? m.evaluations.map((ev, i) => evaluationCard(ev, i)) : h("p", { class: "muted", id: "no-evaluations" }, "Not evaluated yet."));
   if (m.metrics.train_loss) {
     const epochs = m.metrics.train_loss.map((l, i) => ({ epoch: i + 1, train_loss: l, val_loss: (m.metrics.val_loss || [])[i] }));
     const u = lossChart(curves, epochs, 220); cleanup.push(() => u._ro.disconnect());
