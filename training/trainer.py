@@ -311,34 +311,9 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
     clean = False
     try:
         torch.manual_seed(cfg.TRAIN_SEED)
-        old_meta: dict[str, Any] | None = None
-        if transfer is not None:
-            model, old_meta = load_model(transfer)
-            old_type = old_meta["model"]["type"]
-            if model_type_name is not None and model_type_name != old_type:
-                raise ValueError(f"--transfer {transfer} is a {old_type!r} model but --type {model_type_name} "
-                                 "was asked; leave out --type or transfer from a model of that type")
-            model_type_name = old_type
-        type_name = model_type_name or cfg.DEFAULT_MODEL_TYPE
-        model_type(type_name)  # unknown types fail before reading any data
         phase("reading")
+        model, preprocess, type_name, data, old_meta, cfg = _build_model(cfg, tubs, transfer, model_type_name, recipe)
         speed_scale = cfg.TRAIN_SPEED_SCALE if cfg.TRAIN_THROTTLE_LABEL == "speed" else None
-        data = read_drive_data(tubs, modes=cfg.TRAIN_MODES, record_filter=cfg.TRAIN_FILTER, speed_scale=speed_scale)
-        if len(model_type(type_name).image_inputs) > 1:  # three_camera: every record needs every view
-            require_views(type_name, model_type(type_name).image_inputs, data.records)
-        image_shape = tuple(int(v) for v in data.records[0].image(IMAGE_KEY).shape)
-        if recipe is not None:
-            recipe.check_frames(image_shape)
-            cfg = _recipe_side_cameras(cfg, recipe, data)
-        if old_meta is not None:
-            preprocess = Preprocess.from_dict(old_meta["preprocess"])
-            if preprocess.image_shape is not None and preprocess.image_shape != image_shape:
-                raise ValueError(f"--transfer model was trained on {preprocess.image_shape} frames, these tubs "
-                                 f"hold {image_shape} frames")
-        else:
-            preprocess = preprocess_from_config(cfg, type_name, image_shape)
-            model = create_model(type_name, preprocess.output_shape(image_shape),
-                                 **model_options(cfg, type_name, data))
         phase("preparing")
         # a transferred behaviour model keeps the order of its one-hot inputs
         order = (old_meta.get("training") or {}).get("behaviors") if old_meta is not None else None
@@ -351,38 +326,19 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
         apply_layout(model, plan)
         n_params = sum(p.numel() for p in model.parameters())
         if dist_info.is_main:
-            logger.info("training %s model (%d parameters) on %s: %d training / %d validation samples",
-                        type_name, n_params, dev, prep.info["train_samples"], prep.info["val_samples"])
-            logger.info("training plan on %s: %s", _device_name(dev), plan.describe())
-            if cfg.PRINT_MODEL_SUMMARY:
-                logger.info("%s", model)
+            _log_start(model, type_name, n_params, dev, prep.info, plan, cfg.PRINT_MODEL_SUMMARY)
         train_model: torch.nn.Module = model
         if dist_info.enabled:
             ids = [dev.index] if dev.type == "cuda" else None
             train_model = torch.nn.parallel.DistributedDataParallel(model, device_ids=ids)
         train_loader, val_loader = _loaders(prep, batch_size, workers, dist_info, plan, cfg.TRAIN_SEED)
         training = {"epochs": epochs, "batch_size": batch_size, "learning_rate": learning_rate,
-                    "weight_decay": cfg.TRAIN_WEIGHT_DECAY, "early_stop_patience":
-                    cfg.EARLY_STOP_PATIENCE if cfg.USE_EARLY_STOP else None, "min_delta": cfg.MIN_DELTA,
-                    "train_test_split": cfg.TRAIN_TEST_SPLIT, "split_by": cfg.TRAIN_SPLIT_BY,
-                    "flip_copy": cfg.TRAIN_FLIP_COPY,
-                    # the throttle output is a target speed of speed_scale m/s per unit (the Pilot drives to it)
-                    **({"throttle_label": "speed", "speed_scale": speed_scale} if speed_scale else {}),
-                    "split_block": cfg.TRAIN_SPLIT_BLOCK, "seed": cfg.TRAIN_SEED, "modes": list(cfg.TRAIN_MODES),
-                    "filter": getattr(cfg.TRAIN_FILTER, "__name__", None) if cfg.TRAIN_FILTER else None,
-                    "balance": {"bins": cfg.TRAIN_BALANCE_BINS, "max_per_bin": cfg.TRAIN_BALANCE_MAX_PER_BIN}
-                    if cfg.TRAIN_BALANCE else None,
-                    "steps_per_epoch": cfg.TRAIN_STEPS_PER_EPOCH, "val_steps": cfg.TRAIN_VAL_STEPS,
-                    "lr_schedule": cfg.TRAIN_LR_SCHEDULE, "warmup": cfg.TRAIN_WARMUP
-                    if cfg.TRAIN_LR_SCHEDULE != "constant" else None,
-                    "recipe": recipe.name if recipe is not None else None,
-                    "model_options": dict(cfg.MODEL_OPTIONS),
-                    "device": str(dev), **plan.to_dict(), "world_size": dist_info.world_size, "parameters": n_params,
+                    **_training_record(cfg, speed_scale, recipe), "device": str(dev), **plan.to_dict(),
+                    "world_size": dist_info.world_size, "parameters": n_params,
                     **{k: v for k, v in prep.info.items() if k not in ("records",)}}
         # the frames it learns from: undistorted (CAMERA_UNDISTORT) or not; the car must match
         base_meta = {"type": type_name, "preprocess": preprocess.to_dict(), "training": training,
-                     "camera": camera_meta(cfg),
-                     "datasets": data.tubs, "transfer": str(transfer) if transfer else None,
+                     "camera": camera_meta(cfg), "datasets": data.tubs, "transfer": str(transfer) if transfer else None,
                      "comment": comment, "created": datetime.now(UTC).isoformat(timespec="seconds")}
 
         # A model the user already has is replaced only by a finished run: until then the best so
@@ -396,17 +352,12 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
             if dist_info.is_main:
                 save_model(best_path, model, {**base_meta, "metrics": _metrics(history, prep, started)})
 
-        settings = FitSettings(epochs=epochs, learning_rate=learning_rate, weight_decay=cfg.TRAIN_WEIGHT_DECAY,
-                               patience=cfg.EARLY_STOP_PATIENCE if cfg.USE_EARLY_STOP else None,
-                               min_delta=cfg.MIN_DELTA, progress=progress,
-                               steps_per_epoch=cfg.TRAIN_STEPS_PER_EPOCH, val_steps=cfg.TRAIN_VAL_STEPS,
-                               lr_schedule=cfg.TRAIN_LR_SCHEDULE, warmup=cfg.TRAIN_WARMUP)
+        settings = _fit_settings(cfg, epochs, learning_rate, progress)
         if on_event is not None and dist_info.is_main:
             on_event({"event": "start", "type": type_name, "parameters": n_params, "device": str(dev),
                       "records": len(data), "train_samples": prep.info["train_samples"],
                       "val_samples": prep.info["val_samples"], "epochs": epochs, "batch_size": batch_size,
-                      "batches": cfg.TRAIN_STEPS_PER_EPOCH or len(train_loader),
-                      "model": str(model_path)})
+                      "batches": cfg.TRAIN_STEPS_PER_EPOCH or len(train_loader), "model": str(model_path)})
             phase("training")
         sink = on_event
         if dist_info.is_main and not (progress if progress is not None else _tty()):
@@ -418,11 +369,7 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
         clean = True
         metrics = _metrics(history, prep, started)
         metrics["epochs_planned"] = epochs
-        final = best_path
-        if had_model and not history.cancelled and best_path.exists():  # finished with a model: it replaces
-            final = model_path
-            if dist_info.is_main:
-                os.replace(best_path, model_path)
+        final = _keep_or_replace(model_path, best_path, had_model, history.cancelled, dist_info.is_main)
         metrics["model_file"] = str(final)
         metrics["kept_model"] = str(model_path) if final != model_path else None
         if dist_info.is_main:
@@ -430,6 +377,88 @@ def train(cfg: Any, tubs: Sequence[str | os.PathLike[str]], model_path: str | os
         return metrics
     finally:
         shutdown_distributed(clean=clean)
+
+
+def _build_model(cfg: Any, tubs: Sequence[str | os.PathLike[str]], transfer: str | os.PathLike[str] | None,
+                 model_type_name: str | None, recipe: Recipe | None) -> tuple[Any, Preprocess, str, Any,
+                                                                            dict[str, Any] | None, Any]:
+    """Read the tubs and make the model to train: a new one of the asked type, or the ``transfer``
+    model (its type and preprocessing kept). Returns (model, preprocess, type name, data, the
+    transferred model's metadata or None, cfg with the recipe's side-camera settings)."""
+    old_meta: dict[str, Any] | None = None
+    if transfer is not None:
+        model, old_meta = load_model(transfer)
+        old_type = old_meta["model"]["type"]
+        if model_type_name is not None and model_type_name != old_type:
+            raise ValueError(f"--transfer {transfer} is a {old_type!r} model but --type {model_type_name} "
+                             "was asked; leave out --type or transfer from a model of that type")
+        model_type_name = old_type
+    type_name = model_type_name or cfg.DEFAULT_MODEL_TYPE
+    model_type(type_name)  # unknown types fail before reading any data
+    speed_scale = cfg.TRAIN_SPEED_SCALE if cfg.TRAIN_THROTTLE_LABEL == "speed" else None
+    data = read_drive_data(tubs, modes=cfg.TRAIN_MODES, record_filter=cfg.TRAIN_FILTER, speed_scale=speed_scale)
+    if len(model_type(type_name).image_inputs) > 1:  # three_camera: every record needs every view
+        require_views(type_name, model_type(type_name).image_inputs, data.records)
+    image_shape = tuple(int(v) for v in data.records[0].image(IMAGE_KEY).shape)
+    if recipe is not None:
+        recipe.check_frames(image_shape)
+        cfg = _recipe_side_cameras(cfg, recipe, data)
+    if old_meta is not None:
+        preprocess = Preprocess.from_dict(old_meta["preprocess"])
+        if preprocess.image_shape is not None and preprocess.image_shape != image_shape:
+            raise ValueError(f"--transfer model was trained on {preprocess.image_shape} frames, these tubs "
+                             f"hold {image_shape} frames")
+    else:
+        preprocess = preprocess_from_config(cfg, type_name, image_shape)
+        model = create_model(type_name, preprocess.output_shape(image_shape), **model_options(cfg, type_name, data))
+    return model, preprocess, type_name, data, old_meta, cfg
+
+
+def _training_record(cfg: Any, speed_scale: float | None, recipe: Recipe | None) -> dict[str, Any]:
+    """The settings a training ran with, as its model file records them (beside epochs, batch
+    size, learning rate, device, plan and data counts)."""
+    return {"weight_decay": cfg.TRAIN_WEIGHT_DECAY,
+            "early_stop_patience": cfg.EARLY_STOP_PATIENCE if cfg.USE_EARLY_STOP else None,
+            "min_delta": cfg.MIN_DELTA, "train_test_split": cfg.TRAIN_TEST_SPLIT, "split_by": cfg.TRAIN_SPLIT_BY,
+            "flip_copy": cfg.TRAIN_FLIP_COPY,
+            # the throttle output is a target speed of speed_scale m/s per unit (the Pilot drives to it)
+            **({"throttle_label": "speed", "speed_scale": speed_scale} if speed_scale else {}),
+            "split_block": cfg.TRAIN_SPLIT_BLOCK, "seed": cfg.TRAIN_SEED, "modes": list(cfg.TRAIN_MODES),
+            "filter": getattr(cfg.TRAIN_FILTER, "__name__", None) if cfg.TRAIN_FILTER else None,
+            "balance": {"bins": cfg.TRAIN_BALANCE_BINS, "max_per_bin": cfg.TRAIN_BALANCE_MAX_PER_BIN}
+            if cfg.TRAIN_BALANCE else None,
+            "steps_per_epoch": cfg.TRAIN_STEPS_PER_EPOCH, "val_steps": cfg.TRAIN_VAL_STEPS,
+            "lr_schedule": cfg.TRAIN_LR_SCHEDULE,
+            "warmup": cfg.TRAIN_WARMUP if cfg.TRAIN_LR_SCHEDULE != "constant" else None,
+            "recipe": recipe.name if recipe is not None else None, "model_options": dict(cfg.MODEL_OPTIONS)}
+
+
+def _keep_or_replace(model_path: Path, best_path: Path, had_model: bool, cancelled: bool, is_main: bool) -> Path:
+    """Where the run's model is: a finished run's best replaces the user's model; a stopped one
+    stays beside it (the user's model is never lost to an unfinished run)."""
+    if had_model and not cancelled and best_path.exists():
+        if is_main:
+            os.replace(best_path, model_path)
+        return model_path
+    return best_path
+
+
+def _log_start(model: Any, type_name: str, n_params: int, dev: torch.device, info: dict[str, Any], plan: TrainPlan,
+               summary: bool) -> None:
+    """The training's first log lines: model, data, device and plan (PRINT_MODEL_SUMMARY: the layers)."""
+    logger.info("training %s model (%d parameters) on %s: %d training / %d validation samples",
+                type_name, n_params, dev, info["train_samples"], info["val_samples"])
+    logger.info("training plan on %s: %s", _device_name(dev), plan.describe())
+    if summary:
+        logger.info("%s", model)
+
+
+def _fit_settings(cfg: Any, epochs: int, learning_rate: float, progress: bool | None) -> FitSettings:
+    """The optimiser and stopping settings of the car's configuration."""
+    return FitSettings(epochs=epochs, learning_rate=learning_rate, weight_decay=cfg.TRAIN_WEIGHT_DECAY,
+                       patience=cfg.EARLY_STOP_PATIENCE if cfg.USE_EARLY_STOP else None,
+                       min_delta=cfg.MIN_DELTA, progress=progress, steps_per_epoch=cfg.TRAIN_STEPS_PER_EPOCH,
+                       val_steps=cfg.TRAIN_VAL_STEPS, lr_schedule=cfg.TRAIN_LR_SCHEDULE, warmup=cfg.TRAIN_WARMUP)
 
 
 def _device_name(dev: torch.device) -> str:
