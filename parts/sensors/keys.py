@@ -47,4 +47,6 @@ KEYS: dict[str, KeyInfo] = {
     "lidar/ok": KeyInfo("bool", "False while the LiDAR has not completed a turn within its max age"),
     "obstacle/stop": KeyInfo("bool", "the obstacle stop is cutting the throttle this loop"),
     "obstacle/distance": KeyInfo("float, m, or None", "nearest LiDAR return in the cone ahead"),
+    # -- battery (a part of the user's that measures it: the web page, the console and telemetry show it)
+    "battery/voltage": KeyInfo("float, V", "the drive battery's voltage"),
 }

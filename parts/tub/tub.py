@@ -310,7 +310,7 @@ class Tub:
                 continue
             contents[key] = value.name if isinstance(value, StoredImage) else encode_value(key, tp, value)
         if index > m.current_index:
-            self._keep_skipped(index)
+            self.skip_to(index)
         self._append_line(contents, timestamp_ms)
         crcs = {k: v.crc for k, v in values.items() if isinstance(v, StoredImage) and v.crc is not None}
         if crcs:  # committed after the record's catalog line (parts.tub.committer)
@@ -321,13 +321,19 @@ class Tub:
             self.commit()
         return index
 
-    def _keep_skipped(self, index: int) -> None:
-        """Fill the indexes before ``index`` with deleted records without values. Their deletion
-        reaches manifest.json before their lines reach the catalog: a crash in between leaves
-        deleted indexes beyond the last record, which recovery drops."""
+    def skip_to(self, index: int, why: str | None = "could not be written") -> None:
+        """Fill the indexes from the next one up to ``index - 1`` with deleted records without
+        values (a mirror of another tub keeps that tub's indexes this way). Their deletion reaches
+        manifest.json before their lines reach the catalog: a crash in between leaves deleted
+        indexes beyond the last record, which recovery drops. ``why`` is logged as a warning
+        (None: nothing is logged)."""
+        self._check_writable()
         m = self.manifest
-        logger.warning("%s: records %d..%d could not be written; kept as deleted records",
-                       self._dir, m.current_index, index - 1)
+        if index <= m.current_index:
+            return
+        if why is not None:
+            logger.warning("%s: records %d..%d %s; kept as deleted records", self._dir, m.current_index,
+                           index - 1, why)
         m.deleted_indexes.update(range(m.current_index, index))
         self._submit(force_manifest=True)
         while m.current_index < index:
