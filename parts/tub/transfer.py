@@ -110,7 +110,7 @@ def snapshot(path: Path) -> Snapshot:
     """Take a snapshot of the tub ``path`` (read-only: a tub being recorded is not disturbed)."""
     from parts.tub.tub import Tub
 
-    tub = Tub(path, read_only=True)
+    tub = Tub(path, read_only=True, log_problems=False)  # a recording tub's manifest lags: no warning
     try:
         m = tub.manifest
         return Snapshot(path, list(m.inputs), list(m.types), dict(m.metadata), m.manifest_metadata.get("created_at"),

@@ -97,13 +97,15 @@ class Tub:
             overlaps with the disk's flush (``TubWriter`` with fsync). ``commit()`` then starts a
             commit and ``flush()`` waits for it; a crash may lose one more window (the one being
             committed while the next is written), a power cut two more (docs/data-format.md).
+        log_problems: log what recovery found as a warning (False: a reader of a tub being recorded,
+            whose manifest lags its catalogs by design; :attr:`problems` lists it all the same).
     """
 
     def __init__(self, path: str | os.PathLike[str], inputs: list[str] | None = None,
                  types: list[str] | None = None, metadata: Mapping[str, Any] | Iterable[str] | None = None,
                  max_catalog_len: int = 1000, read_only: bool = False, *, fsync: bool = True,
                  fsync_records: int = 20, fsync_ms: float = 500.0, jpeg_quality: int = 75,
-                 commit_thread: bool = False, _skeleton: bool = False) -> None:
+                 commit_thread: bool = False, log_problems: bool = True, _skeleton: bool = False) -> None:
         if not isinstance(max_catalog_len, int) or max_catalog_len < 1:
             raise ValueError(f"max_catalog_len must be a positive int, got {max_catalog_len!r}")
         if fsync_records < 0 or fsync_ms < 0:
@@ -179,7 +181,7 @@ class Tub:
                                    and not state.torn, commit_thread)
             self._atexit = _close_at_exit(self)
             atexit.register(self._atexit)
-        if self.problems:
+        if self.problems and log_problems:
             logger.warning("%s: recovered: %s", self._dir, "; ".join(self.problems))
 
     # -- properties --------------------------------------------------------------------------------

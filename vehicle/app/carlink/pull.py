@@ -95,5 +95,5 @@ def pull_all(client: CarClient, dest: Path, only: list[str] | None = None,
         report = pull_tub(client, item, car, step, fsync)
         reports.append(report)
         before += report.end - report.start
-        logger.info("pulled %d records of %s into %s", report.received, item.name, report.tub)
+        logger.debug("pulled %d records of %s into %s", report.received, item.name, report.tub)
     return reports
