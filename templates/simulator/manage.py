@@ -42,6 +42,7 @@ def drive(cfg, args):
     assembly.add_drive_mode(V, cfg)  # user/* or pilot/* -> angle, throttle
     assembly.add_tub_writer(V, cfg)  # records every loop while `recording` is on
     assembly.add_simulator_commands(V)  # last: Udacity/Donkey get this loop's angle, throttle at once
+    assembly.add_telemetry(V, cfg)  # MQTT_TELEMETRY: the car's status and MQTT_KEYS to your broker
     return manage.run(V, cfg, args.max_loops)
 
 

@@ -1043,7 +1043,7 @@ function carCard(c, models) {
       } }, "Forget")),
     h("div", { class: "err", "data-car-error": "" }),
     h("dl", { class: "carstatus" }, ["mode", "records", "loop", "battery", "pilot"].map(k =>
-      [h("dt", {}, k), h("dd", { "data-field": k }, "–")])),
+      h("div", {}, h("dt", {}, k), h("dd", { "data-field": k }, "–")))),
     h("p", { class: "notice", "data-field": "notice", hidden: true }),
     h("h3", {}, "Tubs"), h("div", { "data-tubs": "" }, h("p", { class: "muted small" }, "…")),
     h("div", { class: "row" }, h("button", { class: "primary", "data-action": "pull", onclick: () => startPull(c) }, "Pull new records")),
