@@ -280,6 +280,9 @@ class CarLink:
         if state.snapshot()["telemetry"]["pilot_model"] == name:
             return _json({"ok": True, "model": name, "switched": False})
         path = str((self.models_dir / name).resolve())
+        before = state.snapshot()
+        # a car in a pilot mode drops to user mode for the switch (ControlState.switch_model)
+        dropped = before["command"]["mode"] != "user" or (before["telemetry"]["mode"] or "user") != "user"
         refused = state.switch_model(path, name)
         if refused:
             raise LinkError(409, refused)
@@ -289,11 +292,14 @@ class CarLink:
             await asyncio.sleep(0.05)
             tel = state.snapshot()["telemetry"]
             if tel["pilot_model"] == name:
-                state.set_notice(f"The pilot is now {name}: choose a pilot mode to let it drive.")
+                state.set_notice(f"The pilot is now {name}" + (" (the car was put in user mode for the switch)"
+                                                                if dropped else "")
+                                 + ": choose a pilot mode to let it drive.")
                 return _json({"ok": True, "model": name, "switched": True})
             error = tel["pilot_error"] or ""
             if error.startswith(path):
-                state.set_notice(f"Pilot switch to {name} failed; the car keeps its pilot.")
+                state.set_notice(f"Pilot switch to {name} failed; the car keeps its pilot"
+                                 + (" (and stays in user mode)." if dropped else "."))
                 raise LinkError(422, f"the car kept its pilot: {error.replace(path, name)}")
         raise LinkError(504, f"the car has not loaded {name} within {SWITCH_WAIT_S:.0f} s; see its page")
 
