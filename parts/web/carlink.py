@@ -189,9 +189,10 @@ class CarLink:
             while data := await asyncio.to_thread(batch):
                 await resp.write(data)
             await resp.write_eof()
-        except (ConnectionResetError, asyncio.CancelledError):
+        except (ConnectionError, asyncio.CancelledError) as exc:  # the laptop left: it resumes next time
             logger.info("car link: %s left during the pull of %s", request.remote, snap.path.name)
-            raise
+            if isinstance(exc, asyncio.CancelledError):
+                raise
         return resp
 
     # -- pushing a model ---------------------------------------------------------------------------------
