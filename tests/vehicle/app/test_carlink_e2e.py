@@ -71,11 +71,13 @@ class SimCar:
     def url(self) -> str:
         return f"http://127.0.0.1:{self.port}/?token={TOKEN}"
 
-    def start(self) -> SimCar:
+    def start(self, pilot: bool = True) -> SimCar:
+        """Drive (``pilot``: with a.pt in local mode; else a human's car, which loads no torch)."""
         self.log = self.folder / "drive.log"
+        with_pilot = ["--model", "models/a.pt", "--mode", "local"] if pilot else []
+        command = [sys.executable, "manage.py", "drive", *with_pilot]
         with open(self.log, "a") as log:  # a file, not a pipe: a full pipe would block the car
-            self.proc = subprocess.Popen([sys.executable, "manage.py", "drive", "--model", "models/a.pt", "--mode",
-                                          "local"], cwd=self.folder, env=ENV, stdout=subprocess.DEVNULL, stderr=log)
+            self.proc = subprocess.Popen(command, cwd=self.folder, env=ENV, stdout=subprocess.DEVNULL, stderr=log)
         self.wait(lambda s: s["loops"] > 5, "the car to drive")
         return self
 
@@ -276,7 +278,7 @@ def test_the_car_killed_mid_pull_then_restarted_resumes(car, tmp_path):
     have = staged.current_index
     staged.close()
     assert 1 <= have < OLD_RECORDS
-    car.start()
+    car.start(pilot=False)
     (report,) = pull_all(CarClient(parse_address(car.url)), tmp_path / "laptop", ["tub_0_old"])
     assert (report.start, report.received, report.created) == (have, OLD_RECORDS - have, True)
     assert tub_records(target) == tub_records(car.folder / "data" / "tub_0_old")
