@@ -36,3 +36,22 @@ def test_without_zeroconf_the_car_drives_and_the_laptop_is_told(monkeypatch, cap
     car.stop()
     with pytest.raises(DiscoveryUnavailable, match="pip install zeroconf .or add the car by its address"):
         discover(0.5)
+
+
+def test_a_car_on_the_network_announces_itself_and_withdraws_at_shutdown(tmp_path):
+    from parts.web.carlink import CarLink
+    from parts.web.controller import WebController
+
+    web = WebController("0.0.0.0", 0, "Kq3vT9xLm2Rw8ZpN4bYc", link=CarLink(tmp_path, tmp_path, name="blue"),
+                        announce=True).start()
+    try:
+        found = [c for c in discover(1.5) if c["port"] == web.port]
+    finally:
+        web.shutdown()
+    assert [(c["name"], c["url"]) for c in found] == [("blue", f"http://{found[0]['host']}:{web.port}/")]
+    assert web._announcer is None  # withdrawn at shutdown
+    quiet = WebController("127.0.0.1", 0, link=CarLink(tmp_path, tmp_path, name="green"), announce=True).start()
+    try:  # a car on loopback is not on the network: nothing to announce
+        assert quiet._announcer is None
+    finally:
+        quiet.shutdown()
