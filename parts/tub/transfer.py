@@ -64,10 +64,12 @@ def tub_folder(data_dir: Path, name: str) -> Path:
     return path
 
 
-def list_tubs(data_dir: Path) -> list[dict[str, Any]]:
+def list_tubs(data_dir: Path, sizes: dict[Path, tuple[tuple[int, int], int]] | None = None) -> list[dict[str, Any]]:
     """The tubs directly in ``data_dir`` (hidden ones, still being born, left out): name, records
     (live), next index, deleted, bytes on disk, creation time; sorted by name. Counts come from
-    manifest.json, which may lag the catalogs of a tub being recorded by up to a second."""
+    manifest.json, which may lag the catalogs of a tub being recorded by up to a second. ``sizes``
+    keeps each tub's byte count until its manifest or images folder changes (a status page asks
+    every few seconds; summing the sizes of ten thousand images each time would cost the car)."""
     from parts.tub.manifest import parse_manifest
     from parts.tub.tools import disk_size
 
@@ -78,9 +80,17 @@ def list_tubs(data_dir: Path) -> list[dict[str, Any]]:
         if path.name.startswith(".") or not NAME_RE.match(path.name) or not (path / MANIFEST).is_file():
             continue
         m = parse_manifest(path / MANIFEST).manifest
+        try:
+            stamp = ((path / MANIFEST).stat().st_mtime_ns, (path / IMAGES).stat().st_mtime_ns)
+        except OSError:
+            stamp = (0, 0)
+        known = sizes.get(path) if sizes is not None else None
+        size = known[1] if known is not None and known[0] == stamp and stamp != (0, 0) else disk_size(path)
+        if sizes is not None:
+            sizes[path] = (stamp, size)
         out.append({"name": path.name, "records": m.current_index - len(m.deleted_indexes),
                     "current_index": m.current_index, "deleted": len(m.deleted_indexes),
-                    "bytes": disk_size(path), "created_at": m.manifest_metadata.get("created_at")})
+                    "bytes": size, "created_at": m.manifest_metadata.get("created_at")})
     return out
 
 

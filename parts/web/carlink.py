@@ -67,6 +67,7 @@ class CarLink:
         self.max_model_bytes = max_model_bytes
         self.check_model = check_model
         self.pulls = 0  # pulls served (for the log and tests)
+        self._sizes: dict[Path, Any] = {}  # tub -> (its manifest's and images' mtimes, bytes): list_tubs
         self._server: WebServer | None = None
 
     def add_routes(self, app: Any, server: WebServer) -> None:
@@ -132,7 +133,7 @@ class CarLink:
     async def tubs(self, request: Any) -> Any:
         from parts.tub.transfer import list_tubs
 
-        tubs = await asyncio.to_thread(list_tubs, self.data_dir) if self.data_dir is not None else []
+        tubs = await asyncio.to_thread(list_tubs, self.data_dir, self._sizes) if self.data_dir is not None else []
         return _json({"ok": True, "tubs": tubs})
 
     async def models(self, request: Any) -> Any:

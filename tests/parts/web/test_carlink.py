@@ -9,6 +9,7 @@ import json
 import zipfile
 from pathlib import Path
 
+import numpy as np
 import pytest
 from fixtures.pilots import write_tub
 
@@ -90,8 +91,18 @@ def test_wrong_tokens_are_slowed(car):
 def test_the_tub_list_gives_counts_and_sizes(car):
     (tub,) = client(car).tubs()
     assert (tub["name"], tub["records"], tub["current_index"], tub["deleted"]) == ("tub_1", 97, 100, 3)
-    on_disk = sum(p.stat().st_size for p in (car.link.data_dir / "tub_1").rglob("*") if p.is_file())
-    assert tub["bytes"] == on_disk
+    folder = car.link.data_dir / "tub_1"
+
+    def on_disk():
+        return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
+
+    assert tub["bytes"] == on_disk()
+    assert client(car).tubs()[0]["bytes"] == on_disk()  # kept until the tub changes
+    with Tub(folder) as t:  # the car records one more
+        t.write_record({"cam/image_array": np.full((64, 64, 3), 9, np.uint8), "user/angle": 0.0, "user/throttle": 0.2,
+                        "user/mode": "user", "behavior/one_hot_state_array": [1.0, 0.0]})
+    (tub,) = client(car).tubs()
+    assert (tub["records"], tub["bytes"]) == (98, on_disk())
 
 
 def test_a_pull_copies_the_tub_then_only_new_records(car, tmp_path):
@@ -107,7 +118,7 @@ def test_a_pull_copies_the_tub_then_only_new_records(car, tmp_path):
 
     with Tub(car.link.data_dir / "tub_1") as tub:  # the car records 20 more
         for i in range(20):
-            tub.write_record({"cam/image_array": pytest.importorskip("numpy").full((64, 64, 3), i, "uint8"),
+            tub.write_record({"cam/image_array": np.full((64, 64, 3), i, np.uint8),
                               "user/angle": 0.01 * i, "user/throttle": 0.2, "user/mode": "user",
                               "behavior/one_hot_state_array": [1.0, 0.0]})
     assert [p.new for p in plan(client(car), laptop, "red")] == [20]
