@@ -143,10 +143,10 @@ def _model_file(text: str) -> Path:
     path = Path(text)
     if path.is_file():
         return path
-    for candidate in (Path("models") / text, Path("models") / f"{text}.pt"):
-        if candidate.is_file():
-            return candidate
-    raise UserError(f"no model file {text!r} (nor models/{text}.pt): give the path of a .pt file")
+    inside = Path("models") / (text if text.endswith(".pt") else f"{text}.pt")
+    if inside.is_file():
+        return inside
+    raise UserError(f"no model file {text!r} (nor {inside}): give the path of a .pt file")
 
 
 def _cmd_push(args: argparse.Namespace) -> int:
