@@ -44,6 +44,7 @@ def drive(cfg, args):
     assembly.add_obstacle_stop(V, cfg)  # OBSTACLE_STOP: LiDAR sees something close ahead -> brake
     assembly.add_tub_writer(V, cfg)  # records every loop while `recording` is on
     assembly.add_simulator_commands(V)  # last: Udacity/Donkey get this loop's angle, throttle at once
+    assembly.add_telemetry(V, cfg)  # MQTT_TELEMETRY: the car's status and MQTT_KEYS to your broker
     return manage.run(V, cfg, args.max_loops)
 
 

@@ -316,26 +316,35 @@ class Pilot:
             self._loader.start()
             return True
 
+    def _open_checked(self, path: Path) -> Runner:
+        """A runner for ``path`` that fits this car and this pilot's wiring; raises (the message
+        says why) otherwise. The file is read with the safe loader (no code runs)."""
+        runner = open_runner(path, self.backend, self.onnx_threads)
+        try:
+            self.check_fits(runner)
+            old = self._active.runner
+            if self.lock_inputs and (runner.image_inputs, runner.extra_inputs, self._needs_speed(runner)) != \
+                    (old.image_inputs, old.extra_inputs, self._needs_speed(old)):
+                raise ValueError(f"the model needs inputs {[*runner.image_inputs, *runner.extra_inputs]} but the "
+                                 f"pilot was wired with {[*old.image_inputs, *old.extra_inputs]}; restart the car "
+                                 "with this model instead")
+        except Exception:
+            runner.close()
+            raise
+        return runner
+
+    def check_file(self, path: str | Path) -> None:
+        """Raise ValueError (or the loader's error) unless ``path`` could be switched to: the checks
+        of a hot switch, without switching (a model pushed from the laptop is checked so)."""
+        self._open_checked(Path(path)).close()
+
     def _load(self, path: Path) -> None:
         try:
-            runner = open_runner(path, self.backend, self.onnx_threads)
+            runner = self._open_checked(path)
         except Exception as exc:  # any failure keeps the current model driving
             self._refuse(path, str(exc))
             return
-        try:
-            self.check_fits(runner)
-        except ValueError as exc:
-            runner.close()
-            self._refuse(path, str(exc))
-            return
         old = self._active
-        if self.lock_inputs and (runner.image_inputs, runner.extra_inputs, self._needs_speed(runner)) != \
-                (old.runner.image_inputs, old.runner.extra_inputs, self._needs_speed(old.runner)):
-            runner.close()
-            self._refuse(path, f"the model needs inputs {[*runner.image_inputs, *runner.extra_inputs]} but the "
-                         f"pilot was wired with {[*old.runner.image_inputs, *old.runner.extra_inputs]}; restart "
-                         "the car with this model instead")
-            return
         self._active = _Active(runner)  # the swap: one reference assignment, atomic for the loop
         self.load_error = None
         logger.info("pilot: switched from %s to %s (%s, %s backend)", old.runner.name, runner.name,

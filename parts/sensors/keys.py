@@ -45,4 +45,6 @@ KEYS: dict[str, KeyInfo] = {
     "lidar/dist_array": KeyInfo("list[float], m", "nearest return per angle bin, bins counter-clockwise from straight "
                                                   "ahead, 0.0 = no return, -1.0 = unknown (no fresh reading)"),
     "lidar/ok": KeyInfo("bool", "False while the LiDAR has not completed a turn within its max age"),
+    # -- battery (a part of the user's that measures it: the web page, the console and telemetry show it)
+    "battery/voltage": KeyInfo("float, V", "the drive battery's voltage"),
 }

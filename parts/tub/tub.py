@@ -97,13 +97,15 @@ class Tub:
             overlaps with the disk's flush (``TubWriter`` with fsync). ``commit()`` then starts a
             commit and ``flush()`` waits for it; a crash may lose one more window (the one being
             committed while the next is written), a power cut two more (docs/data-format.md).
+        log_problems: log what recovery found as a warning (False: a reader of a tub being recorded,
+            whose manifest lags its catalogs by design; :attr:`problems` lists it all the same).
     """
 
     def __init__(self, path: str | os.PathLike[str], inputs: list[str] | None = None,
                  types: list[str] | None = None, metadata: Mapping[str, Any] | Iterable[str] | None = None,
                  max_catalog_len: int = 1000, read_only: bool = False, *, fsync: bool = True,
                  fsync_records: int = 20, fsync_ms: float = 500.0, jpeg_quality: int = 75,
-                 commit_thread: bool = False, _skeleton: bool = False) -> None:
+                 commit_thread: bool = False, log_problems: bool = True, _skeleton: bool = False) -> None:
         if not isinstance(max_catalog_len, int) or max_catalog_len < 1:
             raise ValueError(f"max_catalog_len must be a positive int, got {max_catalog_len!r}")
         if fsync_records < 0 or fsync_ms < 0:
@@ -179,7 +181,7 @@ class Tub:
                                    and not state.torn, commit_thread)
             self._atexit = _close_at_exit(self)
             atexit.register(self._atexit)
-        if self.problems:
+        if self.problems and log_problems:
             logger.warning("%s: recovered: %s", self._dir, "; ".join(self.problems))
 
     # -- properties --------------------------------------------------------------------------------
@@ -310,7 +312,7 @@ class Tub:
                 continue
             contents[key] = value.name if isinstance(value, StoredImage) else encode_value(key, tp, value)
         if index > m.current_index:
-            self._keep_skipped(index)
+            self.skip_to(index)
         self._append_line(contents, timestamp_ms)
         crcs = {k: v.crc for k, v in values.items() if isinstance(v, StoredImage) and v.crc is not None}
         if crcs:  # committed after the record's catalog line (parts.tub.committer)
@@ -321,13 +323,19 @@ class Tub:
             self.commit()
         return index
 
-    def _keep_skipped(self, index: int) -> None:
-        """Fill the indexes before ``index`` with deleted records without values. Their deletion
-        reaches manifest.json before their lines reach the catalog: a crash in between leaves
-        deleted indexes beyond the last record, which recovery drops."""
+    def skip_to(self, index: int, why: str | None = "could not be written") -> None:
+        """Fill the indexes from the next one up to ``index - 1`` with deleted records without
+        values (a mirror of another tub keeps that tub's indexes this way). Their deletion reaches
+        manifest.json before their lines reach the catalog: a crash in between leaves deleted
+        indexes beyond the last record, which recovery drops. ``why`` is logged as a warning
+        (None: nothing is logged)."""
+        self._check_writable()
         m = self.manifest
-        logger.warning("%s: records %d..%d could not be written; kept as deleted records",
-                       self._dir, m.current_index, index - 1)
+        if index <= m.current_index:
+            return
+        if why is not None:
+            logger.warning("%s: records %d..%d %s; kept as deleted records", self._dir, m.current_index,
+                           index - 1, why)
         m.deleted_indexes.update(range(m.current_index, index))
         self._submit(force_manifest=True)
         while m.current_index < index:

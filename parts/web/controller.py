@@ -20,7 +20,7 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
@@ -29,6 +29,9 @@ from parts.web.pathview import PathSlot, path_telemetry
 from parts.web.server import LatestFrame, ListenError, WebServer
 from parts.web.state import ControlState, Telemetry
 from vehicle.part import ThreadedPart, run_event_loop
+
+if TYPE_CHECKING:
+    from parts.web.carlink import CarLink
 
 logger = logging.getLogger(__name__)
 
@@ -41,6 +44,11 @@ def _num(value: Any) -> float | None:
     except (TypeError, ValueError):
         return None
     return out if math.isfinite(out) else None
+
+
+def car_name(cfg: Any) -> str:
+    """CAR_NAME, else the car folder's name."""
+    return cfg.CAR_NAME or Path(cfg.CAR_PATH).resolve().name
 
 
 class WebController(ThreadedPart):
@@ -68,6 +76,10 @@ class WebController(ThreadedPart):
             another host are refused (DNS rebinding). Default none.
         start_timeout: seconds :meth:`start` waits for the server to listen. Default 10.
         clock: monotonic seconds for the dead-man timer. Default ``time.monotonic``.
+        link: the laptop link (:class:`parts.web.carlink.CarLink`: tubs, models, pilot switch for
+            the paired user). Default None.
+        announce: announce the car on the local network (mDNS) when it listens on it and has a
+            link (:mod:`parts.web.announce`). Default False.
     """
 
     #: memory keys the part reads (telemetry for the page), in this order
@@ -75,7 +87,7 @@ class WebController(ThreadedPart):
         "cam/image_array", "user/mode", "recording", "estop", "tub/num_records", "angle", "throttle", "pilot/angle",
         "pilot/throttle", "pilot/model", "sim/speed", "enc/speed", "loop/rate_hz", "loop/overruns", "behavior/label",
         "run_pilot", "pilot/load_error", "sim/cte", "sim/lap", "sim/off_track", "js/status", "enc/ok", "imu/ok",
-        "gps/ok", "lidar/ok", "obstacle/stop", "obstacle/distance",
+        "gps/ok", "lidar/ok", "obstacle/stop", "obstacle/distance", "battery/voltage",
         # the path-follow view's (parts.web.pathview.PATH_INPUTS; a test keeps the two equal)
         "loc/x", "loc/y", "loc/angle", "loc/std", "loc/ok", "loc/source", "path/xy", "path/version",
         "path/target_x", "path/target_y", "path/cte", "path/state",
@@ -94,7 +106,8 @@ class WebController(ThreadedPart):
                  models_dir: str | Path | None = None, max_speed_limit: float = 5.0,
                  telemetry_hz: float = 20.0, jpeg_quality: int = 80,
                  allowed_hosts: Sequence[str] = (), start_timeout: float = 10.0,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] = time.monotonic, link: CarLink | None = None,
+                 announce: bool = False) -> None:
         super().__init__()
         self.name = "WebController"
         self.token = resolve_token(host, token)
@@ -106,7 +119,10 @@ class WebController(ThreadedPart):
                                 paths=self.paths,
                                 models_dir=Path(models_dir) if models_dir is not None else None,
                                 max_speed_limit=max_speed_limit, telemetry_hz=telemetry_hz,
-                                extra_hosts=tuple(allowed_hosts))
+                                extra_hosts=tuple(allowed_hosts), link=link)
+        self.link = link
+        self.announce = announce
+        self._announcer: Any = None
         self.start_timeout = start_timeout
         self._ready = threading.Event()
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -114,12 +130,18 @@ class WebController(ThreadedPart):
 
     @classmethod
     def from_config(cls, cfg: Any) -> WebController:
-        """Build from a car's settings (``WEB_*``, ``MODELS_PATH``)."""
+        """Build from a car's settings (``WEB_*``, ``CAR_*``, ``MODELS_PATH``, ``DATA_PATH``)."""
+        link = None
+        if cfg.CAR_LINK:
+            from parts.web.carlink import CarLink
+
+            link = CarLink(cfg.path("DATA_PATH"), cfg.path("MODELS_PATH"), name=car_name(cfg),
+                           max_model_bytes=int(cfg.CAR_MAX_MODEL_MB * 1e6))
         return cls(cfg.WEB_HOST, cfg.WEB_CONTROL_PORT, cfg.WEB_TOKEN, deadman_s=cfg.WEB_DEADMAN_S,
                    init_mode=cfg.DEFAULT_MODE, max_throttle=cfg.WEB_MAX_THROTTLE,
                    models_dir=cfg.path("MODELS_PATH"), max_speed_limit=cfg.WEB_MAX_SPEED_LIMIT,
                    telemetry_hz=cfg.WEB_TELEMETRY_HZ, jpeg_quality=cfg.WEB_JPEG_QUALITY,
-                   allowed_hosts=cfg.WEB_ALLOWED_HOSTS)
+                   allowed_hosts=cfg.WEB_ALLOWED_HOSTS, link=link, announce=cfg.CAR_ANNOUNCE)
 
     # -- lifecycle --------------------------------------------------------------------------------
     @property
@@ -155,6 +177,10 @@ class WebController(ThreadedPart):
             qr = terminal_qr(self.url)
             logger.warning("Web controller reachable from the network (%s): pair a browser by "
                            "opening %s%s", self.server.host, self.url, f"\n{qr}" if qr else "")
+            if self.announce and self.link is not None:
+                from parts.web.announce import Announcer
+
+                self._announcer = Announcer(self.link.name, self.server.port, self.server.host).start()
         return self
 
     def open(self) -> None:
@@ -186,6 +212,9 @@ class WebController(ThreadedPart):
 
     def shutdown(self) -> None:
         """Close every connection, stop the server and join its thread."""
+        if self._announcer is not None:
+            self._announcer.stop()
+            self._announcer = None
         self.server.stop()
         super().shutdown()
 
@@ -237,6 +266,7 @@ class WebController(ThreadedPart):
                      if isinstance(ok := values.get(f"{name}/ok"), bool | np.bool_)},
             obstacle_stop=bool(stop) if isinstance(stop := values.get("obstacle/stop"), bool | np.bool_) else None,
             obstacle_distance=_num(values.get("obstacle/distance")),
+            battery_v=_num(values.get("battery/voltage")),
             path=path_telemetry(values)))
         cmd = self.state.outputs()
         return (cmd.angle, cmd.user_throttle(), cmd.mode, cmd.recording, cmd.estop,

@@ -14,7 +14,7 @@ import logging
 import os
 import threading
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -24,6 +24,9 @@ from parts.web.pairing import FailureGuard, allowed_hosts, host_allowed, token_o
 from parts.web.pathview import PathSender, PathSlot
 from parts.web.state import ControlState
 from vehicle.errors import VehicleError
+
+if TYPE_CHECKING:
+    from parts.web.carlink import CarLink
 
 logger = logging.getLogger(__name__)
 
@@ -160,13 +163,15 @@ class WebServer:
             nothing.
         paths: the latest path of a path-following car, sent as the ``path`` event on connect and
             when it changes (:class:`~parts.web.pathview.PathSender`). Default: an empty slot.
+        link: the laptop link's routes (tubs, models, pilot switch; :mod:`parts.web.carlink`),
+            behind the same Host check and pairing token. Default None: not served.
     """
 
     def __init__(self, state: ControlState, frames: LatestFrame, *, host: str = "127.0.0.1",
                  port: int = 8887, token: str | None = None, models_dir: Path | None = None,
                  max_speed_limit: float = 5.0, telemetry_hz: float = 20.0,
                  static_dir: Path = STATIC_DIR, extra_hosts: tuple[str, ...] = (),
-                 paths: PathSlot | None = None) -> None:
+                 paths: PathSlot | None = None, link: CarLink | None = None) -> None:
         if not 0 <= port <= 65535:
             raise ValueError(f"port must be in [0, 65535], got {port}")
         if not telemetry_hz > 0:
@@ -180,7 +185,8 @@ class WebServer:
         self._refused_hosts: set[str] = set()  # each logged once
         # what clients can make the server log: rejections, refused connections, library errors
         self.log = BoundedLog(logger, "rejected messages and refused connections")
-        self._guard = FailureGuard("web")  # slows and logs wrong pairing tokens, per client address
+        self.guard = FailureGuard("web")  # slows and logs wrong pairing tokens, per client address
+        self.link = link
         self._library_log = BoundedLog(logging.getLogger(f"{__name__}.socketio"), "Socket.IO lines",
                                        demote_info=True)
         self.loop: asyncio.AbstractEventLoop | None = None
@@ -238,6 +244,8 @@ class WebServer:
         app.router.add_get("/", self._index)
         app.router.add_get("/static/{path:.*}", self._static)
         app.router.add_get("/favicon.ico", self._favicon)  # what browsers ask for without a <link>
+        if self.link is not None:
+            self.link.add_routes(app, self)
         sio.attach(app)
         runner = web.AppRunner(app, access_log=None, handle_signals=False, shutdown_timeout=SHUTDOWN_S)
         await runner.setup()
@@ -302,7 +310,7 @@ class WebServer:
         from aiohttp import web
 
         if self.token is not None:  # while an address must wait, its page without the right token too
-            wait = self._guard.refusal_s(request.remote or "?", token_ok(self.token, dict(request.query)))
+            wait = self.guard.refusal_s(request.remote or "?", token_ok(self.token, dict(request.query)))
             if wait:
                 return web.Response(status=429, headers={"Retry-After": str(wait), "Cache-Control": "no-store"},
                                     text=f"too many wrong pairing tokens from this address: wait {wait} s, then "
@@ -346,16 +354,16 @@ class WebServer:
         async def connect(sid: str, environ: dict[str, Any], auth: Any = None) -> None:
             client = environ.get("REMOTE_ADDR", "?")
             right = token_ok(self.token, auth)
-            wait = self._guard.refusal_s(client, right) if self.token is not None else 0
+            wait = self.guard.refusal_s(client, right) if self.token is not None else 0
             if wait:
                 raise socketio.exceptions.ConnectionRefusedError(
                     f"too many wrong pairing tokens from this address: wait {wait} s")
             if not right:
                 if isinstance(auth, dict) and auth.get("token"):
-                    self._guard.failed(client)  # a wrong token (a missing one is no guess): slowed, logged
+                    self.guard.failed(client)  # a wrong token (a missing one is no guess): slowed, logged
                 raise socketio.exceptions.ConnectionRefusedError(
                     "pairing token missing or wrong: open the URL printed when the car started")
-            self._guard.succeeded(client)
+            self.guard.succeeded(client)
             role = self.state.connect(sid)
             self._senders[sid] = asyncio.create_task(self._send_frames(sid))
             await sio.emit("hello", self._hello(sid, role), to=sid)

@@ -49,3 +49,16 @@ WEB_JPEG_QUALITY: Annotated[int, Range(1, 100)] = 80
 # source that moved last). Mode and recording: the latest change from either wins; an emergency
 # stop from either holds.
 CONTROLLER_PRIORITY: Literal["gamepad", "web", "latest"] = "gamepad"
+
+# == Laptop link ==
+
+# Let the paired laptop (`vehicle car ...`, the trainer console's Cars page) list and pull this car's
+# tubs, push model files and switch the pilot, over the web page's server with its pairing token.
+CAR_LINK: bool = True
+# Largest model file the laptop may push, MB (a linear pilot is about 1 MB).
+CAR_MAX_MODEL_MB: Annotated[float, Range(0, 4000, lo_open=True, unit="MB")] = 200.0
+# Announce the car on the local network (mDNS/zeroconf, `pip install zeroconf`) so the console finds
+# it; only when WEB_HOST is a network interface. The pairing token is never announced.
+CAR_ANNOUNCE: bool = True
+# The car's name in the console and on the network. None: the car folder's name.
+CAR_NAME: Annotated[str | None, Length(min=1, max=63)] = None

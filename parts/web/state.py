@@ -74,6 +74,7 @@ class Telemetry:
     sim_laps: int | None = None  # laps completed (simulator)
     sim_off_track: bool | None = None  # off the road now (simulator)
     car_gamepad: str | None = None  # the car's own gamepad: connected | silent | lost (None: none)
+    battery_v: float | None = None  # V, battery/voltage from a part that measures it (None: none does)
     sensors: dict[str, bool] = field(default_factory=dict)  # sensor family (enc, imu ...) -> fresh
     obstacle_stop: bool | None = None  # the obstacle stop cuts the throttle now (None: no obstacle stop)
     obstacle_distance: float | None = None  # m, nearest LiDAR return ahead
@@ -120,6 +121,7 @@ class ControlState:
         self._armed = False  # the driving browser holds a command the dead-man must guard
         self._dirty: set[str] = set()  # fields the browser changed since the loop read them
         self._path_commands: deque[str] = deque()  # path buttons pressed, one handed out per loop
+        self._notice: str | None = None  # what the page says about a change it did not ask for
         self.deadman_trips = 0
 
     # -- server thread ----------------------------------------------------------------------------
@@ -221,6 +223,30 @@ class ControlState:
                 self._last_control = self._clock()
                 self._armed = True
 
+    def switch_model(self, model_path: str, name: str) -> str | None:
+        """Ask the loop to switch the pilot to ``model_path`` for the paired laptop; returns why it
+        cannot (no pilot in this car, emergency stop), else None. A car in a pilot mode first drops
+        to user mode (throttle 0) and the page says why: a human engages the new pilot."""
+        with self._lock:
+            if self._cmd.estop:
+                return "the emergency stop is latched on the car: release it on the car's page first"
+            if self._tel.loops and self._tel.pilot_model is None:
+                return ("this car has no pilot, so it cannot load a model: restart it with one "
+                        "(manage.py drive --model models/NAME.pt)")
+            if self._cmd.mode != "user" or (self._tel.mode not in (None, "user")):
+                self._stop_locked("pilot switch")
+                self._notice = (f"Pilot switch to {name} asked by the paired laptop: the car was put in user "
+                                "mode (throttle 0). Choose a pilot mode again once it has loaded.")
+            else:
+                self._notice = f"Pilot switch to {name} asked by the paired laptop."
+            self._cmd.model_request = model_path
+            return None
+
+    def set_notice(self, text: str | None) -> None:
+        """What the page shows about a change it did not ask for (None: nothing)."""
+        with self._lock:
+            self._notice = text
+
     def step_behavior(self, step: int) -> None:
         """Ask for the next (+1) or previous (-1) behaviour; the loop applies it once."""
         with self._lock:
@@ -261,7 +287,7 @@ class ControlState:
             age = None if self._reported_at is None else max(0.0, self._clock() - self._reported_at)
             return {"command": cmd, "telemetry": asdict(self._tel),
                     "driver": self._roles.driver, "viewers": len(self._roles.viewers),
-                    "deadman_trips": self.deadman_trips, "age_s": age}
+                    "deadman_trips": self.deadman_trips, "age_s": age, "notice": self._notice}
 
     # -- loop thread ------------------------------------------------------------------------------
     def report(self, telemetry: Telemetry) -> None:

@@ -36,6 +36,7 @@ def drive(cfg, args):
     assembly.add_drivetrain(V, cfg)  # angle, throttle -> PCA9685 pulses
     assembly.add_recording_rules(V, cfg)  # auto-record on throttle, no recording in autopilot
     assembly.add_tub_writer(V, cfg)  # records every loop while `recording` is on
+    assembly.add_telemetry(V, cfg)  # MQTT_TELEMETRY: the car's status and MQTT_KEYS to your broker
     return manage.run(V, cfg, args.max_loops)
 
 

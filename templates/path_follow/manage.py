@@ -40,6 +40,7 @@ def drive(cfg, args):
     if not args.sim:
         assembly.add_throttle_filter(V, cfg)  # ESC reverse double-tap
         assembly.add_drivetrain(V, cfg)  # angle, throttle -> PWM
+    assembly.add_telemetry(V, cfg)  # MQTT_TELEMETRY: the car's status and MQTT_KEYS to your broker
     return manage.run(V, cfg, args.max_loops)
 
 

@@ -109,6 +109,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "vehicle.app.commands.tub",
     "vehicle.app.commands.udacity",
     "vehicle.app.commands.console",
+    "vehicle.app.commands.car",
 )
 
 

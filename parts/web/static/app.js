@@ -245,6 +245,8 @@ function onState(s) {
     }
     trips = s.deadman_trips;
   }
+  if (s.notice && s.notice !== linkNotice) notice(s.notice);  // the paired laptop switched the pilot: say so
+  linkNotice = s.notice || null;
   pathView.update(t.path === undefined ? null : t.path);
   $("behaviorrow").hidden = t.behavior === null;  // a car without behaviours has no lanes to show
   $("behavior").textContent = t.behavior === null ? "–" : t.behavior.replace(/_/g, " ");
@@ -253,6 +255,7 @@ function onState(s) {
   else if ($("notice").textContent.startsWith("Emergency")) notice("");
 }
 let trips = null;
+let linkNotice = null;
 let deadmanS = 0.5;
 const VIEWER_LATCHED = "Emergency stop latched: only the driving browser can release it (press Take control to drive)";
 

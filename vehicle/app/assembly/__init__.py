@@ -36,6 +36,7 @@ HELPERS: dict[str, str] = {
     "add_path_follow": "path",
     "add_pilot": "pilot",
     "add_tub_writer": "tub",
+    "add_telemetry": "telemetry",
 }
 
 __all__ = sorted(HELPERS)

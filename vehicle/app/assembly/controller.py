@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import logging
 from typing import Any
 
@@ -44,6 +45,10 @@ def add_controller(V: Any, cfg: Config) -> Any:
         from parts.web.controller import WebController
 
         web = WebController.from_config(cfg)
+        if web.link is not None:  # a model pushed from the laptop is checked as `drive --model` checks it
+            from vehicle.app.assembly.pilot import check_model_file
+
+            web.link.check_model = functools.partial(check_model_file, V, cfg)
         # the page shows the effective mode/recording of the previous loop (declared FEEDBACK), so
         # it runs before the gamepad and the arbiter
         V.add(web, outputs=rename(WebController.OUTPUTS, TO_WEB_KEYS) if use_pad else None, threaded=True)

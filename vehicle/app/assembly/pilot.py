@@ -123,6 +123,22 @@ def add_pilot(V: Any, cfg: Config, model_path: str | Path) -> Any:
     return pilot
 
 
+def check_model_file(V: Any, cfg: Config, path: str | Path) -> None:
+    """Raise ValueError (a UserError) with the reason unless the model file ``path`` fits this car:
+    with a pilot in ``V``, the checks of a hot switch to it (:meth:`parts.pilots.pilot.Pilot.check_file`);
+    without, those of ``manage.py drive --model`` (:func:`make_pilot` with the car's frames). A model
+    pushed from the laptop (:mod:`parts.web.carlink`) is checked so before it is kept."""
+    from parts.pilots.pilot import Pilot
+
+    pilot = V.find(Pilot)
+    if pilot:
+        pilot[0].check_file(path)
+        return
+    frame_shape, frame_hint = camera_frames(V)
+    make_pilot(cfg, path, measured_speed_key=speed_key_of(V, cfg), frame_shape=frame_shape,
+               frame_hint=frame_hint).shutdown()
+
+
 def make_pilot(cfg: Config, model_path: str | Path, measured_speed_key: str = "enc/speed",
                frame_shape: tuple[int, int, int] | None = None, frame_hint: str = IMAGE_SIZE_HINT) -> Any:
     """The Pilot part for a model file with the car's settings: back-end (PILOT_BACKEND,

@@ -26,6 +26,7 @@ from typing import Any
 
 from training.model_db import ModelRegistry
 from vehicle.app.console.api import Api, ApiError, json_response
+from vehicle.app.console.cars import CarsApi
 from vehicle.app.console.datasets import DatasetStore
 from vehicle.app.console.jobs import JobQueue
 from vehicle.errors import VehicleError
@@ -71,6 +72,7 @@ class ConsoleApp:
         self.jobs = JobQueue(self.registry.db_path, Path(cfg.CAR_PATH), myconfig)
         self.datasets.busy = self.jobs.busy_paths
         self.api = Api(self)
+        self.cars = CarsApi(self)
         self.loop: asyncio.AbstractEventLoop | None = None
         self._types: list[dict[str, Any]] | None = None
         self._types_lock: asyncio.Lock | None = None
@@ -222,7 +224,7 @@ class ConsoleApp:
         app.router.add_get("/", self._index)
         app.router.add_get("/static/{path:.*}", self._static)
         app.router.add_get("/api/events", self._events)
-        for method, path, handler in self.api.routes():
+        for method, path, handler in [*self.api.routes(), *self.cars.routes()]:
             app.router.add_route(method, path, handler)
         return app
 
@@ -329,6 +331,7 @@ class ConsoleApp:
                 self._warm.cancel()
                 with contextlib.suppress(asyncio.CancelledError):
                     await self._warm
+            await self.cars.close()
             await self.jobs.close()
             await self._runner.cleanup()
             self._release_car()

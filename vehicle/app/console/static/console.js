@@ -251,6 +251,7 @@ async function route() {
     else if (a === "models" && c === "edit") await pageEditModel(b);
     else if (a === "models") await pageEditModel(b);
     else if (a === "leaderboard") await pageLeaderboard(query);
+    else if (a === "cars") await pageCars();
     else show(h("h1", {}, "Not found"), h("p", {}, h("a", { href: "#/" }, "Home")));
   } catch (e) {
     show(h("h1", {}, "Something went wrong"), h("p", { class: "err" }, e.message),
@@ -1050,6 +1051,142 @@ async function pageLeaderboard(query) {
         h("td", { class: "num" }, e.overall.mean_speed != null ? `${fmt.num(e.overall.mean_speed, 2)} m/s` : "–"),
         h("td", { class: "num" }, e.overall.interventions ?? "–"), h("td", { class: "small" }, fmt.when(e.created))))))))
       : h("div", { class: "card" }, h("p", {}, "No evaluations on these tracks yet. Open a model in the ", h("a", { href: "#/models" }, "model manager"), " and press Evaluate.")));
+}
+
+
+// ---------------------------------------------------------------------------------------------
+// Cars: pair with a car, watch it, pull its tubs, push and switch pilots (vehicle/app/console/cars.py)
+// ---------------------------------------------------------------------------------------------
+async function pageCars() {
+  const [cars, models] = await Promise.all([api("GET", "api/cars"), api("GET", "api/models")]);
+  const form = h("form", { id: "add-car", class: "card", onsubmit: async ev => {
+    ev.preventDefault();
+    const fd = new FormData(form);
+    const btn = form.querySelector("button[type=submit]"); btn.disabled = true;
+    try {
+      const car = await api("POST", "api/cars", { address: fd.get("address"), token: fd.get("token"), name: fd.get("name") });
+      toast(`Paired with ${car.name}`); route();
+    } catch (e) { showErrors(form, e); } finally { btn.disabled = false; }
+  } },
+    h("h2", {}, "Add a car"),
+    h("p", { class: "muted small" }, "The car prints its address and pairing token when it starts (manage.py drive with WEB_HOST = \"0.0.0.0\"); paste that URL, or the address and the token apart."),
+    h("div", { class: "grid2" },
+      field("Address", h("input", { type: "text", name: "address", placeholder: "http://192.168.1.20:8887/?token=…", autocomplete: "off", required: true }), "address"),
+      field("Pairing token", h("input", { type: "text", name: "token", placeholder: "if not in the address", autocomplete: "off" }), "token")),
+    field("Name", h("input", { type: "text", name: "name", placeholder: "the car's own name", maxlength: 63 }), "name"),
+    h("div", { class: "err", "data-err": "_form" }),
+    h("div", { class: "row" }, h("button", { type: "submit", class: "primary" }, "Pair"),
+      h("button", { type: "button", id: "discover", onclick: () => discoverCars(form) }, "Find cars on this network")),
+    h("div", { id: "found" }));
+  show(h("h1", {}, "Cars"),
+    cars.length ? h("div", { id: "cars" }, cars.map(c => carCard(c, models)))
+      : h("div", { class: "card", id: "cars" }, h("p", {}, "No car yet: add one below.")),
+    form);
+  const timer = setInterval(() => cars.forEach(c => refreshCar(c.id)), 2000);
+  cleanup.push(() => clearInterval(timer));
+  cars.forEach(c => refreshCar(c.id));
+}
+
+async function discoverCars(form) {
+  const out = $("#found"); out.replaceChildren(h("p", { class: "muted small" }, "Listening for cars for 2 s…"));
+  try {
+    const r = await api("GET", "api/cars/discover");
+    if (r.error) { out.replaceChildren(h("p", { class: "muted small" }, r.error)); return; }
+    out.replaceChildren(r.cars.length ? h("ul", {}, r.cars.map(c => h("li", { "data-found": c.url }, `${c.name} · ${c.url} `,
+      c.known ? h("span", { class: "muted small" }, "(paired)") : h("button", { type: "button", class: "small", onclick: () => {
+        form.querySelector('[name="address"]').value = c.url; form.querySelector('[name="name"]').value = c.name;
+        form.querySelector('[name="token"]').focus();
+      } }, "Use this address"))))
+      : h("p", { class: "muted small" }, "No car announced itself (this network may block it): type the car's address."));
+  } catch (e) { out.replaceChildren(h("p", { class: "err" }, e.message)); }
+}
+
+function carCard(c, models) {
+  const modelSel = h("select", { name: "model", "aria-label": "model to push" },
+    models.filter(m => m.exists).map(m => h("option", { value: m.name }, m.name)));
+  const push = use => async () => {
+    try {
+      const r = await api("POST", `api/cars/${c.id}/push`, { model: modelSel.value, use });
+      toast(use ? `${c.name} now drives ${r.model} (in user mode: choose a pilot mode on its page)` : `${r.model} is on ${c.name}`);
+      refreshCar(c.id);
+    } catch (e) { toast(e.message, true); }
+  };
+  return h("section", { class: "card car", "data-car": c.id },
+    h("div", { class: "spread" }, h("h2", {}, c.name, " ", h("span", { class: "muted small mono" }, c.url)),
+      h("button", { class: "small", "data-action": "remove", onclick: async () => {
+        if (await confirmDialog(`Forget ${c.name}?`, "Pair again with its token to add it back.", "Forget")) {
+          await api("DELETE", `api/cars/${c.id}`); route();
+        }
+      } }, "Forget")),
+    h("div", { class: "err", "data-car-error": "" }),
+    h("dl", { class: "carstatus" }, ["mode", "records", "loop", "battery", "pilot"].map(k =>
+      h("div", {}, h("dt", {}, k), h("dd", { "data-field": k }, "–")))),
+    h("p", { class: "notice", "data-field": "notice", hidden: true }),
+    h("h3", {}, "Tubs"), h("div", { "data-tubs": "" }, h("p", { class: "muted small" }, "…")),
+    h("div", { class: "row" }, h("button", { class: "primary", "data-action": "pull", onclick: () => startPull(c) }, "Pull new records")),
+    h("div", { "data-pull": "", hidden: true }, h("div", { class: "bar", role: "progressbar", "aria-valuemin": 0, "aria-valuemax": 100 }, h("div")),
+      h("p", { class: "small", "data-pull-text": "" })),
+    h("h3", {}, "Pilots"),
+    models.length ? h("div", { class: "row" }, modelSel, h("button", { "data-action": "push", onclick: push(false) }, "Push"),
+      h("button", { class: "primary", "data-action": "push-use", onclick: push(true) }, "Push and switch to it"))
+      : h("p", { class: "muted small" }, "No trained model yet: ", h("a", { href: "#/train" }, "train one"), "."),
+    h("div", { "data-models": "" }));
+}
+
+async function refreshCar(id) {
+  const card = document.querySelector(`.car[data-car="${id}"]`);
+  if (!card) return;
+  const set = (k, v) => { const el = card.querySelector(`[data-field="${k}"]`); if (el) el.textContent = v; };
+  try {
+    const r = await api("GET", `api/cars/${id}`);
+    const s = r.status;
+    card.querySelector("[data-car-error]").textContent = "";
+    set("mode", s.mode + (s.estop ? " (emergency stop)" : "") + (s.recording ? " · recording" : ""));
+    set("records", fmt.int(s.records));
+    set("loop", s.loop_rate_hz == null ? "–" : `${fmt.num(s.loop_rate_hz, 1)} Hz · ${fmt.n(s.loop_overruns || 0, "overrun")}`);
+    set("battery", s.battery_v == null ? "no sensor" : `${fmt.num(s.battery_v, 2)} V`);
+    set("pilot", (s.pilot || "none") + (s.pilot_error ? ` (last switch failed: ${s.pilot_error})` : ""));
+    const note = card.querySelector('[data-field="notice"]'); note.textContent = s.notice || ""; note.hidden = !s.notice;
+    card.querySelector("[data-tubs]").replaceChildren(r.tubs.length ? cardify(h("table", {},
+      h("thead", {}, h("tr", {}, ["Tub", "Records", "Size", "New for this laptop"].map(t => h("th", {}, t)))),
+      h("tbody", {}, r.tubs.map(t => h("tr", { "data-tub": t.name }, h("td", {}, t.name, t.pulled ? h("div", { class: "muted small" }, `dataset ${t.folder}`) : null),
+        h("td", { class: "num" }, fmt.int(t.records)), h("td", { class: "num" }, fmt.bytes(t.bytes)), h("td", { class: "num" }, fmt.int(t.new)))))))
+      : h("p", { class: "muted small" }, "No tub on the car yet."));
+    card.querySelector("[data-models]").replaceChildren(r.models.length ? h("ul", { class: "small" }, r.models.map(m =>
+      h("li", { "data-car-model": m.name }, `${m.name} (${fmt.bytes(m.bytes)}) `, m.driving ? h("b", {}, "driving")
+        : h("button", { class: "small", onclick: async () => {
+          try { await api("POST", `api/cars/${id}/use`, { model: m.name }); toast(`${m.name} is the pilot (the car is in user mode)`); refreshCar(id); }
+          catch (e) { toast(e.message, true); }
+        } }, "Switch to it")))) : null);
+    showPull(card, r.pull);
+  } catch (e) { card.querySelector("[data-car-error]").textContent = e.message; }
+}
+
+function showPull(card, p) {
+  const box = card.querySelector("[data-pull]");
+  if (!p || p.state === "idle") { box.hidden = true; return; }
+  box.hidden = false;
+  const pct = p.total ? Math.round(100 * p.done / p.total) : (p.state === "done" ? 100 : 0);
+  const bar = box.querySelector(".bar"); bar.setAttribute("aria-valuenow", pct); bar.firstChild.style.width = `${pct}%`;
+  const text = p.state === "running" ? `Pulling ${p.tub || ""}: ${fmt.int(p.done)} of ${fmt.int(p.total)} records`
+    : p.state === "failed" ? `Pull stopped: ${p.error}`
+    : `Pulled: ${(p.pulled || []).map(x => `${fmt.n(x.received, "record")} into ${x.folder}`).join(", ") || "nothing new"}`;
+  const t = box.querySelector("[data-pull-text]"); t.textContent = text; t.className = "small" + (p.state === "failed" ? " err" : "");
+  card.querySelector('[data-action="pull"]').disabled = p.state === "running";
+}
+
+async function startPull(c) {
+  const card = document.querySelector(`.car[data-car="${c.id}"]`);
+  try { showPull(card, await api("POST", `api/cars/${c.id}/pull`)); } catch (e) { toast(e.message, true); return; }
+  const timer = setInterval(async () => {
+    if (!document.body.contains(card)) { clearInterval(timer); return; }
+    try {
+      const p = await api("GET", `api/cars/${c.id}/pull`);
+      showPull(card, p);
+      if (p.state !== "running") { clearInterval(timer); refreshCar(c.id); }
+    } catch (e) { clearInterval(timer); toast(e.message, true); }
+  }, 400);
+  cleanup.push(() => clearInterval(timer));
 }
 
 // ---------------------------------------------------------------------------------------------
