@@ -17,7 +17,7 @@ class Form:
     The field's kind, bounds and choices come from the type and the range, its help from the
     setting's comment. ``name``: the field (and ``--name`` option, unless ``flag``); ``why``: the
     reason for the bounds, shown with an invalid value; ``kind``: only where the type cannot say
-    ("device", or "choice" for a name checked against a registry); ``help`` and ``complement``:
+    ("device", or "choice" for a name checked against a db); ``help`` and ``complement``:
     for a field that shows ``1 - setting`` (the validation share of TRAIN_TEST_SPLIT).
     """
 

@@ -1,30 +1,11 @@
-"""The car's registry of trained models, datasets and evaluations: one SQLite database per car.
+"""The car's model manager: the trained models in its database, with the datasets they were trained
+on, their parameters, metrics and comments (:class:`ModelDB`, which also holds the car's datasets
+and evaluations: :mod:`training.dataset_db`, :mod:`training.evaluation_db`).
 
 Track Driver AI's "model manager" on the command line (``vehicle models``) and the database of the
-trainer console (``vehicle console``): both read and write this one file, so a change in either
-shows in the other. Training registers each model it writes; the registry keeps what the file
-name does not say: the model type, the datasets (tubs) it was trained on, the training parameters,
-the metrics, a free comment and the closed-loop evaluations in the simulator.
-
-Schema (normalised as in Track Driver AI's database, but many-to-many because a model trains on several tubs)::
-
-    models(id, name UNIQUE, path, type, parameters JSON, metrics JSON, comment, transfer, created)
-    datasets(id, path UNIQUE, label, comment, added, origin, deleted, kept_deleted JSON)
-    model_datasets(model_id -> models.id, dataset_id -> datasets.id)
-    evaluations(id, model_id -> models.id, tracks JSON, laps, created, overall JSON,
-                per_track JSON, settings JSON, picture PNG)
-
-``path`` is stored relative to the database's folder when the model lies inside it, so a car
-folder can be moved or copied. Times are ISO 8601 UTC. Re-registering a name (retraining to the
-same file) replaces its entry and drops its evaluations (they judged other weights).
-
-A dataset row with ``origin`` NULL only records what a model was trained on; the console manages
-the others (``found`` in the data folder, ``registered`` by path, ``created`` empty, ``udacity``
-imported). ``deleted`` marks a soft delete (the tub's own record deletes, ``kept_deleted`` holding
-the records that were deleted before, so a restore gives back exactly what was there).
-
-The schema version is SQLite's ``user_version``; :data:`MIGRATIONS` upgrades older files in place
-(version 1 had no dataset details and no evaluations).
+trainer console (``vehicle console``): both read and write one file, so a change in either shows
+in the other. Training registers each model it writes. The schema and its migrations are in
+:mod:`training.db_store`.
 """
 
 from __future__ import annotations
@@ -34,127 +15,24 @@ import json
 import logging
 import re
 import sqlite3
-from collections.abc import Iterable, Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from vehicle.errors import VehicleError
+from training.dataset_db import DatasetEntry, DatasetTable
+from training.db_store import DB_FILENAME, ModelDBError, Store, _json
+from training.evaluation_db import Evaluation, EvaluationTable
 
 logger = logging.getLogger(__name__)
 
-DB_FILENAME = "models.sqlite3"
-SCHEMA_VERSION = 2
-# Files that training or export write next to a model and that `remove(delete_files=True)` removes.
-SIDECAR_SUFFIXES: tuple[str, ...] = (".onnx", ".int8.onnx", ".ts", ".loss.png", ".metrics.json")
-
-_SCHEMA = """
-CREATE TABLE IF NOT EXISTS models (
-    id INTEGER PRIMARY KEY AUTOINCREMENT,
-    name TEXT NOT NULL UNIQUE,
-    path TEXT NOT NULL,
-    type TEXT NOT NULL,
-    parameters TEXT NOT NULL DEFAULT '{}',
-    metrics TEXT NOT NULL DEFAULT '{}',
-    comment TEXT,
-    transfer TEXT,
-    created TEXT NOT NULL
-);
-CREATE TABLE IF NOT EXISTS datasets (
-    id INTEGER PRIMARY KEY AUTOINCREMENT,
-    path TEXT NOT NULL UNIQUE
-);
-CREATE TABLE IF NOT EXISTS model_datasets (
-    model_id INTEGER NOT NULL REFERENCES models(id) ON DELETE CASCADE,
-    dataset_id INTEGER NOT NULL REFERENCES datasets(id) ON DELETE CASCADE,
-    PRIMARY KEY (model_id, dataset_id)
-);
-"""
-
-#: statements that bring a file of version N-1 to version N, applied in order in one transaction
-MIGRATIONS: dict[int, tuple[str, ...]] = {
-    2: (
-        "ALTER TABLE datasets ADD COLUMN label TEXT",
-        "ALTER TABLE datasets ADD COLUMN comment TEXT",
-        "ALTER TABLE datasets ADD COLUMN added TEXT",
-        "ALTER TABLE datasets ADD COLUMN origin TEXT",
-        "ALTER TABLE datasets ADD COLUMN deleted TEXT",
-        "ALTER TABLE datasets ADD COLUMN kept_deleted TEXT",
-        """CREATE TABLE evaluations (
-            id INTEGER PRIMARY KEY AUTOINCREMENT,
-            model_id INTEGER NOT NULL REFERENCES models(id) ON DELETE CASCADE,
-            tracks TEXT NOT NULL,
-            laps INTEGER NOT NULL,
-            created TEXT NOT NULL,
-            overall TEXT NOT NULL DEFAULT '{}',
-            per_track TEXT NOT NULL DEFAULT '[]',
-            settings TEXT NOT NULL DEFAULT '{}',
-            picture BLOB
-        )""",
-        "CREATE INDEX evaluations_model ON evaluations(model_id)",
-    ),
-}
-
-DATASET_ORIGINS = ("found", "registered", "created", "udacity")
-
-
-class RegistryError(VehicleError):
-    """A model is not in the registry, or the registry file is not a model registry."""
-
-
-@dataclass(frozen=True)
-class DatasetEntry:
-    """One dataset (tub folder) the console manages."""
-
-    id: int
-    path: Path
-    label: str | None = None
-    comment: str | None = None
-    added: str | None = None
-    origin: str | None = None
-    deleted: str | None = None
-    kept_deleted: tuple[int, ...] = ()
-
-    @property
-    def name(self) -> str:
-        """The folder name."""
-        return self.path.name
-
-    def as_dict(self) -> dict[str, Any]:
-        """JSON-friendly view."""
-        return {"id": self.id, "name": self.name, "path": str(self.path), "label": self.label,
-                "comment": self.comment, "added": self.added, "origin": self.origin,
-                "deleted": self.deleted, "exists": self.path.is_dir()}
-
-
-@dataclass(frozen=True)
-class Evaluation:
-    """One closed-loop evaluation of a model in the simulator."""
-
-    id: int
-    model: str
-    tracks: tuple[int, ...]
-    laps: int
-    created: str
-    overall: dict[str, Any]
-    per_track: list[dict[str, Any]]
-    settings: dict[str, Any]
-    has_picture: bool = False
-
-    def as_dict(self) -> dict[str, Any]:
-        """JSON-friendly view (without the picture's bytes)."""
-        return {"id": self.id, "model": self.model, "tracks": list(self.tracks), "laps": self.laps,
-                "created": self.created, "overall": self.overall, "per_track": self.per_track,
-                "settings": self.settings, "has_picture": self.has_picture}
-
-
-def _now() -> str:
-    return datetime.now(UTC).isoformat(timespec="seconds")
-
+__all__ = ["DB_FILENAME", "DatasetEntry", "Evaluation", "ModelDB", "ModelDBError", "ModelEntry", "check_model_name",
+           "register_model"]
 
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
+# Files that training or export write next to a model and that `remove(delete_files=True)` removes.
+SIDECAR_SUFFIXES: tuple[str, ...] = (".onnx", ".int8.onnx", ".ts", ".loss.png", ".metrics.json")
 
 
 def check_model_name(name: str) -> str:
@@ -201,87 +79,12 @@ class ModelEntry:
                 "created": self.created, "exists": self.exists}
 
 
-def _json(value: Mapping[str, Any] | None, what: str) -> str:
-    try:
-        return json.dumps(dict(value or {}), sort_keys=True, default=str)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"register: {what} must be a JSON-like mapping: {exc}") from exc
-
-
-class ModelRegistry:
+class ModelDB(EvaluationTable, DatasetTable, Store):
     """The models database at ``db_path`` (created on first write).
 
-    >>> reg = ModelRegistry("models/models.sqlite3")          # doctest: +SKIP
-    >>> reg.register("models/pilot.pt", model_type="linear")   # doctest: +SKIP
+    >>> db = ModelDB("models/models.sqlite3")                 # doctest: +SKIP
+    >>> db.register("models/pilot.pt", model_type="linear")   # doctest: +SKIP
     """
-
-    def __init__(self, db_path: str | Path) -> None:
-        self.db_path = Path(db_path).resolve()
-        self.root = self.db_path.parent
-
-    @classmethod
-    def for_models_dir(cls, models_dir: str | Path) -> ModelRegistry:
-        """The registry of a car's models folder (``MODELS_PATH``)."""
-        return cls(Path(models_dir) / DB_FILENAME)
-
-    # -- connection ---------------------------------------------------------------------------
-    @contextmanager
-    def _connect(self, write: bool = False) -> Iterator[sqlite3.Connection]:
-        if not write and not self.db_path.is_file():
-            # Reading an absent registry: behave as an empty one without creating files.
-            conn = sqlite3.connect(":memory:")
-        else:
-            self.db_path.parent.mkdir(parents=True, exist_ok=True)
-            conn = sqlite3.connect(self.db_path, timeout=10.0)  # 10 s: another process may write
-        try:
-            conn.execute("PRAGMA foreign_keys = ON")
-            try:
-                self._migrate(conn)
-            except sqlite3.DatabaseError as exc:
-                raise RegistryError(f"{self.db_path} is not a model registry ({exc}); move it away and "
-                                    "train again to start a new one") from exc
-            with conn:  # one transaction per call, committed on success
-                yield conn
-        finally:
-            conn.close()
-
-    def _migrate(self, conn: sqlite3.Connection) -> None:
-        """Create the tables or bring an older file up to :data:`SCHEMA_VERSION`, atomically (another
-        process may open the same file at the same moment: the version is re-read under the lock)."""
-        if conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION:
-            return
-        conn.isolation_level = None  # explicit transaction: DDL and the version change commit together
-        try:
-            conn.execute("BEGIN IMMEDIATE")
-            try:
-                fresh = conn.execute("SELECT count(*) FROM sqlite_master WHERE name = 'models'").fetchone()[0] == 0
-                for statement in _SCHEMA.split(";"):
-                    if statement.strip():
-                        conn.execute(statement)
-                version = conn.execute("PRAGMA user_version").fetchone()[0]
-                if version > SCHEMA_VERSION:
-                    raise RegistryError(f"{self.db_path} was written by a newer version (schema {version}); "
-                                        "upgrade the package")
-                version = max(version, 1)  # files of version 1 were created with user_version 1
-                for target in range(version + 1, SCHEMA_VERSION + 1):
-                    for statement in MIGRATIONS[target]:
-                        conn.execute(statement)
-                    if not fresh:
-                        logger.info("%s: registry upgraded to schema %d", self.db_path, target)
-                conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
-                conn.execute("COMMIT")
-            except BaseException:
-                conn.execute("ROLLBACK")
-                raise
-        finally:
-            conn.isolation_level = ""
-
-    def _stored_path(self, path: Path) -> str:
-        path = path.resolve()
-        try:
-            return path.relative_to(self.root).as_posix()
-        except ValueError:
-            return str(path)
 
     def _entry(self, conn: sqlite3.Connection, row: sqlite3.Row | tuple[Any, ...]) -> ModelEntry:
         mid, name, path, mtype, params, metrics, comment, transfer, created = row
@@ -296,7 +99,6 @@ class ModelRegistry:
 
     _COLUMNS = "id, name, path, type, parameters, metrics, comment, transfer, created"
 
-    # -- API ----------------------------------------------------------------------------------
     def register(self, model_path: str | Path, *, model_type: str, datasets: Sequence[str | Path] = (),
                  parameters: Mapping[str, Any] | None = None, metrics: Mapping[str, Any] | None = None,
                  comment: str | None = None, transfer: str | Path | None = None,
@@ -305,7 +107,7 @@ class ModelRegistry:
 
         Args:
             model_path: the model file (need not exist yet, e.g. registered just before saving).
-            model_type: registry name of the architecture ("linear", "pilotnet", ...).
+            model_type: type name of the architecture ("linear", "pilotnet", ...).
             datasets: the tubs / data folders it was trained on.
             parameters: training parameters (learning rate, epochs, augmentations ...).
             metrics: results (best validation loss, epochs run ...).
@@ -357,7 +159,7 @@ class ModelRegistry:
         """The entry named ``name_or_path`` (a name, ``NAME.pt`` or the model's path).
 
         Raises:
-            RegistryError: no such entry; the message lists the closest names.
+            ModelDBError: no such entry; the message lists the closest names.
         """
         key = str(name_or_path)
         with self._connect() as conn:
@@ -373,8 +175,8 @@ class ModelRegistry:
         names = [e.name for e in entries]
         close = difflib.get_close_matches(Path(key).stem, names, n=3)
         hint = f" Did you mean {', '.join(close)}?" if close else (
-            f" Registered: {', '.join(names)}." if names else " The registry is empty: train a model first.")
-        raise RegistryError(f"no model {key!r} in {self.db_path}.{hint}")
+            f" Registered: {', '.join(names)}." if names else " The model database is empty: train a model first.")
+        raise ModelDBError(f"no model {key!r} in {self.db_path}.{hint}")
 
     def set_comment(self, name: str, comment: str | None) -> ModelEntry:
         """Replace the comment of an entry (None or "" clears it)."""
@@ -408,17 +210,17 @@ class ModelRegistry:
 
         Raises:
             ValueError: ``new_name`` is not a usable file name.
-            RegistryError: no such entry, the name is taken, or a target file exists.
+            ModelDBError: no such entry, the name is taken, or a target file exists.
         """
         entry = self.get(name)
         try:
             new_name = check_model_name(new_name)
         except ValueError as exc:
-            raise RegistryError(f"new name {exc}") from exc
+            raise ModelDBError(f"new name {exc}") from exc
         if new_name == entry.name:
             return entry
         if new_name in self.names():
-            raise RegistryError(f"a model named {new_name!r} is already registered; pick another name")
+            raise ModelDBError(f"a model named {new_name!r} is already registered; pick another name")
         moves: list[tuple[Path, Path]] = []
         if move_files:
             suffixes = (".pt", *SIDECAR_SUFFIXES) if entry.path.suffix == ".pt" else ("",)
@@ -428,7 +230,7 @@ class ModelRegistry:
                 dst = entry.path.with_name(new_name + (suffix or entry.path.suffix))
                 if src.exists():
                     if dst.exists():
-                        raise RegistryError(f"cannot rename {entry.name} to {new_name}: {dst} exists")
+                        raise ModelDBError(f"cannot rename {entry.name} to {new_name}: {dst} exists")
                     moves.append((src, dst))
         new_path = entry.path.with_name(new_name + entry.path.suffix) if move_files else entry.path
         done: list[tuple[Path, Path]] = []
@@ -440,172 +242,11 @@ class ModelRegistry:
                 conn.execute("UPDATE models SET name = ?, path = ? WHERE id = ?",
                              (new_name, self._stored_path(new_path), entry.id))
         except BaseException:
-            for src, dst in reversed(done):  # put the files back: registry and disk stay in step
+            for src, dst in reversed(done):  # put the files back: db and disk stay in step
                 dst.rename(src)
             raise
         logger.info("renamed model %s to %s", entry.name, new_name)
         return self.get(new_name)
-
-    # -- datasets -----------------------------------------------------------------------------
-    _DCOLUMNS = "id, path, label, comment, added, origin, deleted, kept_deleted"
-
-    @staticmethod
-    def _dataset(row: tuple[Any, ...]) -> DatasetEntry:
-        did, path, label, comment, added, origin, deleted, kept = row
-        return DatasetEntry(did, Path(path), label, comment, added, origin, deleted,
-                            tuple(json.loads(kept)) if kept else ())
-
-    def datasets(self, include_deleted: bool = True) -> list[DatasetEntry]:
-        """The datasets the console manages (not the bare training references), oldest first."""
-        where = "origin IS NOT NULL" + ("" if include_deleted else " AND deleted IS NULL")
-        with self._connect() as conn:
-            rows = conn.execute(f"SELECT {self._DCOLUMNS} FROM datasets WHERE {where} ORDER BY id").fetchall()
-        return [self._dataset(r) for r in rows]
-
-    def dataset(self, dataset_id: int) -> DatasetEntry:
-        """The dataset with this id (RegistryError if none)."""
-        with self._connect() as conn:
-            row = conn.execute(f"SELECT {self._DCOLUMNS} FROM datasets WHERE id = ? AND origin IS NOT NULL",
-                               (int(dataset_id),)).fetchone()
-        if row is None:
-            raise RegistryError(f"no dataset {dataset_id} in {self.db_path}")
-        return self._dataset(row)
-
-    def add_dataset(self, path: str | Path, origin: str, label: str | None = None,
-                    comment: str | None = None) -> DatasetEntry:
-        """Start managing the folder ``path`` (or return its entry when it is managed already; a
-        bare training reference to the same folder becomes managed)."""
-        if origin not in DATASET_ORIGINS:
-            raise ValueError(f"origin must be one of {DATASET_ORIGINS}, got {origin!r}")
-        key = str(Path(path).resolve())
-        with self._connect(write=True) as conn:
-            row = conn.execute("SELECT id, origin FROM datasets WHERE path = ?", (key,)).fetchone()
-            if row is None:
-                conn.execute("INSERT INTO datasets (path, label, comment, added, origin) VALUES (?, ?, ?, ?, ?)",
-                             (key, label, comment, _now(), origin))
-            elif row[1] is None:
-                conn.execute("UPDATE datasets SET origin = ?, added = ?, label = ?, comment = ? WHERE id = ?",
-                             (origin, _now(), label, comment, row[0]))
-            did = conn.execute("SELECT id FROM datasets WHERE path = ?", (key,)).fetchone()[0]
-        return self.dataset(did)
-
-    def update_dataset(self, dataset_id: int, **fields: Any) -> DatasetEntry:
-        """Change ``path``, ``label``, ``comment``, ``deleted`` or ``kept_deleted`` of a dataset."""
-        allowed = {"path", "label", "comment", "deleted", "kept_deleted"}
-        unknown = set(fields) - allowed
-        if unknown:
-            raise ValueError(f"update_dataset: unknown fields {sorted(unknown)}")
-        entry = self.dataset(dataset_id)
-        values = dict(fields)
-        if "path" in values:
-            values["path"] = str(Path(values["path"]).resolve())
-        if "kept_deleted" in values:
-            values["kept_deleted"] = json.dumps(sorted(int(i) for i in values["kept_deleted"] or ()))
-        if values:
-            sets = ", ".join(f"{k} = ?" for k in values)
-            try:
-                with self._connect(write=True) as conn:
-                    conn.execute(f"UPDATE datasets SET {sets} WHERE id = ?", (*values.values(), entry.id))
-            except sqlite3.IntegrityError as exc:
-                raise RegistryError(f"another dataset already uses {values.get('path')}") from exc
-        return self.dataset(entry.id)
-
-    def forget_dataset(self, dataset_id: int) -> None:
-        """Stop managing a dataset (its folder is left alone; models keep their reference)."""
-        entry = self.dataset(dataset_id)
-        with self._connect(write=True) as conn:
-            conn.execute("UPDATE datasets SET origin = NULL, label = NULL, comment = NULL, deleted = NULL, "
-                         "kept_deleted = NULL WHERE id = ?", (entry.id,))
-            conn.execute("DELETE FROM datasets WHERE id = ? AND id NOT IN (SELECT dataset_id FROM model_datasets)",
-                         (entry.id,))
-
-    def models_of_dataset(self, dataset_id: int) -> list[str]:
-        """Names of the models trained on this dataset."""
-        with self._connect() as conn:
-            return [r[0] for r in conn.execute(
-                "SELECT m.name FROM models m JOIN model_datasets md ON md.model_id = m.id "
-                "WHERE md.dataset_id = ? ORDER BY m.created", (int(dataset_id),))]
-
-    # -- evaluations --------------------------------------------------------------------------
-    def add_evaluation(self, name: str, report: Mapping[str, Any], picture: bytes | None = None) -> Evaluation:
-        """Store an evaluation report (``vehicle.app.evaluate.evaluate``'s) of the model ``name``.
-
-        Trajectories are not stored (the picture shows them); per-track metrics and the overall
-        figures are.
-        """
-        entry = self.get(name)
-        tracks = sorted(int(s) for s in report["seeds"])
-        per_track = [{k: v for k, v in t.items() if k not in ("trajectory", "off_track_at")}
-                     for t in report.get("tracks", [])]
-        with self._connect(write=True) as conn:
-            cur = conn.execute(
-                "INSERT INTO evaluations (model_id, tracks, laps, created, overall, per_track, settings, picture) "
-                "VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
-                (entry.id, json.dumps(tracks), int(report["laps"]), _now(), _json(report.get("overall"), "overall"),
-                 json.dumps(per_track, default=str), _json(report.get("settings"), "settings"), picture))
-            eid = cur.lastrowid
-        logger.info("stored evaluation %d of %s on tracks %s", eid, entry.name, tracks)
-        return self.evaluation(eid)
-
-    _ECOLUMNS = ("e.id, m.name, e.tracks, e.laps, e.created, e.overall, e.per_track, e.settings, "
-                 "e.picture IS NOT NULL")
-
-    @staticmethod
-    def _evaluation(row: tuple[Any, ...]) -> Evaluation:
-        eid, name, tracks, laps, created, overall, per_track, settings, pic = row
-        return Evaluation(eid, name, tuple(json.loads(tracks)), laps, created, json.loads(overall),
-                          json.loads(per_track), json.loads(settings), bool(pic))
-
-    def evaluation(self, evaluation_id: int) -> Evaluation:
-        """One evaluation by id (RegistryError if none)."""
-        with self._connect() as conn:
-            row = conn.execute(f"SELECT {self._ECOLUMNS} FROM evaluations e JOIN models m ON m.id = e.model_id "
-                               "WHERE e.id = ?", (int(evaluation_id),)).fetchone()
-        if row is None:
-            raise RegistryError(f"no evaluation {evaluation_id} in {self.db_path}")
-        return self._evaluation(row)
-
-    def evaluations(self, name: str | None = None) -> list[Evaluation]:
-        """Evaluations of the model ``name`` (every model's when None), newest first."""
-        where, args = ("WHERE m.name = ?", (self.get(name).name,)) if name is not None else ("", ())
-        with self._connect() as conn:
-            rows = conn.execute(f"SELECT {self._ECOLUMNS} FROM evaluations e JOIN models m ON m.id = e.model_id "
-                                f"{where} ORDER BY e.created DESC, e.id DESC", args).fetchall()
-        return [self._evaluation(r) for r in rows]
-
-    def evaluation_picture(self, evaluation_id: int) -> bytes | None:
-        """The PNG of an evaluation's trajectories (None if it has none)."""
-        with self._connect() as conn:
-            row = conn.execute("SELECT picture FROM evaluations WHERE id = ?", (int(evaluation_id),)).fetchone()
-        if row is None:
-            raise RegistryError(f"no evaluation {evaluation_id} in {self.db_path}")
-        return row[0]
-
-    def remove_evaluation(self, evaluation_id: int) -> None:
-        """Delete one evaluation."""
-        with self._connect(write=True) as conn:
-            conn.execute("DELETE FROM evaluations WHERE id = ?", (int(evaluation_id),))
-
-    def leaderboard(self, tracks: Iterable[int], laps: int | None = None) -> list[Evaluation]:
-        """Each model's latest evaluation on exactly ``tracks`` (and ``laps`` when given), best first:
-        by :func:`parts.sim.metrics.rank_key` (autonomy times the share of the laps driven, then laps
-        completed, then mean |CTE|, then mean speed)."""
-        key = json.dumps(sorted(int(t) for t in tracks))
-        latest: dict[str, Evaluation] = {}
-        for ev in self.evaluations():  # newest first: the first seen per model is its latest
-            if json.dumps(list(ev.tracks)) == key and (laps is None or ev.laps == laps):
-                latest.setdefault(ev.model, ev)
-
-        from parts.sim.metrics import rank_key
-
-        return sorted(latest.values(), key=lambda ev: rank_key(ev.overall))
-
-    def track_sets(self) -> list[tuple[tuple[int, ...], int, int]]:
-        """(tracks, laps, number of models) of every track set evaluated, most models first."""
-        seen: dict[tuple[tuple[int, ...], int], set[str]] = {}
-        for ev in self.evaluations():
-            seen.setdefault((ev.tracks, ev.laps), set()).add(ev.model)
-        return sorted(((t, lp, len(m)) for (t, lp), m in seen.items()), key=lambda x: (-x[2], x[0], x[1]))
 
 
 def register_model(model_path: str | Path, meta: Mapping[str, Any] | None = None, *,
@@ -615,12 +256,12 @@ def register_model(model_path: str | Path, meta: Mapping[str, Any] | None = None
 
     Fields are read from the model file's metadata ``meta`` (keys ``type`` or ``model.type``, ``datasets``,
     ``training`` or ``parameters``, ``metrics``, ``transfer``, ``comment``) and may be given or
-    overridden as keywords of :meth:`ModelRegistry.register` (``model_type=``, ``datasets=`` ...).
+    overridden as keywords of :meth:`ModelDB.register` (``model_type=``, ``datasets=`` ...).
 
     Args:
         model_path: the saved model file.
         meta: the metadata saved in the model file.
-        db_path: the registry; default ``models.sqlite3`` next to the model file.
+        db_path: the db; default ``models.sqlite3`` next to the model file.
     """
     meta = dict(meta or {})
     values: dict[str, Any] = {
@@ -634,6 +275,6 @@ def register_model(model_path: str | Path, meta: Mapping[str, Any] | None = None
     values.update(fields)
     if not values["model_type"]:
         raise ValueError("register_model: the model type is unknown: pass model_type= or meta['type']")
-    registry = ModelRegistry(db_path) if db_path is not None else \
-        ModelRegistry.for_models_dir(Path(model_path).resolve().parent)
-    return registry.register(model_path, **values)
+    db = ModelDB(db_path) if db_path is not None else \
+        ModelDB.for_models_dir(Path(model_path).resolve().parent)
+    return db.register(model_path, **values)

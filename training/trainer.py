@@ -2,7 +2,7 @@
 
 Data (:mod:`training.dataset`) -> model (:mod:`parts.pilots.models`) -> loop
 (:mod:`training.fit`) -> model file (:mod:`parts.pilots.modelfile`) with the loss curve
-``NAME.loss.png`` and ``NAME.metrics.json`` next to it, and an entry in the car's model registry.
+``NAME.loss.png`` and ``NAME.metrics.json`` next to it, and an entry in the car's model database.
 Runs on the GPU when there is one and on several GPUs/machines under torchrun.
 """
 
@@ -484,7 +484,7 @@ def _metrics(history: Any, prep: PreparedData, started: float) -> dict[str, Any]
 
 def _finish(model_path: Path, base_meta: dict[str, Any], metrics: dict[str, Any], history: Any, type_name: str,
             show_plot: bool, register: bool, comment: str | None) -> None:
-    """Final metadata into the best model file, the metrics JSON, the loss plot and the registry."""
+    """Final metadata into the best model file, the metrics JSON, the loss plot and the model database."""
     if not model_path.exists():
         if metrics.get("cancelled"):
             raise ValueError("training was cancelled before its first epoch ended: no model was saved")
@@ -504,7 +504,7 @@ def _finish(model_path: Path, base_meta: dict[str, Any], metrics: dict[str, Any]
             from training.model_db import register_model
 
             register_model(model_path, meta, comment=comment)
-        except Exception as exc:  # the model is written; a registry problem must not lose it
+        except Exception as exc:  # the model is written; a db problem must not lose it
             logger.warning("model saved but not registered: %s", exc)
     best = metrics.get("best_val_loss")
     logger.info("saved %s (best epoch %d, val_loss %s)", model_path, metrics["best_epoch"],

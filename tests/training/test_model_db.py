@@ -1,4 +1,4 @@
-"""The SQLite registry of trained models and the ``vehicle models`` command."""
+"""The SQLite database of trained models and the ``vehicle models`` command."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from datetime import UTC, datetime
 
 import pytest
 
-from training.model_db import DB_FILENAME, ModelRegistry, RegistryError, register_model
+from training.model_db import DB_FILENAME, ModelDB, ModelDBError, register_model
 from vehicle.app.cli import main
 
 
@@ -21,7 +21,7 @@ def car(tmp_path):
 
 
 def test_register_round_trip(car):
-    reg = ModelRegistry.for_models_dir(car / "models")
+    reg = ModelDB.for_models_dir(car / "models")
     model = car / "models" / "pilot_a.pt"
     model.write_bytes(b"weights")
     tubs = [car / "data" / "tub_1", car / "data" / "tub_2"]
@@ -29,7 +29,7 @@ def test_register_round_trip(car):
                          parameters={"learning_rate": 1e-3, "epochs": 10}, metrics={"val_loss": 0.0123},
                          comment="first try", created=datetime(2026, 1, 2, 3, 4, 5, tzinfo=UTC))
     assert (car / "models" / DB_FILENAME).is_file()
-    again = ModelRegistry(car / "models" / DB_FILENAME).get("pilot_a")
+    again = ModelDB(car / "models" / DB_FILENAME).get("pilot_a")
     assert again == entry
     assert again.path == model.resolve() and again.exists
     assert again.type == "linear"
@@ -43,7 +43,7 @@ def test_register_round_trip(car):
 
 
 def test_reregistering_replaces_the_entry_and_keeps_the_comment(car):
-    reg = ModelRegistry.for_models_dir(car / "models")
+    reg = ModelDB.for_models_dir(car / "models")
     reg.register(car / "models" / "m.pt", model_type="linear", comment="keep me", metrics={"val_loss": 1.0})
     reg.register(car / "models" / "m.pt", model_type="categorical", metrics={"val_loss": 0.5})
     entries = reg.list()
@@ -58,25 +58,25 @@ def test_register_model_reads_the_model_file_metadata(car):
     entry = register_model(car / "models" / "p.pt", meta, comment="from training")
     assert entry.type == "pilotnet" and entry.parameters == {"epochs": 3}
     assert entry.comment == "from training"
-    assert ModelRegistry.for_models_dir(car / "models").names() == ["p"]
+    assert ModelDB.for_models_dir(car / "models").names() == ["p"]
     with pytest.raises(ValueError, match="model type is unknown"):
         register_model(car / "models" / "q.pt", {})
 
 
 def test_lookup_errors_suggest_names(car):
-    reg = ModelRegistry.for_models_dir(car / "models")
-    with pytest.raises(RegistryError, match="registry is empty"):
+    reg = ModelDB.for_models_dir(car / "models")
+    with pytest.raises(ModelDBError, match="model database is empty"):
         reg.get("anything")
     assert not (car / "models" / DB_FILENAME).exists()  # reading never creates the file
     reg.register(car / "models" / "speedy.pt", model_type="linear")
-    with pytest.raises(RegistryError, match="Did you mean speedy"):
+    with pytest.raises(ModelDBError, match="Did you mean speedy"):
         reg.get("speedie")
     assert reg.get("speedy.pt").name == "speedy"
     assert reg.get(car / "models" / "speedy.pt").name == "speedy"
 
 
 def test_remove_with_and_without_files(car):
-    reg = ModelRegistry.for_models_dir(car / "models")
+    reg = ModelDB.for_models_dir(car / "models")
     for name in ("a", "b"):
         for suffix in (".pt", ".onnx", ".loss.png", ".metrics.json"):
             (car / "models" / f"{name}{suffix}").write_bytes(b"x")
@@ -90,14 +90,14 @@ def test_remove_with_and_without_files(car):
         assert conn.execute("SELECT COUNT(*) FROM datasets").fetchone()[0] == 0  # orphans removed
 
 
-def test_not_a_registry_is_a_clear_error(car):
+def test_not_a_model_database_is_a_clear_error(car):
     (car / "models" / DB_FILENAME).write_text("this is not sqlite")
-    with pytest.raises(RegistryError, match="is not a model registry"):
-        ModelRegistry.for_models_dir(car / "models").list()
+    with pytest.raises(ModelDBError, match="is not a model database"):
+        ModelDB.for_models_dir(car / "models").list()
 
 
 def test_cli_list_show_comment_rm(car, capsys):
-    reg = ModelRegistry.for_models_dir(car / "models")
+    reg = ModelDB.for_models_dir(car / "models")
     (car / "models" / "fast.pt").write_bytes(b"x")
     reg.register(car / "models" / "fast.pt", model_type="linear", datasets=[car / "data" / "tub_1"],
                  metrics={"val_loss": 0.01234, "epochs": 7, "train_loss": [0.5, 0.2]})
@@ -153,7 +153,7 @@ def test_a_schema_1_registry_is_upgraded_in_place(car):
     db = car / "models" / DB_FILENAME
     with sqlite3.connect(db) as conn:
         conn.executescript(_V1)
-    reg = ModelRegistry(db)
+    reg = ModelDB(db)
     [entry] = reg.list()
     assert (entry.name, entry.comment, entry.parameters, entry.datasets) == ("old", "kept", {"epochs": 4},
                                                                               ("/cars/c/data/tub_1",))
@@ -163,15 +163,15 @@ def test_a_schema_1_registry_is_upgraded_in_place(car):
         assert {"label", "comment", "added", "origin", "deleted", "kept_deleted"} <= cols
         assert conn.execute("SELECT count(*) FROM evaluations").fetchone()[0] == 0
     assert reg.datasets() == []  # a training reference is not a managed dataset
-    ModelRegistry(db).list()  # opening again changes nothing
+    ModelDB(db).list()  # opening again changes nothing
 
 
 def test_a_newer_schema_is_refused(car):
     db = car / "models" / DB_FILENAME
     with sqlite3.connect(db) as conn:
         conn.executescript(_V1.replace("user_version = 1", "user_version = 9"))
-    with pytest.raises(RegistryError, match="newer version"):
-        ModelRegistry(db).list()
+    with pytest.raises(ModelDBError, match="newer version"):
+        ModelDB(db).list()
 
 
 def _report(autonomy, cte, seeds=(1, 2), laps=1, completed=2):
@@ -182,7 +182,7 @@ def _report(autonomy, cte, seeds=(1, 2), laps=1, completed=2):
 
 
 def test_evaluations_and_the_leaderboard(car):
-    reg = ModelRegistry.for_models_dir(car / "models")
+    reg = ModelDB.for_models_dir(car / "models")
     for name in ("a", "b", "c"):
         reg.register(car / "models" / f"{name}.pt", model_type="linear")
     reg.add_evaluation("a", _report(90.0, 0.2), picture=b"\x89PNG...")
@@ -212,7 +212,7 @@ def test_evaluations_and_the_leaderboard(car):
 
 
 def test_rename_moves_the_files_and_keeps_everything_else(car):
-    reg = ModelRegistry.for_models_dir(car / "models")
+    reg = ModelDB.for_models_dir(car / "models")
     for suffix in (".pt", ".onnx", ".loss.png"):
         (car / "models" / f"m{suffix}").write_bytes(suffix.encode())
     reg.register(car / "models" / "m.pt", model_type="linear", comment="c", datasets=[car / "data" / "t"])
@@ -223,14 +223,14 @@ def test_rename_moves_the_files_and_keeps_everything_else(car):
     assert not list((car / "models").glob("m.*"))
     assert entry.comment == "c" and len(entry.datasets) == 1 and len(reg.evaluations("better")) == 1
     reg.register(car / "models" / "x.pt", model_type="linear")
-    with pytest.raises(RegistryError, match="already registered"):
+    with pytest.raises(ModelDBError, match="already registered"):
         reg.rename("better", "x")
-    with pytest.raises(RegistryError, match="must not be empty"):
+    with pytest.raises(ModelDBError, match="must not be empty"):
         reg.rename("better", "")
-    with pytest.raises(RegistryError, match="letters, digits"):
+    with pytest.raises(ModelDBError, match="letters, digits"):
         reg.rename("better", "../escape")
     (car / "models" / "taken.onnx").write_bytes(b"someone else's")
-    with pytest.raises(RegistryError, match="taken.onnx exists"):
+    with pytest.raises(ModelDBError, match="taken.onnx exists"):
         reg.rename("better", "taken")
     assert (car / "models" / "better.pt").is_file()  # nothing moved
     assert main(["models", "rename", "better", "best", "--car", str(car)]) == 0
@@ -238,7 +238,7 @@ def test_rename_moves_the_files_and_keeps_everything_else(car):
 
 
 def test_managed_datasets_survive_the_removal_of_their_models(car):
-    reg = ModelRegistry.for_models_dir(car / "models")
+    reg = ModelDB.for_models_dir(car / "models")
     tub = car / "data" / "tub_1"
     reg.register(car / "models" / "m.pt", model_type="linear", datasets=[tub, car / "data" / "tub_2"])
     managed = reg.add_dataset(tub, "found", label="3")
@@ -254,7 +254,7 @@ def test_managed_datasets_survive_the_removal_of_their_models(car):
 
 
 def test_the_models_leaderboard_command(car, capsys):
-    reg = ModelRegistry.for_models_dir(car / "models")
+    reg = ModelDB.for_models_dir(car / "models")
     reg.register(car / "models" / "a.pt", model_type="linear")
     reg.add_evaluation("a", _report(75.5, 0.123, seeds=(101, 102, 103)))
     assert main(["models", "leaderboard", "--car", str(car)]) == 0

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from parts.pilots.modelfile import load_model
-from training.model_db import ModelRegistry
+from training.model_db import ModelDB
 from training.trainer import train
 from vehicle.config import Config
 
@@ -48,7 +48,7 @@ def test_a_stop_request_keeps_the_best_model_so_far(cfg, tiny_tub, tmp_path, tor
                     should_stop=lambda: len(epochs_seen) >= 2)
     assert metrics["cancelled"] is True and metrics["epochs"] == 2 and epochs_seen == [1, 2]
     assert model.is_file() and load_model(model)[1]["metrics"]["cancelled"] is True
-    entry = ModelRegistry.for_models_dir(model.parent).get("stopped")
+    entry = ModelDB.for_models_dir(model.parent).get("stopped")
     assert entry.metrics["cancelled"] is True and entry.metrics["best_epoch"] in (1, 2)
 
 

@@ -1,4 +1,4 @@
-"""train(): data -> model file with metrics, loss plot and registry entry; early stop; transfer; CLIs."""
+"""train(): data -> model file with metrics, loss plot and database entry; early stop; transfer; CLIs."""
 
 from __future__ import annotations
 
@@ -34,9 +34,9 @@ def test_train_writes_model_metrics_plot_and_registry(tiny_tub, tmp_path, torch_
     assert saved["val_loss"] == pytest.approx(metrics["val_loss"]) and saved["type"] == "linear"
     png = (tmp_path / "models" / "pilot.loss.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 5000
-    from training.model_db import ModelRegistry
+    from training.model_db import ModelDB
 
-    entry = ModelRegistry.for_models_dir(tmp_path / "models").get("pilot")
+    entry = ModelDB.for_models_dir(tmp_path / "models").get("pilot")
     assert entry.type == "linear" and entry.comment == "first try"
 
 
@@ -152,13 +152,13 @@ def test_training_without_validation_split_monitors_training_loss(tiny_tub, tmp_
 def test_ctrl_c_ends_a_command_line_training_with_its_best_model_registered(tiny_tub, tmp_path, capsys,
                                                                            torch_one_thread):
     # acceptance: Ctrl-C in `manage.py train` said "vehicle stopped by Ctrl-C: throttle set to
-    # neutral" and left a model without its metrics, plot or registry entry
+    # neutral" and left a model without its metrics, plot or database entry
     import os
     import signal
     import threading
     import time
 
-    from training.model_db import ModelRegistry
+    from training.model_db import ModelDB
     from vehicle.app.cli import main
 
     model = tmp_path / "models" / "p.pt"
@@ -179,5 +179,5 @@ def test_ctrl_c_ends_a_command_line_training_with_its_best_model_registered(tiny
     assert "stopped by Ctrl-C in epoch " in out and ": saved " in out
     metrics = json.loads((tmp_path / "models" / "p.metrics.json").read_text())
     assert metrics["cancelled"] and 1 <= metrics["best_epoch"] < 10000
-    assert ModelRegistry.for_models_dir(tmp_path / "models").get("p").type == "linear"
+    assert ModelDB.for_models_dir(tmp_path / "models").get("p").type == "linear"
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the handler is put back

@@ -313,7 +313,7 @@ def train_or_stop(cfg: Any, tubs: list[Path], model_path: Path, *, ends: str = "
                   **options: Any) -> dict[str, Any]:
     """``training.trainer.train`` as ``manage.py train`` runs it: the first Ctrl-C ends the
     training after the current step and keeps the best model so far with its metrics, loss plot
-    and registry entry; the caller then says what it kept and what ``ends`` (KeyboardInterrupt:
+    and database entry; the caller then says what it kept and what ``ends`` (KeyboardInterrupt:
     exit 130)."""
     from training.trainer import train
     from vehicle.app.interrupt import ctrl_c_stops_training
@@ -330,7 +330,7 @@ def train_or_stop(cfg: Any, tubs: list[Path], model_path: Path, *, ends: str = "
     if metrics.get("cancelled"):
         from training.train_report import train_summary
 
-        say(f"{train_summary(metrics, model_path)}, with its loss plot and registry entry; {ends}")
+        say(f"{train_summary(metrics, model_path)}, with its loss plot and database entry; {ends}")
         raise KeyboardInterrupt
     return metrics
 

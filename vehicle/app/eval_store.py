@@ -1,4 +1,4 @@
-"""Keep an evaluation report in the car's registry, with the picture of the driven trajectories.
+"""Keep an evaluation report in the car's model database, with the picture of the driven trajectories.
 
 ``vehicle sim eval --store`` and the trainer console's evaluation job both call
 :func:`store_report`; the leaderboard (``vehicle models leaderboard``, the console) ranks what is
@@ -28,15 +28,15 @@ def store_report(cfg: Any, model: str | Path, report: dict[str, Any]) -> Any:
     """Store ``report`` as an evaluation of the registered model ``model`` (a name or its file).
 
     Returns the stored :class:`training.model_db.Evaluation`. Raises
-    :class:`training.model_db.RegistryError` when the model is not in the car's registry.
+    :class:`training.model_db.ModelDBError` when the model is not in the car's model database.
     """
-    from training.model_db import ModelRegistry
+    from training.model_db import ModelDB
 
-    registry = ModelRegistry.for_models_dir(cfg.path("MODELS_PATH"))
-    entry = registry.get(str(model))
+    db = ModelDB.for_models_dir(cfg.path("MODELS_PATH"))
+    entry = db.get(str(model))
     try:
         picture: bytes | None = report_picture(report, cfg)
     except (OSError, ValueError) as exc:  # the numbers matter more than the picture
         logger.warning("no trajectory picture for the evaluation of %s: %s", entry.name, exc)
         picture = None
-    return registry.add_evaluation(entry.name, report, picture)
+    return db.add_evaluation(entry.name, report, picture)

@@ -1,7 +1,7 @@
 """Ctrl-C during a long training: end it after the current step and keep what it learnt.
 
 ``manage.py train``, ``vehicle train`` and both demos train this way, so a Ctrl-C leaves the best
-model so far with its metrics, loss plot and registry entry, as a finished run does.
+model so far with its metrics, loss plot and database entry, as a finished run does.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ logger = logging.getLogger(__name__)
 @contextlib.contextmanager
 def ctrl_c_stops_training() -> Iterator[threading.Event | None]:
     """The first Ctrl-C ends the training after the current step, keeping the best model so far
-    (its metrics, plot and registry entry written as for a finished run); a second one stops at
+    (its metrics, plot and database entry written as for a finished run); a second one stops at
     once. Yields the event ``fit`` polls, or None where a handler cannot be set (another thread,
     several processes: torchrun stops its workers itself)."""
     if threading.current_thread() is not threading.main_thread() or int(os.environ.get("WORLD_SIZE", "1")) > 1:

@@ -444,7 +444,7 @@ def _register(path: Path, meta: dict[str, Any]) -> None:
         from training.model_db import register_model
 
         register_model(path, {**meta, "type": meta.get("type") or _type_of(path)}, comment=meta.get("comment"))
-    except Exception as exc:  # the model is written; a registry problem must not lose it
+    except Exception as exc:  # the model is written; a db problem must not lose it
         logger.warning("rl pilot saved but not registered: %s", exc)
 
 

@@ -1,4 +1,4 @@
-"""Model registry: every type builds, declares its inputs/outputs, and learns on a tiny tub."""
+"""Model types: every type builds, declares its inputs/outputs, and learns on a tiny tub."""
 
 from __future__ import annotations
 

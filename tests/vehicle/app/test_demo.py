@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from training.model_db import ModelRegistry
+from training.model_db import ModelDB
 from vehicle.app.cli import main
 
 
@@ -46,7 +46,7 @@ def test_tiny_demo_writes_model_export_reports_and_registry(tmp_path, capsys):
         assert pilot_report["conditions"]["themes"] == [theme] and pilot_report["conditions"]["randomize"] == 2
         assert expert_report["overall"]["interventions"] == 0  # the baseline drives cleanly
     assert len(list((out / "data" / "demo_tub" / "images").iterdir())) == 200
-    entry = ModelRegistry.for_models_dir(out / "models").get("demo_linear")
+    entry = ModelDB.for_models_dir(out / "models").get("demo_linear")
     assert entry.type == "linear" and entry.comment == "vehicle demo"
     assert entry.metrics["epochs"] == 1
     from vehicle.config import load_config
@@ -137,7 +137,7 @@ def test_each_demo_runs_with_its_own_defaults(monkeypatch, tmp_path, mode, defau
 @pytest.mark.slow
 @pytest.mark.parametrize("lanes", [True, False])
 def test_ctrl_c_while_a_demo_trains_keeps_and_registers_the_best_model(tmp_path, capsys, caplog, lanes):
-    # issue 27: Ctrl-C in `vehicle demo --lanes` left a model with no registry entry, loss plot or
+    # issue 27: Ctrl-C in `vehicle demo --lanes` left a model with no database entry, loss plot or
     # metrics, silently (manage.py train keeps and registers the best model so far)
     import os
     import signal
@@ -164,7 +164,7 @@ def test_ctrl_c_while_a_demo_trains_keeps_and_registers_the_best_model(tmp_path,
     assert "stopped by Ctrl-C in epoch " in printed and f"of 10000: saved {model} (best epoch" in printed
     metrics = json.loads(model.with_suffix(".metrics.json").read_text())
     assert metrics["cancelled"] and 1 <= metrics["best_epoch"] < 10000
-    assert ModelRegistry.for_models_dir(out / "models").get(model.stem).type == ("lanes" if lanes else "linear")
+    assert ModelDB.for_models_dir(out / "models").get(model.stem).type == ("lanes" if lanes else "linear")
     assert "throttle" not in caplog.text  # no car was driving
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the handler is put back
     assert "[4/4]" not in printed  # the demo ends there

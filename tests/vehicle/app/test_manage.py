@@ -119,7 +119,7 @@ def test_expert_options_without_expert_are_an_error(tmp_path, capsys, option):
 @pytest.mark.slow
 def test_train_run_from_elsewhere_writes_the_model_and_registry_in_the_car(tmp_path, monkeypatch, capsys):
     # issue 27: `python mycar/manage.py train --tubs data --model models/z.pt` from outside the car
-    # wrote the model and a second registry under the current folder; `vehicle models` missed it
+    # wrote the model and a second db under the current folder; `vehicle models` missed it
     from fixtures.pilots import write_tub
 
     from vehicle.app.cli import main as vehicle

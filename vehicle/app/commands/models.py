@@ -9,7 +9,7 @@
     vehicle models rm NAME [--delete-files]
     vehicle models leaderboard [--tracks 101,102,103] [--laps 2]
 
-The registry is ``<car>/<MODELS_PATH>/models.sqlite3`` (training fills it; the trainer console,
+The db is ``<car>/<MODELS_PATH>/models.sqlite3`` (training fills it; the trainer console,
 ``vehicle console``, reads and writes the same file, evaluations included).
 """
 
@@ -52,7 +52,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--json", action="store_true", default=argparse.SUPPRESS, help="print as JSON")
     p.set_defaults(func=_cmd_list)
 
-    p = sub.add_parser("show", parents=[car], help="everything the registry knows about one model")
+    p = sub.add_parser("show", parents=[car], help="everything the model database knows about one model")
     p.add_argument("name", help="model name (file name without .pt) or path")
     p.set_defaults(func=_cmd_show)
 
@@ -85,7 +85,7 @@ def register(subparsers: Any) -> None:
                    help="onnx-int8 static: frames to calibrate on (default 300)")
     p.set_defaults(func=_cmd_export)
 
-    p = sub.add_parser("rm", parents=[car], help="remove a model from the registry")
+    p = sub.add_parser("rm", parents=[car], help="remove a model from the model database")
     p.add_argument("name")
     p.add_argument("--delete-files", action="store_true",
                    help="also delete the model file and its exports, loss plot and metrics")
@@ -96,10 +96,10 @@ def _config(args: argparse.Namespace) -> Any:
     return load_for_command(args)
 
 
-def _registry(args: argparse.Namespace) -> Any:
-    from training.model_db import ModelRegistry
+def _db(args: argparse.Namespace) -> Any:
+    from training.model_db import ModelDB
 
-    return ModelRegistry.for_models_dir(_config(args).path("MODELS_PATH"))
+    return ModelDB.for_models_dir(_config(args).path("MODELS_PATH"))
 
 
 def _short(mapping: dict[str, Any], keys: tuple[str, ...]) -> str:
@@ -136,31 +136,31 @@ def format_table(entries: list[Any], latest: dict[str, Any] | None = None) -> st
 
 
 def _cmd_list(args: argparse.Namespace) -> int:
-    registry = _registry(args)
-    entries = registry.list()
+    db = _db(args)
+    entries = db.list()
     latest: dict[str, Any] = {}
-    for ev in registry.evaluations():  # newest first
+    for ev in db.evaluations():  # newest first
         latest.setdefault(ev.model, ev)
     if getattr(args, "json", False):
         _out(json.dumps([{**e.as_dict(), "latest_evaluation": latest[e.name].as_dict() if e.name in latest
                           else None} for e in entries], indent=2))
     elif not entries:
-        _out(f"no models registered in {registry.db_path} (train one: manage.py train)")
+        _out(f"no models registered in {db.db_path} (train one: manage.py train)")
     else:
         _out(format_table(entries, latest))
     return 0
 
 
 def _cmd_show(args: argparse.Namespace) -> int:
-    registry = _registry(args)
-    entry = registry.get(args.name)
-    _out(json.dumps({**entry.as_dict(), "evaluations": [ev.as_dict() for ev in registry.evaluations(entry.name)]},
+    db = _db(args)
+    entry = db.get(args.name)
+    _out(json.dumps({**entry.as_dict(), "evaluations": [ev.as_dict() for ev in db.evaluations(entry.name)]},
                     indent=2))
     return 0
 
 
 def _cmd_rename(args: argparse.Namespace) -> int:
-    entry = _registry(args).rename(args.name, args.new_name)
+    entry = _db(args).rename(args.name, args.new_name)
     _out(f"renamed {args.name} to {entry.name} ({entry.path})")
     return 0
 
@@ -182,17 +182,17 @@ def format_leaderboard(evaluations: list[Any]) -> str:
 
 def _cmd_leaderboard(args: argparse.Namespace) -> int:
     cfg = _config(args)
-    from training.model_db import ModelRegistry
+    from training.model_db import ModelDB
 
-    registry = ModelRegistry.for_models_dir(cfg.path("MODELS_PATH"))
+    db = ModelDB.for_models_dir(cfg.path("MODELS_PATH"))
     try:
         tracks = [int(t) for t in args.tracks.split(",") if t.strip()] if args.tracks else \
             list(cfg.SIM_EVAL_TRACK_SEEDS)
     except ValueError:
         raise UserError(f"--tracks {args.tracks}: give comma-separated track seeds, e.g. 101,102,103") from None
-    board = registry.leaderboard(tracks, args.laps)
+    board = db.leaderboard(tracks, args.laps)
     if not board:
-        sets = registry.track_sets()
+        sets = db.track_sets()
         hint = ("; evaluated track sets: " + "; ".join(f"--tracks {','.join(map(str, t))} --laps {lp}"
                                                        for t, lp, _n in sets)) if sets else \
             "; evaluate a model first (vehicle console, or vehicle sim eval --pilot MODEL --store)"
@@ -204,14 +204,14 @@ def _cmd_leaderboard(args: argparse.Namespace) -> int:
 
 
 def _cmd_comment(args: argparse.Namespace) -> int:
-    entry = _registry(args).set_comment(args.name, args.text)
+    entry = _db(args).set_comment(args.name, args.text)
     _out(f"{entry.name}: comment {'set' if entry.comment else 'cleared'}")
     return 0
 
 
 def _cmd_rm(args: argparse.Namespace) -> int:
-    deleted = _registry(args).remove(args.name, delete_files=args.delete_files)
-    _out(f"removed {args.name} from the registry" + (f"; deleted {len(deleted)} files" if deleted else ""))
+    deleted = _db(args).remove(args.name, delete_files=args.delete_files)
+    _out(f"removed {args.name} from the model database" + (f"; deleted {len(deleted)} files" if deleted else ""))
     return 0
 
 
@@ -219,11 +219,11 @@ def _model_file(args: argparse.Namespace) -> Path:
     path = Path(args.name)
     if path.is_file():
         return path
-    from training.model_db import RegistryError
+    from training.model_db import ModelDBError
 
     try:
-        entry = _registry(args).get(args.name)
-    except RegistryError as exc:
+        entry = _db(args).get(args.name)
+    except ModelDBError as exc:
         raise UserError(f"{args.name}: not a file and {exc}") from exc
     if not entry.exists:
         raise UserError(f"model {entry.name}: its file {entry.path} is missing")

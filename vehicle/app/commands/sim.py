@@ -55,7 +55,7 @@ def register(subparsers: Any) -> None:
     ev.add_argument("--lane-changes", action=argparse.BooleanOptionalAction, default=None,
                     help="command lane changes and score them (default: for a behaviour pilot when SIM_LANES = 2)")
     ev.add_argument("--store", action=argparse.BooleanOptionalAction, default=None,
-                    help="keep the result in the car's model registry, where `vehicle models` shows it and the "
+                    help="keep the result in the car's model database, where `vehicle models` shows it and the "
                          "leaderboard ranks it (default: when the model is registered; --store: it must be)")
     ev.add_argument("--draws", type=int, metavar="N",
                     help="robustness: drive the tracks in each theme of --theme (default SIM_THEME) under N hidden "
@@ -383,15 +383,15 @@ def _write_and_store(args: argparse.Namespace, cfg: Any, report: dict[str, Any])
         return
     if args.store is False:
         return
-    from training.model_db import RegistryError
+    from training.model_db import ModelDBError
     from vehicle.app.eval_store import store_report
 
     try:
         ev = store_report(cfg, Path(args.pilot), report)
-    except RegistryError as exc:
+    except ModelDBError as exc:
         if args.store:
             raise UserError(f"--store: {exc}") from exc
-        print(f"not stored: {args.pilot} is not in the car's model registry ({cfg.path('MODELS_PATH')})")  # noqa: T201
+        print(f"not stored: {args.pilot} is not in the car's model database ({cfg.path('MODELS_PATH')})")  # noqa: T201
         return
     print(f"stored as evaluation {ev.id} of {ev.model} (shown by `vehicle models`; --no-store leaves it out)")  # noqa: T201
 

@@ -94,12 +94,12 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> None:
                         help="tubs or folders of tubs (comma-separated also accepted); default: the car's data/")
     parser.add_argument("--model", metavar="FILE.pt", help="model file to write (default models/pilot_<date>.pt)")
     parser.add_argument("--transfer", metavar="OLD.pt", help="start from the weights of an earlier model")
-    parser.add_argument("--comment", help="free text stored with the model in the registry")
+    parser.add_argument("--comment", help="free text stored with the model in the model database")
     parser.add_argument("--recipe", metavar="NAME",
                         help="train as a source document does: track-driver-ai, udacity-bc or donkey-thesis "
                              "(sets every value the document states; the options here still win; "
                              "docs/training.md, 'Recipes')")
-    parser.add_argument("--no-register", action="store_true", help="do not add the model to the registry")
+    parser.add_argument("--no-register", action="store_true", help="do not add the model to the model database")
     dagger = parser.add_argument_group("DAgger in the built-in simulator (docs/dagger.md)")
     dagger.add_argument("--dagger", type=int, metavar="ROUNDS",
                         help="after round 0 (--transfer, or a model trained on --tubs first), ROUNDS times: the pilot "
@@ -298,10 +298,10 @@ def _recipe(name: str | None) -> Any:
 def train_car(cfg: Any, args: argparse.Namespace) -> int:
     """``manage.py train``: train a model on the car's tubs (default ``data/``) and write it to
     ``--model`` (default ``models/pilot_<date>_<n>.pt``), with the loss curve, the metrics JSON and
-    an entry in the car's model registry. Returns the exit code.
+    an entry in the car's model database. Returns the exit code.
 
     Paths are the car's, wherever manage.py is run from: a relative ``--model`` is written in the
-    car folder (so the model and its registry entry land where ``vehicle models`` looks); relative
+    car folder (so the model and its database entry land where ``vehicle models`` looks); relative
     ``--tubs`` and ``--transfer`` are read from the car folder, or from the current folder when
     only it has them.
     """

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from training import hyperparams, recipes
-from training.model_db import RegistryError, check_model_name
+from training.model_db import ModelDBError, check_model_name
 from vehicle.app.console.datasets import DatasetError, augmentation_preview
 from vehicle.app.console.jsonsafe import finite
 from vehicle.errors import VehicleError
@@ -84,8 +84,8 @@ class Api:
         return self.app.datasets
 
     @property
-    def registry(self) -> Any:
-        return self.app.registry
+    def db(self) -> Any:
+        return self.app.db
 
     def routes(self) -> list[tuple[str, str, Handler]]:
         """(method, path, handler) of every API route."""
@@ -133,7 +133,7 @@ class Api:
             return await asyncio.to_thread(func, *args, **kwargs)
         except DatasetError as exc:
             raise ApiError(exc.status, str(exc), exc.field) from exc
-        except RegistryError as exc:
+        except ModelDBError as exc:
             status = 404 if str(exc).startswith("no ") else 409
             raise ApiError(status, str(exc)) from exc
         except (VehicleError, ValueError, OSError) as exc:
@@ -145,7 +145,7 @@ class Api:
         types = await self.app.model_types()
         return json_response(finite({
             "car": str(cfg.CAR_PATH), "car_name": Path(cfg.CAR_PATH).name, "data_path": str(self.store.data_path),
-            "models_path": str(cfg.path("MODELS_PATH")), "registry": str(self.registry.db_path),
+            "models_path": str(cfg.path("MODELS_PATH")), "db": str(self.db.db_path),
             "hyperparams": hyperparams.describe(cfg, [t["name"] for t in types] if types else None),
             "model_types": types, "eval_tracks": list(cfg.SIM_EVAL_TRACK_SEEDS), "eval_laps": cfg.SIM_EVAL_LAPS,
             "train_tracks": list(cfg.SIM_TRACK_SEEDS), "default_model_name": self.app.free_model_name(),
@@ -295,7 +295,7 @@ class Api:
                     tubs.append(str(entry.path))
         try:
             name = check_model_name(str(body.get("name") or ""))
-            if name in self.registry.names() or (self.app.cfg.path("MODELS_PATH") / f"{name}.pt").exists():
+            if name in self.db.names() or (self.app.cfg.path("MODELS_PATH") / f"{name}.pt").exists():
                 errors["name"] = f"a model named {name!r} exists already; choose another name"
             if any(j.kind == "train" and j.status in ("queued", "running") and j.params.get("model_name") == name
                    for j in (self.app.jobs.get(s["id"]) for s in self.app.jobs.list()) if j is not None):
@@ -306,7 +306,7 @@ class Api:
         transfer = None
         if body.get("transfer"):
             try:
-                entry = self.registry.get(str(body["transfer"]))
+                entry = self.db.get(str(body["transfer"]))
                 if not entry.exists:
                     errors["transfer"] = f"{entry.name}'s file is missing"
                 transfer = str(entry.path)
@@ -314,7 +314,7 @@ class Api:
                     errors["model_type"] = (f"transfer starts from a {entry.type!r} model: choose {entry.type} "
                                             "or no transfer")
                 clean["model_type"] = entry.type
-            except RegistryError as exc:
+            except ModelDBError as exc:
                 errors["transfer"] = str(exc)
         recipe_name = body.get("recipe") or None
         if recipe_name is not None:
@@ -346,7 +346,7 @@ class Api:
         body = await read_json(request)
         errors: dict[str, str] = {}
         try:
-            entry = await self._run(self.registry.get, str(body.get("model") or ""))
+            entry = await self._run(self.db.get, str(body.get("model") or ""))
             if not entry.exists:
                 errors["model"] = f"{entry.name}'s file is missing"
         except ApiError as exc:
@@ -409,19 +409,19 @@ class Api:
     async def list_models(self, request: Any) -> Any:
         def work() -> list[dict[str, Any]]:
             latest: dict[str, Any] = {}
-            for ev in self.registry.evaluations():
+            for ev in self.db.evaluations():
                 latest.setdefault(ev.model, ev)
-            return [self._model_view(e, latest.get(e.name)) for e in reversed(self.registry.list())]
+            return [self._model_view(e, latest.get(e.name)) for e in reversed(self.db.list())]
 
         return json_response(finite(await self._run(work)))
 
     async def get_model(self, request: Any) -> Any:
         def work() -> dict[str, Any]:
-            entry = self.registry.get(request.match_info["name"])
-            evals = self.registry.evaluations(entry.name)
+            entry = self.db.get(request.match_info["name"])
+            evals = self.db.evaluations(entry.name)
             view = self._model_view(entry, evals[0] if evals else None)
             view["evaluations"] = [e.as_dict() for e in evals]
-            by_path = {str(d.path): d for d in self.registry.datasets()}
+            by_path = {str(d.path): d for d in self.db.datasets()}
             view["dataset_links"] = [{"path": p, "name": Path(p).name,
                                       "id": by_path[p].id if p in by_path else None} for p in entry.datasets]
             return view
@@ -453,32 +453,32 @@ class Api:
             self._refuse_if_in_use(name, "rename")
 
         def work() -> Any:
-            entry = self.registry.get(name)
+            entry = self.db.get(name)
             if "comment" in body:
                 c = body["comment"]
                 if c is not None and (not isinstance(c, str) or len(c) > 2000):
                     raise ApiError(400, "must be text of at most 2000 characters", "comment")
-                entry = self.registry.set_comment(entry.name, (c or "").strip() or None)
+                entry = self.db.set_comment(entry.name, (c or "").strip() or None)
             if body.get("name") is not None and str(body["name"]).strip() != entry.name:
                 try:
                     old = entry.name
-                    entry = self.registry.rename(entry.name, str(body["name"]))
+                    entry = self.db.rename(entry.name, str(body["name"]))
                     self.app.jobs.model_renamed(old, entry.name)
-                except RegistryError as exc:
+                except ModelDBError as exc:
                     raise ApiError(409 if "exists" in str(exc) or "already" in str(exc) else 400,
                                    str(exc), "name") from exc
             return entry
 
         try:
             entry = await asyncio.to_thread(work)
-        except RegistryError as exc:
+        except ModelDBError as exc:
             raise ApiError(404, str(exc)) from exc
         return json_response(finite({"name": entry.name, "comment": entry.comment}))
 
     async def delete_model(self, request: Any) -> Any:
         files = request.query.get("files", "1") not in ("0", "false", "no")
         self._refuse_if_in_use(request.match_info["name"], "delete")
-        deleted = await self._run(self.registry.remove, request.match_info["name"], files)
+        deleted = await self._run(self.db.remove, request.match_info["name"], files)
         return json_response({"ok": True, "deleted": [str(p) for p in deleted]})
 
     async def export_model(self, request: Any) -> Any:
@@ -486,7 +486,7 @@ class Api:
         fmt = body.get("format")
         if fmt not in ("onnx", "torchscript"):
             raise ApiError(400, "format must be onnx or torchscript", "format")
-        entry = await self._run(self.registry.get, request.match_info["name"])
+        entry = await self._run(self.db.get, request.match_info["name"])
         if not entry.exists:
             raise ApiError(409, f"{entry.name}'s file {entry.path} is missing")
         # torch stays out of the web server: the export runs in a short-lived worker process
@@ -510,7 +510,7 @@ class Api:
         suffix = {"pt": ".pt", "onnx": ".onnx", "torchscript": ".ts"}.get(fmt)
         if suffix is None:
             raise ApiError(400, "format must be pt, onnx or torchscript")
-        entry = await self._run(self.registry.get, request.match_info["name"])
+        entry = await self._run(self.db.get, request.match_info["name"])
         path = entry.path.with_name(entry.path.stem + suffix) if suffix != ".pt" else entry.path
         if not path.is_file():
             raise ApiError(404, f"{path.name} does not exist" + ("; export it first" if suffix != ".pt" else ""))
@@ -520,7 +520,7 @@ class Api:
     async def evaluation_picture(self, request: Any) -> Any:
         from aiohttp import web
 
-        png = await self._run(self.registry.evaluation_picture, _int(request.match_info["id"], "evaluation id"))
+        png = await self._run(self.db.evaluation_picture, _int(request.match_info["id"], "evaluation id"))
         if not png:
             raise ApiError(404, "this evaluation has no picture")
         return web.Response(body=png, headers={"Content-Type": "image/png", "Cache-Control": "private, max-age=3600"})
@@ -539,13 +539,13 @@ class Api:
         from vehicle.app.console.insight import gallery_data
 
         eid = _int(request.match_info["id"], "evaluation id")
-        return json_response(finite(await self._run(gallery_data, self.registry, eid)))
+        return json_response(finite(await self._run(gallery_data, self.db, eid)))
 
     async def evaluation_gallery_file(self, request: Any) -> Any:
         from vehicle.app.console.insight import gallery_file
 
         eid = _int(request.match_info["id"], "evaluation id")
-        return self._file(await self._run(gallery_file, self.registry, eid, request.match_info["path"]))
+        return self._file(await self._run(gallery_file, self.db, eid, request.match_info["path"]))
 
     async def dataset_movie(self, request: Any) -> Any:
         from vehicle.app.console.insight import dataset_movie
@@ -558,7 +558,7 @@ class Api:
         of the web server) once per model file."""
         from vehicle.app.console.insight import saliency_folder
 
-        entry = await self._run(self.registry.get, request.match_info["name"])
+        entry = await self._run(self.db.get, request.match_info["name"])
         if not entry.exists:
             raise ApiError(409, f"{entry.name}'s file {entry.path} is missing")
         proc = await asyncio.create_subprocess_exec(
@@ -582,7 +582,7 @@ class Api:
         return self._file(await self._run(saliency_file, self.app.cfg, name, request.match_info["file"]))
 
     async def delete_evaluation(self, request: Any) -> Any:
-        await self._run(self.registry.remove_evaluation, _int(request.match_info["id"], "evaluation id"))
+        await self._run(self.db.remove_evaluation, _int(request.match_info["id"], "evaluation id"))
         return json_response({"ok": True})
 
     async def leaderboard(self, request: Any) -> Any:
@@ -590,14 +590,14 @@ class Api:
         laps_q = request.query.get("laps")
 
         def work() -> dict[str, Any]:
-            sets = self.registry.track_sets()
+            sets = self.db.track_sets()
             if text:
                 tracks = [_int(t, "track seed") for t in text.split(",") if t.strip()]
             else:
                 default = tuple(sorted(self.app.cfg.SIM_EVAL_TRACK_SEEDS))
                 tracks = list(default if any(t == default for t, _l, _n in sets) or not sets else sets[0][0])
             laps = _int(laps_q, "laps") if laps_q else None
-            board = self.registry.leaderboard(tracks, laps)
+            board = self.db.leaderboard(tracks, laps)
             return {"tracks": sorted(tracks), "laps": laps,
                     "track_sets": [{"tracks": list(t), "laps": lp, "models": n} for t, lp, n in sets],
                     "board": [e.as_dict() for e in board]}

@@ -238,13 +238,13 @@ class CarsApi:
             logger.exception("console: pull from %s failed", car.name)
 
     async def push(self, request: Any) -> Any:
-        from training.model_db import RegistryError
+        from training.model_db import ModelDBError
 
         car = self._car(request)
         body = await read_json(request)
         try:
-            entry = await asyncio.to_thread(self.app.registry.get, str(body.get("model") or ""))
-        except RegistryError as exc:
+            entry = await asyncio.to_thread(self.app.db.get, str(body.get("model") or ""))
+        except ModelDBError as exc:
             raise ApiError(404, str(exc), "model") from exc
         if not entry.exists:
             raise ApiError(409, f"{entry.name}'s file is missing", "model")

@@ -1,7 +1,7 @@
 """The console's datasets: the car's tubs with their statistics, and every change made to them.
 
-Tubs are found in the car's data folder (DATA_PATH) and registered in the car's registry
-(:class:`training.model_db.ModelRegistry`); folders elsewhere can be registered by path.
+Tubs are found in the car's data folder (DATA_PATH) and registered in the car's model database
+(:class:`training.model_db.ModelDB`); folders elsewhere can be registered by path.
 Statistics (records, duration, sessions, size, steering histogram, thumbnails) are read from the
 catalogs and cached until a tub changes on disk. Deleting a dataset is first a soft delete, the
 tub's own record deletes (``vehicle tub restore`` undoes it too); only a soft-deleted dataset can
@@ -29,7 +29,7 @@ import numpy as np
 
 from parts.tub.errors import TubError
 from parts.tub.format import IMAGE_TYPES, IMAGES, SESSION, TIMESTAMP, inside, links_leaving
-from training.model_db import DatasetEntry, ModelRegistry, RegistryError
+from training.model_db import DatasetEntry, ModelDB, ModelDBError
 from vehicle.errors import UserError
 
 logger = logging.getLogger(__name__)
@@ -135,11 +135,11 @@ def _number(v: Any) -> float:
 
 
 class DatasetStore:
-    """The datasets of one car (its registry and data folder)."""
+    """The datasets of one car (its model database and data folder)."""
 
-    def __init__(self, cfg: Any, registry: ModelRegistry) -> None:
+    def __init__(self, cfg: Any, db: ModelDB) -> None:
         self.cfg = cfg
-        self.registry = registry
+        self.db = db
         self.data_path = cfg.path("DATA_PATH").resolve()
         self._cache: dict[Path, _Stats] = {}
         self._lock = threading.Lock()
@@ -152,21 +152,21 @@ class DatasetStore:
         from parts.tub.reader import find_tubs
 
         if self.data_path.is_dir():
-            known = {e.path for e in self.registry.datasets()}
+            known = {e.path for e in self.db.datasets()}
             try:
                 found = find_tubs([self.data_path])
             except TubError:
                 found = []  # an empty data folder
             for tub in found:
                 if tub.resolve() not in known:
-                    self.registry.add_dataset(tub, "found")
-        return self.registry.datasets()
+                    self.db.add_dataset(tub, "found")
+        return self.db.datasets()
 
     def get(self, dataset_id: int) -> DatasetEntry:
         """The dataset ``dataset_id`` (404-style error when unknown)."""
         try:
-            return self.registry.dataset(int(dataset_id))
-        except (RegistryError, ValueError) as exc:
+            return self.db.dataset(int(dataset_id))
+        except (ModelDBError, ValueError) as exc:
             raise DatasetError(f"no dataset {dataset_id}: it was removed; reload the list", status=404) from exc
 
     # -- statistics -----------------------------------------------------------------------------
@@ -234,7 +234,7 @@ class DatasetStore:
         """What the dataset list shows for one dataset (the stats are None for a missing folder)."""
         out = entry.as_dict()
         out["in_data_folder"] = entry.path.is_relative_to(self.data_path)
-        out["models"] = self.registry.models_of_dataset(entry.id)
+        out["models"] = self.db.models_of_dataset(entry.id)
         if not entry.path.is_dir():
             out["stats"] = None
             out["error"] = f"{entry.path} is missing: it was moved or deleted outside the console"
@@ -353,9 +353,9 @@ class DatasetStore:
         return path if path.is_absolute() else Path(self.cfg.CAR_PATH) / path
 
     def _add(self, path: Path, origin: str, label: str | None, comment: str | None) -> DatasetEntry:
-        entry = self.registry.add_dataset(path, origin, label, comment)
+        entry = self.db.add_dataset(path, origin, label, comment)
         if entry.label != label or entry.comment != comment:
-            entry = self.registry.update_dataset(entry.id, **{k: v for k, v in
+            entry = self.db.update_dataset(entry.id, **{k: v for k, v in
                                                              (("label", label), ("comment", comment)) if v})
         return entry
 
@@ -374,12 +374,12 @@ class DatasetStore:
                 raise DatasetError(f"{new} exists already; choose another name", "name")
             old.rename(new)
             try:
-                entry = self.registry.update_dataset(entry.id, path=new)
+                entry = self.db.update_dataset(entry.id, path=new)
             except BaseException:
                 new.rename(old)
                 raise
             logger.info("renamed dataset %s to %s", old, new)
-        return self.registry.update_dataset(entry.id, **fields) if fields else self.get(entry.id)
+        return self.db.update_dataset(entry.id, **fields) if fields else self.get(entry.id)
 
     def soft_delete(self, dataset_id: int) -> DatasetEntry:
         """Mark every record deleted (the tub's own soft delete); restorable."""
@@ -390,13 +390,13 @@ class DatasetStore:
             return entry
         path = self._writable(entry)
         if _not_born(path):  # a created dataset nothing recorded into yet: no record to mark
-            return self.registry.update_dataset(entry.id, deleted=_now(), kept_deleted=[])
+            return self.db.update_dataset(entry.id, deleted=_now(), kept_deleted=[])
         with Tub(path) as tub:
             before = sorted(tub.manifest.deleted_indexes)
             if tub.current_index:
                 tub.delete_records(range(tub.current_index))
         logger.info("dataset %s soft-deleted (%d records were deleted before)", entry.path, len(before))
-        return self.registry.update_dataset(entry.id, deleted=_now(), kept_deleted=before)
+        return self.db.update_dataset(entry.id, deleted=_now(), kept_deleted=before)
 
     def restore(self, dataset_id: int) -> DatasetEntry:
         """Undo :meth:`soft_delete`: the records deleted before it stay deleted."""
@@ -407,11 +407,11 @@ class DatasetStore:
             return entry
         path = self._writable(entry)
         if _not_born(path):
-            return self.registry.update_dataset(entry.id, deleted=None, kept_deleted=[])
+            return self.db.update_dataset(entry.id, deleted=None, kept_deleted=[])
         with Tub(path) as tub:
             keep = set(entry.kept_deleted)
             tub.restore_records([i for i in range(tub.current_index) if i not in keep])
-        return self.registry.update_dataset(entry.id, deleted=None, kept_deleted=[])
+        return self.db.update_dataset(entry.id, deleted=None, kept_deleted=[])
 
     def purge(self, dataset_id: int) -> None:
         """Delete a soft-deleted dataset's folder from the disk and forget it."""
@@ -430,7 +430,7 @@ class DatasetStore:
             else:
                 shutil.rmtree(path)
             logger.info("removed dataset folder %s", path)
-        self.registry.forget_dataset(entry.id)
+        self.db.forget_dataset(entry.id)
         with self._lock:
             self._cache.pop(entry.path, None)
 
@@ -440,7 +440,7 @@ class DatasetStore:
         if entry.path.is_dir() and entry.path.is_relative_to(self.data_path):
             raise DatasetError(f"{entry.name} is in the car's data folder and would be found again: delete it "
                                "instead", status=409)
-        self.registry.forget_dataset(entry.id)
+        self.db.forget_dataset(entry.id)
 
     def mark_records(self, dataset_id: int, start: int, end: int, delete: bool) -> dict[str, Any]:
         """Delete (or restore) records ``start..end`` (inclusive) of a dataset."""

@@ -45,9 +45,9 @@ def _inside(root: Path, rel: str) -> Path:
 
 
 # -- evaluation galleries ----------------------------------------------------------------------------
-def gallery_folder(registry: Any, evaluation_id: int) -> Path:
+def gallery_folder(db: Any, evaluation_id: int) -> Path:
     """The gallery folder of a stored evaluation (404 when it has none, or it was removed)."""
-    ev = registry.evaluation(evaluation_id)
+    ev = db.evaluation(evaluation_id)
     folder = (ev.settings or {}).get("gallery")
     if not folder:
         raise DatasetError(f"evaluation {evaluation_id} has no gallery: evaluate again here, or with `vehicle sim "
@@ -57,16 +57,16 @@ def gallery_folder(registry: Any, evaluation_id: int) -> Path:
     return Path(folder)
 
 
-def gallery_data(registry: Any, evaluation_id: int) -> dict[str, Any]:
+def gallery_data(db: Any, evaluation_id: int) -> dict[str, Any]:
     """The gallery's JSON, with ``base``: the URL its relative image paths are under."""
-    data = json.loads((gallery_folder(registry, evaluation_id) / "gallery.json").read_text())
+    data = json.loads((gallery_folder(db, evaluation_id) / "gallery.json").read_text())
     data["base"] = f"api/evaluations/{evaluation_id}/gallery/"
     return data
 
 
-def gallery_file(registry: Any, evaluation_id: int, rel: str) -> Path:
+def gallery_file(db: Any, evaluation_id: int, rel: str) -> Path:
     """A file of a stored evaluation's gallery (its page, pictures or JSON)."""
-    return _inside(gallery_folder(registry, evaluation_id), rel)
+    return _inside(gallery_folder(db, evaluation_id), rel)
 
 
 # -- tub movies --------------------------------------------------------------------------------------

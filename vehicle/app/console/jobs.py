@@ -1,6 +1,6 @@
 """The console's job queue: trainings and evaluations, one at a time, each in a worker process.
 
-Jobs are rows of ``console_jobs`` in the car's registry database, so the queue and the history
+Jobs are rows of ``console_jobs`` in the car's model database database, so the queue and the history
 survive a restart of the console. The running job's worker (:mod:`vehicle.app.console.worker`)
 reports events on its standard output; each event updates the job's state (phase, progress with
 ETA, epochs, formatted log, result), is appended to ``<models>/.jobs/<id>.jsonl`` and is handed to

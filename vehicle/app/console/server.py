@@ -24,7 +24,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
-from training.model_db import ModelRegistry
+from training.model_db import ModelDB
 from vehicle.app.console.api import Api, ApiError, json_response
 from vehicle.app.console.cars import CarsApi
 from vehicle.app.console.datasets import DatasetStore
@@ -66,10 +66,10 @@ class ConsoleApp:
         if not 0 <= self.port <= 65535:
             raise ValueError(f"port must be in [0, 65535], got {self.port}")
         self.token = token
-        self.registry = ModelRegistry.for_models_dir(cfg.path("MODELS_PATH"))
-        self.registry.list()  # creates or upgrades the database before anything else uses it
-        self.datasets = DatasetStore(cfg, self.registry)
-        self.jobs = JobQueue(self.registry.db_path, Path(cfg.CAR_PATH), myconfig)
+        self.db = ModelDB.for_models_dir(cfg.path("MODELS_PATH"))
+        self.db.list()  # creates or upgrades the database before anything else uses it
+        self.datasets = DatasetStore(cfg, self.db)
+        self.jobs = JobQueue(self.db.db_path, Path(cfg.CAR_PATH), myconfig)
         self.datasets.busy = self.jobs.busy_paths
         self.api = Api(self)
         self.cars = CarsApi(self)
@@ -118,10 +118,10 @@ class ConsoleApp:
         return self._types
 
     def free_model_name(self) -> str:
-        """``pilot_YY-MM-DD_N`` with the first N free in the registry and the models folder."""
+        """``pilot_YY-MM-DD_N`` with the first N free in the model database and the models folder."""
         day = datetime.now().strftime("%y-%m-%d")
         models = self.cfg.path("MODELS_PATH")
-        taken = set(self.registry.names())
+        taken = set(self.db.names())
         for job in self.jobs.list():
             full = self.jobs.get(job["id"])
             if full is not None and full.kind == "train":

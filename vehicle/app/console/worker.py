@@ -192,13 +192,13 @@ def run_train(job: dict[str, Any], events: Events, watcher: StopWatcher) -> dict
 
 def run_evaluate(job: dict[str, Any], events: Events, watcher: StopWatcher) -> dict[str, Any]:
     """Evaluate a registered model in the built-in simulator and store the result."""
-    from training.model_db import ModelRegistry
+    from training.model_db import ModelDB
     from vehicle.app.eval_store import store_report
     from vehicle.app.evaluate import evaluate
 
     params = job["params"]
     cfg = _config(job)
-    entry = ModelRegistry.for_models_dir(cfg.path("MODELS_PATH")).get(params["model"])
+    entry = ModelDB.for_models_dir(cfg.path("MODELS_PATH")).get(params["model"])
     tracks, laps = [int(t) for t in params["tracks"]], int(params["laps"])
     state = {"sim": None, "index": -1}
 
@@ -354,23 +354,23 @@ def describe_model_types() -> list[dict[str, Any]]:
 
 def _export(car: str, name: str, fmt: str) -> int:
     from training.export import export_model
-    from training.model_db import ModelRegistry
+    from training.model_db import ModelDB
     from vehicle.config import load_config
 
     cfg = load_config(car_path=car)
-    entry = ModelRegistry.for_models_dir(cfg.path("MODELS_PATH")).get(name)
+    entry = ModelDB.for_models_dir(cfg.path("MODELS_PATH")).get(name)
     out = export_model(entry.path, fmt)
     print(json.dumps({"path": str(out), "bytes": Path(out).stat().st_size}))  # noqa: T201 - the answer
     return 0
 
 
 def _saliency(car: str, name: str, out: Path) -> int:
-    from training.model_db import ModelRegistry
+    from training.model_db import ModelDB
     from vehicle.app.model_insight import saliency_samples
     from vehicle.config import load_config
 
     cfg = load_config(car_path=car)
-    entry = ModelRegistry.for_models_dir(cfg.path("MODELS_PATH")).get(name)
+    entry = ModelDB.for_models_dir(cfg.path("MODELS_PATH")).get(name)
     data = saliency_samples(entry.path, list(entry.datasets), out)
     print(json.dumps(data))  # noqa: T201 - the answer
     return 0

@@ -112,17 +112,17 @@ def test_sim_eval_of_a_registered_model_fills_its_evaluation_column(car, capsys,
     that model (only --store kept it). A registered model's evaluation is now kept unless
     --no-store."""
     from parts.pilots.modelfile import read_meta
-    from training.model_db import ModelRegistry, register_model
+    from training.model_db import ModelDB, register_model
 
     model = make_model_file("linear")
     register_model(model, read_meta(model))
     base = ["sim", "eval", "--pilot", str(model), "--tracks", "1", "--laps", "1", "--max-time", "2"]
     assert main([*base, "--no-store"]) == 0
-    registry = ModelRegistry.for_models_dir(car / "models")
-    assert registry.evaluations("linear") == []
+    db = ModelDB.for_models_dir(car / "models")
+    assert db.evaluations("linear") == []
     assert main(base) == 0
     assert "stored as evaluation" in capsys.readouterr().out
-    [ev] = registry.evaluations("linear")
+    [ev] = db.evaluations("linear")
     assert list(ev.tracks) == [1]
     assert main(["models"]) == 0
     row = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("linear"))

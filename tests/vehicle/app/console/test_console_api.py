@@ -124,7 +124,7 @@ def test_jobs_run_one_at_a_time_and_cancel(console):
     assert request(port, f"/api/jobs/{a['id']}/cancel", "POST")[0] == 200
     done = _wait(port, a["id"], lambda s: s["status"] not in ("running", "cancelling"))
     assert done["status"] == "cancelled" and done["result"]["model"] == "first"
-    assert console.registry.get("first").metrics["cancelled"] is True
+    assert console.db.get("first").metrics["cancelled"] is True
     assert not (console.cfg.path("MODELS_PATH") / "second.pt").exists()
     assert request(port, f"/api/jobs/{a['id']}/cancel", "POST")[0] == 409
 
@@ -132,7 +132,7 @@ def test_jobs_run_one_at_a_time_and_cancel(console):
 def test_a_job_left_running_by_a_stopped_console_is_marked_interrupted(console_factory, config):
     first = console_factory()
     first.close()
-    with sqlite3.connect(first.registry.db_path) as conn:
+    with sqlite3.connect(first.db.db_path) as conn:
         conn.execute("INSERT INTO console_jobs (kind, status, title, params, created) "
                      "VALUES ('train', 'running', 'train x', '{}', '2026-01-01T00:00:00+00:00')")
     app = console_factory()
@@ -164,7 +164,7 @@ def test_a_model_in_use_by_a_job_is_neither_deleted_nor_renamed(console, registe
         assert status == 409 and f"job {ev['id'] if name == 'busy' else tr['id']}" in json.loads(body)["error"]
         status, _, body = request(port, f"/api/models/{name}", "PATCH", {"name": f"{name}2"})
         assert status == 409
-        assert console.registry.get(name).exists
+        assert console.db.get(name).exists
     # a comment is harmless: allowed
     assert request(port, "/api/models/base", "PATCH", {"comment": "the parent"})[0] == 200
     for job in (ev, tr, first):

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from parts.tub.tub import Tub
-from training.model_db import ModelRegistry
+from training.model_db import ModelDB
 
 pytestmark = pytest.mark.browser
 expect = pytest.importorskip("playwright.sync_api").expect
@@ -94,7 +94,7 @@ def test_tn_navigation(page, url, registered_model):
 def test_to_datasets(page, url, car, console):
     _open(page, url, "datasets")
     # TO1: every dataset of the database (the tubs of data/ are found and registered)
-    names = {d.name for d in console.registry.datasets()}
+    names = {d.name for d in console.db.datasets()}
     assert names == {"tub_1_26-01-01", "tub_2_26-01-02"}
     expect(page.locator("#datasets tbody tr")).to_have_count(2)
     for name in names:
@@ -149,7 +149,7 @@ def test_dataset_page_marks_a_range_deleted_and_restores_it(page, url, car, cons
     past = time.time() - 60
     for p in tub.iterdir():
         os.utime(p, (past, past))
-    entry = next(e for e in console.registry.datasets() if e.name == tub.name)
+    entry = next(e for e in console.db.datasets() if e.name == tub.name)
     _open(page, url, f"datasets/{entry.id}")
     page.wait_for_function("document.querySelector('#series-chart')._uplot !== undefined")
     assert page.evaluate("document.querySelector('#series-chart')._uplot.data[0].length") == 60
@@ -182,7 +182,7 @@ def test_to_models(page, url, car, registered_model, console):
     registered_model("drive_1_1", 0.4)
     registered_model("drive_1_2", 0.3)
     _open(page, url, "models")
-    # TO7: every model of the registry
+    # TO7: every model of the db
     expect(page.locator("#models tbody tr")).to_have_count(2)
     expect(page.locator("tr[data-model=drive_1_1] td").nth(2)).to_contain_text("tub_1_26-01-01")
     expect(page.locator("tr[data-model=drive_1_1] td").nth(4)).to_contain_text("flip 0.5")
@@ -198,7 +198,7 @@ def test_to_models(page, url, car, registered_model, console):
     page.click("#update")
     expect(page.locator("tr[data-model=decent_driver] .model-comment")).to_have_text("Works well on track 1")
     assert (car / "models" / "decent_driver.pt").is_file() and not (car / "models" / "drive_1_1.pt").exists()
-    assert console.registry.get("decent_driver").comment == "Works well on track 1"
+    assert console.db.get("decent_driver").comment == "Works well on track 1"
     # a comment set with `vehicle models comment` shows in the console
     from vehicle.app.cli import main
 
@@ -297,7 +297,7 @@ def test_tv2_tv4_edit_validation(page, url, registered_model, console):
     _heading(page, "^Datasets$")
     # TV4: model names (Track Driver AI's .h5 names become file names as they are, with .pt after them)
     for name, ok in (("", False), ("decent_driver.h5", True), ("b_2_3-3_123.h5", True)):
-        current = console.registry.names()[0]
+        current = console.db.names()[0]
         _open(page, url, f"models/{current}/edit")
         page.fill("input[name=name]", name)
         page.click("#update")
@@ -354,7 +354,7 @@ def test_training_from_the_wizard_live_two_browsers_reload_cancel(page_factory, 
     a.click("#finish")  # TN7
     _heading(a, "^Models$")
     expect(a.locator("tr[data-model=live_run] td").nth(1)).to_have_text("linear")  # TO6c
-    entry = ModelRegistry.for_models_dir(car / "models").get("live_run")
+    entry = ModelDB.for_models_dir(car / "models").get("live_run")
     assert entry.exists and entry.metrics["cancelled"] is True
     assert entry.parameters["batch_size"] == 4 and entry.parameters["steps_per_epoch"] == 1  # TO5b
     assert len(entry.metrics["train_loss"]) == entry.metrics["epochs"] >= 2
@@ -382,7 +382,7 @@ def test_evaluation_from_the_model_manager(page, url, car, registered_model):
     expect(card).to_contain_text("Tracks 101")
     expect(card.locator("img.eval-pic")).to_be_visible()
     assert page.evaluate("document.querySelector('.eval-pic').naturalWidth") > 100
-    [ev] = ModelRegistry.for_models_dir(car / "models").evaluations("eval_me")
+    [ev] = ModelDB.for_models_dir(car / "models").evaluations("eval_me")
     assert ev.tracks == (101,) and ev.laps == 1 and 0.0 <= ev.overall["autonomy"] <= 100.0
 
 
@@ -396,7 +396,7 @@ def _report(autonomy, cte, laps=1, seeds=(101, 102)):
 def test_leaderboard_order(page, url, registered_model, console):
     for name in ("slow", "best", "wobbly", "other_tracks"):
         registered_model(name)
-    reg = console.registry
+    reg = console.db
     reg.add_evaluation("slow", _report(80.0, 0.10))
     reg.add_evaluation("best", _report(50.0, 0.30))
     reg.add_evaluation("best", _report(100.0, 0.20, laps=2))  # the latest evaluation counts

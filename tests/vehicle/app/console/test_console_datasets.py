@@ -8,13 +8,13 @@ import time
 import pytest
 
 from parts.tub.tub import Tub
-from training.model_db import ModelRegistry
+from training.model_db import ModelDB
 from vehicle.app.console.datasets import DatasetError, DatasetStore
 
 
 @pytest.fixture
 def store(config):
-    return DatasetStore(config, ModelRegistry.for_models_dir(config.path("MODELS_PATH")))
+    return DatasetStore(config, ModelDB.for_models_dir(config.path("MODELS_PATH")))
 
 
 def _age(path, seconds=60):
@@ -67,15 +67,15 @@ def test_purge_needs_a_soft_delete_first_and_removes_the_folder(store, car):
 
 def test_rename_moves_the_folder_and_keeps_model_links(store, car, config):
     entry = store.sync()[0]
-    registry = store.registry
+    db = store.db
     model = config.path("MODELS_PATH") / "m.pt"
-    registry.register(model, model_type="linear", datasets=[entry.path])
+    db.register(model, model_type="linear", datasets=[entry.path])
     _age(entry.path)
     renamed = store.edit(entry.id, name="oval_laps", label="3", comment="smooth")
     assert renamed.path == car / "data" / "oval_laps" and renamed.path.is_dir()
     assert not (car / "data" / "tub_1_26-01-01").exists()
     assert (renamed.label, renamed.comment) == ("3", "smooth")
-    assert registry.get("m").datasets == (str(renamed.path),)
+    assert db.get("m").datasets == (str(renamed.path),)
     with pytest.raises(DatasetError, match="exists already"):
         store.edit(entry.id, name="tub_2_26-01-02")
     with pytest.raises(DatasetError, match="must not be empty"):

@@ -82,9 +82,9 @@ def test_bad_input_gets_one_line(console, config, registered_model):
     assert status == 400 and "frame is 120x160x3 but the model was trained on 64x64x3 frames" in error
     assert "\n" not in error and "Traceback" not in error
     registered_model("plain_1")
-    from training.model_db import ModelRegistry
+    from training.model_db import ModelDB
 
-    ev = ModelRegistry.for_models_dir(config.path("MODELS_PATH")).add_evaluation(
+    ev = ModelDB.for_models_dir(config.path("MODELS_PATH")).add_evaluation(
         "plain_1", {"seeds": [11], "laps": 1, "overall": {"autonomy": 100.0}, "tracks": [], "settings": {}})
     status, _, body = request(console.port, f"/api/evaluations/{ev.id}/gallery")
     assert status == 404 and "has no gallery" in json.loads(body)["error"]

@@ -15,7 +15,7 @@ import pytest
 from fixtures.load import scaled
 
 from training import hyperparams
-from training.model_db import ModelRegistry
+from training.model_db import ModelDB
 from vehicle.app.console.jobs import _TABLE
 from vehicle.app.console.worker import LOCK_NAME
 
@@ -32,7 +32,7 @@ def _job_file(config, name, job_id=1):
                                        "batch_size": "4", "early_stop": "false"})
     assert not errors
     params = {"tubs": tubs, "model_name": name, "model_type": None, "settings": hyperparams.settings_for(hyper)}
-    db = ModelRegistry.for_models_dir(config.path("MODELS_PATH")).db_path
+    db = ModelDB.for_models_dir(config.path("MODELS_PATH")).db_path
     path = _jobs_dir(config) / f"{job_id}.job.json"
     path.write_text(json.dumps({"id": job_id, "kind": "train", "car": str(config.CAR_PATH), "db": str(db),
                                 "myconfig": None, "params": params}))
@@ -54,9 +54,9 @@ def _wait_for(proc, event):
 
 
 def _insert_running_job(config, title="train orphan"):
-    registry = ModelRegistry.for_models_dir(config.path("MODELS_PATH"))
-    registry.list()  # creates the database
-    with contextlib.closing(sqlite3.connect(registry.db_path)) as conn, conn:
+    db = ModelDB.for_models_dir(config.path("MODELS_PATH"))
+    db.list()  # creates the database
+    with contextlib.closing(sqlite3.connect(db.db_path)) as conn, conn:
         conn.execute(_TABLE)
         return conn.execute("INSERT INTO console_jobs (kind, status, title, params, created, started) VALUES "
                             "('train', 'running', ?, '{}', '2026-01-01T00:00:00+00:00', "
@@ -73,7 +73,7 @@ def test_a_console_killed_mid_training_leaves_the_best_model_registered(config, 
     proc.stdout.close()  # the console is gone: nobody reads the events, nobody writes to stdin
     proc.stdin.close()
     assert proc.wait(timeout=scaled(120)) == 0
-    entry = ModelRegistry.for_models_dir(config.path("MODELS_PATH")).get("orphan")
+    entry = ModelDB.for_models_dir(config.path("MODELS_PATH")).get("orphan")
     assert entry.exists and entry.metrics["cancelled"] is True and entry.metrics["epochs"] >= 1
     app = console_factory()
     job = app.jobs.get(job_id)

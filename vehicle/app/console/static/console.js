@@ -282,7 +282,7 @@ async function pageHome() {
       h("a", { class: "card", href: "#/leaderboard", id: "home-leaderboard" }, h("h2", {}, "Leaderboard"),
         h("p", { class: "muted small" }, "Your models ranked by how they drive on the same tracks."))),
     running ? h("div", { class: "card" }, h("div", { class: "spread" }, h("div", {}, "Running: ", h("a", { href: `#/runs/${running.id}` }, running.title)), statusPill(running.status))) : null,
-    h("p", { class: "muted small" }, `Car folder ${info.car} · data ${info.data_path} · registry ${info.registry}`));
+    h("p", { class: "muted small" }, `Car folder ${info.car} · data ${info.data_path} · models database ${info.db}`));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -896,7 +896,7 @@ async function pageModels() {
 
 async function deleteModel(m) {
   const box = h("input", { type: "checkbox", id: "delete-files" });  // files go only when the user says so
-  if (!await confirmDialog(`Delete ${m.name}?`, [`${m.name} leaves the registry.`, h("label", {}, box, ` also delete ${m.name}.pt and its exports, loss plot and metrics from the disk`)], "Delete")) return;
+  if (!await confirmDialog(`Delete ${m.name}?`, [`${m.name} leaves the model database.`, h("label", {}, box, ` also delete ${m.name}.pt and its exports, loss plot and metrics from the disk`)], "Delete")) return;
   try { await api("DELETE", `api/models/${encodeURIComponent(m.name)}?files=${box.checked ? 1 : 0}`); toast(`${m.name} deleted`); } catch (e) { toast(e.message, true); }
   go("#/models");
 }
@@ -1018,7 +1018,7 @@ async function pageEditModel(name) {
         h("dt", {}, "augmentations"), h("dd", {}, augSummary(p))),
         h("details", {}, h("summary", {}, "All training parameters"), h("pre", { class: "small mono", style: "white-space:pre-wrap" }, JSON.stringify(p, null, 1))))),
     h("div", { class: "card" }, h("h2", {}, "Training curves"), m.metrics.train_loss ? curves : h("p", { class: "muted" }, "No curves stored.")),
-    h("div", { class: "card" }, h("h2", {}, "Evaluate"), h("p", { class: "muted small" }, "Drives the model in the built-in simulator on the chosen tracks (use tracks it was not trained on) in a worker process; the result is stored in the registry and ranked on the leaderboard."), evalForm),
+    h("div", { class: "card" }, h("h2", {}, "Evaluate"), h("p", { class: "muted small" }, "Drives the model in the built-in simulator on the chosen tracks (use tracks it was not trained on) in a worker process; the result is stored in the model database and ranked on the leaderboard."), evalForm),
     m.exists ? saliencyCard(m) : null,
     h("h2", {}, "Evaluations"), m.evaluations.length ? m.evaluations.map((ev, i) => evaluationCard(ev, i)) : h("p", { class: "muted", id: "no-evaluations" }, "Not evaluated yet."));
   if (m.metrics.train_loss) {
