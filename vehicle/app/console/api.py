@@ -20,6 +20,7 @@ from training import hyperparams, recipes
 from training.model_db import ModelDBError, check_model_name
 from vehicle.app.console.datasets import DatasetError, augmentation_preview
 from vehicle.app.console.jsonsafe import finite
+from vehicle.app.console.training_form import FormErrors, training_job
 from vehicle.errors import VehicleError
 
 if TYPE_CHECKING:
@@ -270,69 +271,11 @@ class Api:
         return json_response({"ok": not errors, "errors": errors, "values": clean})
 
     def _check_training(self, body: dict[str, Any], names: list[str] | None) -> dict[str, Any]:
-        """The job's parameters, or ApiError 400 with a message per bad field."""
-        errors: dict[str, str] = {}
-        values = body.get("hyper") if isinstance(body.get("hyper"), dict) else {}
-        clean, errors = hyperparams.parse(values, model_types=names)
-        ids = body.get("datasets")
-        tubs: list[str] = []
-        if not isinstance(ids, list) or not ids:
-            errors["datasets"] = "choose at least one dataset to train on"
-        else:
-            for did in ids:
-                try:
-                    if isinstance(did, bool) or not isinstance(did, int | str):
-                        raise TypeError(did)  # JSON true or 1.7 is not dataset 1
-                    entry = self.store.get(int(did))
-                except (DatasetError, TypeError, ValueError):
-                    errors["datasets"] = f"dataset {did!r} does not exist (any more); reload the page"
-                    break
-                if entry.deleted:
-                    errors["datasets"] = f"{entry.name} is deleted: restore it or leave it out"
-                elif not entry.path.is_dir():
-                    errors["datasets"] = f"{entry.name}'s folder is missing"
-                else:
-                    tubs.append(str(entry.path))
+        """The job's parameters (:func:`training_job`), or ApiError 400 with a message per bad field."""
         try:
-            name = check_model_name(str(body.get("name") or ""))
-            if name in self.db.names() or (self.app.cfg.path("MODELS_PATH") / f"{name}.pt").exists():
-                errors["name"] = f"a model named {name!r} exists already; choose another name"
-            if any(j.kind == "train" and j.status in ("queued", "running") and j.params.get("model_name") == name
-                   for j in (self.app.jobs.get(s["id"]) for s in self.app.jobs.list()) if j is not None):
-                errors["name"] = f"a queued training already writes {name!r}; choose another name"
-        except ValueError as exc:
-            errors["name"] = str(exc)
-            name = ""
-        transfer = None
-        if body.get("transfer"):
-            try:
-                entry = self.db.get(str(body["transfer"]))
-                if not entry.exists:
-                    errors["transfer"] = f"{entry.name}'s file is missing"
-                transfer = str(entry.path)
-                if clean.get("model_type") and clean["model_type"] != entry.type:
-                    errors["model_type"] = (f"transfer starts from a {entry.type!r} model: choose {entry.type} "
-                                            "or no transfer")
-                clean["model_type"] = entry.type
-            except ModelDBError as exc:
-                errors["transfer"] = str(exc)
-        recipe_name = body.get("recipe") or None
-        if recipe_name is not None:
-            try:
-                recipe = recipes.recipe(str(recipe_name))
-                if not clean.get("model_type"):
-                    clean["model_type"] = recipe.model_type
-            except ValueError as exc:
-                errors["recipe"] = str(exc)
-        comment = body.get("comment")
-        if comment is not None and (not isinstance(comment, str) or len(comment) > 2000):
-            errors["comment"] = "must be text of at most 2000 characters"
-        if errors:
-            raise ApiError(400, "some fields need fixing", errors=errors)
-        model_type = clean.pop("model_type", None)
-        return {"tubs": tubs, "datasets": [int(i) for i in ids], "model_name": name, "model_type": model_type,
-                "transfer": transfer, "transfer_name": body.get("transfer") or None, "comment": comment or None,
-                "hyper": clean, "settings": hyperparams.settings_for(clean), "recipe": recipe_name}
+            return training_job(body, self.app, names)
+        except FormErrors as exc:
+            raise ApiError(400, "some fields need fixing", errors=exc.errors) from exc
 
     async def submit_training(self, request: Any) -> Any:
         body = await read_json(request)
