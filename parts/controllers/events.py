@@ -72,14 +72,6 @@ class Caps:
         return self.button_codes[index] if index < len(self.button_codes) else 0x1000 + index
 
 
-def pack_event(kind: str, number: int, value: int, init: bool = False, time_ms: int = 0) -> bytes:
-    """Encode one js_event (used by tests, recordings and fake devices)."""
-    etype = JS_EVENT_AXIS if kind == AXIS else JS_EVENT_BUTTON
-    if init:
-        etype |= JS_EVENT_INIT
-    return struct.pack(_JS_FORMAT, time_ms & 0xFFFFFFFF, int(value), etype, number)
-
-
 def parse_events(data: bytes, caps: Caps) -> tuple[list[PadEvent], bytes]:
     """Decode whole 8-byte events from ``data``; return them and the incomplete tail.
 

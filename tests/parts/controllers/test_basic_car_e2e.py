@@ -12,8 +12,9 @@ import importlib.util
 import sys
 
 import pytest
+from fixtures.gamepads import pack_event
 
-from parts.controllers.events import AXIS, AXIS_MAX, pack_event
+from parts.controllers.events import AXIS, AXIS_MAX
 from parts.controllers.layouts import load_layout
 
 pytestmark = pytest.mark.slow

@@ -59,7 +59,9 @@ def test_held_button_at_connect_is_not_a_press(pipe_pad):
     layout = load_layout("ps4")
     pad = pipe_pad(layout)
     s = pad.stream
-    from parts.controllers.events import BUTTON, pack_event
+    from fixtures.gamepads import pack_event
+
+    from parts.controllers.events import BUTTON
 
     share = s.button_index(layout.buttons["share"].code)
     out = pad.send(pack_event(BUTTON, share, 1, init=True) + s.init_burst()[8:])

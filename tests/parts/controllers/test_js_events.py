@@ -8,6 +8,7 @@ import os
 import time
 
 import pytest
+from fixtures.gamepads import pack_event
 
 from parts.controllers import linux_js
 from parts.controllers.events import (
@@ -21,7 +22,6 @@ from parts.controllers.events import (
     Caps,
     DeviceLost,
     PadEvent,
-    pack_event,
     parse_code,
     parse_events,
 )

@@ -7,8 +7,9 @@ import json
 import os
 
 import pytest
+from fixtures.gamepads import pack_event
 
-from parts.controllers.events import AXIS, AXIS_MAX, BUTTON, pack_event
+from parts.controllers.events import AXIS, AXIS_MAX, BUTTON
 from parts.controllers.layouts import load_layout
 from parts.controllers.linux_js import LinuxJoystick
 from parts.controllers.mapping_wizard import CreateJsWizard, WizardError, save_layout
