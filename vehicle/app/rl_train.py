@@ -153,11 +153,8 @@ def train_rl(cfg: Any, out: str | Path, s: RLSettings, *, progress: bool = False
     """Train (or resume) and keep the best pilot at ``out``; returns the learning curve and the best
     evaluation. Raises KeyboardInterrupt (Ctrl-C) or VehicleStopped (SIGTERM, SIGHUP) after saving
     when interrupted."""
-    from parts.pilots.compat import camera_meta
-    from parts.pilots.modelfile import load_model
-    from parts.pilots.preprocess import Preprocess, preprocess_from_config
     from parts.sim.reward import load_reward_function
-    from training.rl import load_pilot_weights, model_options, policy_kwargs, policy_model_type
+    from training.rl import policy_model_type
 
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -174,22 +171,7 @@ def train_rl(cfg: Any, out: str | Path, s: RLSettings, *, progress: bool = False
         raise UserError("rl train renders frames without undistortion: set CAMERA_UNDISTORT = False or "
                         "SIM_CAMERA_DISTORTION = None")
     image_shape = (cfg.SIM_CAMERA_H, cfg.SIM_CAMERA_W, 3)
-    init_model = None
-    options = model_options(mtype, s.throttle)
-    if s.init:
-        init_model, init_meta = load_model(s.init)
-        if init_model.type_name != mtype:
-            raise UserError(f"--init {s.init} is a {init_model.type_name!r} pilot; {algo} "
-                            f"{'with' if s.throttle is not None else 'without'} --throttle trains a {mtype!r} "
-                            f"network: train the pilot with --type {mtype}")
-        prep = Preprocess.from_dict(init_meta["preprocess"])
-        options = {**init_model.options, "dropout": 0.0}
-        if mtype == "inferred":
-            options.update(model_options(mtype, s.throttle))
-    else:
-        prep = preprocess_from_config(cfg, mtype, image_shape=image_shape)
-    if prep.lanes is not None:
-        raise UserError("rl train does not take the lane image (the lanes model type)")
+    init_model, options, prep = _starting_point(cfg, s, algo, mtype, image_shape)
     tracks = list(s.tracks or cfg.SIM_TRACK_SEEDS)
     eval_tracks = list(s.eval_tracks or cfg.SIM_EVAL_TRACK_SEEDS)
     if set(tracks) & set(eval_tracks):
@@ -201,12 +183,7 @@ def train_rl(cfg: Any, out: str | Path, s: RLSettings, *, progress: bool = False
                   "laps": s.laps, "max_steps": s.max_steps,
                   "reward": s.reward, "frame": prep.frame, "randomize_draws": s.randomize_draws}
     n_envs = s.envs or os.cpu_count() or 1
-    meta = {"preprocess": {**prep.to_dict(), "image_shape": list(image_shape)}, "camera": camera_meta(cfg),
-            "datasets": [], "transfer": str(s.init) if s.init else None, "comment": s.comment,
-            "training": {"method": "rl", **{k: list(v) if isinstance(v, tuple) else v for k, v in asdict(s).items()
-                                            if k not in ("extra", "comment")},
-                         "tracks": tracks, "eval_tracks": eval_tracks, "envs": n_envs,
-                         "reward": _reward_name(s.reward)}}
+    meta = _pilot_meta(cfg, s, prep, image_shape, tracks, eval_tracks, n_envs)
     curve: dict[str, Any] = {"rollouts": [], "evaluations": [], "best": None}
     if s.resume:
         if not files["state"].is_file():
@@ -225,24 +202,7 @@ def train_rl(cfg: Any, out: str | Path, s: RLSettings, *, progress: bool = False
     interrupted: BaseException | None = None
     failed = False
     try:
-        Algo = _algorithm(algo)  # noqa: N806 - a class
-        if s.resume:
-            model = Algo.load(files["state"], env=venv, device="cpu")
-        else:
-            log_std = s.log_std_init if s.log_std_init is not None else (-0.5 if init_model is None else -1.6)
-            # a fine-tuned actor keeps its own trunk: the critic's early, large value errors would
-            # otherwise rewrite the behaviour-cloned features through the shared layers
-            kwargs = policy_kwargs(algo, mtype, options, prep.normalize, log_std_init=log_std,
-                                   share_trunk=init_model is None)
-            args: dict[str, Any] = {"learning_rate": s.learning_rate, "batch_size": s.batch_size, "gamma": s.gamma,
-                                    "seed": s.seed, "device": "cpu", "verbose": 0, "policy_kwargs": kwargs}
-            if algo == "ppo":
-                args.update(n_steps=s.n_steps, n_epochs=s.n_epochs, clip_range=s.clip_range, target_kl=s.target_kl)
-            else:
-                args.update(buffer_size=10_000, learning_starts=1_000)  # 10k frames of 120x160: 1.2 GB with next frames
-            model = Algo("CnnPolicy", venv, **{**args, **s.extra})
-            if init_model is not None:
-                load_pilot_weights(model.policy, init_model, s.throttle_range)
+        model = _make_model(algo, venv, s, files, mtype, options, prep, init_model)
         trainer = _Trainer(model, cfg, out, files, meta, s, eval_tracks, curve, progress, on_event)
         remaining = max(0, s.timesteps - model.num_timesteps) if s.resume else s.timesteps
         try:
@@ -282,6 +242,71 @@ def train_rl(cfg: Any, out: str | Path, s: RLSettings, *, progress: bool = False
     if interrupted is not None:
         raise interrupted
     return curve
+
+
+def _starting_point(cfg: Any, s: RLSettings, algo: str, mtype: str,
+                    image_shape: tuple[int, int, int]) -> tuple[Any, dict[str, Any], Any]:
+    """(the --init pilot or None, the network's options, the preprocessing) the policy starts from."""
+    from parts.pilots.modelfile import load_model
+    from parts.pilots.preprocess import Preprocess, preprocess_from_config
+    from training.rl import model_options
+
+    init_model = None
+    options = model_options(mtype, s.throttle)
+    if s.init:
+        init_model, init_meta = load_model(s.init)
+        if init_model.type_name != mtype:
+            raise UserError(f"--init {s.init} is a {init_model.type_name!r} pilot; {algo} "
+                            f"{'with' if s.throttle is not None else 'without'} --throttle trains a {mtype!r} "
+                            f"network: train the pilot with --type {mtype}")
+        prep = Preprocess.from_dict(init_meta["preprocess"])
+        options = {**init_model.options, "dropout": 0.0}
+        if mtype == "inferred":
+            options.update(model_options(mtype, s.throttle))
+    else:
+        prep = preprocess_from_config(cfg, mtype, image_shape=image_shape)
+    if prep.lanes is not None:
+        raise UserError("rl train does not take the lane image (the lanes model type)")
+    return init_model, options, prep
+
+
+def _pilot_meta(cfg: Any, s: RLSettings, prep: Any, image_shape: tuple[int, int, int], tracks: list[int],
+                eval_tracks: list[int], n_envs: int) -> dict[str, Any]:
+    """What the kept pilot's file says about its training."""
+    from parts.pilots.compat import camera_meta
+
+    return {"preprocess": {**prep.to_dict(), "image_shape": list(image_shape)}, "camera": camera_meta(cfg),
+            "datasets": [], "transfer": str(s.init) if s.init else None, "comment": s.comment,
+            "training": {"method": "rl", **{k: list(v) if isinstance(v, tuple) else v for k, v in asdict(s).items()
+                                            if k not in ("extra", "comment")},
+                         "tracks": tracks, "eval_tracks": eval_tracks, "envs": n_envs,
+                         "reward": _reward_name(s.reward)}}
+
+
+def _make_model(algo: str, venv: Any, s: RLSettings, files: dict[str, Path], mtype: str, options: dict[str, Any],
+                prep: Any, init_model: Any) -> Any:
+    """The SB3 algorithm on ``venv``: resumed from its saved state, or new (from the --init pilot's
+    weights when given)."""
+    from training.rl import load_pilot_weights, policy_kwargs
+
+    Algo = _algorithm(algo)  # noqa: N806 - a class
+    if s.resume:
+        return Algo.load(files["state"], env=venv, device="cpu")
+    log_std = s.log_std_init if s.log_std_init is not None else (-0.5 if init_model is None else -1.6)
+    # a fine-tuned actor keeps its own trunk: the critic's early, large value errors would
+    # otherwise rewrite the behaviour-cloned features through the shared layers
+    kwargs = policy_kwargs(algo, mtype, options, prep.normalize, log_std_init=log_std,
+                           share_trunk=init_model is None)
+    args: dict[str, Any] = {"learning_rate": s.learning_rate, "batch_size": s.batch_size, "gamma": s.gamma,
+                            "seed": s.seed, "device": "cpu", "verbose": 0, "policy_kwargs": kwargs}
+    if algo == "ppo":
+        args.update(n_steps=s.n_steps, n_epochs=s.n_epochs, clip_range=s.clip_range, target_kl=s.target_kl)
+    else:
+        args.update(buffer_size=10_000, learning_starts=1_000)  # 10k frames of 120x160: 1.2 GB with next frames
+    model = Algo("CnnPolicy", venv, **{**args, **s.extra})
+    if init_model is not None:
+        load_pilot_weights(model.policy, init_model, s.throttle_range)
+    return model
 
 
 def describe_best(row: dict[str, Any]) -> str:
