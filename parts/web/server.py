@@ -347,128 +347,125 @@ class WebServer:
         return {"ok": False, "error": error}
 
     def _register(self, sio: Any) -> None:
-        """Socket.IO handlers; each returns the acknowledgement the client receives."""
-        import socketio
+        """The Socket.IO handlers (each returns the acknowledgement the client receives)."""
+        handlers = {"connect": self._on_connect, "disconnect": self._on_disconnect, "drive": self._on_drive,
+                    "set": self._on_set, "estop": self._on_estop, "take_control": self._on_take_control,
+                    "models": self._on_models, "behavior": self._on_behavior,
+                    "path_command": self._on_path_command, REFUSED_EVENT: self._on_refused,
+                    "*": self._on_unknown}  # "*": any other event
+        for event, handler in handlers.items():
+            sio.on(event, handler)
 
-        @sio.event
-        async def connect(sid: str, environ: dict[str, Any], auth: Any = None) -> None:
-            client = environ.get("REMOTE_ADDR", "?")
-            right = token_ok(self.token, auth)
-            wait = self.guard.refusal_s(client, right) if self.token is not None else 0
-            if wait:
-                raise socketio.exceptions.ConnectionRefusedError(
-                    f"too many wrong pairing tokens from this address: wait {wait} s")
-            if not right:
-                if isinstance(auth, dict) and auth.get("token"):
-                    self.guard.failed(client)  # a wrong token (a missing one is no guess): slowed, logged
-                raise socketio.exceptions.ConnectionRefusedError(
-                    "pairing token missing or wrong: open the URL printed when the car started")
-            self.guard.succeeded(client)
-            role = self.state.connect(sid)
-            self._senders[sid] = asyncio.create_task(self._send_frames(sid))
-            await sio.emit("hello", self._hello(sid, role), to=sid)
-            path = self.paths.for_new(sid)
-            if path is not None:
-                await sio.emit("path", path, to=sid)
-            logger.info("web: %s connected as %s", environ.get("REMOTE_ADDR", "?"), role)
+    async def _on_connect(self, sid: str, environ: dict[str, Any], auth: Any = None) -> None:
+        import socketio  # the server runs it: imported with the server
 
-        @sio.event
-        async def disconnect(sid: str, reason: Any = None) -> None:
-            self.paths.forget(sid)
-            task = self._senders.pop(sid, None)
-            if task is not None:
-                task.cancel()
-            if self.state.disconnect(sid):
-                logger.info("web: the driving browser left: car stopped")
-                await sio.emit("roles", {"driver": None})
+        client = environ.get("REMOTE_ADDR", "?")
+        right = token_ok(self.token, auth)
+        wait = self.guard.refusal_s(client, right) if self.token is not None else 0
+        if wait:
+            raise socketio.exceptions.ConnectionRefusedError(
+                f"too many wrong pairing tokens from this address: wait {wait} s")
+        if not right:
+            if isinstance(auth, dict) and auth.get("token"):
+                self.guard.failed(client)  # a wrong token (a missing one is no guess): slowed, logged
+            raise socketio.exceptions.ConnectionRefusedError(
+                "pairing token missing or wrong: open the URL printed when the car started")
+        self.guard.succeeded(client)
+        role = self.state.connect(sid)
+        self._senders[sid] = asyncio.create_task(self._send_frames(sid))
+        await self._sio.emit("hello", self._hello(sid, role), to=sid)
+        path = self.paths.for_new(sid)
+        if path is not None:
+            await self._sio.emit("path", path, to=sid)
+        logger.info("web: %s connected as %s", environ.get("REMOTE_ADDR", "?"), role)
 
-        @sio.on("drive")
-        async def drive(sid: str, data: Any = None) -> dict[str, Any]:
-            if not self.state.is_driver(sid):
-                return self._reject(sid, "drive: this browser watches; press 'Take control' to drive")
-            try:
-                angle, throttle = protocol.parse_drive(data)
-            except protocol.ProtocolError as exc:
-                return self._reject(sid, str(exc))
-            self.state.drive(angle, throttle)
-            return {"ok": True}
+    async def _on_disconnect(self, sid: str, reason: Any = None) -> None:
+        self.paths.forget(sid)
+        task = self._senders.pop(sid, None)
+        if task is not None:
+            task.cancel()
+        if self.state.disconnect(sid):
+            logger.info("web: the driving browser left: car stopped")
+            await self._sio.emit("roles", {"driver": None})
 
-        @sio.on("set")
-        async def set_(sid: str, data: Any = None) -> dict[str, Any]:
-            if not self.state.is_driver(sid):
-                return self._reject(sid, "set: this browser watches; press 'Take control' first")
-            try:
-                settings = protocol.parse_settings(data, models=self._models(),
-                                                   max_speed_limit=self.max_speed_limit)
-            except protocol.ProtocolError as exc:
-                return self._reject(sid, str(exc))
-            refused = self.state.refusal(settings)
-            if refused:
-                return self._reject(sid, refused)
-            model_path = None
-            if "model" in settings and self.models_dir is not None:
-                model_path = str((self.models_dir / settings["model"]).resolve())
-            self.state.apply(settings, model_path)
-            return {"ok": True}
+    async def _on_drive(self, sid: str, data: Any = None) -> dict[str, Any]:
+        if not self.state.is_driver(sid):
+            return self._reject(sid, "drive: this browser watches; press 'Take control' to drive")
+        try:
+            angle, throttle = protocol.parse_drive(data)
+        except protocol.ProtocolError as exc:
+            return self._reject(sid, str(exc))
+        self.state.drive(angle, throttle)
+        return {"ok": True}
 
-        @sio.on("estop")
-        async def estop(sid: str, data: Any = None) -> dict[str, Any]:
-            try:
-                on = protocol.parse_estop(data)
-            except protocol.ProtocolError as exc:
-                return self._reject(sid, str(exc))
-            # anyone watching may stop the car; only the driver may release the stop
-            if not on and not self.state.is_driver(sid):
-                return self._reject(sid, "estop: only the driving browser can release the stop")
-            self.state.set_estop(on)
-            if on:
-                logger.warning("web: emergency stop latched by %s", sid)
-            return {"ok": True}
+    async def _on_set(self, sid: str, data: Any = None) -> dict[str, Any]:
+        if not self.state.is_driver(sid):
+            return self._reject(sid, "set: this browser watches; press 'Take control' first")
+        try:
+            settings = protocol.parse_settings(data, models=self._models(),
+                                               max_speed_limit=self.max_speed_limit)
+        except protocol.ProtocolError as exc:
+            return self._reject(sid, str(exc))
+        refused = self.state.refusal(settings)
+        if refused:
+            return self._reject(sid, refused)
+        model_path = None
+        if "model" in settings and self.models_dir is not None:
+            model_path = str((self.models_dir / settings["model"]).resolve())
+        self.state.apply(settings, model_path)
+        return {"ok": True}
 
-        @sio.on("take_control")
-        async def take_control(sid: str, data: Any = None) -> dict[str, Any]:
-            previous = self.state.take_control(sid)
-            await sio.emit("roles", {"driver": sid})
-            logger.info("web: %s takes control (previous driver: %s)", sid, previous)
-            return {"ok": True, "role": "driver"}
+    async def _on_estop(self, sid: str, data: Any = None) -> dict[str, Any]:
+        try:
+            on = protocol.parse_estop(data)
+        except protocol.ProtocolError as exc:
+            return self._reject(sid, str(exc))
+        # anyone watching may stop the car; only the driver may release the stop
+        if not on and not self.state.is_driver(sid):
+            return self._reject(sid, "estop: only the driving browser can release the stop")
+        self.state.set_estop(on)
+        if on:
+            logger.warning("web: emergency stop latched by %s", sid)
+        return {"ok": True}
 
-        @sio.on("models")
-        async def models(sid: str, data: Any = None) -> dict[str, Any]:
-            return {"ok": True, "models": self._models()}
+    async def _on_take_control(self, sid: str, data: Any = None) -> dict[str, Any]:
+        previous = self.state.take_control(sid)
+        await self._sio.emit("roles", {"driver": sid})
+        logger.info("web: %s takes control (previous driver: %s)", sid, previous)
+        return {"ok": True, "role": "driver"}
 
-        @sio.on("behavior")
-        async def behavior(sid: str, data: Any = None) -> dict[str, Any]:
-            if not self.state.is_driver(sid):
-                return self._reject(sid, "behavior: this browser watches; press 'Take control' first")
-            try:
-                step = protocol.parse_behavior(data)
-            except protocol.ProtocolError as exc:
-                return self._reject(sid, str(exc))
-            self.state.step_behavior(step)
-            return {"ok": True}
+    async def _on_models(self, sid: str, data: Any = None) -> dict[str, Any]:
+        return {"ok": True, "models": self._models()}
 
-        @sio.on("path_command")
-        async def path_command(sid: str, data: Any = None) -> dict[str, Any]:
-            if not self.state.is_driver(sid):
-                return self._reject(sid, "path_command: this browser watches; press 'Take control' first")
-            try:
-                command = protocol.parse_path_command(data)
-            except protocol.ProtocolError as exc:
-                return self._reject(sid, str(exc))
-            refused = self.state.path_command(command)
-            if refused:
-                return self._reject(sid, refused)
-            logger.info("web: path command %r from %s", command, sid)
-            return {"ok": True}
+    async def _on_behavior(self, sid: str, data: Any = None) -> dict[str, Any]:
+        if not self.state.is_driver(sid):
+            return self._reject(sid, "behavior: this browser watches; press 'Take control' first")
+        try:
+            step = protocol.parse_behavior(data)
+        except protocol.ProtocolError as exc:
+            return self._reject(sid, str(exc))
+        self.state.step_behavior(step)
+        return {"ok": True}
 
-        @sio.on(REFUSED_EVENT)
-        async def refused(sid: str, data: Any = None) -> dict[str, Any]:
-            return self._reject(sid, protocol.short(data, 200) if not isinstance(data, str) else data[:200])
+    async def _on_path_command(self, sid: str, data: Any = None) -> dict[str, Any]:
+        if not self.state.is_driver(sid):
+            return self._reject(sid, "path_command: this browser watches; press 'Take control' first")
+        try:
+            command = protocol.parse_path_command(data)
+        except protocol.ProtocolError as exc:
+            return self._reject(sid, str(exc))
+        refused = self.state.path_command(command)
+        if refused:
+            return self._reject(sid, refused)
+        logger.info("web: path command %r from %s", command, sid)
+        return {"ok": True}
 
-        @sio.on("*")
-        async def unknown(event: str, sid: str, data: Any = None) -> dict[str, Any]:
-            return self._reject(sid, f"unknown event {protocol.short(event)}; the page sends drive, set, "
-                                "estop, take_control, models, behavior, path_command")
+    async def _on_refused(self, sid: str, data: Any = None) -> dict[str, Any]:
+        return self._reject(sid, protocol.short(data, 200) if not isinstance(data, str) else data[:200])
+
+    async def _on_unknown(self, event: str, sid: str, data: Any = None) -> dict[str, Any]:
+        return self._reject(sid, f"unknown event {protocol.short(event)}; the page sends drive, set, "
+                            "estop, take_control, models, behavior, path_command")
 
     async def _telemetry(self) -> None:
         period = 1.0 / self.telemetry_hz
