@@ -63,6 +63,12 @@ def register(subparsers: Any) -> None:
     p.add_argument("--bins", type=int, default=50)
     p.set_defaults(func=cmd_hist)
 
+    _movie_and_udacity_parsers(sub)
+    _lerobot_parsers(sub)
+
+
+def _movie_and_udacity_parsers(sub: Any) -> None:
+    """``tub movie`` and the Udacity recording's import and export."""
     p = sub.add_parser("movie", help="MP4 of the images with steering/throttle overlay")
     p.add_argument("tub")
     p.add_argument("--out", default=None, help="MP4 file (default: <tub>.mp4)")
@@ -92,6 +98,9 @@ def register(subparsers: Any) -> None:
                         "(Udacity's data.zip); semicolon: header and ';'")
     p.set_defaults(func=cmd_export_udacity)
 
+
+def _lerobot_parsers(sub: Any) -> None:
+    """``tub export-lerobot`` and ``tub import-lerobot``."""
     p = sub.add_parser("export-lerobot", help="write tubs as a LeRobot v3.0 dataset (needs the datasets extra)")
     p.add_argument("tubs", nargs="+", help="tub folders or folders of tubs")
     p.add_argument("--out", required=True, help="new folder for the dataset")
