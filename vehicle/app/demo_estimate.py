@@ -109,8 +109,9 @@ def measure_host(cfg: Any, model_type: str, input_shape: tuple[int, int, int], b
 
 
 def demo_expectation(records: int, epochs: int, eval_tracks: int, laps: int, threads: int,
-                     rates: HostRates | None = None) -> str:
-    """The plain demo's start-up line for its arguments: this host measured now (or ``rates``)."""
+                     rates: HostRates | None = None, precision: str = "auto") -> str:
+    """The plain demo's start-up line for its arguments: this host measured now (or ``rates``) at
+    the training precision the demo will use (``precision``: its --precision, TRAIN_PRECISION)."""
     import torch
 
     from parts.pilots.preprocess import preprocess_from_config
@@ -118,7 +119,7 @@ def demo_expectation(records: int, epochs: int, eval_tracks: int, laps: int, thr
     from vehicle.app.demo import DEMO_SETTINGS
     from vehicle.config import Config
 
-    cfg = Config.defaults(**DEMO_SETTINGS)
+    cfg = Config.defaults(**{**DEMO_SETTINGS, "TRAIN_PRECISION": precision})
     frame = (cfg.IMAGE_H, cfg.IMAGE_W, cfg.IMAGE_DEPTH)
     shape = preprocess_from_config(cfg, cfg.DEFAULT_MODEL_TYPE, frame).output_shape(frame)
     if rates is None:

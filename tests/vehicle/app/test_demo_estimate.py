@@ -57,3 +57,16 @@ def test_measured_step_rate_is_a_positive_rate_of_a_real_training_step(torch_one
 
     rate = measure_step_rate("linear", (3, 64, 64), batch_size=4, precision="fp32", seconds=0.01, max_steps=3)
     assert 0 < rate < 1e6
+
+
+def test_demo_expectation_measures_at_the_precision_the_demo_will_use(monkeypatch):
+    # before: the host was measured at TRAIN_PRECISION "auto" whatever --precision said
+    asked = []
+
+    def measure(cfg, *args, **kwargs):
+        asked.append(cfg.TRAIN_PRECISION)
+        return HostRates(train_samples_per_s=1000.0, records_per_s=1000.0)
+
+    monkeypatch.setattr(de, "measure_host", measure)
+    line = de.demo_expectation(12000, 10, 5, 2, 1, precision="fp32")
+    assert asked == ["fp32"] and "(fp32, 1 torch thread)" in line
