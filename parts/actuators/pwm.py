@@ -21,6 +21,7 @@ from parts.actuators.drivetrain import Drivetrain, check_number, clamp
 from parts.actuators.pca9685 import MAX_TICK, PULSE_MAX_US, PULSE_MIN_US, pulse_tick_range
 from parts.actuators.pins import PinSet, PwmPin, parse_pin
 from vehicle.config import check_settings
+from vehicle.config_checks import number_text
 
 logger = logging.getLogger(__name__)
 
@@ -60,8 +61,9 @@ class SteeringCalibration:
         _check_tick("STEERING_LEFT_PWM", self.left)
         _check_tick("STEERING_RIGHT_PWM", self.right)
         if self.left == self.right:
-            raise ValueError(f"STEERING_LEFT_PWM and STEERING_RIGHT_PWM are both {self.left}: the "
-                             "wheels could not turn; calibrate both ends with `vehicle calibrate`")
+            raise ValueError(f"STEERING_LEFT_PWM and STEERING_RIGHT_PWM are both {self.left}: the wheels could "
+                             "not turn; valid: two pulses that differ (full left and full right, found with "
+                             "`vehicle calibrate`)")
         check_settings(STEERING_TRIM=self.trim)  # beyond it, LEFT/RIGHT_PWM need recalibrating
 
     def ticks(self, angle: float) -> int:
@@ -97,8 +99,8 @@ class ThrottleCalibration:
         r = _check_tick("THROTTLE_REVERSE_PWM", self.reverse)
         if not (r < s < f or r > s > f):
             raise ValueError(
-                f"THROTTLE_STOPPED_PWM ({s}) must lie strictly between THROTTLE_REVERSE_PWM ({r}) and "
-                f"THROTTLE_FORWARD_PWM ({f}); recalibrate with `vehicle calibrate`")
+                f"THROTTLE_STOPPED_PWM = {s} must be the ESC's neutral; valid: a pulse strictly between "
+                f"THROTTLE_REVERSE_PWM ({r}) and THROTTLE_FORWARD_PWM ({f}) (recalibrate with `vehicle calibrate`)")
         check_settings(THROTTLE_FORWARD_LIMIT=self.forward_limit, THROTTLE_REVERSE_LIMIT=self.reverse_limit)
 
     def limit(self, throttle: float) -> float:
@@ -248,14 +250,15 @@ class MockPWMSteeringThrottle(PWMSteeringThrottle):
         return super().from_config(cfg, bus_factory=bus_factory, gpio_factory=gpio_factory, clock=clock)
 
 
-def check_pulse_widths(frequency: float, pulses: dict[str, int]) -> None:
-    """Refuse pulses (``{setting: ticks}``) outside what servos and ESCs take at ``frequency``
-    (the config loader refuses them too; this guards code that builds the part)."""
+def check_pulse_widths(frequency: float, pulses: dict[str, int], asked: float | None = None) -> None:
+    """Refuse pulses (``{setting: ticks}``) outside what servos and ESCs take at ``frequency`` (the
+    PCA9685's real one for the ``asked`` PWM_FREQ); the config loader's rule calls it too."""
     tick_us = 1e6 / frequency / 4096.0
     lo, hi = pulse_tick_range(tick_us)
+    at = f"PWM_FREQ = {number_text(asked)} ({frequency:.2f} Hz)" if asked is not None else f"{frequency:.2f} Hz"
     for name, ticks in pulses.items():
         if not lo <= ticks <= hi:
-            raise ValueError(f"{name} = {ticks} is a {ticks * tick_us:.0f} µs pulse at {frequency:.2f} Hz; "
+            raise ValueError(f"{name} = {ticks} is a {ticks * tick_us:.0f} µs pulse at {at}; "
                              f"valid: {lo} to {hi} ticks ({PULSE_MIN_US:.0f} to {PULSE_MAX_US:.0f} µs, what "
                              "servos and ESCs take; find yours with `vehicle calibrate`)")
 

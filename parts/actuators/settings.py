@@ -11,7 +11,8 @@ from collections.abc import Iterator, Mapping
 from typing import Annotated, Any, Literal
 
 from parts.actuators.drivetrain_config import drivetrain_problems
-from parts.actuators.pca9685 import PRESCALE_MAX, PRESCALE_MIN, PULSE_MAX_US, PULSE_MIN_US, pulse_tick_range, pwm_timing
+from parts.actuators.pca9685 import PRESCALE_MAX, PRESCALE_MIN, PULSE_MIN_US, pulse_tick_range, pwm_timing
+from parts.actuators.pwm import SteeringCalibration, ThrottleCalibration, check_pulse_widths
 from parts.actuators.registry import DRIVETRAINS
 from vehicle.config_checks import Checked, Problem, Range, Rule, number_text
 
@@ -174,6 +175,13 @@ MM1_STOPPED_PWM: Annotated[int, Range(1000, 2000, unit="µs")] = 1500
 MM1_MAX_REVERSE: Annotated[int, Range(1000, 2000, unit="µs")] = 1000
 
 
+#: the settings of each calibration, in the order of its constructor's arguments
+_PULSE_ORDER: dict[type, tuple[str, ...]] = {
+    SteeringCalibration: ("STEERING_LEFT_PWM", "STEERING_RIGHT_PWM"),
+    ThrottleCalibration: ("THROTTLE_FORWARD_PWM", "THROTTLE_STOPPED_PWM", "THROTTLE_REVERSE_PWM"),
+}
+
+
 def _pwm_pulses(v: Mapping[str, Any]) -> Iterator[Problem]:
     freq, osc = v["PWM_FREQ"], v["PCA9685_OSC_HZ"]
     prescale, real, tick_us = pwm_timing(freq, osc)
@@ -185,31 +193,25 @@ def _pwm_pulses(v: Mapping[str, Any]) -> Iterator[Problem]:
                       f"{math.floor(high)} Hz (servos and ESCs: 50 to 60)", ("PCA9685_OSC_HZ",))
         return
     lo, hi = pulse_tick_range(tick_us)
-    valid = (f"{lo} to {hi} ticks ({number_text(PULSE_MIN_US)} to {number_text(PULSE_MAX_US)} µs, "
-             "what servos and ESCs take; find yours with `vehicle calibrate`)")
     if lo > hi:
         yield Problem("PWM_FREQ", f"PWM_FREQ = {number_text(freq)} makes a period of {1e6 / real:.0f} µs, "
                       f"too short for servo pulses of {number_text(PULSE_MIN_US)} µs and more; "
                       "valid: 50 to 60 Hz for servos and ESCs", ("PCA9685_OSC_HZ",))
         return
+    # the parts' own checks (parts/actuators/pwm.py), so each rule is written once
     for name in PULSE_SETTINGS:
-        ticks = v[name]
-        if not lo <= ticks <= hi:
-            yield Problem(name, f"{name} = {ticks} is a {ticks * tick_us:.0f} µs pulse at PWM_FREQ = "
-                          f"{number_text(freq)} ({real:.2f} Hz); valid: {valid}",
-                          ("PWM_FREQ", "PCA9685_OSC_HZ"))
+        try:
+            check_pulse_widths(real, {name: v[name]}, asked=freq)
+        except ValueError as exc:
+            yield Problem(name, str(exc), ("PWM_FREQ", "PCA9685_OSC_HZ"))
             return
-    left, right = v["STEERING_LEFT_PWM"], v["STEERING_RIGHT_PWM"]
-    if left == right:
-        yield Problem("STEERING_LEFT_PWM", f"STEERING_LEFT_PWM and STEERING_RIGHT_PWM are both {left}: "
-                      "the wheels could not turn; valid: two pulses that differ (full left and full "
-                      "right, found with `vehicle calibrate`)", ("STEERING_RIGHT_PWM",))
-    fwd, stop, rev = v["THROTTLE_FORWARD_PWM"], v["THROTTLE_STOPPED_PWM"], v["THROTTLE_REVERSE_PWM"]
-    if not (rev < stop < fwd or rev > stop > fwd):
-        yield Problem("THROTTLE_STOPPED_PWM", f"THROTTLE_STOPPED_PWM = {stop} must be the ESC's neutral; "
-                      f"valid: a pulse strictly between THROTTLE_REVERSE_PWM ({rev}) and "
-                      f"THROTTLE_FORWARD_PWM ({fwd}) (recalibrate with `vehicle calibrate`)",
-                      ("THROTTLE_FORWARD_PWM", "THROTTLE_REVERSE_PWM"))
+    for settings, build in ((("STEERING_LEFT_PWM", "STEERING_RIGHT_PWM"), SteeringCalibration),
+                            (("THROTTLE_STOPPED_PWM", "THROTTLE_FORWARD_PWM", "THROTTLE_REVERSE_PWM"),
+                             ThrottleCalibration)):
+        try:
+            build(*(v[name] for name in _PULSE_ORDER[build]))
+        except ValueError as exc:
+            yield Problem(settings[0], str(exc), settings[1:])
 
 
 def _channels(v: Mapping[str, Any]) -> Iterator[Problem]:
