@@ -53,6 +53,12 @@ SIM_RANDOMIZE: Annotated[int | None, Range(0, 2**32 - 1)] = None
 # "latency": (0, 0)}; names and defaults in docs/simulator.md.
 SIM_RANDOMIZE_RANGES: Annotated[dict[str, tuple[float, float]],
                                 Checked("known names, each low <= high within its limits (docs/simulator.md)")] = {}
+# Road-surface randomisation, for training data: the share of tracks (0 to 1) whose road (on a
+# theme without a road surface, such as indoor, the floor) is drawn from a generic pool instead
+# of the theme's materials: asphalt of any shade, concrete, gravel, pavers or packed earth, each in
+# a broadly drawn colour (docs/simulator.md). Lines, verges and sky stay the theme's. Drawn per
+# track from the track seed and SIM_RANDOMIZE. 0 = off: every theme as it is (evaluate that way).
+SIM_ROAD_SURFACE_SHARE: Annotated[float, Range(0, 1)] = 0.0
 # Static distractors (cones, boxes, parked cars) beside each track when SIM_RANDOMIZE is off
 # (randomised tracks draw their number); they never stand on the road.
 SIM_DISTRACTORS: Annotated[int, Range(0, 1000)] = 0

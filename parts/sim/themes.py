@@ -15,11 +15,16 @@ Themes:
   yellow or blue, solid or dashed), in a room whose walls stand at the edge of the floor.
 * ``park``: a path of asphalt, gravel or pavers through a lawn, no painted lines (the edges are
   only where the paving meets the grass), a tree line around the lawn. One lane only.
+
+Road-surface randomisation (SIM_ROAD_SURFACE_SHARE, :func:`widen_surface`) swaps the surface a
+share of tracks is driven on for one of :data:`SURFACE_POOL`: generic surfaces in broadly drawn
+colours, no theme's palette, so a pilot learns that a road is not always asphalt.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import colorsys
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -145,6 +150,51 @@ class Theme:
         top, bottom = self.skies[int(rng.integers(len(self.skies)))]
         return Look(self.name, ground.surface, ground_rgb, road.surface if road else None, road_rgb,
                     edge, centre, colour((top,)), colour((bottom,)))
+
+
+@dataclass(frozen=True)
+class PoolSurface:
+    """A generic surface of :data:`SURFACE_POOL` and the broad ranges its colour is drawn from."""
+
+    surface: str  # a name of parts.sim.surfaces.SURFACES
+    hue: tuple[float, float]  # degrees: 0 red, 30 brown, 60 yellow (a low saturation leaves it grey)
+    saturation: tuple[float, float]  # 0 grey .. 1 pure colour
+    value: tuple[float, float]  # brightness of the brightest channel, 0-255
+
+    def colour(self, rng: np.random.Generator) -> RGB:
+        """A colour drawn uniformly in hue, saturation and brightness (three draws, always)."""
+        h, s, v = (rng.uniform(*r) for r in (self.hue, self.saturation, self.value))
+        r, g, b = colorsys.hsv_to_rgb((h / 360.0) % 1.0, s, v / 255.0)
+        return int(round(r * 255)), int(round(g * 255)), int(round(b * 255))
+
+
+#: the surfaces of road-surface randomisation (SIM_ROAD_SURFACE_SHARE): ranges wide enough to hold
+#: fresh and worn, light and dark, grey and coloured versions of each, drawn afresh for each track
+SURFACE_POOL: tuple[PoolSurface, ...] = (
+    PoolSurface("asphalt", (0.0, 360.0), (0.0, 0.1), (35.0, 135.0)),  # fresh black to worn pale grey
+    PoolSurface("concrete", (0.0, 360.0), (0.0, 0.1), (115.0, 215.0)),
+    PoolSurface("gravel", (20.0, 50.0), (0.05, 0.4), (95.0, 210.0)),  # grey to beige and ochre
+    PoolSurface("pavers", (0.0, 45.0), (0.0, 0.5), (80.0, 200.0)),  # grey concrete to red clay
+    PoolSurface("dirt", (18.0, 45.0), (0.2, 0.55), (75.0, 175.0)),  # packed earth
+)
+
+
+def widen_surface(look: Look, rng: np.random.Generator, share: float) -> Look:
+    """With probability ``share``, the look with the surface the car drives on drawn from
+    :data:`SURFACE_POOL`: the road, or the floor of a theme whose track is taped on the floor.
+
+    Lines, verges and sky stay as the theme drew them. ``rng`` is a generator of its own (seeded by
+    the track and the randomisation seed), so no other draw changes; every value is drawn whatever
+    ``share`` is, so a track that takes the pool gets the same surface at any share.
+    """
+    take = rng.random() < share
+    pick = SURFACE_POOL[int(rng.integers(len(SURFACE_POOL)))]
+    rgb = pick.colour(rng)
+    if not take:
+        return look
+    if look.road is not None:
+        return replace(look, road=pick.surface, road_rgb=rgb)
+    return replace(look, ground=pick.surface, ground_rgb=rgb)
 
 
 _WHITE: tuple[RGB, ...] = ((235, 235, 230), (228, 228, 218))

@@ -23,7 +23,7 @@ from parts.sim.backdrops import room, treeline
 from parts.sim.randomize import Conditions, check_ranges, draw_conditions
 from parts.sim.scenery import Scenery, place_distractors
 from parts.sim.texture import TrackTexture, render_texture, texture_bounds
-from parts.sim.themes import Look, Theme, get_theme
+from parts.sim.themes import Look, Theme, get_theme, widen_surface
 from parts.sim.track import Track, make_track
 
 logger = logging.getLogger(__name__)
@@ -88,24 +88,26 @@ def conditions_for(seed: int, theme: str | Theme, randomize: int | None = None,
 
 def _key(seed: int, theme: Theme, randomize: int | None, ranges: Mapping[str, Any] | None, size: float,
          width: float, min_radius: float, lanes: int, line_width: float, res: float, lighting: float,
-         distractors: int) -> tuple[Any, ...]:
+         distractors: int, surface_share: float) -> tuple[Any, ...]:
     range_key = tuple(sorted((k, tuple(v)) for k, v in (ranges or {}).items()))
     return (int(seed), size, width, min_radius, lanes, line_width, res, lighting, theme.name, randomize, range_key,
-            distractors)
+            distractors, float(surface_share))
 
 
 def load_world(seed: int, *, theme: str | Theme = "road", randomize: int | None = None,
                ranges: Mapping[str, Any] | None = None, size: float = 8.0, width: float = 0.8,
                min_radius: float = 1.2, lanes: int = 1, line_width: float = 0.04, res: float = 0.01,
-               lighting: float = 0.25, distractors: int = 0) -> World:
-    """The world of a track seed in a theme (randomised with seed ``randomize`` unless None); the
-    last few are cached (drawing one takes a few tenths of a second of CPU at 1 cm per pixel).
+               lighting: float = 0.25, distractors: int = 0, surface_share: float = 0.0) -> World:
+    """The world of a track seed in a theme (randomised with seed ``randomize`` unless None, its
+    road surface from the generic pool with probability ``surface_share``); the last few are
+    cached (drawing one takes a few tenths of a second of CPU at 1 cm per pixel).
 
     Raises:
         ThemeError, TrackError, ValueError: an unknown theme, impossible track or bad ranges.
     """
     th = get_theme(theme)
-    key = _key(seed, th, randomize, ranges, size, width, min_radius, lanes, line_width, res, lighting, distractors)
+    key = _key(seed, th, randomize, ranges, size, width, min_radius, lanes, line_width, res, lighting, distractors,
+               surface_share)
     with _LOCK:
         if key in _WORLDS:
             _WORLDS.move_to_end(key)
@@ -115,7 +117,7 @@ def load_world(seed: int, *, theme: str | Theme = "road", randomize: int | None 
         return pending.result()  # drawn in the background (prefetch_world): wait for it
     track = load_track(seed, size=size, width=width, min_radius=min_radius, lanes=lanes, line_width=line_width)
     cond = conditions_for(seed, th, randomize, ranges, lighting, distractors)
-    world = build_world(track, th, cond, res=res)
+    world = build_world(track, th, cond, res=res, surface_share=surface_share)
     _remember(key, world)
     return world
 
@@ -142,7 +144,7 @@ def _draw_pending(key: tuple[Any, ...], seed: int, theme: Theme, args: dict[str,
         a = {**_DEFAULTS, **args}
         track = load_track(seed, **a)
         cond = conditions_for(seed, theme, a["randomize"], a["ranges"], a["lighting"], a["distractors"])
-        world = build_world(track, theme, cond, res=a["res"])
+        world = build_world(track, theme, cond, res=a["res"], surface_share=a["surface_share"])
         _remember(key, world)
         return world
     finally:
@@ -160,13 +162,25 @@ def _remember(key: tuple[Any, ...], world: World) -> None:
 
 #: load_world's defaults, for prefetch_world's cache key
 _DEFAULTS: dict[str, Any] = {"randomize": None, "ranges": None, "size": 8.0, "width": 0.8, "min_radius": 1.2,
-                             "lanes": 1, "line_width": 0.04, "res": 0.01, "lighting": 0.25, "distractors": 0}
+                             "lanes": 1, "line_width": 0.04, "res": 0.01, "lighting": 0.25, "distractors": 0,
+                             "surface_share": 0.0}
 
 
-def build_world(track: Track, theme: Theme, conditions: Conditions, *, res: float = 0.01) -> World:
-    """Draw a world (uncached): look, distractors, cast shadows, texture, backdrop."""
-    rng = np.random.default_rng([track.seed & 0xFFFFFFFF, (conditions.randomize or 0) & 0xFFFFFFFF, 0x5CE7])
+def build_world(track: Track, theme: Theme, conditions: Conditions, *, res: float = 0.01,
+                surface_share: float = 0.0) -> World:
+    """Draw a world (uncached): look, distractors, cast shadows, texture, backdrop.
+
+    Raises:
+        ValueError: ``surface_share`` (SIM_ROAD_SURFACE_SHARE) outside 0..1.
+    """
+    if not 0.0 <= surface_share <= 1.0:
+        raise ValueError(f"SIM_ROAD_SURFACE_SHARE = {surface_share!r}: use a share of tracks from 0 to 1")
+    randomize = (conditions.randomize or 0) & 0xFFFFFFFF
+    rng = np.random.default_rng([track.seed & 0xFFFFFFFF, randomize, 0x5CE7])
     look = theme.draw_look(rng, track.lanes, conditions.colour_jitter)
+    if surface_share > 0:  # a generator of its own: every other draw stays as without it
+        look = widen_surface(look, np.random.default_rng([track.seed & 0xFFFFFFFF, randomize, 0x5F0A]),
+                             surface_share)
     shading = (conditions.gains, conditions.sun)
     bounds = texture_bounds(track)
     distractors = place_distractors(track, rng, conditions.distractors, theme.distractors, bounds, shading)
@@ -232,5 +246,6 @@ def world_params(cfg: Any) -> dict[str, Any]:
     return {"size": cfg.SIM_TRACK_SIZE, "width": cfg.SIM_ROAD_WIDTH, "min_radius": cfg.SIM_TRACK_MIN_RADIUS,
             "lanes": cfg.SIM_LANES, "line_width": cfg.SIM_LINE_WIDTH, "res": cfg.SIM_TEXTURE_RES,
             "lighting": cfg.SIM_LIGHTING_VARIATION, "randomize": cfg.SIM_RANDOMIZE,
-            "ranges": dict(cfg.SIM_RANDOMIZE_RANGES), "distractors": cfg.SIM_DISTRACTORS}
+            "ranges": dict(cfg.SIM_RANDOMIZE_RANGES), "distractors": cfg.SIM_DISTRACTORS,
+            "surface_share": cfg.SIM_ROAD_SURFACE_SHARE}
 

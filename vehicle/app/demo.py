@@ -62,6 +62,7 @@ class Recording(NamedTuple):
     draw: int  # SIM_RANDOMIZE: the randomisation seed
     seed: int  # SIM_SEED: the per-frame effects and the steering noise
     ranges: dict[str, tuple[float, float]] | None  # SIM_RANDOMIZE_RANGES; None: the demo's
+    surfaces: float = 0.0  # SIM_ROAD_SURFACE_SHARE of the recording (never of the evaluation)
 
 
 #: wider ranges than the defaults (parts/sim/randomize.py RANGES): darker and brighter, warmer and
@@ -93,6 +94,7 @@ class Recipe(NamedTuple):
     augmentations: tuple[str, ...]  # batch augmentations added to AUGMENTATIONS
     recordings: tuple[Recording, ...]  # recordings of the training tracks beside the demo's own
     what: str  # one line for --help
+    surfaces: float = 0.0  # SIM_ROAD_SURFACE_SHARE of every recording; evaluations keep the themes as they are
 
 
 #: the demo's recipes, measured against each other by ``vehicle sim robustness --recipe``
@@ -102,6 +104,10 @@ RECIPES: dict[str, Recipe] = {
                         "augmentations (no more records; some training time)"),
     "robust": Recipe(tuple(ROBUST_AUGMENTATIONS), ROBUST_RECORDINGS, "plus those augmentations and two more "
                      "recordings of the training tracks (another draw, wider ranges): three times the records"),
+    # half the training tracks keep their theme's surface, so the trained themes are still seen as they are
+    "materials": Recipe((), (), "the demo's settings, with the road (indoor: the floor) of half the training tracks "
+                        "drawn from a generic pool of surfaces: asphalt, concrete, gravel, pavers, packed earth",
+                        surfaces=0.5),
 }
 
 # 12000 records on 64 tracks: with half of each, one unseen indoor track in five failed (docs/pilot.md)
@@ -146,7 +152,7 @@ def training_recordings(seed: int = 1, recipe: str = "plain") -> list[Recording]
         raise ValueError(f"--seed {seed}: use 1 .. {MAX_SEED}")
     offset = (seed - 1) * SEED_STRIDE
     base = [Recording("demo_tub", DEMO_SETTINGS["SIM_RANDOMIZE"], 0, None), *RECIPES[recipe].recordings]
-    return [r._replace(draw=r.draw + offset, seed=r.seed + offset) for r in base]
+    return [r._replace(draw=r.draw + offset, seed=r.seed + offset, surfaces=RECIPES[recipe].surfaces) for r in base]
 
 
 def train_seed(seed: int = 1) -> int:
@@ -221,10 +227,13 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
     for tub, r in zip(tubs, recordings, strict=True):
         ranges = cfg.SIM_RANDOMIZE_RANGES if r.ranges is None else r.ranges
         wider = "" if r.ranges is None else " over wider ranges"
+        if r.surfaces:
+            wider += f", {r.surfaces:.0%} of the tracks on a surface from the generic pool"
         say(f"[1/4] the expert drives training tracks {train_tracks} (themes {', '.join(trained)}, randomised "
             f"with seed {r.draw}{wider}): recording {records} records (steering noise {noise}) ...")
-        record_expert(cfg.replace(SIM_RANDOMIZE=r.draw, SIM_SEED=r.seed, SIM_RANDOMIZE_RANGES=ranges),
-                      train_tracks, records, tub, noise=noise)
+        # the recording's settings only: cfg, which the evaluation uses, keeps the themes' own surfaces
+        record_expert(cfg.replace(SIM_RANDOMIZE=r.draw, SIM_SEED=r.seed, SIM_RANDOMIZE_RANGES=ranges,
+                                  SIM_ROAD_SURFACE_SHARE=r.surfaces), train_tracks, records, tub, noise=noise)
     seconds["record"] = time.perf_counter() - t
     cpu["record"] = cpu_seconds() - c
     say(f"      recorded in {seconds['record']:.0f} s")
@@ -286,7 +295,7 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
     return {"reports": reports, "trained_themes": trained, "unseen_theme": unseen_theme, "model": model_path,
             "seconds": seconds, "cpu_seconds": cpu, "metrics": metrics, "seed": seed, "precision": precision,
             "recipe": recipe, "eval_tracks": list(eval_tracks), "laps": laps,
-            "recordings": [{"tub": r.tub, "draw": r.draw, "seed": r.seed} for r in recordings],
+            "recordings": [{"tub": r.tub, "draw": r.draw, "seed": r.seed, "surfaces": r.surfaces} for r in recordings],
             "train_seed": train_seed(seed), **({"draws": by_draw} if by_draw is not None else {})}
 
 

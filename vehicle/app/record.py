@@ -112,6 +112,8 @@ def record_expert(cfg: Any, seeds: Sequence[int] | None, n_records: int, tub_pat
                             f"{cfg.SIM_LANES})")
         overrides["TRAIN_BEHAVIORS"] = True
         overrides["METADATA"] = [*overrides["METADATA"], f"lane_changes:{lane_changes}"]
+    if cfg.SIM_ROAD_SURFACE_SHARE:
+        overrides["METADATA"] = [*overrides["METADATA"], f"road_surfaces:{cfg.SIM_ROAD_SURFACE_SHARE}"]
     cfg = cfg.replace(**overrides)
 
     V = Vehicle(clock=SimulatedClock())

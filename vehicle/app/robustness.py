@@ -1,6 +1,6 @@
 """``vehicle sim robustness``: a pilot's quality as a distribution, not one training run's number.
 
-A demo recipe (``vehicle demo --recipe plain|augmented|robust``) is recorded, trained and
+A demo recipe (``vehicle demo --recipe plain|augmented|robust|materials``) is recorded, trained and
 evaluated once per training seed and precision path (``vehicle demo --seed N --precision P
 --draws D``, each run a subprocess with one torch thread, ``--jobs`` at a time, its output in
 ``OUT/runs/<name>.log``). Each run drives the unseen tracks in every theme under the hidden
@@ -34,7 +34,7 @@ from vehicle.app.demo import RECIPES as DEMO_RECIPES
 
 logger = logging.getLogger(__name__)
 
-RECIPES = tuple(DEMO_RECIPES)  # vehicle.app.demo.RECIPES: plain, augmented, robust
+RECIPES = tuple(DEMO_RECIPES)  # vehicle.app.demo.RECIPES: plain, augmented, robust, materials
 PRECISIONS = ("fp32", "bf16")
 #: a run's summary, relative to its folder (written last and atomically by ``vehicle demo``)
 RESULT = Path("eval") / "result.json"

@@ -274,3 +274,60 @@ def test_bad_theme_or_ranges_in_myconfig_are_one_line_errors_at_their_line(tmp_p
         SimCar.from_config(cfg)
     assert str(info.value).startswith(f"{tmp_path.resolve() / 'myconfig.py'}, {found}")
     assert "\n" not in str(info.value)
+
+
+def test_road_surfaces_from_the_pool_on_every_track_at_share_1():
+    from parts.sim.themes import SURFACE_POOL
+
+    pool = {p.surface for p in SURFACE_POOL}
+    themes_palette = {c for t in THEMES.values() for m in t.road + t.ground for c in m.colours}
+    looks = [load_world(seed, theme="road", randomize=1, res=0.1, surface_share=1.0).look for seed in range(1, 21)]
+    plain = [load_world(seed, theme="road", randomize=1, res=0.1).look for seed in range(1, 21)]
+    assert len({look.road for look in looks}) >= 3 and {look.road for look in looks} <= pool
+    assert {look.road for look in plain} == {"asphalt"}
+    assert not {look.road_rgb for look in looks} & themes_palette  # no theme's colours, the park's included
+    brightness = [max(look.road_rgb) for look in looks]
+    assert max(brightness) - min(brightness) > 60  # dark and light roads
+    for look, before in zip(looks, plain, strict=True):  # only the road changes: lines, verges and sky stay
+        assert (look.ground, look.ground_rgb, look.edge, look.centre, look.sky_top) == \
+               (before.ground, before.ground_rgb, before.edge, before.centre, before.sky_top)
+    indoor = load_world(2, theme="indoor", randomize=1, res=0.1, surface_share=1.0).look
+    assert indoor.road is None and indoor.ground == looks[1].road  # no road surface: the floor is drawn instead
+    assert indoor.edge == load_world(2, theme="indoor", randomize=1, res=0.1).look.edge
+
+
+def test_road_surfaces_are_drawn_per_track_and_randomisation_seed_and_change_no_other_draw():
+    def world(seed: int, randomize: int | None, share: float):
+        return load_world(seed, theme="road", randomize=randomize, res=0.1, surface_share=share)
+
+    a, b = world(9, 1, 1.0), world(9, 1, 1.0)
+    assert a.look == b.look and np.array_equal(a.texture.image, b.texture.image)
+    roads = lambda randomize: [world(s, randomize, 1.0).look.road_rgb for s in range(1, 6)]  # noqa: E731
+    assert roads(1) != roads(2)  # another randomisation seed, other surfaces
+    plain = world(9, 1, 0.0)
+    spots = lambda w: [(d.kind, d.x, d.y) for d in w.scenery.distractors]  # noqa: E731
+    assert a.conditions == plain.conditions and spots(a) == spots(plain) and len(spots(a)) > 0
+    assert a.look.road_rgb != plain.look.road_rgb
+    # at share 0.5 a track takes the pool or keeps its theme's road exactly (the same frame as at 0)
+    halves = [(world(s, None, 0.5), world(s, None, 0.0)) for s in range(1, 9)]
+    kept = [p.look == h.look for h, p in halves]
+    assert 0 < sum(kept) < len(halves)
+    for (h, p), same in zip(halves, kept, strict=True):
+        if same:
+            assert np.array_equal(h.texture.image, p.texture.image)
+        else:  # a track that takes the pool takes the same surface at any share
+            assert h.look == world(h.track.seed, None, 1.0).look
+
+
+def test_road_surfaces_are_off_by_default_and_the_share_is_checked(cfg, tmp_path):
+    from parts.sim.world import build_world, world_params
+    from vehicle.config import ConfigError, load_config
+
+    assert world_params(cfg)["surface_share"] == 0.0
+    default = load_world(4, theme="road", res=0.1)
+    assert load_world(4, theme="road", res=0.1, surface_share=0.0) is default  # one cache entry: the same world
+    with pytest.raises(ValueError, match="SIM_ROAD_SURFACE_SHARE = 1.5: use a share of tracks from 0 to 1"):
+        build_world(default.track, default.theme, default.conditions, res=0.1, surface_share=1.5)
+    (tmp_path / "myconfig.py").write_text("SIM_ROAD_SURFACE_SHARE = 1.5\n")
+    with pytest.raises(ConfigError, match="SIM_ROAD_SURFACE_SHARE = 1.5 is out of range; valid: 0 to 1"):
+        load_config(car_path=tmp_path)

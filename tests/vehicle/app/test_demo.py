@@ -31,7 +31,7 @@ def test_tiny_demo_writes_model_export_reports_and_registry(tmp_path, capsys):
     assert list(draws["by_theme"]) == ["road", "indoor", "park"] and draws["draws"] == [1001]
     summary = json.loads((out / "eval" / "result.json").read_text())  # what vehicle sim robustness reads
     assert (summary["seed"], summary["precision"], summary["recipe"], summary["train_seed"]) == (1, "auto", "plain", 42)
-    assert summary["recordings"] == [{"tub": "demo_tub", "draw": 1, "seed": 0}]
+    assert summary["recordings"] == [{"tub": "demo_tub", "draw": 1, "seed": 0, "surfaces": 0.0}]
     assert summary["by_theme"] == draws["by_theme"] and summary["eval_tracks"] == [101] and summary["laps"] == 1
     assert set(summary["seconds"]) == {"record", "train", "export", "evaluate"} and summary["metrics"]["epochs"] == 1
     for theme in ("road", "indoor", "park"):
@@ -57,6 +57,52 @@ def test_tiny_demo_writes_model_export_reports_and_registry(tmp_path, capsys):
 
     _, meta = load_model(model)  # what the pilot was trained on: cropped, pixels in [-1, 1]
     assert meta["preprocess"]["crop"][0] == 40 and meta["preprocess"]["normalize"] == "symmetric"
+
+
+def test_tiny_materials_demo_records_pool_surfaces_and_evaluates_the_themes_as_they_are(tmp_path, capsys,
+                                                                                       monkeypatch):
+    from parts.sim import world as worlds
+
+    built = []  # (track seed, theme, road, ground, surface share) of every world the demo draws
+
+    def spy(track, theme, conditions, **kw):
+        w = build_world(track, theme, conditions, **kw)
+        built.append((track.seed, theme.name, w.look.road, w.look.ground, kw.get("surface_share", 0.0)))
+        return w
+
+    build_world = worlds.build_world
+    monkeypatch.setattr(worlds, "build_world", spy)
+    worlds._WORLDS.clear()  # drawn afresh, through the spy
+    out = tmp_path / "demo"
+    code = main(["demo", "--recipe", "materials", "--out", str(out), "--records", "200", "--epochs", "1",
+                 "--train-tracks", "1,2", "--eval-tracks", "101", "--laps", "1", "--threads", "1"])
+    assert code == 0
+    assert "50% of the tracks on a surface from the generic pool" in capsys.readouterr().out
+    # the recording (its start-up host measurement drives tracks 1 and 2 plainly): with draw 1 both
+    # training tracks take the pool, a concrete road (the road theme has only asphalt) and a pavers
+    # floor under the indoor tape (the indoor theme has concrete, wood and carpet)
+    assert {b for b in built if b[4]} == {(1, "road", "concrete", "grass", 0.5), (2, "indoor", None, "pavers", 0.5)}
+    evaluated = [b for b in built if b[0] == 101]
+    assert {b[1] for b in evaluated} == {"road", "indoor", "park"} and {b[4] for b in evaluated} == {0.0}
+    assert ("road", "asphalt") in {(b[1], b[2]) for b in evaluated}  # each theme as it is
+    summary = json.loads((out / "eval" / "result.json").read_text())
+    assert summary["recipe"] == "materials"
+    assert summary["recordings"] == [{"tub": "demo_tub", "draw": 1, "seed": 0, "surfaces": 0.5}]
+    metadata = json.loads((out / "data" / "demo_tub" / "manifest.json").read_text().splitlines()[2])
+    assert metadata["road_surfaces"] == "0.5" and metadata["randomize"] == "1"
+    assert "SIM_ROAD_SURFACE_SHARE" not in (out / "myconfig.py").read_text()  # vehicle sim eval there: as it is
+
+
+def test_the_materials_recipe_is_listed_in_the_help_and_records_like_plain(capsys):
+    for command in (["demo", "--help"], ["sim", "robustness", "--help"]):
+        with pytest.raises(SystemExit):
+            main(command)
+        text = " ".join(capsys.readouterr().out.split())
+        assert "materials: the demo's settings, with the road (indoor: the floor) of half the training" in text
+    from vehicle.app.demo import Recording, training_recordings
+
+    # the plain recipe's recordings, each with half its tracks on pool surfaces
+    assert training_recordings(2, "materials") == [Recording("demo_tub", 10001, 10000, None, 0.5)]
 
 
 @pytest.mark.parametrize("args, message", [
