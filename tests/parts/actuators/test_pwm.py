@@ -46,7 +46,8 @@ def test_trim_invert_and_limits():
     (lambda: SteeringCalibration(400, 400), "both 400"),
     (lambda: SteeringCalibration(5000, 290), "STEERING_LEFT_PWM must be a pulse in ticks"),
     (lambda: SteeringCalibration(460, 290, trim=0.8), "STEERING_TRIM"),
-    (lambda: ThrottleCalibration(500, 520, 220), "THROTTLE_STOPPED_PWM = 520 must be the ESC.s neutral; valid: a pulse strictly between"),
+    (lambda: ThrottleCalibration(500, 520, 220),
+     "THROTTLE_STOPPED_PWM = 520 must be the ESC.s neutral; valid: a pulse strictly between"),
     (lambda: ThrottleCalibration(500, 370, 220, forward_limit=1.5), "THROTTLE_FORWARD_LIMIT"),
     (lambda: ThrottleCalibration(500.0, 370, 220), "THROTTLE_FORWARD_PWM"),
 ])
