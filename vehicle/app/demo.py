@@ -179,31 +179,10 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
     gives the mean and the worst draw. ``seed`` picks the recordings' draws and effects seeds and
     TRAIN_SEED (:func:`training_recordings`, :func:`train_seed`; 1: the demo as it always ran),
     ``precision`` TRAIN_PRECISION. Raises ValueError on bad arguments."""
-    from parts.sim.eval_report import describe, format_table, write_json
-    from parts.sim.themes import theme_list
-    from vehicle.app.evaluate import evaluate
-    from vehicle.app.record import record_expert
     from vehicle.config import Config
 
-    if set(train_tracks) & set(eval_tracks):
-        raise ValueError(f"evaluation tracks {sorted(set(train_tracks) & set(eval_tracks))} are also training "
-                         "tracks: evaluate on tracks the pilot never saw")
-    if records < 100 or epochs < 1 or laps < 1:
-        raise ValueError(f"need records >= 100, epochs >= 1 and laps >= 1 (got {records}, {epochs}, {laps})")
-    trained = theme_list(DEMO_SETTINGS["SIM_THEME"])
-    theme_list(unseen_theme)  # a known theme
-    if unseen_theme in trained:
-        raise ValueError(f"the unseen theme {unseen_theme!r} is a training theme: pick another")
-    if recipe not in RECIPES:
-        raise ValueError(f"recipe {recipe!r}: choose one of {', '.join(RECIPES)}")
-    recordings = training_recordings(seed, recipe)
-    if eval_randomize in {r.draw for r in recordings}:
-        raise ValueError(f"randomisation seed {eval_randomize} is a training draw: evaluate with another")
-    if draws:
-        from vehicle.app.eval_draws import hidden_draws
-
-        for r in recordings:  # raises when a training draw is one of the hidden ones
-            hidden_draws(draws, r.draw)
+    trained, recordings = _check_demo(records, epochs, laps, train_tracks, eval_tracks, unseen_theme, recipe,
+                                      seed, eval_randomize, draws)
     out = out.resolve()
     settings = {**DEMO_SETTINGS, "SIM_RANDOMIZE": recordings[0].draw}
     # written only where they differ from the settings' defaults: --seed 1 writes today's myconfig.py
@@ -224,16 +203,7 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
     cpu: dict[str, float] = {}
 
     t, c = time.perf_counter(), cpu_seconds()
-    for tub, r in zip(tubs, recordings, strict=True):
-        ranges = cfg.SIM_RANDOMIZE_RANGES if r.ranges is None else r.ranges
-        wider = "" if r.ranges is None else " over wider ranges"
-        if r.surfaces:
-            wider += f", {r.surfaces:.0%} of the tracks on a surface from the generic pool"
-        say(f"[1/4] the expert drives training tracks {train_tracks} (themes {', '.join(trained)}, randomised "
-            f"with seed {r.draw}{wider}): recording {records} records (steering noise {noise}) ...")
-        # the recording's settings only: cfg, which the evaluation uses, keeps the themes' own surfaces
-        record_expert(cfg.replace(SIM_RANDOMIZE=r.draw, SIM_SEED=r.seed, SIM_RANDOMIZE_RANGES=ranges,
-                                  SIM_ROAD_SURFACE_SHARE=r.surfaces), train_tracks, records, tub, noise=noise)
+    _record(cfg, tubs, recordings, train_tracks, records, noise, trained)
     seconds["record"] = time.perf_counter() - t
     cpu["record"] = cpu_seconds() - c
     say(f"      recorded in {seconds['record']:.0f} s")
@@ -253,6 +223,72 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
     cpu["export"] = cpu_seconds() - c
 
     t, c = time.perf_counter(), cpu_seconds()
+    reports, by_draw = _evaluate_demo(cfg, out, model_path, eval_tracks, laps, trained, unseen_theme,
+                                      eval_randomize, draws)
+    seconds["evaluate"] = time.perf_counter() - t
+    cpu["evaluate"] = cpu_seconds() - c
+    say(f"      evaluated in {seconds['evaluate']:.0f} s")
+    _say_reports(reports, trained, by_draw)
+    return {"reports": reports, "trained_themes": trained, "unseen_theme": unseen_theme, "model": model_path,
+            "seconds": seconds, "cpu_seconds": cpu, "metrics": metrics, "seed": seed, "precision": precision,
+            "recipe": recipe, "eval_tracks": list(eval_tracks), "laps": laps,
+            "recordings": [{"tub": r.tub, "draw": r.draw, "seed": r.seed, "surfaces": r.surfaces} for r in recordings],
+            "train_seed": train_seed(seed), **({"draws": by_draw} if by_draw is not None else {})}
+
+
+def _check_demo(records: int, epochs: int, laps: int, train_tracks: list[int], eval_tracks: list[int],
+                unseen_theme: str, recipe: str, seed: int, eval_randomize: int | None,
+                draws: int) -> tuple[list[str], list[Recording]]:
+    """(the trained themes, the recordings) of a demo's arguments; ValueError for bad ones."""
+    from parts.sim.themes import theme_list
+
+    if set(train_tracks) & set(eval_tracks):
+        raise ValueError(f"evaluation tracks {sorted(set(train_tracks) & set(eval_tracks))} are also training "
+                         "tracks: evaluate on tracks the pilot never saw")
+    if records < 100 or epochs < 1 or laps < 1:
+        raise ValueError(f"need records >= 100, epochs >= 1 and laps >= 1 (got {records}, {epochs}, {laps})")
+    trained = theme_list(DEMO_SETTINGS["SIM_THEME"])
+    theme_list(unseen_theme)  # a known theme
+    if unseen_theme in trained:
+        raise ValueError(f"the unseen theme {unseen_theme!r} is a training theme: pick another")
+    if recipe not in RECIPES:
+        raise ValueError(f"recipe {recipe!r}: choose one of {', '.join(RECIPES)}")
+    recordings = training_recordings(seed, recipe)
+    if eval_randomize in {r.draw for r in recordings}:
+        raise ValueError(f"randomisation seed {eval_randomize} is a training draw: evaluate with another")
+    if draws:
+        from vehicle.app.eval_draws import hidden_draws
+
+        for r in recordings:  # raises when a training draw is one of the hidden ones
+            hidden_draws(draws, r.draw)
+    return trained, recordings
+
+
+def _record(cfg: Any, tubs: list[Path], recordings: list[Recording], train_tracks: list[int], records: int,
+            noise: float, trained: list[str]) -> None:
+    """Step 1: the expert drives the training tracks once per recording of the recipe."""
+    from vehicle.app.record import record_expert
+
+    for tub, r in zip(tubs, recordings, strict=True):
+        ranges = cfg.SIM_RANDOMIZE_RANGES if r.ranges is None else r.ranges
+        wider = "" if r.ranges is None else " over wider ranges"
+        if r.surfaces:
+            wider += f", {r.surfaces:.0%} of the tracks on a surface from the generic pool"
+        say(f"[1/4] the expert drives training tracks {train_tracks} (themes {', '.join(trained)}, randomised "
+            f"with seed {r.draw}{wider}): recording {records} records (steering noise {noise}) ...")
+        # the recording's settings only: cfg, which the evaluation uses, keeps the themes' own surfaces
+        record_expert(cfg.replace(SIM_RANDOMIZE=r.draw, SIM_SEED=r.seed, SIM_RANDOMIZE_RANGES=ranges,
+                                  SIM_ROAD_SURFACE_SHARE=r.surfaces), train_tracks, records, tub, noise=noise)
+
+
+def _evaluate_demo(cfg: Any, out: Path, model_path: Path, eval_tracks: list[int], laps: int, trained: list[str],
+                   unseen_theme: str, eval_randomize: int | None,
+                   draws: int) -> tuple[dict[str, dict[str, Any]], dict[str, Any] | None]:
+    """Step 4: the pilot and the expert on the unseen tracks in every theme (and, with ``draws``,
+    the pilot under hidden draws, with failure galleries); (reports by theme, the draws report)."""
+    from parts.sim.eval_report import write_json
+    from vehicle.app.evaluate import evaluate
+
     how = ("in each theme's plain look" if eval_randomize is None
            else f"randomised with seed {eval_randomize} (a draw never trained on)")
     say(f"[4/4] driving {laps} laps on each of the unseen tracks {eval_tracks}, {how}, in the trained themes "
@@ -265,22 +301,25 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
             "expert": evaluate("expert", eval_tracks, laps, cfg=c_theme, workers=cfg.SIM_EVAL_WORKERS)}
         for who, report in reports[theme].items():
             write_json(report, out / "eval" / f"{who}_{theme}.json")
-    by_draw = None
-    if draws:
-        from vehicle.app.eval_draws import evaluate_draws, format_draws_table
+    if not draws:
+        return reports, None
+    from vehicle.app.eval_draws import evaluate_draws, hidden_draws
+    from vehicle.app.failure_moments import GallerySpec
 
-        say(f"      and under {draws} hidden randomisation draw(s) per theme (mean and worst draw) ...")
-        from vehicle.app.failure_moments import GallerySpec
+    say(f"      and under {draws} hidden randomisation draw(s) per theme (mean and worst draw) ...")
+    galleries = out / "eval" / "gallery"  # the demo's own folder: a rerun replaces its galleries
+    shutil.rmtree(galleries, ignore_errors=True)
+    by_draw = evaluate_draws(model_path, eval_tracks, laps, cfg=cfg, draws=hidden_draws(draws, cfg.SIM_RANDOMIZE),
+                             themes=[*trained, unseen_theme], workers=cfg.SIM_EVAL_WORKERS,
+                             gallery=GallerySpec(str(galleries), str(model_path)))
+    write_json(by_draw, out / "eval" / "pilot_draws.json")
+    return reports, by_draw
 
-        galleries = out / "eval" / "gallery"  # the demo's own folder: a rerun replaces its galleries
-        shutil.rmtree(galleries, ignore_errors=True)
-        by_draw = evaluate_draws(model_path, eval_tracks, laps, cfg=cfg, draws=hidden_draws(draws, cfg.SIM_RANDOMIZE),
-                                 themes=[*trained, unseen_theme], workers=cfg.SIM_EVAL_WORKERS,
-                                 gallery=GallerySpec(str(galleries), str(model_path)))
-        write_json(by_draw, out / "eval" / "pilot_draws.json")
-    seconds["evaluate"] = time.perf_counter() - t
-    cpu["evaluate"] = cpu_seconds() - c
-    say(f"      evaluated in {seconds['evaluate']:.0f} s")
+
+def _say_reports(reports: dict[str, dict[str, Any]], trained: list[str], by_draw: dict[str, Any] | None) -> None:
+    """The evaluation's tables: per theme the pilot's, the expert's line, then the draws'."""
+    from parts.sim.eval_report import describe, format_table
+
     for theme, pair in reports.items():
         seen = "a trained theme" if theme in trained else "a theme the pilot never saw"
         say(f"\ntrained pilot on unseen tracks, theme {theme} ({seen}):")
@@ -290,14 +329,10 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
             f"{e['laps_completed']} laps, {e['interventions']} interventions, mean |cte| {e['mean_abs_cte']:.3f} m "
             f"({describe(pair['expert'])[len('conditions: '):]})")
     if by_draw is not None:
+        from vehicle.app.eval_draws import format_draws_table
+
         say("\ntrained pilot on unseen tracks under hidden randomisation draws (robustness):")
         say(format_draws_table(by_draw))
-    return {"reports": reports, "trained_themes": trained, "unseen_theme": unseen_theme, "model": model_path,
-            "seconds": seconds, "cpu_seconds": cpu, "metrics": metrics, "seed": seed, "precision": precision,
-            "recipe": recipe, "eval_tracks": list(eval_tracks), "laps": laps,
-            "recordings": [{"tub": r.tub, "draw": r.draw, "seed": r.seed, "surfaces": r.surfaces} for r in recordings],
-            "train_seed": train_seed(seed), **({"draws": by_draw} if by_draw is not None else {})}
-
 
 def write_summary(result: dict[str, Any], path: Path, total_s: float) -> Path:
     """Write ``run_demo``'s result as JSON, atomically (``vehicle sim robustness`` takes a run whose
