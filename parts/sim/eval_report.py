@@ -113,7 +113,17 @@ def format_table(report: dict[str, Any]) -> str:
         lines.append(f"commanded lane changes: {lanes['lane_changes_ok']} of {lanes['lane_changes']} done "
                      f"({'-' if rate is None else f'{rate:.0%}'}), lane error and wrong-lane time measured between "
                      f"changes, {o['interventions']} off-track")
+        lines += failed_change_lines(report["tracks"])
     return "\n".join(lines)
+
+
+def failed_change_lines(tracks: list[dict[str, Any]]) -> list[str]:
+    """One line per failed commanded lane change: where it was given and why it failed."""
+    from parts.sim.lane_metrics import describe_command
+
+    lines = [f"  track {t['seed']}: change {describe_command(c)}" for t in tracks
+             for c in (t.get("lanes") or {}).get("commands", []) if c["success"] is False]
+    return ["failed lane changes:", *lines] if lines else []
 
 
 def format_comparison(reports: list[dict[str, Any]]) -> str:

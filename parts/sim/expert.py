@@ -164,12 +164,6 @@ class Expert:
         """Planned lateral offset (m, left of the centre line) at odometer reading ``odo``."""
         return self._from + (self._to - self._from) * smoothstep((odo - self._start) / self.change_distance)
 
-    def _max_curvature(self, track: Track, s: float, distance: float) -> float:
-        n = max(1, int(distance / track.length * track.n))
-        i = int(s / track.length * track.n)
-        idx = (i + np.arange(n + 1)) % track.n
-        return float(np.abs(track.curvature[idx]).max())
-
     def _follow_behavior(self, state: Any, track: Track, s: float) -> None:
         """Plan a lane change when the behaviour asks for another lane."""
         if self.behavior_lanes is None or state is None or track.lanes != 2:
@@ -187,8 +181,7 @@ class Expert:
             return
         if self._waiting_since is None:
             self._waiting_since = self.sim.time
-        ahead = self.change_distance + self.lookahead
-        tight = self._max_curvature(track, s, ahead) > self.change_max_curvature
+        tight = track.curvature_ahead(s, self.change_distance + self.lookahead) > self.change_max_curvature
         if tight and self.sim.time - self._waiting_since < self.change_max_delay:
             return  # wait for a straighter stretch
         if self.sim.time > self._waiting_since:

@@ -18,6 +18,12 @@ put it into an evaluation loop. Definitions (docs/simulator.md repeats them):
   the commanded lane's centre) and **wrong-lane time** (the car's centre on the other side of the
   centre line from the commanded lane) are measured outside change windows, on the road;
 - a command whose judgement the episode's end cuts short is reported but not judged.
+
+Each command also says where it was given, so a failed one can be understood: the largest
+|curvature| of the road over the expert's change distance ahead (``curvature_1pm``), the lane the
+car was in (``start_lane``), and whether the expert would have waited there for a straighter
+stretch before changing (``expert_would_wait``, :class:`ChangeRule`); a failed one says why
+(``failure``: ``off_road`` or ``too_slow``) and when it was judged (``failed_at_s``).
 """
 
 from __future__ import annotations
@@ -36,6 +42,20 @@ from parts.sim.simulator import SimCar
 TIME_LIMIT_S = 6.0
 #: seconds the car must stay in the new lane for the change to count
 HOLD_S = 1.0
+#: why a commanded change failed (a command's ``failure``), in words
+FAILURES = {"off_road": "left the road", "too_slow": "not settled in the new lane in time"}
+
+
+def describe_command(c: dict[str, Any]) -> str:
+    """A command's record (:func:`lane_metrics`) in words: where it was given and, if it failed, why."""
+    text = f"to {c.get('lane') or '?'} at {c['time_s']:.1f} s"
+    if c.get("curvature_1pm") is not None:
+        start = "off the road" if c.get("start_lane") == "off road" else f"the {c.get('start_lane')} lane"
+        wait = "the expert would have waited" if c.get("expert_would_wait") else "the expert would have changed"
+        text += f" from {start}, curvature ahead {c['curvature_1pm']:.2f} 1/m ({wait})"
+    if c.get("success") is False:
+        text += f"; {FAILURES.get(str(c.get('failure')), 'failed')} at {c.get('failed_at_s') or 0:.1f} s"
+    return text
 
 
 @dataclass(frozen=True)
@@ -46,6 +66,51 @@ class LaneCommand:
     offset: float
     lane: str = ""
     pos: tuple[float, float] | None = None  # where the car was (world metres), for the plot
+    context: dict[str, Any] | None = None  # where it was given (:meth:`ChangeRule.context`)
+
+
+@dataclass(frozen=True)
+class ChangeRule:
+    """The expert's rule for starting a change (parts/sim/expert.py): it waits while the road over
+    ``distance`` m ahead curves more than ``max_curvature`` 1/m (SIM_EXPERT_LANE_CHANGE_DISTANCE +
+    SIM_EXPERT_LOOKAHEAD, SIM_EXPERT_LANE_CHANGE_MAX_CURVATURE)."""
+
+    distance: float
+    max_curvature: float
+
+    def context(self, track: Any, pos: tuple[float, float], lateral: float, off_track: bool) -> dict[str, Any]:
+        """Where a command was given: the curvature ahead (1/m), the lane the car was in ("left",
+        "right" or "off road") and whether the expert would have waited."""
+        curvature = track.curvature_ahead(track.project(pos).s, self.distance)
+        lane = "off road" if off_track else ("left" if lateral > 0 else "right")
+        return {"curvature_1pm": _r(curvature, 3), "start_lane": lane,
+                "expert_would_wait": bool(curvature > self.max_curvature)}
+
+
+def judge_change(t: np.ndarray, lateral: np.ndarray, off: np.ndarray, offset: float, start: int, deadline: float,
+                 centred: float, hold: float) -> tuple[bool | None, int | None, int]:
+    """Judge one commanded change from step ``start`` on: ``(outcome, entered, last)``, outcome True
+    (centred within ``centred`` m of ``offset`` before ``deadline`` s and for ``hold`` s), False
+    (left the road, or too slow) or None (the steps ended first); ``entered`` the step its stay in
+    the new lane began, ``last`` the last step looked at."""
+    lane_ok = (np.abs(lateral - offset) < centred) & ~off
+    entered: int | None = None
+    i = start
+    for i in range(start, t.size):
+        if off[i]:  # left the road during the manoeuvre
+            return False, entered, i
+        if lane_ok[i]:
+            if entered is None:
+                if t[i] > deadline:
+                    return False, None, i
+                entered = i
+            if t[i] - t[entered] >= hold - 1e-9:
+                return True, entered, i
+        else:
+            entered = None
+            if t[i] > deadline:
+                return False, None, i
+    return None, entered, i
 
 
 def _r(x: float | None, nd: int = 4) -> float | None:
@@ -84,38 +149,20 @@ def lane_metrics(t: Sequence[float], lateral: Sequence[float], commanded: Sequen
     for c in sorted(commands, key=lambda c: c.time):
         res: dict[str, Any] = {"time_s": _r(c.time, 3), "lane": c.lane, "offset_m": _r(c.offset, 3),
                                "success": None, "time_to_change_s": None,
-                               "pos": [_r(c.pos[0], 3), _r(c.pos[1], 3)] if c.pos is not None else None}
+                               "pos": [_r(c.pos[0], 3), _r(c.pos[1], 3)] if c.pos is not None else None,
+                               **(c.context or {})}
         results.append(res)
-        lane_ok = (np.abs(lat - c.offset) < centred) & ~off
         start = int(np.searchsorted(t, c.time - 1e-9))
         deadline = c.time + time_limit + 1e-9
-        entered: int | None = None
-        outcome: bool | None = None  # None: the episode ended before the change could be judged
-        i = start
-        for i in range(start, t.size):
-            if off[i]:  # left the road during the manoeuvre
-                outcome = False
-                break
-            if lane_ok[i]:
-                if entered is None:
-                    if t[i] > deadline:
-                        outcome = False
-                        break
-                    entered = i
-                if t[i] - t[entered] >= hold - 1e-9:
-                    outcome = True
-                    break
-            else:
-                entered = None
-                if t[i] > deadline:
-                    outcome = False
-                    break
+        outcome, entered, i = judge_change(t, lat, off, c.offset, start, deadline, centred, hold)
         res["success"] = outcome
         if outcome:
             assert entered is not None
             res["time_to_change_s"] = _r(t[entered] - c.time, 3)
             window[start:i + 1] = True
         elif outcome is False:
+            res["failure"] = "off_road" if off[i] else "too_slow"
+            res["failed_at_s"] = _r(t[i], 3)
             window[start:max(i + 1, int(np.searchsorted(t, deadline)))] = True
         else:
             window[start:] = True
@@ -201,15 +248,20 @@ class LaneMetrics:
         dt: seconds per loop.
         lane_width: width of one lane, metres.
         time_limit, hold: see :func:`lane_metrics`.
+        rule: the expert's rule for starting a change; with it (and :meth:`on_track`) each command
+            says where it was given (:meth:`ChangeRule.context`).
     """
 
     INPUTS: ClassVar[tuple[str, ...]] = ("sim/cte", "sim/off_track", "sim/lane_center", "sim/pos", "behavior/label")
     OPTIONAL_INPUTS: ClassVar[tuple[str, ...]] = ("sim/pos", "behavior/label")
     OUTPUTS: ClassVar[tuple[str, ...]] = ()
 
-    def __init__(self, dt: float, lane_width: float, *, time_limit: float = TIME_LIMIT_S, hold: float = HOLD_S) -> None:
+    def __init__(self, dt: float, lane_width: float, *, time_limit: float = TIME_LIMIT_S, hold: float = HOLD_S,
+                 rule: ChangeRule | None = None) -> None:
         self.dt, self.lane_width = float(dt), float(lane_width)
         self.time_limit, self.hold = float(time_limit), float(hold)
+        self.rule = rule
+        self.track: Any = None
         self.t: list[float] = []
         self.lateral: list[float] = []
         self.commanded: list[float] = []
@@ -225,7 +277,12 @@ class LaneMetrics:
             return  # no lane to keep (one-lane track, a behaviour that names no lane)
         c = float(center)
         if self._last is not None and c != self._last:
-            self.commands.append(LaneCommand(self._time, c, label if isinstance(label, str) else "", self._pos))
+            here = (float(pos[0]), float(pos[1])) if pos is not None else self._pos
+            context = None
+            if self.rule is not None and self.track is not None and here is not None:
+                context = self.rule.context(self.track, here, -float(cte), bool(off_track))
+            self.commands.append(LaneCommand(self._time, c, label if isinstance(label, str) else "", self._pos,
+                                             context))
         self._last = c
         self.t.append(self._time)
         self.lateral.append(-float(cte))  # sim/cte is positive to the right
@@ -233,6 +290,19 @@ class LaneMetrics:
         self.off.append(bool(off_track))
         if pos is not None:
             self._pos = (float(pos[0]), float(pos[1]))
+
+    @classmethod
+    def from_config(cls, cfg: Any) -> LaneMetrics:
+        """Scored as SIM_EVAL_LANE_CHANGE_* say, on lanes of half SIM_ROAD_WIDTH; each command located
+        by the expert's rule (SIM_EXPERT_LANE_CHANGE_DISTANCE + SIM_EXPERT_LOOKAHEAD, _MAX_CURVATURE)."""
+        rule = ChangeRule(cfg.SIM_EXPERT_LANE_CHANGE_DISTANCE + cfg.SIM_EXPERT_LOOKAHEAD,
+                          cfg.SIM_EXPERT_LANE_CHANGE_MAX_CURVATURE)
+        return cls(1.0 / cfg.DRIVE_LOOP_HZ, cfg.SIM_ROAD_WIDTH / 2, time_limit=cfg.SIM_EVAL_LANE_CHANGE_TIME_LIMIT,
+                   hold=cfg.SIM_EVAL_LANE_CHANGE_HOLD, rule=rule)
+
+    def on_track(self, track: Any) -> None:
+        """The episode's track (:class:`parts.sim.track.Track`), where commands are located."""
+        self.track = track
 
     def result(self) -> dict[str, Any]:
         """The episode's lane metrics (see :func:`lane_metrics`)."""

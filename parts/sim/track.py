@@ -77,6 +77,13 @@ class Track:
         """Tightest turn radius of the centre line, metres."""
         return float(1.0 / max(np.abs(self.curvature).max(), 1e-9))
 
+    def curvature_ahead(self, s: float, distance: float) -> float:
+        """Largest |curvature| (1/m) of the centre line from arc length ``s`` to ``distance`` m ahead."""
+        n = max(1, int(distance / self.length * self.n))
+        i = int(s / self.length * self.n)
+        idx = (i + np.arange(n + 1)) % self.n
+        return float(np.abs(self.curvature[idx]).max())
+
     def lane_offset(self, lane: str) -> float:
         """Lateral offset (metres, positive = left) of a lane's centre: center, left or right."""
         if lane == "center":

@@ -2,6 +2,7 @@
 
     vehicle demo --lanes                          # works in ./demo_lanes
     vehicle demo --lanes --records 8000 --lane-changes 50 --epochs 12
+    vehicle demo --lanes --seed 2 --draws 3       # another recording and training seed; hidden draws
 
 1. The expert drives two-lane training tracks and the behaviour (Left_Lane / Right_Lane) flips at
    random times; the expert changes lanes smoothly, waiting in tight corners. Frames, commands and
@@ -12,7 +13,12 @@
 4. Both, and the expert, drive tracks none of them saw while the lane is changed on command every
    SIM_EVAL_LANE_CHANGE_EVERY seconds; the tables compare lane-change success, time to change,
    lane keeping, wrong-lane time and off-track events. The thesis's claim: every commanded change
-   succeeds and the car never leaves the road.
+   succeeds and the car never leaves the road. With ``--draws N`` both models also drive under N
+   hidden randomisation draws (their failed changes in failure galleries, ``eval/gallery/<type>``).
+
+``--seed N`` means what it means for the plain demo (1: the demo as it always ran): the recording's
+effects, steering-noise and lane-change seed (SIM_SEED) is (N - 1) * SEED_STRIDE and TRAIN_SEED
+42 + N - 1. ``vehicle sim robustness --lanes`` runs it over seeds and precisions.
 """
 
 from __future__ import annotations
@@ -58,16 +64,19 @@ def lane_demo_settings() -> dict[str, Any]:
 
 def run_lanes_demo(out: Path, *, records: int, lane_changes: int, epochs: int, noise: float,
                    train_tracks: list[int], eval_tracks: list[int], laps: int,
-                   types: list[str] | None = None) -> dict[str, Any]:
+                   types: list[str] | None = None, seed: int = 1, precision: str = "auto",
+                   draws: int = 0) -> dict[str, Any]:
     """Run the four steps in ``out``; returns ``{"reports": {name: report}, "models": {type: path},
-    "metrics": {type: training metrics}, "seconds": {step: s}}``. Raises ValueError on bad arguments."""
-    from parts.sim.eval_report import format_table, write_json, write_png
-    from vehicle.app.demo import train_or_stop, write_myconfig
-    from vehicle.app.evaluate import evaluate
+    "metrics": {type: training metrics}, "seconds": {step: s}, "seed", "precision", ...}``, with
+    ``draws`` > 0 also ``"draws": {type: report}`` (:func:`vehicle.app.lanes_robustness.lane_draws`).
+    ``seed`` and ``precision`` as in :func:`vehicle.app.demo.run_demo`. Raises ValueError on bad arguments."""
+    from vehicle.app.demo import BASE_TRAIN_SEED, MAX_SEED, SEED_STRIDE, train_or_stop, train_seed, write_myconfig
     from vehicle.app.record import record_expert
     from vehicle.config import Config
 
     types = list(types or DEFAULTS["types"])
+    if not 1 <= seed <= MAX_SEED:
+        raise ValueError(f"--seed {seed}: use 1 .. {MAX_SEED}")
     if set(train_tracks) & set(eval_tracks):
         raise ValueError(f"evaluation tracks {sorted(set(train_tracks) & set(eval_tracks))} are also training "
                          "tracks: evaluate on tracks the pilots never saw")
@@ -76,7 +85,13 @@ def run_lanes_demo(out: Path, *, records: int, lane_changes: int, epochs: int, n
                          f"{lane_changes}, {epochs}, {laps})")
     out = out.resolve()
     settings = lane_demo_settings()
+    # written only where they differ from the defaults: --seed 1 writes today's myconfig.py
+    if train_seed(seed) != BASE_TRAIN_SEED:
+        settings["TRAIN_SEED"] = train_seed(seed)
+    if precision != "auto":
+        settings["TRAIN_PRECISION"] = precision
     cfg = Config.defaults(CAR_PATH=str(out), **settings)
+    sim_seed = cfg.SIM_SEED + (seed - 1) * SEED_STRIDE  # the recording's only: evaluation keeps its schedule
     write_myconfig(out, settings, "vehicle demo --lanes")
     tub = out / "data" / "lanes_tub"
     if tub.exists():
@@ -86,7 +101,7 @@ def run_lanes_demo(out: Path, *, records: int, lane_changes: int, epochs: int, n
     t = time.perf_counter()
     say(f"[1/4] the expert drives two-lane tracks {train_tracks}: {records} records, {lane_changes} commanded "
         f"lane changes, steering noise {noise} ...")
-    record_expert(cfg, train_tracks, records, tub, noise=noise, lane_changes=lane_changes)
+    record_expert(cfg.replace(SIM_SEED=sim_seed), train_tracks, records, tub, noise=noise, lane_changes=lane_changes)
     seconds["record"] = time.perf_counter() - t
 
     models: dict[str, Path] = {}
@@ -112,6 +127,26 @@ def run_lanes_demo(out: Path, *, records: int, lane_changes: int, epochs: int, n
 
     t = time.perf_counter()
     say(f"[4/4] driving {laps} laps on each of the unseen tracks {eval_tracks}, changing lanes on command ...")
+    reports, by_draw = evaluate_models(models, eval_tracks, laps, cfg, out, draws)
+    seconds["evaluate"] = time.perf_counter() - t
+    say("\n" + comparison_table(reports))
+    if by_draw is not None:
+        say("\nunder hidden randomisation draws:\n" + comparison_table(
+            {f"{k} model": {"overall": r["overall"]} for k, r in by_draw.items()}))
+    return {"reports": reports, "models": models, "metrics": metrics, "seconds": seconds, "seed": seed,
+            "precision": precision, "train_seed": train_seed(seed), "sim_seed": sim_seed,
+            "eval_tracks": list(eval_tracks), "laps": laps, **({"draws": by_draw} if by_draw is not None else {})}
+
+
+def evaluate_models(models: dict[str, Path], eval_tracks: list[int], laps: int, cfg: Any, out: Path,
+                    draws: int) -> tuple[dict[str, Any], dict[str, Any] | None]:
+    """Step 4: each model and the expert with commanded lane changes in the demo's own look (reports
+    by driver, each written to ``out/eval/<stem>.json`` and ``.png`` and printed), and with ``draws``
+    > 0 each model under that many hidden draws (:func:`vehicle.app.lanes_robustness.lane_draws`,
+    ``out/eval/<type>_draws.json``; else None)."""
+    from parts.sim.eval_report import format_table, write_json, write_png
+    from vehicle.app.evaluate import evaluate
+
     reports: dict[str, Any] = {}
     for name, pilot in [*((f"{k} model", p) for k, p in models.items()), ("expert", "expert")]:
         report = evaluate(pilot, eval_tracks, laps, cfg=cfg, lane_changes=True)
@@ -121,9 +156,15 @@ def run_lanes_demo(out: Path, *, records: int, lane_changes: int, epochs: int, n
         write_png(report, out / "eval" / f"{stem}.png", cfg)
         say(f"\n{name} on unseen tracks:")
         say(format_table(report))
-    seconds["evaluate"] = time.perf_counter() - t
-    say("\n" + comparison_table(reports))
-    return {"reports": reports, "models": models, "metrics": metrics, "seconds": seconds}
+    if not draws:
+        return reports, None
+    from vehicle.app.lanes_robustness import lane_draws
+
+    say(f"      and under {draws} hidden randomisation draw(s), failed changes in galleries ...")
+    by_draw = lane_draws(models, eval_tracks, laps, cfg, draws, out / "eval" / "gallery")
+    for model_type, report in by_draw.items():
+        write_json(report, out / "eval" / f"{model_type}_draws.json")
+    return reports, by_draw
 
 
 def comparison_table(reports: dict[str, Any]) -> str:

@@ -75,8 +75,10 @@ def summarise(overalls: Sequence[dict[str, Any]], draws: Sequence[int],
         "draws": list(draws),
         "mean": {k: mean(k, overalls) for k in SUMMARY_KEYS},
         "worst": {"randomize": draws[w], **{k: overalls[w].get(k) for k in SUMMARY_KEYS}},
-        "per_draw": [{"randomize": d, **{k: o.get(k) for k in SUMMARY_KEYS}} for d, o in zip(draws, overalls,
-                                                                                             strict=True)],
+        # with commanded lane changes, each draw's lane metrics too (parts/sim/lane_metrics.py)
+        "per_draw": [{"randomize": d, **{k: o.get(k) for k in SUMMARY_KEYS}, **({"lanes": o["lanes"]} if "lanes" in o
+                                                                                else {})}
+                     for d, o in zip(draws, overalls, strict=True)],
     }
     if expert is not None:
         speed = mean("mean_speed", expert)
@@ -140,6 +142,11 @@ def evaluate_draws(pilot: Any, seeds: Sequence[int], laps: int, *, cfg: Any, dra
         by_theme[theme] = summarise(pilot_overalls, draws, expert_overalls if expert else None)
     penalty = settings.get("penalty_s", cfg.SIM_INTERVENTION_PENALTY)
     extra: dict[str, Any] = {}
+    lanes: dict[str, Any] = {}
+    if tracks and all("lanes" in t for t in tracks):  # commanded lane changes: pooled like evaluate's
+        from parts.sim.lane_metrics import overall_lane_metrics
+
+        lanes["lanes"] = overall_lane_metrics([t["lanes"] for t in tracks])
     if gallery is not None:
         from vehicle.app.gallery import write_gallery_index
 
@@ -154,7 +161,7 @@ def evaluate_draws(pilot: Any, seeds: Sequence[int], laps: int, *, cfg: Any, dra
         "settings": {**settings, "draws": draws, "themes": themes},
         "tracks": tracks,
         # pooled over every episode (the p95 |CTE| needs the frames, which are not kept: None)
-        "overall": {**overall(tracks, penalty, np.empty(0)), "by_theme": by_theme},
+        "overall": {**overall(tracks, penalty, np.empty(0)), "by_theme": by_theme, **lanes},
         "by_theme": by_theme,
     }
 

@@ -67,7 +67,7 @@ from vehicle.app.assembly.camera import add_undistort
 from vehicle.app.assembly.drive import add_behavior, add_drive_mode, add_obstacle_stop, add_speed_limit
 from vehicle.app.assembly.pilot import BEHAVIOR_KEY, check_behavior_input, pilot_inputs
 from vehicle.app.assembly.sim import add_expert
-from vehicle.app.failure_moments import GallerySpec
+from vehicle.app.failure_moments import ChangeLimits, GallerySpec, with_commands
 from vehicle.app.failure_moments import attach as attach_recorder
 from vehicle.clock import SimulatedClock
 from vehicle.errors import UserError
@@ -375,15 +375,16 @@ def _builtin_episode(driver: Any, seed: int, laps: int, cfg: Any, episode_args: 
     ``theme``, lane metrics included when ``episode_args["lanes"]``."""
     args = dict(episode_args)
     lane_part = None
+    changes = None
     if args.pop("lanes"):
-        lane_part = LaneMetrics(1.0 / cfg.DRIVE_LOOP_HZ, cfg.SIM_ROAD_WIDTH / 2,
-                                time_limit=cfg.SIM_EVAL_LANE_CHANGE_TIME_LIMIT, hold=cfg.SIM_EVAL_LANE_CHANGE_HOLD)
+        lane_part = LaneMetrics.from_config(cfg)
+        changes = ChangeLimits(lane_part.lane_width, lane_part.time_limit, lane_part.hold)
     gallery: GallerySpec | None = args.pop("gallery", None)
     recorders: list[Any] = []
     after = None
     if gallery is not None and driver != "expert":
         def after(V: Vehicle, sim: SimCar) -> None:
-            recorders.append(attach_recorder(V, sim, cfg, Lent(driver).INPUTS, gallery))
+            recorders.append(attach_recorder(V, sim, cfg, Lent(driver).INPUTS, gallery, changes))
     metrics = run_episode(driver, seed, laps, cfg, **args, on_step=on_step, lanes=lane_part, theme=theme,
                           after=after)
     res = metrics.result()
@@ -394,7 +395,10 @@ def _builtin_episode(driver: Any, seed: int, laps: int, cfg: Any, episode_args: 
     if recorders:
         from vehicle.app.gallery import render_track
 
-        res["_gallery"] = render_track(recorders[0].moments(), gallery,  # type: ignore[arg-type]
+        moments = recorders[0].moments()
+        if lane_part is not None:  # a failed change's moment carries the command's record
+            with_commands(moments, res["lanes"]["commands"], lane_part.dt)
+        res["_gallery"] = render_track(moments, gallery,  # type: ignore[arg-type]
                                        {**res, "randomize": cfg.SIM_RANDOMIZE})
     return res, metrics.autonomous_abs_cte()
 
@@ -589,6 +593,7 @@ def run_episode(driver: Any, seed: int, laps: int, cfg: Any, *, max_time: float,
             sim.start_offset = sim.track.lane_offset(lane)
             sim.select_track(seed)
         V.add(CommandedLane(sim))
+        lanes.on_track(sim.track)  # where each command is given: the curvature ahead
     elif driver != "expert" and BEHAVIOR_KEY in pilot_inputs(driver) and BEHAVIOR_KEY not in V.mem:
         add_behavior(V, cfg)  # TRAIN_BEHAVIORS (checked before): BEHAVIOR_INITIAL all along, as a drive
     if driver == "expert":

@@ -93,7 +93,10 @@ def render_track(moments: Sequence[Moment], spec: GallerySpec, track: dict[str, 
     entries = []
     for k, moment in enumerate(moments, 1):
         steps = moment.steps
-        picks = sorted({round(j * (len(steps) - 1) / max(1, spec.frames - 1)) for j in range(spec.frames)})
+        picks = {round(j * (len(steps) - 1) / max(1, spec.frames - 1)) for j in range(spec.frames)}
+        if moment.command_time_s is not None:  # a failed change: its command's frame too
+            picks |= {i for i, st in enumerate(steps) if abs(st.time_s - moment.command_time_s) < 1e-6}
+        picks = sorted(picks)
         frames = []
         for i in picks:
             step = steps[i]
@@ -111,8 +114,11 @@ def render_track(moments: Sequence[Moment], spec: GallerySpec, track: dict[str, 
                            "image": f"{name}.jpg", "saliency": saliency,
                            "pilot": {"angle": _r(step.pilot[0]), "throttle": _r(step.pilot[1])},
                            "expert": {"angle": _r(step.expert)}, "cte": _r(step.cte)})
-        entries.append({"kind": moment.kind, "number": k, "time_s": _r(moment.time_s, 2), "cte": _r(moment.cte),
-                        "pos": moment.pos, "frames": frames})
+        entry = {"kind": moment.kind, "number": k, "time_s": _r(moment.time_s, 2), "cte": _r(moment.cte),
+                 "pos": moment.pos, "frames": frames}
+        if moment.command_time_s is not None:
+            entry.update(command_time_s=_r(moment.command_time_s, 2), command=moment.command)
+        entries.append(entry)
     return {"seed": track.get("seed"), "theme": track.get("theme"), "randomize": track.get("randomize"),
             "conditions": track.get("conditions"), "interventions": track.get("interventions"),
             "folder": sub, "moments": entries}
@@ -151,6 +157,7 @@ h1{font-size:18px;margin:0 0 4px} h2{font-size:16px;margin:18px 0 6px;border-bot
 .note{color:#aaa;margin:0 0 10px} a{color:#8cf}
 .moment{background:#1c1c1c;border-radius:6px;padding:8px;margin:8px 0}
 .moment h3{font-size:14px;margin:0 0 6px} .kind-intervention h3{color:#f88} .kind-worst_cte h3{color:#fc6}
+.kind-failed_change h3{color:#f8c}
 .frames{display:flex;flex-wrap:wrap;gap:8px}
 figure{margin:0;width:170px} figure img{width:100%;image-rendering:pixelated;display:block;border-radius:3px}
 figcaption{font-size:12px;color:#ccc}
@@ -209,8 +216,19 @@ def gallery_html(data: dict[str, Any]) -> str:
         if not track["moments"]:
             parts.append("<p class=note>nothing to show: no intervention and no worst-|CTE| moment kept</p>")
         for m in track["moments"]:
-            what = "Intervention" if m["kind"] == "intervention" else "Worst |CTE|"
-            parts.append(f"<section class='moment kind-{m['kind']}'><h3>{what} {m['number']} at {m['time_s']} s"
-                         f" (cte {m['cte']} m)</h3><div class=frames>"
-                         + "".join(_figure(f) for f in m["frames"]) + "</div></section>")
+            parts.append(f"<section class='moment kind-{m['kind']}'><h3>{html.escape(moment_title(m))}</h3>"
+                         "<div class=frames>" + "".join(_figure(f) for f in m["frames"]) + "</div></section>")
     return _page(title, "".join(parts))
+
+
+def moment_title(m: dict[str, Any]) -> str:
+    """A moment's heading; a failed lane change says where it was commanded and why it failed."""
+    if m["kind"] == "intervention":
+        return f"Intervention {m['number']} at {m['time_s']} s (cte {m['cte']} m)"
+    if m["kind"] != "failed_change":
+        return f"Worst |CTE| {m['number']} at {m['time_s']} s (cte {m['cte']} m)"
+    from parts.sim.lane_metrics import describe_command
+
+    c = m.get("command")
+    what = describe_command(c) if c else f"at {m['command_time_s']} s"
+    return f"Failed lane change {m['number']}, commanded {what} (frames up to {m['time_s']} s)"

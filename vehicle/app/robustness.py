@@ -8,6 +8,9 @@ randomisation draws (`vehicle sim eval --draws`); the protocol then reports per 
 over every run and draw, the worst draw and the worst seed, with the laps driven beside autonomy
 (a car that stands still has 100 % DAVE-2 autonomy but score 0: parts/sim/metrics.py, rank_key).
 
+With ``--lanes`` the runs are ``vehicle demo --lanes`` (the ``lanes`` and ``behavior`` models,
+commanded lane changes) and the report is per model (:mod:`vehicle.app.lanes_robustness`).
+
 A run whose ``eval/result.json`` exists is finished and kept; a run folder without one (killed) is
 removed and run again, so the command resumes where it was stopped.
 """
@@ -35,6 +38,8 @@ from vehicle.app.demo import RECIPES as DEMO_RECIPES
 logger = logging.getLogger(__name__)
 
 RECIPES = tuple(DEMO_RECIPES)  # vehicle.app.demo.RECIPES: plain, augmented, robust, materials
+#: the runs' name prefix (RunSpec.recipe) of ``--lanes``: vehicle demo --lanes has no recipes
+LANES = "lanes"
 PRECISIONS = ("fp32", "bf16")
 #: a run's summary, relative to its folder (written last and atomically by ``vehicle demo``)
 RESULT = Path("eval") / "result.json"
@@ -71,13 +76,20 @@ class Protocol:
     epochs: int | None = None
     train_tracks: list[int] | None = None
     jobs: int = 1
+    lane_changes: int | None = None  # --lanes: lane changes commanded while recording
+
+    @property
+    def lanes(self) -> bool:
+        """The runs are ``vehicle demo --lanes``."""
+        return self.recipe == LANES
 
     def specs(self) -> list[RunSpec]:
         return [RunSpec(self.recipe, s, p) for s in self.seeds for p in self.precisions]
 
     def command_line(self) -> str:
         """The command that runs this protocol again (defaults written out)."""
-        words = ["vehicle", "sim", "robustness", "--recipe", self.recipe, "--seeds", _ints(self.seeds),
+        what = ["--lanes"] if self.lanes else ["--recipe", self.recipe]
+        words = ["vehicle", "sim", "robustness", *what, "--seeds", _ints(self.seeds),
                  "--precisions", ",".join(self.precisions), "--draws", str(self.draws), *self.demo_options()]
         return shlex.join([*words, "--jobs", str(self.jobs), "--out", str(self.out)])
 
@@ -86,7 +98,7 @@ class Protocol:
         words: list[str] = []
         for option, value in (("--eval-tracks", self.eval_tracks), ("--laps", self.laps),
                               ("--records", self.records), ("--epochs", self.epochs),
-                              ("--train-tracks", self.train_tracks)):
+                              ("--train-tracks", self.train_tracks), ("--lane-changes", self.lane_changes)):
             if value is not None:
                 words += [option, _ints(value) if isinstance(value, list) else str(value)]
         return words
@@ -104,7 +116,7 @@ def demo_command(spec: RunSpec, folder: Path, protocol: Protocol) -> list[str]:
     """The ``vehicle demo`` subprocess of one run, with one torch thread."""
     cmd = [sys.executable, "-m", "vehicle.app.cli", "demo", "--out", str(folder), "--seed", str(spec.seed),
            "--precision", spec.precision, "--draws", str(protocol.draws), "--threads", "1", *protocol.demo_options()]
-    return [*cmd, "--recipe", spec.recipe]
+    return [*cmd, "--lanes"] if protocol.lanes else [*cmd, "--recipe", spec.recipe]
 
 
 def child_env() -> dict[str, str]:
@@ -346,18 +358,31 @@ def gallery_lines(report: dict[str, Any]) -> list[str]:
         if links else []
 
 
-def format_markdown(report: dict[str, Any]) -> str:
-    """``robustness.md``: the conditions, the per-theme table and the per-run table."""
+def header_lines(report: dict[str, Any], title: str, note: str) -> list[str]:
+    """robustness.md's title, command, machine, time and conditions, then ``note``, and the failed runs."""
     load = report["load_average"]
-    lines = [f"# Robustness of the {report['recipe']} recipe", "",
-             f"`{report['command']}`", "",
+    lines = [f"# {title}", "", f"`{report['command']}`", "",
              f"CPU {report['cpu']} ({report['cores']} cores), load average {load['start'][0]:.1f} at the start and "
              f"{load['end'][0]:.1f} at the end; {report['wall_seconds']:.0f} s wall ({report['runs_done_now']} runs "
              f"done now, {report['runs_kept']} kept from before; the runs took {report['runs_seconds']:.0f} s "
              f"added up); hidden draws {report['draws']} per theme on "
-             f"tracks {_ints(report['eval_tracks'])}. Score = autonomy x share of the laps driven.", ""]
+             f"tracks {_ints(report['eval_tracks'])}. {note}", ""]
     if report["failed"]:
         lines += [f"FAILED runs (not in the tables): {', '.join(report['failed'])}", ""]
+    return lines
+
+
+def format_markdown(report: dict[str, Any]) -> str:
+    """``robustness.md``: the conditions, the per-theme table and the per-run table (with ``--lanes``:
+    :func:`vehicle.app.lanes_robustness.lanes_tables`)."""
+    if report["recipe"] == LANES:
+        from vehicle.app.lanes_robustness import lanes_tables
+
+        lines = header_lines(report, "Robustness of the lanes demo's models", "Lane changes commanded on every "
+                             "track; success = centred in the commanded lane in time and held.")
+        return "\n".join([*lines, *lanes_tables(report), ""])
+    lines = header_lines(report, f"Robustness of the {report['recipe']} recipe",
+                         "Score = autonomy x share of the laps driven.")
     return "\n".join([*lines, *theme_table(report), "", *gallery_lines(report), *run_table(report), ""])
 
 
@@ -377,20 +402,26 @@ def run_protocol(protocol: Protocol) -> int:
 
     started, at_start = time.perf_counter(), machine()
     specs, runs_dir = protocol.specs(), protocol.out / "runs"
-    say(f"robustness: {len(specs)} runs of the {protocol.recipe} recipe (seeds {_ints(protocol.seeds)} x "
+    what = "the lanes demo" if protocol.lanes else f"the {protocol.recipe} recipe"
+    say(f"robustness: {len(specs)} runs of {what} (seeds {_ints(protocol.seeds)} x "
         f"precisions {','.join(protocol.precisions)}), {protocol.jobs} at a time, in {protocol.out}")
     todo = pending_runs(specs, runs_dir)
     codes = run_all(todo, protocol, demo_command)
     results = load_results(specs, runs_dir)
     failed = [f"{s.name} (exit {codes.get(s.name)}, log {runs_dir / (s.name + '.log')})" for s in specs
               if s.name not in {r["name"] for r in results}]
+    if protocol.lanes:
+        from vehicle.app.lanes_robustness import aggregate_lanes as aggregate_runs
+        from vehicle.app.lanes_robustness import link_lane_galleries as link
+    else:
+        aggregate_runs, link = aggregate, link_galleries
     try:
-        report = aggregate(results)
+        report = aggregate_runs(results)
     except ValueError:
         say(f"no run finished: {'; '.join(failed)}")
         return 1
     at_end = machine()
-    link_galleries(report, protocol.out)
+    link(report, protocol.out)
     report.update(command=protocol.command_line(), recipe=protocol.recipe, seeds=protocol.seeds,
                   precisions=protocol.precisions, draws=protocol.draws, eval_tracks=results[0]["eval_tracks"],
                   laps=results[0]["laps"], jobs=protocol.jobs, cpu=at_start["cpu"], cores=at_start["cores"],

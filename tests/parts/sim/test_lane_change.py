@@ -170,3 +170,36 @@ def test_a_change_taken_back_while_waiting_does_not_shorten_the_next_wait(lanes_
             started = t
     assert expert.changes_started == 1
     assert started == pytest.approx(6.0 + cfg.SIM_EXPERT_LANE_CHANGE_MAX_DELAY, abs=2 * sim.dt)
+
+
+def test_a_command_says_where_it_was_given_and_why_it_failed(lanes_cfg):
+    """Issue 43: a failed change is understandable: each command carries the road's curvature ahead,
+    the lane the car started in and whether the expert would have waited; a failure says why."""
+    from parts.sim.lane_metrics import ChangeRule, LaneMetrics, describe_command
+
+    track = SimCar.from_config(lanes_cfg, seeds=[3]).track
+    rule = ChangeRule(0.9, 0.4)  # 1/m over 0.9 m ahead, as the expert's defaults (0.6 + 0.3 m)
+    ahead = np.array([track.curvature_ahead(s, rule.distance) for s in track.s])
+    straight, tight = float(track.s[int(np.argmin(ahead))]), float(track.s[int(np.argmax(ahead))])
+    assert ahead.min() < rule.max_curvature < ahead.max()
+    part = LaneMetrics(0.1, 0.4, time_limit=2.0, hold=0.5, rule=rule)
+    part.on_track(track)
+    right, left = track.lane_offset("right"), track.lane_offset("left")
+    # 2 s in the right lane; at 2.1 s the left lane is commanded on the straight and the car stays
+    # (too slow); at 6.1 s the right lane is commanded in the tight corner and the car leaves the road
+    for k in range(1, 81):
+        t = k * 0.1
+        center, label = (right, "Right_Lane") if t < 2.05 or t > 6.05 else (left, "Left_Lane")
+        s = straight if t < 6.05 else tight
+        off = t > 6.45
+        part.run(-right, off, center, track.pose_at(s, right)[:2], label)
+    first, second = part.result()["commands"]
+    assert (first["lane"], first["time_s"], first["start_lane"]) == ("Left_Lane", 2.1, "right")
+    assert first["curvature_1pm"] == pytest.approx(ahead.min(), abs=1e-3) and first["expert_would_wait"] is False
+    assert (first["success"], first["failure"], first["failed_at_s"]) == (False, "too_slow", 4.2)
+    # the car never moved: it starts in the lane now commanded, but leaves the road before it has held it
+    assert (second["lane"], second["time_s"], second["start_lane"]) == ("Right_Lane", 6.1, "right")
+    assert second["curvature_1pm"] == pytest.approx(ahead.max(), abs=1e-3) and second["expert_would_wait"] is True
+    assert (second["success"], second["failure"], second["failed_at_s"]) == (False, "off_road", 6.5)
+    assert describe_command(second) == (f"to Right_Lane at 6.1 s from the right lane, curvature ahead "
+                                        f"{ahead.max():.2f} 1/m (the expert would have waited); left the road at 6.5 s")

@@ -114,7 +114,8 @@ def test_the_materials_recipe_is_listed_in_the_help_and_records_like_plain(capsy
     (["--eval-randomize", "1"], "training draw"),
     (["--draws", "-1"], "--draws -1"),
     (["--seed", "0"], "--seed 0: use 1 .. 100000"),
-    (["--lanes", "--seed", "2"], "leave them out with --lanes"),
+    (["--lanes", "--robust"], "leave it out with --lanes"),
+    (["--lanes", "--seed", "0"], "--seed 0: use 1 .. 100000"),
 ])
 def test_demo_refuses_bad_arguments(tmp_path, capsys, args, message):
     assert main(["demo", "--out", str(tmp_path / "d"), *args]) == 2

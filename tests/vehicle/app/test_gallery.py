@@ -141,3 +141,59 @@ def test_draws_write_one_gallery_per_theme_and_draw_and_an_index(make_model_file
     with pytest.raises(ValueError, match="exists: give a new folder"):
         evaluate_draws(str(model), [11], 1, cfg=cfg, draws=[1001], themes=["indoor"], expert=False, max_time=1.0,
                        gallery=GallerySpec(str(folder), str(model)))
+
+
+def test_recorder_keeps_each_failed_lane_change_from_before_its_command():
+    """Issue 43: a failed commanded change is a gallery moment, judged by the lane metrics' own rule
+    on the same steps, with the frames from ``window_s`` before the command to its failure."""
+    from parts.sim.lane_metrics import LaneMetrics
+    from vehicle.app.failure_moments import ChangeLimits, with_commands
+
+    rec = MomentRecorder(0.1, ("cam/image_array",), window_s=0.5, worst=0, changes=ChangeLimits(0.4, 1.0, 0.3))
+    lanes = LaneMetrics(0.1, 0.4, time_limit=1.0, hold=0.3)
+    frame = np.zeros((2, 2, 3), np.uint8)
+    for k in range(1, 71):
+        t = k * 0.1
+        # right lane at 1.0 s (done by 1.5 s); left at 3.0 s (the car stays: too slow); right at 5.0 s
+        # (already there); left at 6.0 s, and the car leaves the road at 6.3 s
+        center = 0.2 if t < 0.95 or 2.95 < t < 4.95 or t > 5.95 else -0.2
+        lat = 0.2 if t < 0.95 else (max(-0.2, 0.2 - 0.08 * (k - 10)) if t < 2.95 else -0.2)
+        off = 6.25 < t < 6.65
+        rec.run(frame, 0.0, 0.3, 0.0, -lat, off, (t, 0.0), center)
+        lanes.run(-lat, off, center, (t, 0.0), "Left_Lane" if center > 0 else "Right_Lane")
+    result = lanes.result()
+    failed = [c for c in result["commands"] if c["success"] is False]
+    assert [(c["time_s"], c["failure"]) for c in failed] == [(3.0, "too_slow"), (6.0, "off_road")]
+    assert result["lane_changes_ok"] == 2
+    moments = with_commands(rec.moments(), result["commands"], 0.1)
+    assert [m.kind for m in moments] == ["intervention", "failed_change", "failed_change"]
+    first, second = moments[1:]
+    assert (first.command_time_s, first.time_s, second.command_time_s, second.time_s) == pytest.approx(
+        (3.0, 4.1, 6.0, 6.3))
+    assert first.steps[0].time_s == pytest.approx(2.6) and first.steps[-1].time_s == pytest.approx(4.1)
+    assert first.command is failed[0] and second.command is failed[1]
+
+
+def test_a_lanes_pilot_gallery_shows_its_failed_changes_with_their_commands(make_model_file, tmp_path):
+    from vehicle.app.evaluate import evaluate
+    from vehicle.app.gallery import moment_title
+    from vehicle.config import Config
+
+    model = make_model_file("lanes", num_behaviors=2)
+    cfg = Config.defaults(SIM_LANES=2, TRAIN_BEHAVIORS=True, SIM_TEXTURE_RES=0.02, SIM_REALTIME=False)
+    folder = tmp_path / "gallery"
+    report = evaluate(str(model), [101], laps=1, cfg=cfg, max_time=16.0, fixed_throttle=0.3, lane_changes=True,
+                      gallery=GallerySpec(str(folder), "", window_s=1.0, frames=3, worst=0))
+    failed = [c for c in report["tracks"][0]["lanes"]["commands"] if c["success"] is False]
+    assert failed  # an untrained pilot fails its changes
+    for c in failed:
+        assert c["start_lane"] in ("left", "right", "off road") and c["curvature_1pm"] >= 0
+        assert c["expert_would_wait"] == (c["curvature_1pm"] > cfg.SIM_EXPERT_LANE_CHANGE_MAX_CURVATURE)
+    data = json.loads((folder / "gallery.json").read_text())
+    shown = [m for m in data["tracks"][0]["moments"] if m["kind"] == "failed_change"]
+    assert [m["command"] for m in shown] == failed  # one moment per failed command, carrying its record
+    for m in shown:
+        assert any(f["time_s"] == m["command_time_s"] for f in m["frames"])  # the frame the command came in
+        assert m["frames"][-1]["time_s"] == m["time_s"] == m["command"]["failed_at_s"]
+        assert f"commanded to {m['command']['lane']} at {m['command_time_s']:.1f} s from " in moment_title(m)
+    assert "Failed lane change" in (folder / "index.html").read_text()

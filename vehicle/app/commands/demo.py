@@ -63,7 +63,8 @@ def register(subparsers: Any) -> None:
                    help="a theme the pilot is not trained on, evaluated as well")
     p.add_argument("--draws", type=int, default=0, metavar="N",
                    help="also drive under N hidden randomisation draws per theme and report the mean and the worst "
-                        "draw (vehicle sim eval --draws; costs about N times the evaluation step)")
+                        "draw (vehicle sim eval --draws; costs about N times the evaluation step); with --lanes "
+                        "in the trained theme, with lane changes, failed ones in failure galleries")
     p.add_argument("--type", dest="model_type", default="linear", help="model type to train")
     p.add_argument("--recipe", choices=sorted(RECIPES), default="plain",
                    help="what the demo records and trains: " + "; ".join(f"{k}: {r.what}" for k, r in RECIPES.items())
@@ -73,8 +74,8 @@ def register(subparsers: Any) -> None:
                         "three times the recording and training time")
     p.add_argument("--seed", type=int, default=1, metavar="N",
                    help="recording and training seed: the training recordings' randomisation draws, their effects "
-                        "and steering-noise seed, and TRAIN_SEED (1: the demo as it always ran; vehicle sim "
-                        "robustness trains several)")
+                        "and steering-noise seed (--lanes: also its lane changes), and TRAIN_SEED (1: the demo "
+                        "as it always ran; vehicle sim robustness trains several)")
     p.add_argument("--precision", choices=["auto", "fp32", "bf16"], default="auto",
                    help="training precision (TRAIN_PRECISION; auto: bf16 on a CPU with native bf16, else fp32)")
     p.add_argument("--threads", type=int, default=None,
@@ -108,8 +109,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         raise UserError(f"--draws {args.draws}: give 0 (off) or more hidden randomisation draws")
     check_precision(args.precision)
     if args.lanes:
-        if args.seed != 1 or args.precision != "auto":
-            raise UserError("--seed and --precision choose the plain demo's runs: leave them out with --lanes")
+        if args.recipe != "plain":
+            raise UserError("--recipe chooses the plain demo's recipe: leave it out with --lanes")
         caps = cpu_caps()
         _say(expected_time("lanes", caps.native_bf16, caps.name))
         return _cmd_lanes(args)
@@ -174,16 +175,20 @@ def _cmd_lanes(args: argparse.Namespace) -> int:
 
     from vehicle.app.demo import say
     from vehicle.app.demo_lanes import run_lanes_demo, thesis_claim_met
+    from vehicle.app.lanes_robustness import write_lanes_summary
 
     out = Path("demo_lanes" if args.out == "demo" else args.out)
     started = time.perf_counter()
+    summary_path = out / "eval" / "result.json"
+    summary_path.unlink(missing_ok=True)  # exists only once this run has finished
     try:
         result = run_lanes_demo(out, records=args.records, lane_changes=args.lane_changes, epochs=args.epochs,
                                 noise=args.noise, train_tracks=args.train_tracks, eval_tracks=args.eval_tracks,
-                                laps=args.laps)
+                                laps=args.laps, seed=args.seed, precision=args.precision, draws=args.draws)
     except ValueError as exc:
         raise UserError(f"demo --lanes: {exc}") from exc
     total = time.perf_counter() - started
+    write_lanes_summary(result, summary_path, total)
     steps = ", ".join(f"{k} {v:.0f} s" for k, v in result["seconds"].items())
     say(f"\ndemo finished in {total:.0f} s ({steps}); torch threads: {torch.get_num_threads()}")
     for name, report in result["reports"].items():

@@ -124,6 +124,12 @@ def _robustness_parser(sub: Any) -> None:
     rb.add_argument("--recipe", choices=list(RECIPES), default="plain",
                     help="the recipe of vehicle demo --recipe (default plain): "
                          + "; ".join(f"{k}: {r.what}" for k, r in RECIPES.items()))
+    rb.add_argument("--lanes", action="store_true",
+                    help="the lanes demo's models instead (vehicle demo --lanes: the two-stream lanes and the "
+                         "single-stream behavior model), driven with commanded lane changes; reported per model "
+                         "(docs/vision.md)")
+    rb.add_argument("--lane-changes", type=int, metavar="N",
+                    help="--lanes: lane changes commanded while recording (default the demo's)")
     rb.add_argument("--seeds", type=_seeds, default=[1, 2, 3], metavar="N,N",
                     help="training seeds (vehicle demo --seed; default 1,2,3)")
     rb.add_argument("--precisions", metavar="P,P",
@@ -501,7 +507,8 @@ def robustness_protocol(args: argparse.Namespace) -> Any:
     from training.acceleration import cpu_caps
     from vehicle.app.commands.demo import check_precision
     from vehicle.app.demo import DEFAULTS, MAX_SEED
-    from vehicle.app.robustness import PRECISIONS, Protocol
+    from vehicle.app.demo_lanes import DEFAULTS as LANE_DEFAULTS
+    from vehicle.app.robustness import LANES, PRECISIONS, Protocol
 
     native = cpu_caps().native_bf16
     precisions = [p.strip() for p in (args.precisions or ("fp32,bf16" if native else "fp32")).split(",") if p.strip()]
@@ -514,15 +521,21 @@ def robustness_protocol(args: argparse.Namespace) -> Any:
         raise UserError(f"--seeds {_ints(args.seeds)}: give different seeds of 1 .. {MAX_SEED}")
     for option, value, least in (("--draws", args.draws, 1), ("--laps", args.laps, 1),
                                  ("--records", args.records, 100), ("--epochs", args.epochs, 1),
-                                 ("--jobs", args.jobs, 1)):
+                                 ("--jobs", args.jobs, 1), ("--lane-changes", args.lane_changes, 1)):
         if value is not None and value < least:
             raise UserError(f"{option} {value}: give at least {least}")
-    overlap = set(args.train_tracks or DEFAULTS["train_tracks"]) & set(args.eval_tracks or DEFAULTS["eval_tracks"])
+    if args.lanes and args.recipe != "plain":
+        raise UserError("--recipe chooses the plain demo's recipe: leave it out with --lanes")
+    if args.lane_changes is not None and not args.lanes:
+        raise UserError("--lane-changes belongs to --lanes: add --lanes or leave it out")
+    defaults = LANE_DEFAULTS if args.lanes else DEFAULTS
+    overlap = set(args.train_tracks or defaults["train_tracks"]) & set(args.eval_tracks or defaults["eval_tracks"])
     if overlap:
         raise UserError(f"--eval-tracks: {_ints(sorted(overlap))} are training tracks; evaluate on others")
-    return Protocol(out=Path(args.out).resolve(), recipe=args.recipe, seeds=args.seeds, precisions=precisions,
-                    draws=args.draws, eval_tracks=args.eval_tracks, laps=args.laps, records=args.records,
-                    epochs=args.epochs, train_tracks=args.train_tracks, jobs=args.jobs or os.cpu_count() or 1)
+    return Protocol(out=Path(args.out).resolve(), recipe=LANES if args.lanes else args.recipe, seeds=args.seeds,
+                    precisions=precisions, draws=args.draws, eval_tracks=args.eval_tracks, laps=args.laps,
+                    records=args.records, epochs=args.epochs, train_tracks=args.train_tracks,
+                    jobs=args.jobs or os.cpu_count() or 1, lane_changes=args.lane_changes)
 
 
 def cmd_robustness(args: argparse.Namespace) -> int:
