@@ -216,15 +216,7 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
     cfg = cfg if cfg is not None else _default_config()
     if sim not in SIMULATORS:
         raise ValueError(f"unknown simulator {sim!r}: use one of {', '.join(SIMULATORS)}")
-    if sim == "builtin":
-        seeds = [seeds] if isinstance(seeds, int) else list(seeds or [])
-        if not seeds or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds):
-            raise ValueError(f"seeds must be a non-empty list of ints, got {seeds!r}")
-        episodes: list[Any] = list(seeds)
-    elif sim == "donkey":
-        episodes = list(scenes or [cfg.DONKEY_GYM_ENV_NAME])
-    else:
-        episodes = ["udacity"]  # the track the simulator shows
+    episodes = _episodes(sim, seeds, scenes, cfg)
     if not isinstance(laps, int) or isinstance(laps, bool) or laps < 1:
         raise ValueError(f"laps must be an int >= 1, got {laps!r}")
     if max_time is None:
@@ -247,11 +239,65 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
         logger.info("evaluating the tracks one after another: parallel workers need 'expert' or a model "
                     "file (each loads its own copy) and no on_step callback")
 
+    started = time.perf_counter()
+    modes: dict[str, Any] = {}  # what the bridge episodes found out (Donkey: stepped or real time)
+    outcomes, name, lanes_on = _drive_episodes(
+        pilot, episodes, laps, cfg, sim, themes, parallel=parallel, n_workers=n_workers, on_step=on_step,
+        lane_changes=lane_changes, modes=modes, episode_args={"max_time": max_time, "penalty_s": penalty,
+                                                              "fixed_throttle": fixed_throttle,
+                                                              "extra_inputs": extra_inputs, "gallery": gallery})
+    results = [res for res, _ in outcomes]
+    gallery_tracks = [res.pop("_gallery") for res in results if "_gallery" in res]
+    pooled = [abs_cte for _, abs_cte in outcomes]  # |cte| of autonomous frames, for the overall percentile
+    settings = _report_settings(cfg, sim, penalty, max_time, fixed_throttle, modes)
+    report = {
+        "pilot": name,
+        "simulator": sim,
+        "laps": laps,
+        "seeds": episodes,
+        "conditions": describe_conditions(cfg, themes) if sim == "builtin" else None,
+        "settings": settings,
+        "tracks": results,
+        "overall": {**overall(results, penalty, np.concatenate(pooled)), **_path_overall(results),
+                    **({"lanes": overall_lane_metrics([r["lanes"] for r in results])} if lanes_on else {})},
+        "wall_time_s": round(time.perf_counter() - started, 3),
+    }
+    if gallery is not None:
+        from vehicle.app.gallery import write_gallery
+
+        report["gallery"] = str(write_gallery(gallery, report, gallery_tracks))
+        settings["gallery"] = str(Path(gallery.folder).resolve())
+        report["wall_time_s"] = round(time.perf_counter() - started, 3)
+    return report
+
+
+def _episodes(sim: str, seeds: Any, scenes: Sequence[str] | None, cfg: Any) -> list[Any]:
+    """What an evaluation drives: the built-in simulator's track seeds (checked), the Donkey
+    scenes, or the one track the Udacity simulator shows."""
+    if sim == "builtin":
+        seeds = [seeds] if isinstance(seeds, int) else list(seeds or [])
+        if not seeds or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds):
+            raise ValueError(f"seeds must be a non-empty list of ints, got {seeds!r}")
+        episodes: list[Any] = list(seeds)
+    elif sim == "donkey":
+        episodes = list(scenes or [cfg.DONKEY_GYM_ENV_NAME])
+    else:
+        episodes = ["udacity"]  # the track the simulator shows
+    return episodes
+
+
+def _drive_episodes(pilot: Any, episodes: list[Any], laps: int, cfg: Any, sim: str, themes: list[str], *,
+                    parallel: bool, n_workers: int, on_step: Callable[[SimCar], None] | None,
+                    lane_changes: bool | None, modes: dict[str, Any],
+                    episode_args: dict[str, Any]) -> tuple[list[Any], str, bool]:
+    """Drive every episode (in worker processes when ``parallel``): (the outcomes, the pilot's
+    name, whether lane changes were commanded)."""
+    extra_inputs = episode_args["extra_inputs"]
+    max_time, penalty, fixed_throttle = episode_args["max_time"], episode_args["penalty_s"], \
+        episode_args["fixed_throttle"]
     # loaded here also for a parallel run: a missing or broken model file fails with its own message,
     # and the pilot's inputs decide the lane changes
     driver, name, owned = resolve_pilot(pilot, cfg, sim)
-    started = time.perf_counter()
-    modes: dict[str, Any] = {}  # what the bridge episodes found out (Donkey: stepped or real time)
     try:
         if driver == "expert" and sim != "builtin":
             raise ValueError(f"the expert drives the built-in simulator only: pass a model file to evaluate on "
@@ -266,8 +312,7 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
                 raise ValueError(str(exc)) from None
         if lanes_on:
             _check_change_schedule(cfg)
-        episode_args = {"max_time": max_time, "penalty_s": penalty, "fixed_throttle": fixed_throttle,
-                        "extra_inputs": extra_inputs, "lanes": lanes_on, "gallery": gallery}
+        episode_args = {**episode_args, "lanes": lanes_on}
         if parallel:
             if owned and callable(getattr(driver, "shutdown", None)):
                 owned = False
@@ -292,9 +337,12 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
     finally:
         if owned and callable(getattr(driver, "shutdown", None)):
             driver.shutdown()
-    results = [res for res, _ in outcomes]
-    gallery_tracks = [res.pop("_gallery") for res in results if "_gallery" in res]
-    pooled = [abs_cte for _, abs_cte in outcomes]  # |cte| of autonomous frames, for the overall percentile
+    return outcomes, name, lanes_on
+
+
+def _report_settings(cfg: Any, sim: str, penalty: float, max_time: float, fixed_throttle: float | None,
+                     modes: dict[str, Any]) -> dict[str, Any]:
+    """The settings an evaluation ran with, as its report records them."""
     settings: dict[str, Any] = {"dt": 1.0 / cfg.DRIVE_LOOP_HZ, "penalty_s": penalty, "max_time_s": max_time,
                                 "fixed_throttle": fixed_throttle}
     if sim == "builtin":
@@ -306,25 +354,7 @@ def evaluate(pilot: Any, seeds: Sequence[int] | None = None, laps: int = 2, *, c
                          "max_cte": cfg.DONKEY_MAX_CTE, "image": [cfg.IMAGE_W, cfg.IMAGE_H]})
     else:
         settings.update({"port": cfg.UDACITY_PORT, "realtime": True, "interventions": "manual overrides"})
-    report = {
-        "pilot": name,
-        "simulator": sim,
-        "laps": laps,
-        "seeds": episodes,
-        "conditions": describe_conditions(cfg, themes) if sim == "builtin" else None,
-        "settings": settings,
-        "tracks": results,
-        "overall": {**overall(results, penalty, np.concatenate(pooled)), **_path_overall(results),
-                    **({"lanes": overall_lane_metrics([r["lanes"] for r in results])} if lanes_on else {})},
-        "wall_time_s": round(time.perf_counter() - started, 3),
-    }
-    if gallery is not None:
-        from vehicle.app.gallery import write_gallery
-
-        report["gallery"] = str(write_gallery(gallery, report, gallery_tracks))
-        settings["gallery"] = str(Path(gallery.folder).resolve())
-        report["wall_time_s"] = round(time.perf_counter() - started, 3)
-    return report
+    return settings
 
 
 def _check_gallery(spec: GallerySpec, pilot: Any, sim: str) -> GallerySpec:
