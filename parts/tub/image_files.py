@@ -198,6 +198,9 @@ class ImageFiles:
                 if self._folder_fd < 0:  # kept open: two system calls less per commit
                     self._folder_fd = os.open(self.folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
                     self._folder_close = weakref.finalize(self, os.close, self._folder_fd)
+                    # not among the exit hooks: a writer's own exit hook commits through this
+                    # descriptor, and hooks registered before the first finalize run after it
+                    self._folder_close.atexit = False
                 if syncfs(self._folder_fd) != 0:
                     err = ctypes.get_errno()
                     raise OSError(err, f"syncfs of the filesystem holding {self.folder}: {os.strerror(err)}")
