@@ -95,6 +95,7 @@ class Recipe(NamedTuple):
     recordings: tuple[Recording, ...]  # recordings of the training tracks beside the demo's own
     what: str  # one line for --help
     surfaces: float = 0.0  # SIM_ROAD_SURFACE_SHARE of every recording; evaluations keep the themes as they are
+    settings: dict[str, Any] | None = None  # training settings beside DEMO_SETTINGS (docs/config.md)
 
 
 #: the demo's recipes, measured against each other by ``vehicle sim robustness --recipe``
@@ -108,6 +109,10 @@ RECIPES: dict[str, Recipe] = {
     "materials": Recipe((), (), "the demo's settings, with the road (indoor: the floor) of half the training tracks "
                         "drawn from a generic pool of surfaces: asphalt, concrete, gravel, pavers, packed earth",
                         surfaces=0.5),
+    # batch norm after each convolution: training leaves the "predict the mean" plateau in the first
+    # epoch (seed 2's plain training stayed on it for every epoch: docs/benchmarks.md, issue 38)
+    "normed": Recipe((), (), "the materials recipe with batch norm after each convolution of the model",
+                     surfaces=0.5, settings={"MODEL_OPTIONS": {"batch_norm": True}}),
 }
 
 # 12000 records on 64 tracks: with half of each, one unseen indoor track in five failed (docs/pilot.md)
@@ -191,6 +196,7 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
     if precision != "auto":
         settings["TRAIN_PRECISION"] = precision
     settings["AUGMENTATIONS"] = [*settings["AUGMENTATIONS"], *RECIPES[recipe].augmentations]
+    settings.update(RECIPES[recipe].settings or {})
     cfg = Config.defaults(CAR_PATH=str(out), **settings)
     write_myconfig(out, settings, "vehicle demo")
     # the demo records afresh each run; it never touches other folders
