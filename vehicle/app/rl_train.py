@@ -291,7 +291,7 @@ def _make_model(algo: str, venv: Any, s: RLSettings, files: dict[str, Path], mty
 
     Algo = _algorithm(algo)  # noqa: N806 - a class
     if s.resume:
-        return Algo.load(files["state"], env=venv, device="cpu")
+        return _quiet_logger(Algo.load(files["state"], env=venv, device="cpu"))
     log_std = s.log_std_init if s.log_std_init is not None else (-0.5 if init_model is None else -1.6)
     # a fine-tuned actor keeps its own trunk: the critic's early, large value errors would
     # otherwise rewrite the behaviour-cloned features through the shared layers
@@ -304,8 +304,19 @@ def _make_model(algo: str, venv: Any, s: RLSettings, files: dict[str, Path], mty
     else:
         args.update(buffer_size=10_000, learning_starts=1_000)  # 10k frames of 120x160: 1.2 GB with next frames
     model = Algo("CnnPolicy", venv, **{**args, **s.extra})
+    _quiet_logger(model)
     if init_model is not None:
         load_pilot_weights(model.policy, init_model, s.throttle_range)
+    return model
+
+
+def _quiet_logger(model: Any) -> Any:
+    """Give ``model`` a logger that writes nothing: without one of its own, every learn() made an
+    empty ``SB3-<date-time>`` folder in the temporary directory (our own log rows and curve say
+    what the run did)."""
+    from stable_baselines3.common.logger import Logger
+
+    model.set_logger(Logger(folder=None, output_formats=[]))
     return model
 
 

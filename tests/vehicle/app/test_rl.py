@@ -226,3 +226,19 @@ def test_sac_without_the_progress_bar_logs_a_line_per_row_of_steps_not_per_step(
     lines = [r for r in caplog.records if "steps/s" in r.getMessage()]
     assert [r["timesteps"] for r in curve["rollouts"]] == [1, ROW_STEPS + 1]
     assert len(lines) == 2
+
+
+def test_a_training_run_leaves_no_folder_in_the_temporary_directory(small, tmp_path, monkeypatch):
+    # stable-baselines3 configures a logger for every learn() without one of its own, and that
+    # made an empty /tmp/SB3-<date-time> folder per run
+    import tempfile
+
+    from vehicle.app.rl_train import RLSettings, train_rl
+
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp))
+    s = RLSettings(algo="sac", timesteps=20, envs=1, tracks=[1], eval_tracks=[101], eval_every=0,
+                   max_steps=30, batch_size=16, seed=1, extra={"learning_starts": 10_000, "buffer_size": 400})
+    train_rl(small.replace(SIM_EVAL_MAX_TIME=1.0), tmp_path / "sac.pt", s)
+    assert [p.name for p in tmp.iterdir() if p.name.startswith("SB3-")] == []  # torch may cache there
