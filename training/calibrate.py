@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import time
+from typing import Any
 
 import torch
 
@@ -19,17 +20,17 @@ logger = logging.getLogger(__name__)
 
 def measure_step_rate(model_type: str, input_shape: tuple[int, int, int], batch_size: int, *,
                       precision: str = "auto", seconds: float = 1.5, warmup_steps: int = 2,
-                      max_steps: int = 200) -> float:
+                      max_steps: int = 200, options: dict[str, Any] | None = None) -> float:
     """Training samples per second of ``model_type`` on random ``input_shape`` (C, H, W) batches on
     the CPU, in the plan training would choose for ``precision`` (TRAIN_PRECISION), with torch's
     current thread count. Runs ``warmup_steps`` unmeasured (oneDNN picks its kernels on the first),
-    then steps until ``seconds`` have passed (at least 2 steps, at most ``max_steps``). The data path
-    (augmentations, loading) is not included."""
+    then steps until ``seconds`` have passed (at least 2 steps, at most ``max_steps``). ``options``:
+    the model's (MODEL_OPTIONS). The data path (augmentations, loading) is not included."""
     from parts.pilots.models import create_model
     from training.fit import FitSettings, make_optimizer
 
     device = torch.device("cpu")
-    model = create_model(model_type, input_shape)
+    model = create_model(model_type, input_shape, **(options or {}))
     plan = plan_for(device, precision, spatial_model=model.frames == 1 and model.views == 1)
     apply_layout(model, plan)
     model.train()

@@ -99,7 +99,8 @@ def measure_host(cfg: Any, model_type: str, input_shape: tuple[int, int, int], b
     from training.calibrate import measure_step_rate
     from vehicle.app.record import record_expert
 
-    train = measure_step_rate(model_type, input_shape, batch_size, precision=cfg.TRAIN_PRECISION, seconds=seconds)
+    train = measure_step_rate(model_type, input_shape, batch_size, precision=cfg.TRAIN_PRECISION, seconds=seconds,
+                              options=cfg.MODEL_OPTIONS)
     with tempfile.TemporaryDirectory() as tmp:
         record_expert(cfg, [1, 2], 10, Path(tmp) / "warm", noise=0.0)
         start = time.perf_counter()
@@ -109,17 +110,18 @@ def measure_host(cfg: Any, model_type: str, input_shape: tuple[int, int, int], b
 
 
 def demo_expectation(records: int, epochs: int, eval_tracks: int, laps: int, threads: int,
-                     rates: HostRates | None = None, precision: str = "auto") -> str:
+                     rates: HostRates | None = None, precision: str = "auto", recipe: str = "plain") -> str:
     """The plain demo's start-up line for its arguments: this host measured now (or ``rates``) at
-    the training precision the demo will use (``precision``: its --precision, TRAIN_PRECISION)."""
+    the training precision the demo will use (``precision``: its --precision, TRAIN_PRECISION),
+    with the model options of its ``recipe``."""
     import torch
 
     from parts.pilots.preprocess import preprocess_from_config
     from training.acceleration import cpu_caps, plan_for
-    from vehicle.app.demo import DEMO_SETTINGS
+    from vehicle.app.demo import DEMO_SETTINGS, RECIPES
     from vehicle.config import Config
 
-    cfg = Config.defaults(**{**DEMO_SETTINGS, "TRAIN_PRECISION": precision})
+    cfg = Config.defaults(**{**DEMO_SETTINGS, **(RECIPES[recipe].settings or {}), "TRAIN_PRECISION": precision})
     frame = (cfg.IMAGE_H, cfg.IMAGE_W, cfg.IMAGE_DEPTH)
     shape = preprocess_from_config(cfg, cfg.DEFAULT_MODEL_TYPE, frame).output_shape(frame)
     if rates is None:

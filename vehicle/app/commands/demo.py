@@ -117,7 +117,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     # the plain demo measures this host (about 2 s) instead of looking its CPU kind up
     recorded = args.records * (1 + len(RECIPES[args.recipe].recordings))  # --recipe robust records again
     _say(demo_expectation(recorded, args.epochs, len(args.eval_tracks), args.laps, threads,
-                          precision=args.precision))
+                          precision=args.precision, recipe=args.recipe))
     started = time.perf_counter()
     summary_path = Path(args.out) / "eval" / "result.json"
     summary_path.unlink(missing_ok=True)  # exists only once this run has finished
