@@ -235,6 +235,28 @@ def test_batch_norm_switch_adds_a_normalisation_after_each_convolution():
         assert _params(normed) == _params(plain) + sum(m.num_features for m in norms), name
 
 
+def test_group_norm_normalises_each_frame_on_its_own():
+    from parts.pilots.models.base import GROUP_NORM_GROUPS
+
+    plain = create_model("linear", (3, 80, 160))
+    normed = create_model("linear", (3, 80, 160), group_norm=True)
+    norms = [m for m in normed.modules() if isinstance(m, torch.nn.GroupNorm)]
+    assert [m.num_groups for m in norms] == [GROUP_NORM_GROUPS] * 5
+    assert _params(normed) == _params(plain) + sum(m.num_channels for m in norms)
+    # per frame: a frame's features do not depend on the other frames of its batch, in training too
+    normed.train()
+    for m in normed.modules():  # no dropout: deterministic
+        if hasattr(m, "p"):
+            m.p = 0.0
+    torch.manual_seed(0)
+    a, b = torch.rand(1, 3, 80, 160), torch.rand(1, 3, 80, 160)
+    alone = normed.features(a)
+    beside = normed.features(torch.cat([a, 3 * b - 1]))[:1]
+    assert torch.allclose(alone, beside, atol=1e-5)
+    with pytest.raises(ValueError, match="choose one normalisation"):
+        create_model("linear", (3, 80, 160), group_norm=True, batch_norm=True)
+
+
 # -- the recipes' other values
 
 

@@ -113,6 +113,10 @@ RECIPES: dict[str, Recipe] = {
     # epoch (seed 2's plain training stayed on it for every epoch: docs/benchmarks.md, issue 38)
     "normed": Recipe((), (), "the materials recipe with batch norm after each convolution of the model",
                      surfaces=0.5, settings={"MODEL_OPTIONS": {"batch_norm": True}}),
+    # group norm normalises each frame by its own statistics: it leaves the plateau as batch norm
+    # does, without applying the training frames' statistics to a road under other light
+    "grouped": Recipe((), (), "the materials recipe with group norm (per frame) after each convolution of the model",
+                      surfaces=0.5, settings={"MODEL_OPTIONS": {"group_norm": True}}),
 }
 
 # 12000 records on 64 tracks: with half of each, one unseen indoor track in five failed (docs/pilot.md)
@@ -160,6 +164,21 @@ def training_recordings(seed: int = 1, recipe: str = "plain") -> list[Recording]
     return [r._replace(draw=r.draw + offset, seed=r.seed + offset, surfaces=RECIPES[recipe].surfaces) for r in base]
 
 
+def demo_settings(recipe: str = "plain", seed: int = 1, precision: str = "auto") -> dict[str, Any]:
+    """The settings ``vehicle demo --recipe recipe --seed seed --precision precision`` trains with and
+    writes to its myconfig.py: :data:`DEMO_SETTINGS` with the recipe's augmentations and settings, the
+    seed's randomisation draw and TRAIN_SEED, the precision (each only where it differs from the
+    setting's default, so that --seed 1 writes the myconfig.py the demo always wrote)."""
+    settings = {**DEMO_SETTINGS, "SIM_RANDOMIZE": training_recordings(seed, recipe)[0].draw}
+    if train_seed(seed) != BASE_TRAIN_SEED:
+        settings["TRAIN_SEED"] = train_seed(seed)
+    if precision != "auto":
+        settings["TRAIN_PRECISION"] = precision
+    settings["AUGMENTATIONS"] = [*settings["AUGMENTATIONS"], *RECIPES[recipe].augmentations]
+    settings.update(RECIPES[recipe].settings or {})
+    return settings
+
+
 def train_seed(seed: int = 1) -> int:
     """TRAIN_SEED of ``vehicle demo --seed seed``: 42 for seed 1, then 43, 44, ..."""
     return BASE_TRAIN_SEED + seed - 1
@@ -189,14 +208,7 @@ def run_demo(out: Path, *, records: int, epochs: int, noise: float, train_tracks
     trained, recordings = _check_demo(records, epochs, laps, train_tracks, eval_tracks, unseen_theme, recipe,
                                       seed, eval_randomize, draws)
     out = out.resolve()
-    settings = {**DEMO_SETTINGS, "SIM_RANDOMIZE": recordings[0].draw}
-    # written only where they differ from the settings' defaults: --seed 1 writes today's myconfig.py
-    if train_seed(seed) != BASE_TRAIN_SEED:
-        settings["TRAIN_SEED"] = train_seed(seed)
-    if precision != "auto":
-        settings["TRAIN_PRECISION"] = precision
-    settings["AUGMENTATIONS"] = [*settings["AUGMENTATIONS"], *RECIPES[recipe].augmentations]
-    settings.update(RECIPES[recipe].settings or {})
+    settings = demo_settings(recipe, seed, precision)
     cfg = Config.defaults(CAR_PATH=str(out), **settings)
     write_myconfig(out, settings, "vehicle demo")
     # the demo records afresh each run; it never touches other folders

@@ -37,7 +37,7 @@ from vehicle.app.demo import RECIPES as DEMO_RECIPES
 
 logger = logging.getLogger(__name__)
 
-RECIPES = tuple(DEMO_RECIPES)  # vehicle.app.demo.RECIPES: plain, augmented, robust, materials, normed
+RECIPES = tuple(DEMO_RECIPES)  # vehicle.app.demo.RECIPES: plain, augmented, robust, materials, normed, grouped
 #: the runs' name prefix (RunSpec.recipe) of ``--lanes``: vehicle demo --lanes has no recipes
 LANES = "lanes"
 PRECISIONS = ("fp32", "bf16")

@@ -150,8 +150,12 @@ def activation(name: str) -> nn.Module:
     raise ValueError(f"model option activation={name!r} must be one of {ACTIVATIONS}")
 
 
+#: groups of ``group_norm``: divides the channel counts of the convolution stacks (24, 32, 36, 48, 64)
+GROUP_NORM_GROUPS = 4
+
+
 def conv_stack(in_channels: int, convs: tuple[tuple[int, int, int], ...], *, act: str = "relu",
-               dropout: float | None = None, batch_norm: bool = False,
+               dropout: float | None = None, batch_norm: bool = False, group_norm: bool = False,
                first_activation: bool = True) -> nn.Sequential:
     """Convolutions ('valid' padding) each followed by [batch norm,] the activation [and dropout].
 
@@ -162,9 +166,11 @@ def conv_stack(in_channels: int, convs: tuple[tuple[int, int, int], ...], *, act
     """
     layers: list[nn.Module] = []
     for i, (out_ch, k, s) in enumerate(convs):
-        layers.append(nn.Conv2d(in_channels, out_ch, k, stride=s, bias=not batch_norm))
+        layers.append(nn.Conv2d(in_channels, out_ch, k, stride=s, bias=not (batch_norm or group_norm)))
         if batch_norm:
             layers.append(nn.BatchNorm2d(out_ch))
+        elif group_norm:  # per frame: no statistics of the training frames carried to the road
+            layers.append(nn.GroupNorm(GROUP_NORM_GROUPS, out_ch))
         if i or first_activation:
             layers.append(activation(act))
         if dropout is not None:
@@ -173,11 +179,14 @@ def conv_stack(in_channels: int, convs: tuple[tuple[int, int, int], ...], *, act
     return nn.Sequential(*layers)
 
 
-def donkey_convs(in_channels: int, dropout: float, batch_norm: bool = False) -> nn.Sequential:
+def donkey_convs(in_channels: int, dropout: float, batch_norm: bool = False,
+                 group_norm: bool = False) -> nn.Sequential:
     """DonkeyCar's core CNN: conv 24-5x5/2, 32-5x5/2, 64-5x5/2, 64-3x3/1, 64-3x3/1, ReLU and dropout
-    (optionally batch normalisation after each convolution), flattened."""
-    return nn.Sequential(*conv_stack(in_channels, DONKEY_CONVS, dropout=dropout, batch_norm=batch_norm),
-                         nn.Flatten())
+    (optionally batch or group normalisation after each convolution), flattened."""
+    if batch_norm and group_norm:
+        raise ValueError("model options batch_norm and group_norm: choose one normalisation")
+    return nn.Sequential(*conv_stack(in_channels, DONKEY_CONVS, dropout=dropout, batch_norm=batch_norm,
+                                     group_norm=group_norm), nn.Flatten())
 
 
 def flat_size(features: nn.Module, input_shape: tuple[int, ...]) -> int:

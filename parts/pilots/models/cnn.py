@@ -13,20 +13,22 @@ from parts.pilots.models.base import PilotModel, check_option, dense_head, donke
 class LinearModel(PilotModel):
     """DonkeyCar's default: core CNN, dense 100, 50, two continuous outputs (angle, throttle); MSE.
 
+    Options ``batch_norm`` or ``group_norm`` (4 groups): a normalisation after each convolution.
     Option ``throttle_limits``: None, or ``[low, high]`` within [-1, 1]: the throttle it drives with
     is clamped to that range (an RL policy's throttle range, ``vehicle rl train --throttle-range``,
     or a cap on a trained pilot's throttle through MODEL_OPTIONS).
     """
 
     type_name = "linear"
-    defaults: dict[str, Any] = {"dropout": 0.2, "batch_norm": False, "throttle_limits": None}
+    defaults: dict[str, Any] = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "throttle_limits": None}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         super().__init__(input_shape, options)
         dropout = check_option(self.options, "dropout", float, 0.0)
         batch_norm = check_option(self.options, "batch_norm", bool)
         self.throttle_limits = _limits(self.options.get("throttle_limits"))
-        self.features = donkey_convs(input_shape[0], dropout, batch_norm)
+        group_norm = check_option(self.options, "group_norm", bool)
+        self.features = donkey_convs(input_shape[0], dropout, batch_norm, group_norm)
         self.head = dense_head(flat_size(self.features, input_shape) + self.extra_size, (100, 50),
                                self.n_outputs(), dropout)
 
@@ -67,7 +69,7 @@ class LinearTanhModel(LinearModel):
     (``vehicle rl train --algo sac`` exports to it); trains by MSE like ``linear``."""
 
     type_name = "linear_tanh"
-    defaults: dict[str, Any] = {"dropout": 0.2, "batch_norm": False}
+    defaults: dict[str, Any] = {"dropout": 0.2, "batch_norm": False, "group_norm": False}
 
     def forward(self, images: torch.Tensor, extra: torch.Tensor | None = None) -> torch.Tensor:
         return torch.tanh(super().forward(images, extra))
@@ -78,7 +80,8 @@ class CategoricalModel(LinearModel):
     [0, ``throttle_range``]; cross-entropy with weights 0.5/0.5; drives with the most likely bin."""
 
     type_name = "categorical"
-    defaults = {"dropout": 0.2, "batch_norm": False, "angle_bins": 15, "throttle_bins": 20, "throttle_range": 0.8}
+    defaults = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "angle_bins": 15, "throttle_bins": 20,
+                "throttle_range": 0.8}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         self.angle_bins = check_option(options, "angle_bins", int, 2)
@@ -112,7 +115,8 @@ class InferredModel(LinearModel):
     (slow down in curves). MSE on the angle."""
 
     type_name = "inferred"
-    defaults = {"dropout": 0.2, "batch_norm": False, "throttle_max": 0.5, "throttle_min": 0.2, "throttle_decay": 3.0}
+    defaults = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "throttle_max": 0.5, "throttle_min": 0.2,
+                "throttle_decay": 3.0}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         self.throttle_max = check_option(options, "throttle_max", float)
@@ -141,7 +145,7 @@ class MemoryModel(LinearModel):
     (training: the recorded user commands; driving: the pilot's own previous outputs)."""
 
     type_name = "memory"
-    defaults = {"dropout": 0.2, "batch_norm": False, "mem_length": 3}
+    defaults = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "mem_length": 3}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         self.mem_length = check_option(options, "mem_length", int, 1)
@@ -161,7 +165,7 @@ class BehaviorModel(LinearModel):
 
     type_name = "behavior"
     extra_inputs = ("behavior/one_hot_state_array",)
-    defaults = {"dropout": 0.2, "batch_norm": False, "num_behaviors": 2}
+    defaults = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "num_behaviors": 2}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         self.num_behaviors = check_option(options, "num_behaviors", int, 1)

@@ -105,6 +105,19 @@ def test_the_materials_recipe_is_listed_in_the_help_and_records_like_plain(capsy
     assert training_recordings(2, "materials") == [Recording("demo_tub", 10001, 10000, None, 0.5)]
 
 
+def test_the_normalised_recipes_train_the_materials_recordings_with_their_norm():
+    from vehicle.app.demo import demo_settings, training_recordings
+    from vehicle.config import Config
+
+    for recipe, norm in (("normed", "batch_norm"), ("grouped", "group_norm")):
+        settings = demo_settings(recipe, seed=2, precision="fp32")
+        assert settings["MODEL_OPTIONS"] == {norm: True}
+        assert (settings["TRAIN_SEED"], settings["TRAIN_PRECISION"], settings["SIM_RANDOMIZE"]) == (43, "fp32", 10001)
+        assert Config.defaults(**settings).MODEL_OPTIONS == {norm: True}
+        assert [r.surfaces for r in training_recordings(2, recipe)] == [0.5]
+    assert "MODEL_OPTIONS" not in demo_settings("materials") and "TRAIN_SEED" not in demo_settings()
+
+
 @pytest.mark.parametrize("args, message", [
     (["--train-tracks", "1,2", "--eval-tracks", "2,3"], "also training tracks"),
     (["--records", "10"], "records >= 100"),
