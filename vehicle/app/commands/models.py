@@ -4,13 +4,16 @@
     vehicle models show NAME [--car DIR]
     vehicle models comment NAME "works on track 3"
     vehicle models rename NAME NEW_NAME
+    vehicle models rehash NAME
     vehicle models export NAME|FILE --format onnx|onnx-int8|torchscript [--out FILE]
                           [--int8 static|dynamic] [--calibration TUB ...]
     vehicle models rm NAME [--delete-files]
     vehicle models leaderboard [--tracks 101,102,103] [--laps 2]
 
 The db is ``<car>/<MODELS_PATH>/models.sqlite3`` (training fills it; the trainer console,
-``vehicle console``, reads and writes the same file, evaluations included).
+``vehicle console``, reads and writes the same file, evaluations included). It keeps each model
+file's SHA-256: a registered file whose bytes changed is refused before it drives; ``rehash``
+accepts the file as it is now.
 """
 
 from __future__ import annotations
@@ -65,6 +68,11 @@ def register(subparsers: Any) -> None:
     p.add_argument("name")
     p.add_argument("new_name")
     p.set_defaults(func=_cmd_rename)
+
+    p = sub.add_parser("rehash", parents=[car],
+                       help="accept a model file as it is now (it changed since it was registered)")
+    p.add_argument("name")
+    p.set_defaults(func=_cmd_rehash)
 
     p = sub.add_parser("leaderboard", parents=[car],
                        help="models ranked by their stored evaluation on the same tracks")
@@ -162,6 +170,12 @@ def _cmd_show(args: argparse.Namespace) -> int:
 def _cmd_rename(args: argparse.Namespace) -> int:
     entry = _db(args).rename(args.name, args.new_name)
     _out(f"renamed {args.name} to {entry.name} ({entry.path})")
+    return 0
+
+
+def _cmd_rehash(args: argparse.Namespace) -> int:
+    entry = _db(args).rehash(args.name)
+    _out(f"{entry.name}: the model database now holds the SHA-256 of {entry.path} as it is now")
     return 0
 
 
