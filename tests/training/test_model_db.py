@@ -330,4 +330,27 @@ def test_the_models_leaderboard_command(car, capsys):
     assert main(["models", "leaderboard", "--car", str(car), "--tracks", "5"]) == 0
     assert "no evaluations on tracks 5; evaluated track sets: --tracks 101,102,103 --laps 1" in capsys.readouterr().out
     assert main(["models", "--car", str(car)]) == 0
-    assert "75.5% on 101,102,103" in capsys.readouterr().out
+    assert "autonomy 75.5% on 101,102,103" in capsys.readouterr().out  # stored before the score: no score shown
+
+
+def test_a_pilot_that_stood_still_reads_score_0_in_the_models_table_and_the_leaderboard(car, capsys):
+    """Item 22: autonomy 100 % with none of its laps driven shows score 0 and 0 % driven beside it."""
+    reg = ModelDB.for_models_dir(car / "models")
+    for name in ("still", "drove"):
+        (car / "models" / f"{name}.pt").write_bytes(name.encode())
+        reg.register(car / "models" / f"{name}.pt", model_type="linear")
+    still = _report(100.0, 0.0, seeds=(101,), completed=0)
+    still["overall"].update(completion=0.0, score=0.0, interventions=0)
+    drove = _report(90.0, 0.1, seeds=(101,), completed=1)
+    drove["overall"].update(completion=1.0, score=90.0, interventions=1)
+    reg.add_evaluation("still", still)
+    reg.add_evaluation("drove", drove)
+    assert main(["models", "--car", str(car)]) == 0
+    rows = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()[1:]}
+    assert "score 0.0, driven 0%, autonomy 100.0% on 101" in rows["still"]
+    assert "score 90.0, driven 100%, autonomy 90.0% on 101" in rows["drove"]
+    assert main(["models", "leaderboard", "--car", str(car), "--tracks", "101"]) == 0
+    header, first, second = capsys.readouterr().out.splitlines()[1:]
+    assert header.split()[:6] == ["#", "MODEL", "SCORE", "DRIVEN", "AUTONOMY", "LAPS"]
+    assert first.split()[:6] == ["1", "drove", "90.0", "100%", "90.0%", "1"]
+    assert second.split()[:6] == ["2", "still", "0.0", "0%", "100.0%", "0"]

@@ -120,12 +120,21 @@ def _short(mapping: dict[str, Any], keys: tuple[str, ...]) -> str:
     return " ".join(parts)
 
 
+def _number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
 def _eval_summary(ev: Any) -> str:
+    """The EVALUATION cell: score and the share of the laps driven before autonomy, which alone reads
+    100 % for a car that stood still (evaluations stored before the score show autonomy only)."""
     if ev is None:
         return ""
-    autonomy = ev.overall.get("autonomy")
-    shown = f"{autonomy:.1f}%" if isinstance(autonomy, int | float) else "?"
-    return f"{shown} on {','.join(map(str, ev.tracks))}"
+    o = ev.overall
+    shown = [f"score {o['score']:.1f}"] if _number(o.get("score")) else []
+    if _number(o.get("completion")):
+        shown.append(f"driven {100.0 * o['completion']:.0f}%")
+    shown.append(f"autonomy {o['autonomy']:.1f}%" if _number(o.get("autonomy")) else "autonomy ?")
+    return f"{', '.join(shown)} on {','.join(map(str, ev.tracks))}"
 
 
 def format_table(entries: list[Any], latest: dict[str, Any] | None = None) -> str:
@@ -180,14 +189,16 @@ def _cmd_rehash(args: argparse.Namespace) -> int:
 
 
 def format_leaderboard(evaluations: list[Any]) -> str:
-    """The leaderboard table: rank, model and its overall evaluation figures."""
-    rows = [("#", "MODEL", "AUTONOMY", "LAPS", "MEAN|CTE|", "SPEED", "OFF-TRACK", "EVALUATED")]
+    """The leaderboard table: rank, model and its overall evaluation figures, the score (what ranks
+    them, :func:`parts.sim.metrics.rank_key`) and the share of the laps driven first."""
+    rows = [("#", "MODEL", "SCORE", "DRIVEN", "AUTONOMY", "LAPS", "MEAN|CTE|", "SPEED", "OFF-TRACK", "EVALUATED")]
     for i, ev in enumerate(evaluations, 1):
-        def f(key: str, fmt: str, o: dict[str, Any] = ev.overall) -> str:
+        def f(key: str, fmt: str, o: dict[str, Any] = ev.overall, scale: float = 1.0) -> str:
             v = o.get(key)
-            return format(v, fmt) if isinstance(v, int | float) and not isinstance(v, bool) else "-"
+            return "-" if not _number(v) else format(v * scale if scale != 1.0 else v, fmt)
 
-        rows.append((str(i), ev.model, f("autonomy", ".1f") + "%", f("laps_completed", "d"),
+        rows.append((str(i), ev.model, f("score", ".1f"), f("completion", ".0f", scale=100.0) + "%",
+                     f("autonomy", ".1f") + "%", f("laps_completed", "d"),
                      f("mean_abs_cte", ".3f") + " m", f("mean_speed", ".2f") + " m/s", f("interventions", "d"),
                      ev.created.replace("+00:00", "Z")))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
