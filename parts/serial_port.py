@@ -8,7 +8,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
-from vehicle.errors import VehicleError
+from vehicle.errors import VehicleError, error_text
 
 
 def pyserial_port(port: str, baudrate: int, timeout: float) -> Any:
@@ -56,7 +56,7 @@ def serial_link(setting: str, port: str, fallback: str, error: type[VehicleError
     try:
         yield
     except _link_errors() as exc:
-        reason = " ".join(str(exc).split()) or type(exc).__name__
+        reason = error_text(exc)  # termios.error's tuple would read ((5, 'Input/output error'))
         raise error(f"{setting} = {port!r}: the serial link failed ({reason}); check the cable and "
                               f"the board's power; {fallback}") from exc
 

@@ -10,7 +10,7 @@ the metrics, a free comment and the closed-loop evaluations in the simulator.
 
 Schema (normalised as in Track Driver AI's database, but many-to-many because a model trains on several tubs)::
 
-    models(id, name UNIQUE, path, type, parameters JSON, metrics JSON, comment, transfer, created)
+    models(id, name UNIQUE, path, type, parameters JSON, metrics JSON, comment, transfer, created, sha256)
     datasets(id, path UNIQUE, label, comment, added, origin, deleted, kept_deleted JSON)
     model_datasets(model_id -> models.id, dataset_id -> datasets.id)
     evaluations(id, model_id -> models.id, tracks JSON, laps, created, overall JSON,
@@ -25,8 +25,13 @@ the others (``found`` in the data folder, ``registered`` by path, ``created`` em
 imported). ``deleted`` marks a soft delete (the tub's own record deletes, ``kept_deleted`` holding
 the records that were deleted before, so a restore gives back exactly what was there).
 
+``sha256`` is the hex SHA-256 of the model file's bytes when it was registered (NULL when the file
+did not exist yet, or for entries of schema 2 and older): a registered file that no longer has it
+is refused before it drives (:meth:`training.model_db.ModelDB.check_file`): its zip CRC-32s only
+catch damage, not another intact model put under the same name.
+
 The schema version is SQLite's ``user_version``; :data:`MIGRATIONS` upgrades older files in place
-(version 1 had no dataset details and no evaluations).
+(version 1 had no dataset details and no evaluations, version 2 no model hashes).
 """
 
 from __future__ import annotations
@@ -45,7 +50,7 @@ from vehicle.errors import VehicleError
 logger = logging.getLogger(__name__)
 
 DB_FILENAME = "models.sqlite3"
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 # Files that training or export write next to a model and that `remove(delete_files=True)` removes.
 SIDECAR_SUFFIXES: tuple[str, ...] = (".onnx", ".int8.onnx", ".ts", ".loss.png", ".metrics.json")
 
@@ -94,6 +99,8 @@ MIGRATIONS: dict[int, tuple[str, ...]] = {
         )""",
         "CREATE INDEX evaluations_model ON evaluations(model_id)",
     ),
+    # existing entries keep NULL: hashing their files now would vouch for whatever lies there today
+    3: ("ALTER TABLE models ADD COLUMN sha256 TEXT",),
 }
 
 

@@ -21,18 +21,23 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from parts.pilots.export_files import file_sha256
 from training.dataset_db import DatasetEntry, DatasetTable
 from training.db_store import DB_FILENAME, ModelDBError, Store, _json
 from training.evaluation_db import Evaluation, EvaluationTable
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["DB_FILENAME", "DatasetEntry", "Evaluation", "ModelDB", "ModelDBError", "ModelEntry", "check_model_name",
-           "register_model"]
+__all__ = ["DB_FILENAME", "DatasetEntry", "Evaluation", "ModelChanged", "ModelDB", "ModelDBError", "ModelEntry",
+           "check_model_name", "check_registered", "register_model"]
 
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 # Files that training or export write next to a model and that `remove(delete_files=True)` removes.
 SIDECAR_SUFFIXES: tuple[str, ...] = (".onnx", ".int8.onnx", ".ts", ".loss.png", ".metrics.json")
+
+
+class ModelChanged(ModelDBError):
+    """A registered model file's bytes are not those it had when it was registered."""
 
 
 def check_model_name(name: str) -> str:
@@ -65,6 +70,7 @@ class ModelEntry:
     transfer: str | None = None
     created: str = ""
     id: int | None = None
+    sha256: str | None = None  # of the file when registered; None: unknown (not written yet, or an old entry)
 
     @property
     def exists(self) -> bool:
@@ -76,7 +82,7 @@ class ModelEntry:
         return {"name": self.name, "path": str(self.path), "type": self.type,
                 "datasets": list(self.datasets), "parameters": self.parameters,
                 "metrics": self.metrics, "comment": self.comment, "transfer": self.transfer,
-                "created": self.created, "exists": self.exists}
+                "created": self.created, "exists": self.exists, "sha256": self.sha256}
 
 
 class ModelDB(EvaluationTable, DatasetTable, Store):
@@ -87,7 +93,7 @@ class ModelDB(EvaluationTable, DatasetTable, Store):
     """
 
     def _entry(self, conn: sqlite3.Connection, row: sqlite3.Row | tuple[Any, ...]) -> ModelEntry:
-        mid, name, path, mtype, params, metrics, comment, transfer, created = row
+        mid, name, path, mtype, params, metrics, comment, transfer, created, sha256 = row
         datasets = tuple(r[0] for r in conn.execute(
             "SELECT d.path FROM datasets d JOIN model_datasets md ON md.dataset_id = d.id "
             "WHERE md.model_id = ? ORDER BY d.path", (mid,)))
@@ -95,9 +101,9 @@ class ModelDB(EvaluationTable, DatasetTable, Store):
         return ModelEntry(name=name, path=stored if stored.is_absolute() else self.root / stored,
                           type=mtype, datasets=datasets, parameters=json.loads(params),
                           metrics=json.loads(metrics), comment=comment, transfer=transfer,
-                          created=created, id=mid)
+                          created=created, id=mid, sha256=sha256)
 
-    _COLUMNS = "id, name, path, type, parameters, metrics, comment, transfer, created"
+    _COLUMNS = "id, name, path, type, parameters, metrics, comment, transfer, created, sha256"
 
     def register(self, model_path: str | Path, *, model_type: str, datasets: Sequence[str | Path] = (),
                  parameters: Mapping[str, Any] | None = None, metrics: Mapping[str, Any] | None = None,
@@ -124,6 +130,7 @@ class ModelDB(EvaluationTable, DatasetTable, Store):
         when = (created or datetime.now(UTC)).astimezone(UTC).isoformat(timespec="seconds")
         params_json, metrics_json = _json(parameters, "parameters"), _json(metrics, "metrics")
         dataset_paths = sorted({str(Path(d).resolve()) for d in datasets})
+        digest = file_sha256(model_path) if model_path.is_file() else None  # what check_file compares
         with self._connect(write=True) as conn:
             old = conn.execute("SELECT id, comment FROM models WHERE name = ?", (name,)).fetchone()
             if old is not None:
@@ -131,10 +138,10 @@ class ModelDB(EvaluationTable, DatasetTable, Store):
                     comment = old[1]
                 conn.execute("DELETE FROM models WHERE id = ?", (old[0],))
             cur = conn.execute(
-                "INSERT INTO models (name, path, type, parameters, metrics, comment, transfer, created) "
-                "VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+                "INSERT INTO models (name, path, type, parameters, metrics, comment, transfer, created, sha256) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 (name, self._stored_path(model_path), model_type, params_json, metrics_json, comment,
-                 None if transfer is None else str(transfer), when))
+                 None if transfer is None else str(transfer), when, digest))
             mid = cur.lastrowid
             for dpath in dataset_paths:
                 conn.execute("INSERT OR IGNORE INTO datasets (path) VALUES (?)", (dpath,))
@@ -177,6 +184,43 @@ class ModelDB(EvaluationTable, DatasetTable, Store):
         hint = f" Did you mean {', '.join(close)}?" if close else (
             f" Registered: {', '.join(names)}." if names else " The model database is empty: train a model first.")
         raise ModelDBError(f"no model {key!r} in {self.db_path}.{hint}")
+
+    def entry_for_file(self, path: str | Path) -> ModelEntry | None:
+        """The entry whose model file is ``path`` (the same file, not just the same name), or None."""
+        resolved = Path(path).resolve()
+        return next((e for e in self.list() if e.path.resolve() == resolved), None)
+
+    def check_file(self, path: str | Path, digest: str | None = None) -> ModelEntry | None:
+        """The entry of the model file ``path`` (None: not registered here), after checking that the
+        file still has the bytes it was registered with (``digest``: its SHA-256, if already known).
+
+        Raises:
+            ModelChanged: the file changed since it was registered (another model under its name,
+                or a copy over it); the one-line message says how to accept it or what to redo.
+        """
+        entry = self.entry_for_file(path)
+        if entry is None or entry.sha256 is None:
+            return entry
+        if (digest or file_sha256(path)) != entry.sha256:
+            raise ModelChanged(f"{Path(path).resolve()}: changed since it was registered as model {entry.name!r} "
+                               f"in {self.db_path} (its SHA-256 differs: another file was put under its name); "
+                               f"retrain it, or accept this file with `vehicle models rehash {entry.name}`")
+        return entry
+
+    def rehash(self, name: str) -> ModelEntry:
+        """Record the SHA-256 of an entry's file as it is now (the user vouches for it).
+
+        Raises:
+            ModelDBError: no such entry, or its file is missing.
+        """
+        entry = self.get(name)
+        if not entry.exists:
+            raise ModelDBError(f"model {entry.name}: its file {entry.path} is missing")
+        digest = file_sha256(entry.path)
+        with self._connect(write=True) as conn:
+            conn.execute("UPDATE models SET sha256 = ? WHERE id = ?", (digest, entry.id))
+        logger.info("model %s: recorded the SHA-256 of %s", entry.name, entry.path)
+        return self.get(entry.name)
 
     def set_comment(self, name: str, comment: str | None) -> ModelEntry:
         """Replace the comment of an entry (None or "" clears it)."""
@@ -278,3 +322,30 @@ def register_model(model_path: str | Path, meta: Mapping[str, Any] | None = None
     db = ModelDB(db_path) if db_path is not None else \
         ModelDB.for_models_dir(Path(model_path).resolve().parent)
     return db.register(model_path, **values)
+
+
+def check_registered(path: str | Path, *models_dirs: str | Path) -> None:
+    """Refuse a model file that changed since it was registered: in the database next to it (where
+    training registers it) or in those of ``models_dirs`` (the car's MODELS_PATH). The file is
+    hashed once, and only when an entry has a hash to compare with.
+
+    Raises:
+        ModelChanged: the one-line refusal (see :meth:`ModelDB.check_file`).
+    """
+    path = Path(path)
+    if not path.is_file():
+        return  # the loader says what is wrong with the path
+    dbs = {(Path(d).resolve() / DB_FILENAME) for d in (path.resolve().parent, *models_dirs)}
+    digest: str | None = None
+    for db_path in sorted(dbs):
+        if not db_path.is_file():
+            continue
+        db = ModelDB(db_path)
+        try:
+            entry = db.entry_for_file(path)
+        except ModelDBError as exc:  # a broken database must not keep the car from driving
+            logger.warning("cannot check %s against %s: %s", path, db_path, exc)
+            continue
+        if entry is not None and entry.sha256 is not None:
+            digest = digest or file_sha256(path)
+            db.check_file(path, digest)

@@ -10,6 +10,15 @@ never with a traceback.
 from __future__ import annotations
 
 
+def error_text(exc: BaseException) -> str:
+    """``exc``'s message on one line, an errno pair as OSError writes it: termios.error(5, 'Input/output
+    error') reads ``[Errno 5] Input/output error``, not ``(5, 'Input/output error')``."""
+    args = exc.args
+    if not isinstance(exc, OSError) and len(args) == 2 and isinstance(args[0], int) and isinstance(args[1], str):
+        return f"[Errno {args[0]}] {args[1]}"
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
 class VehicleError(Exception):
     """Base of the errors whose message is meant for the user (one line, says how to fix it)."""
 

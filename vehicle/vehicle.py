@@ -19,7 +19,7 @@ from time import perf_counter as _perf_counter
 from typing import Any
 
 from vehicle.clock import Clock, MonotonicClock, RateKeeper
-from vehicle.errors import PartError, VehicleStopped, WiringError
+from vehicle.errors import PartError, VehicleError, VehicleStopped, WiringError, error_text
 from vehicle.memory import Memory
 from vehicle.part import Lambda, ThreadedPart, is_actuator, part_name
 from vehicle.timing import LoopSummary, PartTiming, TimingRing
@@ -387,16 +387,16 @@ class Vehicle:
             if is_actuator(e.part):
                 try:
                     e.part.neutral()
-                except Exception:
-                    logger.exception("part %r failed to go neutral", e.name)
+                except Exception as exc:
+                    _log_stop_failure(e.name, "go neutral", exc)
                     errors.append(f"{e.name}.neutral()")
         for e in reversed(self.parts):
             shutdown = getattr(e.part, "shutdown", None)
             if callable(shutdown):
                 try:
                     shutdown()
-                except Exception:
-                    logger.exception("part %r failed to shut down", e.name)
+                except Exception as exc:
+                    _log_stop_failure(e.name, "shut down", exc)
                     errors.append(f"{e.name}.shutdown()")
         for e in self.parts:
             if e.thread is not None:
@@ -418,6 +418,19 @@ class Vehicle:
         span = self._last_loop_start - t0
         achieved = (loops - 1) / span if loops > 1 and span > 0 else 0.0
         return LoopSummary(loops, elapsed, rate_hz, achieved, overruns, parts, self._longest_loop)
+
+
+def _log_stop_failure(name: str, doing: str, exc: BaseException) -> None:
+    """One ERROR line naming the part and the error (a pulled serial cable gave two chained
+    tracebacks, ~20 lines, at every stop); the traceback only at DEBUG, as vehicle.part does."""
+    if isinstance(exc, VehicleError):  # its message is written for the user
+        text = error_text(exc)
+    else:
+        kind = type(exc).__name__ if type(exc).__module__ == "builtins" else \
+            f"{type(exc).__module__}.{type(exc).__name__}"  # termios.error, not a bare "error"
+        text = f"{kind}: {error_text(exc)}"
+    logger.error("part %r failed to %s: %s", name, doing, text)
+    logger.debug("part %r: traceback of the failure to %s", name, doing, exc_info=exc)
 
 
 @contextlib.contextmanager

@@ -32,7 +32,7 @@ import math
 import threading
 import time
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -97,6 +97,9 @@ class Pilot:
             len(BEHAVIOR_LIST)}``; a model trained with another size is refused when it loads.
         car: what the car feeds the model (BEHAVIOR_LIST, CAMERA_UNDISTORT); every model, the
             first and each hot switch, is checked against it (None: not checked).
+        verify: called with each model file's path before it is read, the first and each hot
+            switch; raises to refuse it (the application checks a registered model's hash so;
+            this package does not know the model database).
 
     Raises:
         parts.pilots.compat.ModelMismatch: the model does not fit ``car``.
@@ -107,7 +110,7 @@ class Pilot:
                  models_dir: str | Path | None = None, frame_shape: tuple[int, ...] | None = None,
                  frame_hint: str = "give it frames of the training size or re-train",
                  extra_sizes: Mapping[str, int] | None = None, car: CarInputs | None = None,
-                 target_control: Any = None) -> None:
+                 target_control: Any = None, verify: Callable[[Path], None] | None = None) -> None:
         self.backend = backend
         self.target_control = target_control
         self.car = car
@@ -118,6 +121,9 @@ class Pilot:
         self.frame_shape = tuple(frame_shape) if frame_shape is not None else None
         self.frame_hint = frame_hint
         self.extra_sizes = dict(extra_sizes or {})
+        self.verify = verify
+        if verify is not None:
+            verify(Path(model))
         runner = open_runner(model, backend, onnx_threads)
         try:
             self.check_fits(runner)
@@ -319,6 +325,8 @@ class Pilot:
     def _open_checked(self, path: Path) -> Runner:
         """A runner for ``path`` that fits this car and this pilot's wiring; raises (the message
         says why) otherwise. The file is read with the safe loader (no code runs)."""
+        if self.verify is not None:
+            self.verify(path)
         runner = open_runner(path, self.backend, self.onnx_threads)
         try:
             self.check_fits(runner)

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import sqlite3
 from datetime import UTC, datetime
 
 import pytest
 
-from training.model_db import DB_FILENAME, ModelDB, ModelDBError, register_model
+from training.model_db import DB_FILENAME, ModelChanged, ModelDB, ModelDBError, register_model
 from vehicle.app.cli import main
 
 
@@ -158,12 +159,78 @@ def test_a_schema_1_registry_is_upgraded_in_place(car):
     assert (entry.name, entry.comment, entry.parameters, entry.datasets) == ("old", "kept", {"epochs": 4},
                                                                               ("/cars/c/data/tub_1",))
     with sqlite3.connect(db) as conn:
-        assert conn.execute("PRAGMA user_version").fetchone()[0] == 2
+        assert conn.execute("PRAGMA user_version").fetchone()[0] == 3
         cols = {r[1] for r in conn.execute("PRAGMA table_info(datasets)")}
         assert {"label", "comment", "added", "origin", "deleted", "kept_deleted"} <= cols
+        assert "sha256" in {r[1] for r in conn.execute("PRAGMA table_info(models)")}
         assert conn.execute("SELECT count(*) FROM evaluations").fetchone()[0] == 0
+    assert entry.sha256 is None  # registered before hashes were kept: nothing to check it against
+    (car / "models" / "old.pt").write_bytes(b"whatever is there")
+    assert reg.check_file(car / "models" / "old.pt") == entry  # an old entry never refuses its file
     assert reg.datasets() == []  # a training reference is not a managed dataset
     ModelDB(db).list()  # opening again changes nothing
+
+
+_V2 = _V1.replace("PRAGMA user_version = 1;", """ALTER TABLE datasets ADD COLUMN label TEXT;
+ALTER TABLE datasets ADD COLUMN comment TEXT; ALTER TABLE datasets ADD COLUMN added TEXT;
+ALTER TABLE datasets ADD COLUMN origin TEXT; ALTER TABLE datasets ADD COLUMN deleted TEXT;
+ALTER TABLE datasets ADD COLUMN kept_deleted TEXT;
+CREATE TABLE evaluations (id INTEGER PRIMARY KEY AUTOINCREMENT, model_id INTEGER NOT NULL REFERENCES models(id)
+    ON DELETE CASCADE, tracks TEXT NOT NULL, laps INTEGER NOT NULL, created TEXT NOT NULL,
+    overall TEXT NOT NULL DEFAULT '{}', per_track TEXT NOT NULL DEFAULT '[]', settings TEXT NOT NULL DEFAULT '{}',
+    picture BLOB);
+PRAGMA user_version = 2;""")
+
+
+def test_a_schema_2_database_gets_the_hash_column_and_hashes_what_is_registered_after(car):
+    db = car / "models" / DB_FILENAME
+    with sqlite3.connect(db) as conn:
+        conn.executescript(_V2)
+    (car / "models" / "new.pt").write_bytes(b"new weights")
+    reg = ModelDB(db)
+    assert [e.sha256 for e in reg.list()] == [None]
+    entry = reg.register(car / "models" / "new.pt", model_type="linear")
+    assert entry.sha256 == hashlib.sha256(b"new weights").hexdigest()
+    with sqlite3.connect(db) as conn:
+        assert conn.execute("PRAGMA user_version").fetchone()[0] == 3
+
+
+def test_the_hash_is_recorded_at_registration_and_checked(car):
+    reg = ModelDB.for_models_dir(car / "models")
+    model = car / "models" / "m.pt"
+    model.write_bytes(b"weights one")
+    entry = reg.register(model, model_type="linear")
+    assert entry.sha256 == hashlib.sha256(b"weights one").hexdigest()
+    assert reg.get("m").sha256 == entry.sha256 and reg.get("m").as_dict()["sha256"] == entry.sha256
+    assert reg.check_file(model) == entry  # untouched: checked and accepted
+    assert reg.check_file(car / "models" / "other.pt") is None  # not registered: nothing to check
+    model.write_bytes(b"weights two")  # another file under the same name
+    with pytest.raises(ModelChanged) as err:
+        reg.check_file(model)
+    message = str(err.value)
+    assert "\n" not in message
+    assert message.startswith(f"{model.resolve()}: changed since it was registered as model 'm'")
+    assert "vehicle models rehash m" in message
+    # the rename keeps the hash (the same bytes under a new name)
+    model.write_bytes(b"weights one")
+    assert reg.rename("m", "n").sha256 == entry.sha256
+    # registered before the file was written: no hash to compare yet
+    assert reg.register(car / "models" / "later.pt", model_type="linear").sha256 is None
+
+
+def test_rehash_accepts_the_file_as_it_is_now(car, capsys):
+    reg = ModelDB.for_models_dir(car / "models")
+    model = car / "models" / "m.pt"
+    model.write_bytes(b"weights one")
+    reg.register(model, model_type="linear", comment="kept")
+    model.write_bytes(b"weights two")
+    assert main(["models", "rehash", "m", "--car", str(car)]) == 0
+    assert "m: the model database now holds the SHA-256 of" in capsys.readouterr().out
+    entry = reg.check_file(model)
+    assert entry.sha256 == hashlib.sha256(b"weights two").hexdigest() and entry.comment == "kept"
+    model.unlink()
+    assert main(["models", "rehash", "m", "--car", str(car)]) == 2
+    assert f"model m: its file {model.resolve()} is missing" in capsys.readouterr().err
 
 
 def test_a_newer_schema_is_refused(car):
@@ -263,4 +330,27 @@ def test_the_models_leaderboard_command(car, capsys):
     assert main(["models", "leaderboard", "--car", str(car), "--tracks", "5"]) == 0
     assert "no evaluations on tracks 5; evaluated track sets: --tracks 101,102,103 --laps 1" in capsys.readouterr().out
     assert main(["models", "--car", str(car)]) == 0
-    assert "75.5% on 101,102,103" in capsys.readouterr().out
+    assert "autonomy 75.5% on 101,102,103" in capsys.readouterr().out  # stored before the score: no score shown
+
+
+def test_a_pilot_that_stood_still_reads_score_0_in_the_models_table_and_the_leaderboard(car, capsys):
+    """Item 22: autonomy 100 % with none of its laps driven shows score 0 and 0 % driven beside it."""
+    reg = ModelDB.for_models_dir(car / "models")
+    for name in ("still", "drove"):
+        (car / "models" / f"{name}.pt").write_bytes(name.encode())
+        reg.register(car / "models" / f"{name}.pt", model_type="linear")
+    still = _report(100.0, 0.0, seeds=(101,), completed=0)
+    still["overall"].update(completion=0.0, score=0.0, interventions=0)
+    drove = _report(90.0, 0.1, seeds=(101,), completed=1)
+    drove["overall"].update(completion=1.0, score=90.0, interventions=1)
+    reg.add_evaluation("still", still)
+    reg.add_evaluation("drove", drove)
+    assert main(["models", "--car", str(car)]) == 0
+    rows = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()[1:]}
+    assert "score 0.0, driven 0%, autonomy 100.0% on 101" in rows["still"]
+    assert "score 90.0, driven 100%, autonomy 90.0% on 101" in rows["drove"]
+    assert main(["models", "leaderboard", "--car", str(car), "--tracks", "101"]) == 0
+    header, first, second = capsys.readouterr().out.splitlines()[1:]
+    assert header.split()[:6] == ["#", "MODEL", "SCORE", "DRIVEN", "AUTONOMY", "LAPS"]
+    assert first.split()[:6] == ["1", "drove", "90.0", "100%", "90.0%", "1"]
+    assert second.split()[:6] == ["2", "still", "0.0", "0%", "100.0%", "0"]

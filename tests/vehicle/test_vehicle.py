@@ -1,6 +1,7 @@
 from __future__ import annotations
 
 import logging
+import termios
 import threading
 
 import pytest
@@ -163,6 +164,71 @@ def test_failing_shutdown_does_not_stop_others_and_is_not_swallowed(caplog):
         V.start(rate_hz=10, max_loop_count=2)
     assert log == ["neutral first", "shutdown last", "shutdown first"]
     assert "part 'bad' failed to shut down" in caplog.text
+
+
+class PulledCable(Actuator):
+    """A serial drivetrain whose USB cable was pulled: draining its tty at shutdown fails with EIO
+    (termios.error from tcdrain, wrapped by close_serial into the part's one-line error)."""
+
+    class Port:
+        def flush(self):
+            raise termios.error(5, "Input/output error")
+
+        def close(self):
+            pass
+
+    def shutdown(self):
+        from parts.serial_port import close_serial
+
+        close_serial(self.Port(), "VESC_SERIAL_PORT", "/dev/ttyACM0", "the VESC's own timeout stops the motor")
+
+
+@pytest.mark.parametrize("failing", ["pulled_cable", "termios", "oserror"])
+def test_a_failing_shutdown_is_one_log_line_with_the_traceback_at_debug(caplog, failing):
+    """Item 5(c): two chained tracebacks (~20 lines) for a pulled cable became one ERROR line that
+    names the part and the error; the traceback is kept at DEBUG; the other parts still stop."""
+    log = []
+    errors = {"termios": termios.error(5, "Input/output error"), "oserror": OSError(5, "Input/output error")}
+
+    class Raw(Actuator):
+        def shutdown(self):
+            raise errors[failing]
+
+    V = sim_vehicle()
+    V.add(Actuator("steering", log))
+    V.add(PulledCable("drive", log) if failing == "pulled_cable" else Raw("drive", log))
+    with caplog.at_level(logging.DEBUG, logger="vehicle.vehicle"), \
+            pytest.raises(ShutdownError, match=r"drive.shutdown\(\)"):
+        V.start(rate_hz=10, max_loop_count=2)
+    assert log == ["neutral steering", "neutral drive", "shutdown steering"]  # the other part stopped
+    loud = [r for r in caplog.records if r.levelno >= logging.WARNING and "'drive'" in r.getMessage()]
+    assert len(loud) == 1 and loud[0].levelno == logging.ERROR and loud[0].exc_info is None
+    message = loud[0].getMessage()
+    assert "\n" not in message and message.startswith("part 'drive' failed to shut down: ")
+    assert "[Errno 5] Input/output error" in message and "((" not in message
+    if failing == "pulled_cable":
+        assert "VESC_SERIAL_PORT = '/dev/ttyACM0': the serial link failed ([Errno 5] Input/output error)" in message
+    quiet = [r for r in caplog.records if r.levelno == logging.DEBUG and r.exc_info]
+    assert len(quiet) == 1 and "'drive'" in quiet[0].getMessage()
+
+
+def test_a_failing_neutral_is_one_log_line_and_shutdown_still_runs(caplog):
+    log = []
+
+    class NoNeutral(Actuator):
+        def neutral(self):
+            raise OSError(5, "Input/output error")
+
+    V = sim_vehicle()
+    V.add(NoNeutral("drive", log))
+    V.add(Actuator("steering", log))
+    with caplog.at_level(logging.INFO, logger="vehicle.vehicle"), \
+            pytest.raises(ShutdownError, match=r"drive.neutral\(\)"):
+        V.start(rate_hz=10, max_loop_count=2)
+    assert log == ["neutral steering", "shutdown steering", "shutdown drive"]
+    [record] = [r for r in caplog.records if r.levelno >= logging.WARNING]
+    assert record.getMessage() == "part 'drive' failed to go neutral: OSError: [Errno 5] Input/output error"
+    assert record.exc_info is None
 
 
 def test_ctrl_c_takes_safe_path_and_reraises():

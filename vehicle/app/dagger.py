@@ -205,20 +205,28 @@ def _with_expert(summary: dict[str, Any], reference: dict[str, Any] | None) -> d
 
 
 def format_rounds(rounds: Sequence[dict[str, Any]]) -> str:
-    """The round table: one row per round and theme (mean over the hidden draws and the worst)."""
-    headers = ["round", "theme", "autonomy % mean", "worst (draw)", "interv. mean", "worst", "|cte| m mean",
-               "speed % expert", "new records", "pilot-expert |angle|"]
+    """The round table: one row per round and theme (mean over the hidden draws and the worst).
+
+    The score (autonomy x share of the asked laps driven; the worst draw is the lowest) comes before
+    autonomy, with the share driven and the laps: autonomy alone reads 100 % for a car that stood still.
+    """
+    from vehicle.app.eval_draws import cell, driven_pct
+
+    headers = ["round", "theme", "score mean", "worst (draw)", "driven % mean", "laps mean", "autonomy % mean",
+               "worst", "interv. mean", "worst", "|cte| m mean", "speed % expert", "new records",
+               "pilot-expert |angle|"]
     rows = []
     for r in rounds:
         for theme, s in r["by_theme"].items():
             m, w = s["mean"], s["worst"]
             roll = r.get("rollout") or {}
-            err = roll.get("pilot_vs_expert_abs_angle")
-            rows.append([str(r["round"]), theme, f"{m['autonomy']:.1f}", f"{w['autonomy']:.1f} ({w['randomize']})",
-                         f"{m['interventions']:.1f}", str(w["interventions"]),
-                         "-" if m["mean_abs_cte"] is None else f"{m['mean_abs_cte']:.3f}",
-                         "-" if s.get("speed_vs_expert_pct") is None else f"{s['speed_vs_expert_pct']:.0f}",
-                         str(roll.get("records", 0)), "-" if err is None else f"{err:.3f}"])
+            rows.append([str(r["round"]), theme, cell(m.get("score"), "{:.1f}"),
+                         f"{cell(w.get('score'), '{:.1f}')} ({w['randomize']})",
+                         cell(driven_pct(m.get("completion")), "{:.0f}"), cell(m.get("laps_completed"), "{:.1f}"),
+                         cell(m["autonomy"], "{:.1f}"), cell(w["autonomy"], "{:.1f}"),
+                         cell(m["interventions"], "{:.1f}"), str(w["interventions"]),
+                         cell(m["mean_abs_cte"], "{:.3f}"), cell(s.get("speed_vs_expert_pct"), "{:.0f}"),
+                         str(roll.get("records", 0)), cell(roll.get("pilot_vs_expert_abs_angle"), "{:.3f}")])
     widths = [max(len(x[i]) for x in [headers, *rows]) for i in range(len(headers))]
     lines = ["  ".join(h.rjust(wd) for h, wd in zip(headers, widths, strict=True)),
              "  ".join("-" * wd for wd in widths)]

@@ -4,9 +4,10 @@ One draw is one randomisation seed (SIM_RANDOMIZE): light, shadows, colours, cam
 latency and distractors of every track (:mod:`parts.sim.randomize`). A pilot that drives well in
 the draw it was trained on may still fail in another; ``vehicle sim eval --draws N`` therefore
 drives the same unseen tracks in each theme under N draws the pilot never saw and reports, per
-theme, the **mean** over the draws and the **worst draw** (the one with the lowest autonomy; ties:
-more interventions, then larger mean |CTE|), beside the expert's speed on the same tracks and
-draws (the pilot's speed as a share of it).
+theme, the **mean** over the draws and the **worst draw** (the one with the lowest score, autonomy
+times the share of the asked laps driven, so a draw where the car stood still is the worst; ties:
+more interventions, then fewer laps, then larger mean |CTE|), beside the expert's speed on the same
+tracks and draws (the pilot's speed as a share of it).
 
 The hidden draws are the seeds ``HIDDEN_DRAW_BASE + 1 .. HIDDEN_DRAW_BASE + N``, far from the
 small seeds recordings use (the demo trains with draw 1; DAgger roll-outs use
@@ -179,24 +180,38 @@ def _moments(page: str) -> int:
     return sum(len(t["moments"]) for t in data["tracks"])
 
 
-def _f(value: Any, fmt: str) -> str:
+def cell(value: Any, fmt: str) -> str:
+    """``value`` formatted with ``fmt``, or "-" when it is unknown (None)."""
     return "-" if value is None else fmt.format(value)
 
 
+def driven_pct(completion: float | None) -> float | None:
+    """The share of the asked laps driven (``completion``, 0..1) in percent; None stays None."""
+    return None if completion is None else 100.0 * completion
+
+
+#: how the worst draw is picked (:func:`worst_index`), for the tables' footers
+WORST_DRAW = "worst = the draw with the lowest score (autonomy x share of the laps driven)"
+
+
 def format_draws_table(report: dict[str, Any]) -> str:
-    """One row per theme: mean over the draws and the worst draw of autonomy, interventions, laps,
-    mean |CTE| and speed, and the expert's speed (the pilot's as a share of it)."""
-    headers = ["theme", "autonomy % mean", "worst (draw)", "interv. mean", "worst", "laps mean", "worst",
-               "|cte| m mean", "worst", "speed m/s mean", "worst", "expert m/s", "% of expert"]
+    """One row per theme: mean over the draws and the worst draw of the score, the share of the laps
+    driven, autonomy, interventions, laps, mean |CTE| and speed, and the expert's speed (the pilot's
+    as a share of it). The score comes first: autonomy alone reads 100 % for a car that stood still."""
+    headers = ["theme", "score mean", "worst (draw)", "driven % mean", "worst", "autonomy % mean", "worst",
+               "interv. mean", "worst", "laps mean", "worst", "|cte| m mean", "worst", "speed m/s mean", "worst",
+               "expert m/s", "% of expert"]
     rows = []
     for theme, s in report["by_theme"].items():
         m, w = s["mean"], s["worst"]
-        rows.append([theme, _f(m["autonomy"], "{:.1f}"), f"{_f(w['autonomy'], '{:.1f}')} ({w['randomize']})",
-                     _f(m["interventions"], "{:.1f}"), _f(w["interventions"], "{:d}"),
-                     _f(m["laps_completed"], "{:.1f}"), _f(w["laps_completed"], "{:d}"),
-                     _f(m["mean_abs_cte"], "{:.3f}"), _f(w["mean_abs_cte"], "{:.3f}"),
-                     _f(m["mean_speed"], "{:.2f}"), _f(w["mean_speed"], "{:.2f}"),
-                     _f(s.get("expert_speed"), "{:.2f}"), _f(s.get("speed_vs_expert_pct"), "{:.0f}")])
+        rows.append([theme, cell(m.get("score"), "{:.1f}"), f"{cell(w.get('score'), '{:.1f}')} ({w['randomize']})",
+                     cell(driven_pct(m.get("completion")), "{:.0f}"), cell(driven_pct(w.get("completion")), "{:.0f}"),
+                     cell(m["autonomy"], "{:.1f}"), cell(w["autonomy"], "{:.1f}"),
+                     cell(m["interventions"], "{:.1f}"), cell(w["interventions"], "{:d}"),
+                     cell(m["laps_completed"], "{:.1f}"), cell(w["laps_completed"], "{:d}"),
+                     cell(m["mean_abs_cte"], "{:.3f}"), cell(w["mean_abs_cte"], "{:.3f}"),
+                     cell(m["mean_speed"], "{:.2f}"), cell(w["mean_speed"], "{:.2f}"),
+                     cell(s.get("expert_speed"), "{:.2f}"), cell(s.get("speed_vs_expert_pct"), "{:.0f}")])
     widths = [max(len(r[i]) for r in [headers, *rows]) for i in range(len(headers))]
     lines = ["  ".join(h.rjust(wd) for h, wd in zip(headers, widths, strict=True)),
              "  ".join("-" * wd for wd in widths)]
@@ -204,6 +219,6 @@ def format_draws_table(report: dict[str, Any]) -> str:
     draws = report["draws"]
     lines.append(f"pilot {report['pilot']}: tracks {','.join(map(str, report['seeds']))}, {report['laps']} lap(s) "
                  f"each, under {len(draws)} hidden randomisation draw(s) ({', '.join(map(str, draws))}) per theme; "
-                 "worst = the draw with the lowest autonomy")
+                 + WORST_DRAW)
     return "\n".join(lines)
 

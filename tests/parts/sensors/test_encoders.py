@@ -4,6 +4,7 @@ protocol on a pty; the odometer and the pose models on exact arcs."""
 from __future__ import annotations
 
 import math
+import threading
 
 import pytest
 from gpiozero.pins.mock import MockFactory
@@ -97,6 +98,63 @@ def test_the_throttle_sets_the_direction_at_once_in_the_non_threaded_run(factory
             pin.drive_high()
     assert deltas[1:] == [-30, -10, 5]
     part.shutdown()
+
+
+class CountedTicks:
+    """A tick source that counts the part thread's reads, so that a test knows when a read began
+    after what it did (the thread reads every ``period``: no sleeping for a guessed time)."""
+
+    def __init__(self, source: GpioTicks) -> None:
+        self.source, self.channels, self.reads = source, source.channels, 0
+        self._done = threading.Condition()
+
+    def open(self) -> None:
+        self.source.open()
+
+    def set_throttle(self, throttle: float | None) -> None:
+        self.source.set_throttle(throttle)
+
+    def read(self) -> tuple[int, ...] | None:
+        value = self.source.read()
+        with self._done:
+            self.reads += 1
+            self._done.notify_all()
+        return value
+
+    def close(self) -> None:
+        self.source.close()
+
+    def settle(self, timeout: float = 10.0) -> None:
+        """Wait for 3 more reads: the 2nd began after this call (it set the direction from the
+        loop's throttle stored before, and counted every pulse given before); the 3rd began after the
+        2nd's value was published."""
+        with self._done:
+            target = self.reads + 3
+            assert self._done.wait_for(lambda: self.reads >= target, timeout), "the encoder thread stopped reading"
+
+
+def test_the_throttle_sets_the_direction_in_the_threaded_run(factory) -> None:
+    """Item 9 through the threaded path (the car's: Vehicle.add(..., threaded=True)): the same
+    direction change as the non-threaded test gives the same deltas, -30, -10, +5."""
+    source = CountedTicks(GpioTicks(13, mode="FORWARD_REVERSE", pin_factory=factory))
+    part = Encoder(source, clock=Clock(), period=0.002)
+    part.start()
+    pin = factory.pin(27)  # header pin 13 is BCM 27
+    deltas, last = [], 0
+    try:
+        for throttle, pulses in ((-0.5, 30), (-0.5, 10), (0.5, 5), (0.5, 0)):
+            ticks = part.run_threaded(throttle)[0] or 0  # None before the first reading
+            deltas.append(ticks - last)
+            last = ticks
+            source.settle()  # the thread took this loop's throttle
+            for _ in range(pulses):
+                pin.drive_low()
+                pin.drive_high()
+            source.settle()  # and counted the pulses
+    finally:
+        part.shutdown()
+    assert deltas[1:] == [-30, -10, 5]
+    assert part.error is None
 
 
 def test_serial_encoder_protocol_and_staleness() -> None:

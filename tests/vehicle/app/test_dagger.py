@@ -187,3 +187,27 @@ def test_ctrl_c_in_a_rounds_training_says_dagger_ends_not_the_demo(car_cfg, make
                    train_options={"register": False}, say=lambda s: None)
     out = capsys.readouterr().out
     assert "stopped by Ctrl-C in epoch 1" in out and "DAgger ends here" in out and "demo" not in out
+
+
+def test_the_round_table_shows_score_laps_and_driven_share_beside_autonomy():
+    """Item 22: a round whose pilot stood still in a draw (autonomy 100 %, none of its laps) reads
+    score 0 and 0 % driven there, not as if it drove."""
+    import re
+
+    from vehicle.app.eval_draws import summarise
+
+    still = {"autonomy": 100.0, "interventions": 0, "laps_completed": 0, "mean_abs_cte": 0.01, "mean_speed": 0.0,
+             "completion": 0.0, "score": 0.0}
+    drove = {"autonomy": 90.0, "interventions": 1, "laps_completed": 2, "mean_abs_cte": 0.08, "mean_speed": 1.2,
+             "completion": 1.0, "score": 90.0}
+    rounds = [{"round": 0, "by_theme": {"road": summarise([still, still], [1001, 1002])}, "rollout": None},
+              {"round": 1, "by_theme": {"road": summarise([drove, still], [1001, 1002])},
+               "rollout": {"records": 60, "pilot_vs_expert_abs_angle": 0.123}}]
+    header, _rule, *rows = format_rounds(rounds).splitlines()
+    columns = re.split(r"\s{2,}", header.strip())
+    table = [dict(zip(columns, re.split(r"\s{2,}", r.strip()), strict=True)) for r in rows]
+    assert columns[:8] == ["round", "theme", "score mean", "worst (draw)", "driven % mean", "laps mean",
+                           "autonomy % mean", "worst"]
+    assert [(r["score mean"], r["worst (draw)"], r["driven % mean"], r["laps mean"], r["autonomy % mean"])
+            for r in table] == [("0.0", "0.0 (1001)", "0", "0.0", "100.0"), ("45.0", "0.0 (1002)", "50", "1.0", "95.0")]
+    assert table[1]["new records"] == "60" and table[1]["pilot-expert |angle|"] == "0.123"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -59,7 +60,7 @@ def test_draws_differ_and_a_rerun_is_identical(cfg):
         per = s["per_draw"]
         assert per[0]["mean_abs_cte"] != per[1]["mean_abs_cte"]  # another draw, another drive
         assert s["mean"]["mean_abs_cte"] == pytest.approx(np.mean([p["mean_abs_cte"] for p in per]), abs=1e-4)
-        worst = min(per, key=lambda p: (p["autonomy"], -p["interventions"], -p["mean_abs_cte"]))
+        worst = min(per, key=lambda p: (p["score"], -p["interventions"], -p["mean_abs_cte"]))  # as worst_index
         assert s["worst"]["randomize"] == worst["randomize"]
         assert s["expert_speed"] > 0
     again = evaluate_draws(Squint(), [101], 1, cfg=cfg, draws=[1002], themes=["park"], max_time=3.0, expert=False)
@@ -79,3 +80,29 @@ def test_cli_draws_writes_the_table_and_json(tmp_path, capsys):
     assert set(report["by_theme"]) == {"road", "park"} and report["draws"] == [1001, 1002]
     assert len(report["tracks"]) == 4 and report["overall"]["tracks"] == 4
     assert main(["sim", "eval", "--car", str(tmp_path), "--pilot", "expert", "--draws", "1", "--randomize", "3"]) == 2
+
+
+def _cells(line):
+    """A table row's cells (columns are right-justified and two spaces apart)."""
+    return re.split(r"\s{2,}", line.strip())
+
+
+STILL = {"autonomy": 100.0, "interventions": 0, "laps_completed": 0, "mean_abs_cte": 0.01, "mean_speed": 0.0,
+         "off_track_per_lap": None, "completion": 0.0, "score": 0.0}
+DROVE = {"autonomy": 90.0, "interventions": 1, "laps_completed": 1, "mean_abs_cte": 0.08, "mean_speed": 1.2,
+         "off_track_per_lap": 1.0, "completion": 1.0, "score": 90.0}
+
+
+def test_the_draws_table_shows_score_and_driven_share_and_names_the_worst_by_score():
+    """Item 22: a draw where the car stood still (autonomy 100 %, none of its laps) shows score 0 and
+    0 % driven, and the footer says the worst draw is the lowest score (it is picked so)."""
+    report = {"by_theme": {"park": summarise([DROVE, STILL], [1001, 1002])}, "draws": [1001, 1002],
+              "pilot": "p.pt", "seeds": [101], "laps": 1}
+    header, _rule, row, footer = format_draws_table(report).splitlines()
+    columns, values = _cells(header), _cells(row)
+    assert columns[:7] == ["theme", "score mean", "worst (draw)", "driven % mean", "worst", "autonomy % mean",
+                           "worst"]
+    assert values[:7] == ["park", "45.0", "0.0 (1002)", "50", "0", "95.0", "100.0"]
+    assert len(values) == len(columns)
+    assert footer.endswith("worst = the draw with the lowest score (autonomy x share of the laps driven)")
+    assert "lowest autonomy" not in footer

@@ -155,9 +155,13 @@ def make_pilot(cfg: Config, model_path: str | Path, measured_speed_key: str = "e
     extra inputs do not fit BEHAVIOR_LIST, is refused here (None: checked at the first frame);
     ``frame_hint`` says what to do then (see :func:`camera_frames`).
 
+    A model file registered in the car's model database (or the one next to it) must still have the
+    bytes it was registered with, here and at each hot switch (:func:`registered_check`).
+
     Raises:
         UserError: the model file is missing, unreadable, does not fit the car, or the backend
             setting cannot be met.
+        training.model_db.ModelChanged: a registered model file changed since it was registered.
     """
     from parts.pilots import load_pilot
     from parts.pilots.compat import CarInputs
@@ -183,9 +187,20 @@ def make_pilot(cfg: Config, model_path: str | Path, measured_speed_key: str = "e
                           onnx_threads=cfg.PILOT_ONNX_THREADS, models_dir=cfg.path("MODELS_PATH"),
                           frame_shape=frame_shape, frame_hint=frame_hint,
                           extra_sizes={"behavior/one_hot_state_array": len(cfg.BEHAVIOR_LIST)},
-                          car=CarInputs.from_config(cfg), target_control=target_control)
+                          car=CarInputs.from_config(cfg), target_control=target_control,
+                          verify=registered_check(cfg))
     except (ValueError, ImportError, OSError) as exc:
         raise UserError(f"cannot drive with {path}: {exc}") from exc
+
+
+def registered_check(cfg: Config) -> Callable[[Path], None]:
+    """The pilot's check of each model file it loads: refused (ModelChanged, one line) when it is
+    registered in the car's model database (MODELS_PATH) or in the one next to it, and its bytes
+    are no longer those it was registered with (another intact model under its name)."""
+    from training.model_db import check_registered
+
+    models_dir = cfg.path("MODELS_PATH")
+    return lambda path: check_registered(path, models_dir)
 
 
 def speed_key_of(V: Any, cfg: Config) -> str:

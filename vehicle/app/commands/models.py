@@ -4,13 +4,16 @@
     vehicle models show NAME [--car DIR]
     vehicle models comment NAME "works on track 3"
     vehicle models rename NAME NEW_NAME
+    vehicle models rehash NAME
     vehicle models export NAME|FILE --format onnx|onnx-int8|torchscript [--out FILE]
                           [--int8 static|dynamic] [--calibration TUB ...]
     vehicle models rm NAME [--delete-files]
     vehicle models leaderboard [--tracks 101,102,103] [--laps 2]
 
 The db is ``<car>/<MODELS_PATH>/models.sqlite3`` (training fills it; the trainer console,
-``vehicle console``, reads and writes the same file, evaluations included).
+``vehicle console``, reads and writes the same file, evaluations included). It keeps each model
+file's SHA-256: a registered file whose bytes changed is refused before it drives; ``rehash``
+accepts the file as it is now.
 """
 
 from __future__ import annotations
@@ -66,6 +69,11 @@ def register(subparsers: Any) -> None:
     p.add_argument("new_name")
     p.set_defaults(func=_cmd_rename)
 
+    p = sub.add_parser("rehash", parents=[car],
+                       help="accept a model file as it is now (it changed since it was registered)")
+    p.add_argument("name")
+    p.set_defaults(func=_cmd_rehash)
+
     p = sub.add_parser("leaderboard", parents=[car],
                        help="models ranked by their stored evaluation on the same tracks")
     p.add_argument("--tracks", help="comma-separated track seeds (default SIM_EVAL_TRACK_SEEDS)")
@@ -112,12 +120,21 @@ def _short(mapping: dict[str, Any], keys: tuple[str, ...]) -> str:
     return " ".join(parts)
 
 
+def _number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
 def _eval_summary(ev: Any) -> str:
+    """The EVALUATION cell: score and the share of the laps driven before autonomy, which alone reads
+    100 % for a car that stood still (evaluations stored before the score show autonomy only)."""
     if ev is None:
         return ""
-    autonomy = ev.overall.get("autonomy")
-    shown = f"{autonomy:.1f}%" if isinstance(autonomy, int | float) else "?"
-    return f"{shown} on {','.join(map(str, ev.tracks))}"
+    o = ev.overall
+    shown = [f"score {o['score']:.1f}"] if _number(o.get("score")) else []
+    if _number(o.get("completion")):
+        shown.append(f"driven {100.0 * o['completion']:.0f}%")
+    shown.append(f"autonomy {o['autonomy']:.1f}%" if _number(o.get("autonomy")) else "autonomy ?")
+    return f"{', '.join(shown)} on {','.join(map(str, ev.tracks))}"
 
 
 def format_table(entries: list[Any], latest: dict[str, Any] | None = None) -> str:
@@ -165,15 +182,23 @@ def _cmd_rename(args: argparse.Namespace) -> int:
     return 0
 
 
-def format_leaderboard(evaluations: list[Any]) -> str:
-    """The leaderboard table: rank, model and its overall evaluation figures."""
-    rows = [("#", "MODEL", "AUTONOMY", "LAPS", "MEAN|CTE|", "SPEED", "OFF-TRACK", "EVALUATED")]
-    for i, ev in enumerate(evaluations, 1):
-        def f(key: str, fmt: str, o: dict[str, Any] = ev.overall) -> str:
-            v = o.get(key)
-            return format(v, fmt) if isinstance(v, int | float) and not isinstance(v, bool) else "-"
+def _cmd_rehash(args: argparse.Namespace) -> int:
+    entry = _db(args).rehash(args.name)
+    _out(f"{entry.name}: the model database now holds the SHA-256 of {entry.path} as it is now")
+    return 0
 
-        rows.append((str(i), ev.model, f("autonomy", ".1f") + "%", f("laps_completed", "d"),
+
+def format_leaderboard(evaluations: list[Any]) -> str:
+    """The leaderboard table: rank, model and its overall evaluation figures, the score (what ranks
+    them, :func:`parts.sim.metrics.rank_key`) and the share of the laps driven first."""
+    rows = [("#", "MODEL", "SCORE", "DRIVEN", "AUTONOMY", "LAPS", "MEAN|CTE|", "SPEED", "OFF-TRACK", "EVALUATED")]
+    for i, ev in enumerate(evaluations, 1):
+        def f(key: str, fmt: str, o: dict[str, Any] = ev.overall, scale: float = 1.0) -> str:
+            v = o.get(key)
+            return "-" if not _number(v) else format(v * scale if scale != 1.0 else v, fmt)
+
+        rows.append((str(i), ev.model, f("score", ".1f"), f("completion", ".0f", scale=100.0) + "%",
+                     f("autonomy", ".1f") + "%", f("laps_completed", "d"),
                      f("mean_abs_cte", ".3f") + " m", f("mean_speed", ".2f") + " m/s", f("interventions", "d"),
                      ev.created.replace("+00:00", "Z")))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]

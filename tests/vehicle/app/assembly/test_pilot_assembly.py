@@ -206,3 +206,38 @@ def test_undistortion_must_match_the_frames_the_model_was_trained_on(make_model_
     with caplog.at_level(logging.WARNING):
         make_pilot(cfg.replace(CAMERA_UNDISTORT=True), other)
     assert "640x480" in caplog.text and "320x240" in caplog.text
+
+
+def test_a_registered_model_swapped_for_another_is_refused(make_model_file, frame, capsys):
+    """Item 14: a valid model file put under a registered model's name (its CRC-32s all pass) is
+    refused in one line by the car, a hot switch and ``vehicle sim eval``; the untouched file drives."""
+    import os
+
+    from training.model_db import register_model
+    from vehicle.app.cli import main
+    from vehicle.errors import VehicleError
+
+    a = make_model_file("linear", name="a", seed=1)
+    b = make_model_file("linear", name="b", seed=2)
+    other = make_model_file("linear", name="other", seed=3)
+    car = a.parent.parent
+    (car / "myconfig.py").write_text("PILOT_BACKEND = 'torch'\n")
+    for path in (a, b):
+        register_model(path, {"type": "linear"})  # into models/models.sqlite3, as training does
+    cfg = Config.defaults(PILOT_BACKEND="torch", CAR_PATH=str(car))
+    pilot = make_pilot(cfg, a)  # untouched: drives
+    before = pilot.run(frame)
+    os.replace(other, b)  # another intact model file under b's name
+    assert pilot.request_model("b.pt")
+    assert pilot.wait_loaded(timeout=30)
+    assert pilot.model_name == "a.pt" and "changed since it was registered as model 'b'" in pilot.load_error
+    assert pilot.run(frame) == before
+    with pytest.raises(VehicleError) as err:
+        make_pilot(cfg, b)
+    message = str(err.value)
+    assert "\n" not in message and f"{b.resolve()}: changed since it was registered as model 'b'" in message
+    assert "vehicle models rehash b" in message
+    assert main(["sim", "eval", "--car", str(car), "--pilot", str(b), "--tracks", "101", "--laps", "1",
+                 "--no-store"]) == 2
+    err_lines = capsys.readouterr().err.strip().splitlines()
+    assert len(err_lines) == 1 and "changed since it was registered as model 'b'" in err_lines[0]

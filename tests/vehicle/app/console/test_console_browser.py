@@ -375,7 +375,8 @@ def test_evaluation_from_the_model_manager(page, url, car, registered_model):
     page.click("#evaluate")
     _heading(page, "Evaluation")
     expect(page.locator("#run-status")).to_contain_text("done", timeout=120000)
-    expect(page.locator("#run-result .stat").first).to_contain_text("autonomy")
+    expect(page.locator("#run-result .stat").first).to_contain_text("score")  # what ranks it, then driven %
+    expect(page.locator("#run-result .stat").nth(2)).to_contain_text("autonomy")
     page.click("#finish")
     _heading(page, "Model eval_me")
     card = page.locator(".evaluation").first
@@ -406,10 +407,40 @@ def test_leaderboard_order(page, url, registered_model, console):
     rows = page.locator("#leaderboard tbody tr")
     expect(rows).to_have_count(3)
     assert rows.evaluate_all("rs => rs.map(r => r.dataset.model)") == ["best", "wobbly", "slow"]
-    expect(rows.first.locator("td").nth(2)).to_have_text("100.0 %")
+    expect(rows.first.locator("td").nth(4)).to_have_text("100.0 %")  # autonomy, after score and driven
     page.select_option("#track-set", "tracks=7&laps=1")
     expect(page.locator("#leaderboard tbody tr")).to_have_count(1)
     expect(page.locator("#leaderboard tbody tr").first).to_have_attribute("data-model", "other_tracks")
+
+
+def test_a_pilot_that_stood_still_reads_score_0_everywhere(page, url, registered_model, console):
+    """Item 22: autonomy 100 % with none of its laps driven reads score 0 and 0 % driven beside it
+    in the models table, the evaluation card and the leaderboard, whose caption says the score ranks."""
+    for name in ("still", "drove"):
+        registered_model(name)
+    still = _report(100.0, 0.0, laps=0)
+    still["overall"].update(completion=0.0, score=0.0)
+    drove = _report(90.0, 0.1, laps=2)
+    drove["overall"].update(completion=1.0, score=90.0)
+    console.db.add_evaluation("still", still)
+    console.db.add_evaluation("drove", drove)
+    _open(page, url, "models")
+    expect(page.locator("#models tr[data-model=still] td").nth(6)).to_have_text(
+        "score 0.0 · driven 0 % · autonomy 100.0 % on 101,102")
+    _open(page, url, "models/still")
+    stats = page.locator(".evaluation .stat")
+    assert stats.evaluate_all("ss => ss.slice(0, 3).map(s => s.textContent)") == [
+        "0.0score", "0 %driven", "100.0 %autonomy"]
+    _open(page, url, "leaderboard?tracks=101,102")
+    rows = page.locator("#leaderboard tbody tr")
+    assert rows.evaluate_all("rs => rs.map(r => r.dataset.model)") == ["drove", "still"]
+    heads = page.locator("#leaderboard thead th").evaluate_all("hs => hs.map(h => h.textContent)")
+    assert heads[:6] == ["#", "Model", "Score", "Driven", "Autonomy", "Laps"]
+    assert rows.nth(1).locator("td").evaluate_all("ds => ds.slice(2, 5).map(d => d.textContent)") == [
+        "0.0", "0 %", "100.0 %"]
+    caption = page.locator("#leaderboard-rank").inner_text()
+    assert caption.startswith("Models ranked by their latest evaluation on the same tracks: score first (autonomy")
+    assert "autonomy first" not in caption
 
 
 @pytest.mark.slow

@@ -77,6 +77,8 @@ const fmt = {
     return hr ? `${hr} h ${m} min` : m ? `${m} min ${r} s` : `${r} s`; },
   when(iso) { if (!iso) return "–"; const d = new Date(iso); return d.toLocaleString(); },
   pct(v) { return v === null || v === undefined ? "–" : `${Number(v).toFixed(1)} %`; },
+  /** a share 0..1 (an evaluation's completion: the asked laps driven) as "50 %" */
+  share(v) { return v === null || v === undefined ? "–" : `${(100 * Number(v)).toFixed(0)} %`; },
   /** "1 lap", "2 laps", "1,200 records" */
   n(count, word) { return `${fmt.int(count)} ${word}${Number(count) === 1 ? "" : "s"}`; },
 };
@@ -886,7 +888,7 @@ async function pageModels() {
           h("td", {}, paramSummary(m.parameters)),
           h("td", {}, augSummary(m.parameters)),
           h("td", { class: "num" }, fmt.num(m.metrics.best_val_loss, 5), m.metrics.cancelled ? h("div", { class: "muted small" }, "cancelled run") : null),
-          h("td", { class: "small" }, ev ? [h("b", {}, fmt.pct(ev.overall.autonomy)), ` on ${ev.tracks.join(",")}`] : "–"),
+          h("td", { class: "small" }, ev ? evalSummary(ev) : "–"),
           h("td", { class: "model-comment" }, m.comment || ""),
           h("td", { class: "actions-cell" }, h("a", { class: "button small", href: `#/models/${encodeURIComponent(m.name)}/edit`, "data-action": "edit" }, "Edit"), " ",
             h("button", { class: "small", "data-action": "delete", onclick: () => deleteModel(m) }, "Delete")));
@@ -901,16 +903,27 @@ async function deleteModel(m) {
   go("#/models");
 }
 
+/** An evaluation in one line: the score (what ranks it) and the share of the laps driven before
+    autonomy, which alone reads 100 % for a car that stood still; older evaluations have no score. */
+function evalSummary(ev) {
+  const o = ev.overall || {};
+  const parts = [];
+  if (o.score != null) parts.push(h("b", {}, `score ${fmt.num(o.score, 1)}`));
+  if (o.completion != null) parts.push(`driven ${fmt.share(o.completion)}`);
+  parts.push(o.score != null ? `autonomy ${fmt.pct(o.autonomy)}` : h("b", {}, `autonomy ${fmt.pct(o.autonomy)}`));
+  return [...parts.flatMap((p, k) => (k ? [" · ", p] : [p])), ` on ${ev.tracks.join(",")}`];
+}
+
 function evaluationCard(ev, i = 0) {
   const open = i === 0;
   const o = ev.overall || {};
   return h("div", { class: "card evaluation", "data-evaluation": ev.id },
     h("div", { class: "spread" }, h("h3", {}, `Tracks ${ev.tracks.join(", ")} · ${fmt.n(ev.laps, "lap")}`), h("span", { class: "muted small" }, fmt.when(ev.created))),
-    h("div", { class: "stats" }, [["autonomy", fmt.pct(o.autonomy)], ["laps completed", o.laps_completed ?? "–"], ["mean |CTE|", o.mean_abs_cte != null ? `${fmt.num(o.mean_abs_cte, 3)} m` : "–"],
+    h("div", { class: "stats" }, [["score", fmt.num(o.score, 1)], ["driven", fmt.share(o.completion)], ["autonomy", fmt.pct(o.autonomy)], ["laps completed", o.laps_completed ?? "–"], ["mean |CTE|", o.mean_abs_cte != null ? `${fmt.num(o.mean_abs_cte, 3)} m` : "–"],
       ["mean speed", o.mean_speed != null ? `${fmt.num(o.mean_speed, 2)} m/s` : "–"], ["off-track", o.interventions ?? "–"], ["best lap", o.best_lap_s != null ? `${fmt.num(o.best_lap_s, 1)} s` : "–"]]
       .map(([k, v]) => h("div", { class: "stat" }, h("b", {}, v), h("span", {}, k)))),
-    ev.per_track && ev.per_track.length ? h("div", { class: "table-wrap", style: "margin-top:.6rem" }, h("table", {}, h("thead", {}, h("tr", {}, ["track", "autonomy", "laps", "mean |CTE|", "speed", "off-track"].map(t => h("th", {}, t)))),
-      h("tbody", {}, ev.per_track.map(t => h("tr", {}, h("td", {}, t.seed), h("td", {}, fmt.pct(t.autonomy)), h("td", {}, t.laps_completed), h("td", {}, fmt.num(t.mean_abs_cte, 3)), h("td", {}, fmt.num(t.mean_speed, 2)), h("td", {}, t.interventions)))))) : null,
+    ev.per_track && ev.per_track.length ? h("div", { class: "table-wrap", style: "margin-top:.6rem" }, h("table", {}, h("thead", {}, h("tr", {}, ["track", "score", "driven", "autonomy", "laps", "mean |CTE|", "speed", "off-track"].map(t => h("th", {}, t)))),
+      h("tbody", {}, ev.per_track.map(t => h("tr", {}, h("td", {}, t.seed), h("td", {}, fmt.num(t.score, 1)), h("td", {}, fmt.share(t.completion)), h("td", {}, fmt.pct(t.autonomy)), h("td", {}, t.laps_completed), h("td", {}, fmt.num(t.mean_abs_cte, 3)), h("td", {}, fmt.num(t.mean_speed, 2)), h("td", {}, t.interventions)))))) : null,
     ev.has_picture ? h("img", { class: "eval-pic", src: `api/evaluations/${ev.id}/picture`, alt: "driven trajectories", loading: "lazy" }) : null,
     ev.settings && ev.settings.gallery ? galleryBox(ev, open) : null);
 }
@@ -1040,12 +1053,14 @@ async function pageLeaderboard(query) {
       `tracks ${s.tracks.join(", ")} · ${fmt.n(s.laps, "lap")} (${fmt.n(s.models, "model")})`)));
   show(
     h("h1", {}, "Leaderboard"),
-    h("p", { class: "muted" }, "Models ranked by their latest evaluation on the same tracks: autonomy first, then laps completed, then mean |cross-track error|, then speed."),
+    // the order of parts/sim/metrics.py rank_key, which training/evaluation_db.py sorts by
+    h("p", { class: "muted", id: "leaderboard-rank" }, "Models ranked by their latest evaluation on the same tracks: score first (autonomy × the share of the asked laps driven: a car that stood still scores 0, though its autonomy reads 100 %), then laps completed, then mean |cross-track error|, then speed. An evaluation without a score (older ones, the Udacity simulator's) ranks by its autonomy."),
     lb.track_sets.length ? h("div", { class: "row" }, "Track set ", sel) : null,
     lb.board.length ? h("div", { class: "table-wrap", style: "margin-top:.8rem" }, cardify(h("table", { id: "leaderboard" },
-      h("thead", {}, h("tr", {}, ["#", "Model", "Autonomy", "Laps", "Mean |CTE|", "Speed", "Off-track", "Evaluated"].map(t => h("th", {}, t)))),
+      h("thead", {}, h("tr", {}, ["#", "Model", "Score", "Driven", "Autonomy", "Laps", "Mean |CTE|", "Speed", "Off-track", "Evaluated"].map(t => h("th", {}, t)))),
       h("tbody", {}, lb.board.map((e, i) => h("tr", { class: `rank-${i + 1}`, "data-model": e.model },
         h("td", {}, i + 1), h("td", {}, h("a", { href: `#/models/${encodeURIComponent(e.model)}` }, e.model)),
+        h("td", { class: "num" }, fmt.num(e.overall.score, 1)), h("td", { class: "num" }, fmt.share(e.overall.completion)),
         h("td", { class: "num" }, fmt.pct(e.overall.autonomy)), h("td", { class: "num" }, e.overall.laps_completed ?? "–"),
         h("td", { class: "num" }, e.overall.mean_abs_cte != null ? `${fmt.num(e.overall.mean_abs_cte, 3)} m` : "–"),
         h("td", { class: "num" }, e.overall.mean_speed != null ? `${fmt.num(e.overall.mean_speed, 2)} m/s` : "–"),
