@@ -257,6 +257,19 @@ def test_group_norm_normalises_each_frame_on_its_own():
         create_model("linear", (3, 80, 160), group_norm=True, batch_norm=True)
 
 
+def test_he_init_keeps_the_signal_through_the_core_cnn():
+    # torch's default initialisation shrinks the signal at every ReLU layer; He's keeps its scale
+    torch.manual_seed(0)
+    x = torch.rand(32, 3, 80, 160) * 2 - 1
+    spread = {}
+    for he in (False, True):
+        torch.manual_seed(1)
+        model = create_model("linear", (3, 80, 160), he_init=he).eval()
+        with torch.no_grad():
+            spread[he] = model.features(x).std().item()
+    assert spread[True] > 5 * spread[False]
+
+
 # -- the recipes' other values
 
 

@@ -229,6 +229,18 @@ def dense_head(in_features: int, sizes: tuple[int, ...], outputs: int, dropout: 
     return Float32Head(*layers)
 
 
+def he_init(*stacks: nn.Sequential) -> None:
+    """He (Kaiming) normal initialisation of every convolution and dense layer of ``stacks`` that a
+    ReLU follows, biases zero; the last layer (the outputs) keeps torch's default. Torch's default
+    (uniform, a = sqrt(5)) shrinks the signal about 2.4x per ReLU layer: through DonkeyCar's five
+    convolutions and two dense layers a seed can start on the "predict the mean" plateau."""
+    layers = [m for stack in stacks for m in stack.modules() if isinstance(m, nn.Conv2d | nn.Linear)]
+    for layer in layers[:-1]:
+        nn.init.kaiming_normal_(layer.weight, nonlinearity="relu")
+        if layer.bias is not None:
+            nn.init.zeros_(layer.bias)
+
+
 def check_option(options: dict[str, Any], name: str, kind: type, low: float | None = None) -> Any:
     """Return ``options[name]`` after checking its type and lower bound (clear error otherwise)."""
     value = options[name]

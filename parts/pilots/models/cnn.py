@@ -7,7 +7,7 @@ from typing import Any
 import torch
 from torch import nn
 
-from parts.pilots.models.base import PilotModel, check_option, dense_head, donkey_convs, flat_size
+from parts.pilots.models.base import PilotModel, check_option, dense_head, donkey_convs, flat_size, he_init
 
 
 class LinearModel(PilotModel):
@@ -20,7 +20,8 @@ class LinearModel(PilotModel):
     """
 
     type_name = "linear"
-    defaults: dict[str, Any] = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "throttle_limits": None}
+    defaults: dict[str, Any] = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "he_init": False,
+                                "throttle_limits": None}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         super().__init__(input_shape, options)
@@ -31,6 +32,8 @@ class LinearModel(PilotModel):
         self.features = donkey_convs(input_shape[0], dropout, batch_norm, group_norm)
         self.head = dense_head(flat_size(self.features, input_shape) + self.extra_size, (100, 50),
                                self.n_outputs(), dropout)
+        if check_option(self.options, "he_init", bool):
+            he_init(self.features, self.head)
 
     def n_outputs(self) -> int:
         return 2
@@ -69,7 +72,7 @@ class LinearTanhModel(LinearModel):
     (``vehicle rl train --algo sac`` exports to it); trains by MSE like ``linear``."""
 
     type_name = "linear_tanh"
-    defaults: dict[str, Any] = {"dropout": 0.2, "batch_norm": False, "group_norm": False}
+    defaults: dict[str, Any] = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "he_init": False}
 
     def forward(self, images: torch.Tensor, extra: torch.Tensor | None = None) -> torch.Tensor:
         return torch.tanh(super().forward(images, extra))
@@ -80,8 +83,8 @@ class CategoricalModel(LinearModel):
     [0, ``throttle_range``]; cross-entropy with weights 0.5/0.5; drives with the most likely bin."""
 
     type_name = "categorical"
-    defaults = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "angle_bins": 15, "throttle_bins": 20,
-                "throttle_range": 0.8}
+    defaults = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "he_init": False, "angle_bins": 15,
+                "throttle_bins": 20, "throttle_range": 0.8}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         self.angle_bins = check_option(options, "angle_bins", int, 2)
@@ -115,8 +118,8 @@ class InferredModel(LinearModel):
     (slow down in curves). MSE on the angle."""
 
     type_name = "inferred"
-    defaults = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "throttle_max": 0.5, "throttle_min": 0.2,
-                "throttle_decay": 3.0}
+    defaults = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "he_init": False, "throttle_max": 0.5,
+                "throttle_min": 0.2, "throttle_decay": 3.0}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         self.throttle_max = check_option(options, "throttle_max", float)
@@ -145,7 +148,7 @@ class MemoryModel(LinearModel):
     (training: the recorded user commands; driving: the pilot's own previous outputs)."""
 
     type_name = "memory"
-    defaults = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "mem_length": 3}
+    defaults = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "he_init": False, "mem_length": 3}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         self.mem_length = check_option(options, "mem_length", int, 1)
@@ -165,7 +168,7 @@ class BehaviorModel(LinearModel):
 
     type_name = "behavior"
     extra_inputs = ("behavior/one_hot_state_array",)
-    defaults = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "num_behaviors": 2}
+    defaults = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "he_init": False, "num_behaviors": 2}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         self.num_behaviors = check_option(options, "num_behaviors", int, 1)
