@@ -18,7 +18,8 @@ def test_a_pilot_switch_from_the_laptop_is_said_on_the_page(make_car, open_page,
     client.push(make_model_file("linear", name="next", seed=1))
     assert client.use("next.pt") == {"ok": True, "model": "next.pt", "switched": True}
     page.wait_for_function("webStats.state.telemetry.pilot_model === 'next.pt'")
-    page.wait_for_function("document.getElementById('notice').textContent.includes('next.pt')")
+    # the page first says the switch was asked (the car drops to user mode), then that it is done
+    page.wait_for_function("document.getElementById('notice').textContent.includes('The pilot is now next.pt')")
     assert page.is_visible("#notice")
     assert page.inner_text("#notice") == ("The pilot is now next.pt (the car was put in user mode for the "
                                           "switch): choose a pilot mode to let it drive.")
