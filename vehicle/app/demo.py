@@ -117,6 +117,10 @@ RECIPES: dict[str, Recipe] = {
     # does, without applying the training frames' statistics to a road under other light
     "grouped": Recipe((), (), "the materials recipe with group norm (per frame) after each convolution of the model",
                       surfaces=0.5, settings={"MODEL_OPTIONS": {"group_norm": True}}),
+    # He initialisation keeps the signal's scale through the ReLU layers (torch's default shrinks it):
+    # training leaves the plateau without a normalisation layer, so nothing changes at inference
+    "initialised": Recipe((), (), "the materials recipe with He initialisation of the model's layers",
+                          surfaces=0.5, settings={"MODEL_OPTIONS": {"he_init": True}}),
 }
 
 # 12000 records on 64 tracks: with half of each, one unseen indoor track in five failed (docs/pilot.md)

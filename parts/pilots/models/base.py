@@ -157,7 +157,7 @@ GROUP_NORM_GROUPS = 4
 def conv_stack(in_channels: int, convs: tuple[tuple[int, int, int], ...], *, act: str = "relu",
                dropout: float | None = None, batch_norm: bool = False, group_norm: bool = False,
                first_activation: bool = True) -> nn.Sequential:
-    """Convolutions ('valid' padding) each followed by [batch norm,] the activation [and dropout].
+    """Convolutions ('valid' padding) each followed by [batch or group norm,] the activation [and dropout].
 
     ``dropout=None`` adds no dropout layer; a rate (0 included) adds one after each convolution,
     so that the layer indices, and with them the model files, do not depend on the rate.

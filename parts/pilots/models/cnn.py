@@ -9,6 +9,10 @@ from torch import nn
 
 from parts.pilots.models.base import PilotModel, check_option, dense_head, donkey_convs, flat_size, he_init
 
+#: the options every type on the core CNN has: dropout, a normalisation after each convolution
+#: (``batch_norm`` or ``group_norm``), He initialisation (``he_init``)
+CORE_DEFAULTS: dict[str, Any] = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "he_init": False}
+
 
 class LinearModel(PilotModel):
     """DonkeyCar's default: core CNN, dense 100, 50, two continuous outputs (angle, throttle); MSE.
@@ -20,8 +24,7 @@ class LinearModel(PilotModel):
     """
 
     type_name = "linear"
-    defaults: dict[str, Any] = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "he_init": False,
-                                "throttle_limits": None}
+    defaults: dict[str, Any] = {**CORE_DEFAULTS, "throttle_limits": None}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         super().__init__(input_shape, options)
@@ -72,7 +75,7 @@ class LinearTanhModel(LinearModel):
     (``vehicle rl train --algo sac`` exports to it); trains by MSE like ``linear``."""
 
     type_name = "linear_tanh"
-    defaults: dict[str, Any] = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "he_init": False}
+    defaults: dict[str, Any] = dict(CORE_DEFAULTS)
 
     def forward(self, images: torch.Tensor, extra: torch.Tensor | None = None) -> torch.Tensor:
         return torch.tanh(super().forward(images, extra))
@@ -83,8 +86,7 @@ class CategoricalModel(LinearModel):
     [0, ``throttle_range``]; cross-entropy with weights 0.5/0.5; drives with the most likely bin."""
 
     type_name = "categorical"
-    defaults = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "he_init": False, "angle_bins": 15,
-                "throttle_bins": 20, "throttle_range": 0.8}
+    defaults = {**CORE_DEFAULTS, "angle_bins": 15, "throttle_bins": 20, "throttle_range": 0.8}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         self.angle_bins = check_option(options, "angle_bins", int, 2)
@@ -118,8 +120,7 @@ class InferredModel(LinearModel):
     (slow down in curves). MSE on the angle."""
 
     type_name = "inferred"
-    defaults = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "he_init": False, "throttle_max": 0.5,
-                "throttle_min": 0.2, "throttle_decay": 3.0}
+    defaults = {**CORE_DEFAULTS, "throttle_max": 0.5, "throttle_min": 0.2, "throttle_decay": 3.0}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         self.throttle_max = check_option(options, "throttle_max", float)
@@ -148,7 +149,7 @@ class MemoryModel(LinearModel):
     (training: the recorded user commands; driving: the pilot's own previous outputs)."""
 
     type_name = "memory"
-    defaults = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "he_init": False, "mem_length": 3}
+    defaults = {**CORE_DEFAULTS, "mem_length": 3}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         self.mem_length = check_option(options, "mem_length", int, 1)
@@ -168,7 +169,7 @@ class BehaviorModel(LinearModel):
 
     type_name = "behavior"
     extra_inputs = ("behavior/one_hot_state_array",)
-    defaults = {"dropout": 0.2, "batch_norm": False, "group_norm": False, "he_init": False, "num_behaviors": 2}
+    defaults = {**CORE_DEFAULTS, "num_behaviors": 2}
 
     def __init__(self, input_shape: tuple[int, int, int], options: dict[str, Any]) -> None:
         self.num_behaviors = check_option(options, "num_behaviors", int, 1)

@@ -121,6 +121,7 @@ class LanesModel(_TwoStreams):
         b = 2 * self.num_behaviors
         self.behavior = nn.Sequential(nn.Linear(self.num_behaviors, b), nn.ReLU(),
                                       nn.Linear(b, b), nn.ReLU(), nn.Linear(b, b), nn.ReLU())
+        self._draw_live_behavior()
         self.merge = nn.Sequential(nn.Linear(200, 100), nn.ReLU())
         self.decide = nn.Sequential(nn.Linear(b + 100, 100), nn.ReLU(), nn.Linear(100, 50), nn.ReLU())
         self.steering_out = nn.Linear(50, 1)
@@ -129,6 +130,31 @@ class LanesModel(_TwoStreams):
     @property
     def extra_size(self) -> int:
         return self.num_behaviors
+
+    def behavior_path_alive(self) -> bool:
+        """Whether every behaviour reaches some unit of each ReLU layer of the behaviour subnetwork
+        and no two behaviours give a layer the same output (else the model cannot tell them apart)."""
+        with torch.no_grad():
+            h = torch.eye(self.num_behaviors, device=self.behavior[0].weight.device)
+            for layer in self.behavior:
+                h = layer(h)
+                if isinstance(layer, nn.ReLU) and (not bool((h > 0).any(dim=1).all())
+                                                   or len(torch.unique(h, dim=0)) < self.num_behaviors):
+                    return False
+        return True
+
+    def _draw_live_behavior(self) -> None:
+        """Draw the behaviour subnetwork again until its path is alive. Its layers are only
+        2 x behaviours units wide: torch's default draw left all of them dead for some behaviour in
+        1 seed of 10 (TRAIN_SEED 44 among them), and a dead ReLU passes no gradient, so that model
+        never learnt to change lanes on command. A live first draw is kept as it is."""
+        for _ in range(1000):
+            if self.behavior_path_alive():
+                return
+            for layer in self.behavior:
+                if isinstance(layer, nn.Linear):
+                    layer.reset_parameters()
+        raise RuntimeError("could not draw a behaviour subnetwork that tells the behaviours apart")
 
     def forward(self, images: torch.Tensor, extra: torch.Tensor | None = None) -> torch.Tensor:
         if extra is None:

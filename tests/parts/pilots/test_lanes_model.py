@@ -100,6 +100,22 @@ def test_behaviour_input_changes_the_output(fit_steps):
         create_model("lanes", (1, 64, 96))
 
 
+@pytest.mark.parametrize("seed", [3, 44])  # at the demo's input, 44: TRAIN_SEED of `vehicle demo --lanes --seed 3`
+def test_every_seed_starts_with_a_behaviour_path_that_tells_the_behaviours_apart(seed):
+    # The behaviour subnetwork is three ReLU layers of 2 x behaviours units: torch's default draw
+    # left it dead (all zeros, or equal, for every one-hot) for 1 seed in 10, and a dead ReLU
+    # passes no gradient, so that model never learnt to change lanes on command.
+    torch.manual_seed(seed)
+    model = create_model("lanes", (4, 80, 160), num_behaviors=2)
+    with torch.no_grad():
+        h = torch.eye(2)
+        for layer in model.behavior:
+            h = layer(h)
+            if isinstance(layer, torch.nn.ReLU):
+                assert not torch.equal(h[0], h[1]), f"layer {layer} gives both behaviours the same output"
+                assert bool((h > 0).any(dim=1).all()), "a behaviour reaches no unit of the layer"
+
+
 def test_preprocessing_adds_the_lane_image_from_the_whole_raw_frame():
     cfg = Config.defaults(ROI_CROP_TOP=40)
     pre = preprocess_from_config(cfg, "lanes", (120, 160, 3))
